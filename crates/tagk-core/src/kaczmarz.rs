@@ -1,0 +1,574 @@
+//! The Kaczmarz family: RK, TARK, GRK and TAG-K, one kernel behind four names.
+//!
+//! Every variant projects the current iterate onto the hyperplane of one window row,
+//! `x ← x + (b_i − a_iᵀx)/‖a_i‖² · a_i`, and differs only in how the row is chosen and what is
+//! reported:
+//!
+//! | type | row selection | estimate |
+//! |---|---|---|
+//! | [`RandomizedKaczmarz`] (RK) | `i` with probability `‖a_i‖²/‖A‖_F²` (Strohmer & Vershynin) | last iterate |
+//! | [`TailAveragedKaczmarz`] (TARK) | as RK | average of the iterates after the burn-in |
+//! | [`GreedyKaczmarz`] (GRK) | Bai & Wu's greedy rule (below) | last iterate |
+//! | [`TagK`] (TAG-K) | as GRK | average of the iterates after the burn-in |
+//!
+//! **Greedy rule** (Bai & Wu 2018, with `r = b − A x`):
+//! `ε = ½ (max_i (r_i²/‖a_i‖²)/‖r‖² + 1/‖A‖_F²)`, candidates `U = {i : r_i² ≥ ε ‖r‖² ‖a_i‖²}`,
+//! and `i ∈ U` drawn with probability `r_i² / Σ_{j∈U} r_j²`. (The TAG-K paper writes the test
+//! without squares; the squared form is the dimensionally consistent one used here.)
+//!
+//! **Tail averaging.** With `T` iterations and burn-in `t_b`, the estimate is
+//! `x̄ = (1/(T − t_b)) Σ_{t=t_b+1}^{T} x_t`. When an update stops early at `t' < T` because
+//! `‖r‖ ≤ tolerance`, the remaining iterates equal `x_{t'}` and the average is taken as if
+//! they had been run. Every variant warm-starts each window from its previous estimate
+//! (the averaged one for TARK and TAG-K).
+//!
+//! # Cost per update (window `m × n`, `T` iterations)
+//! The iterate is kept as `x = x₀ + Aᵀc`, so a projection only changes one coefficient `c_i`
+//! and the tail average only needs averaged coefficients `c̄` (O(1) per iteration).
+//! - Setup, all variants: one pass over `A` for `‖a_i‖²` and `r = b − A x₀`: `2mn` flops.
+//! - Greedy variants: the residual is updated incrementally, `r ← r − α G e_i`, through the
+//!   columns of the Gram matrix `G = A Aᵀ`, computed lazily the first time a row is chosen and
+//!   filled from symmetry: at most `m(m+1)/2` dot products of length `n` per window, plus
+//!   `O(m)` per iteration for selection. No full residual is ever recomputed.
+//! - Randomised variants: `2n` flops per iteration (a dot product and an update of `x`), the
+//!   row drawn by binary search over cumulative row norms.
+//! - Finish: `x̄ = x₀ + Aᵀc̄` (or `x₀ + Aᵀc`): `2mn` flops.
+//!
+//! The update never allocates: every buffer is laid out at construction in storage the
+//! caller chooses (a `Vec`, an array, or a `&mut [T]` in static memory on a microcontroller).
+
+use core::marker::PhantomData;
+
+use rand_chacha::ChaCha8Rng;
+use rand_core::{Rng, SeedableRng};
+
+use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
+use crate::linalg::{axpy, dot, norm2_and_dot};
+use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
+
+/// How many projections an update performs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Iterations {
+    /// `T = m`, one pass's worth for the window at hand (the TAG-K paper's choice).
+    #[default]
+    OnePass,
+    /// A fixed `T`, whatever the window size.
+    Fixed(usize),
+}
+
+/// How many leading iterates the tail average skips (ignored by RK and GRK).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BurnIn {
+    /// `t_b = ⌊f · T⌋` for a fraction `f ∈ [0, 1)`.
+    Fraction(f64),
+    /// A fixed `t_b`. If a window's `T` is not larger (a short window with
+    /// [`Iterations::OnePass`]), `t_b = T − 1`: only the last iterate is averaged.
+    Fixed(usize),
+}
+
+impl Default for BurnIn {
+    fn default() -> Self {
+        BurnIn::Fraction(0.5)
+    }
+}
+
+/// Configuration shared by the Kaczmarz family, validated by every constructor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KaczmarzConfig {
+    /// Projections per window (default: one pass, `T = m`).
+    pub iterations: Iterations,
+    /// Burn-in before tail averaging (default: half of the iterations).
+    pub burn_in: BurnIn,
+    /// Stop a window's iterations once `‖b − A x‖₂ ≤ tolerance` (measurement units; default
+    /// `0`, which stops only on an exact fit). The greedy variants check every iteration at no
+    /// extra cost; the randomised ones, which do not track the residual, check at the start
+    /// and then once every `m` iterations (a full residual costs `mn`).
+    pub tolerance: f64,
+    /// Seed of the ChaCha8 generator behind every random choice.
+    pub seed: u64,
+}
+
+impl Default for KaczmarzConfig {
+    fn default() -> Self {
+        Self {
+            iterations: Iterations::OnePass,
+            burn_in: BurnIn::default(),
+            tolerance: 0.0,
+            seed: 0,
+        }
+    }
+}
+
+impl KaczmarzConfig {
+    /// Sets the iteration count.
+    pub fn with_iterations(mut self, iterations: Iterations) -> Self {
+        self.iterations = iterations;
+        self
+    }
+    /// Sets the burn-in.
+    pub fn with_burn_in(mut self, burn_in: BurnIn) -> Self {
+        self.burn_in = burn_in;
+        self
+    }
+    /// Sets the residual tolerance.
+    pub fn with_tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = tolerance;
+        self
+    }
+    /// Sets the seed.
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Checks every setting; called by the constructors.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if let Iterations::Fixed(0) = self.iterations {
+            return Err(ConfigError::ZeroIterations);
+        }
+        match self.burn_in {
+            BurnIn::Fraction(f) if !(0.0..1.0).contains(&f) => {
+                return Err(ConfigError::InvalidParameter {
+                    name: "burn_in",
+                    value: f,
+                    reason: "a burn-in fraction must lie in [0, 1)",
+                });
+            }
+            BurnIn::Fixed(t_b) => {
+                if let Iterations::Fixed(t) = self.iterations
+                    && t_b >= t
+                {
+                    return Err(ConfigError::BurnInTooLarge {
+                        burn_in: t_b,
+                        iterations: t,
+                    });
+                }
+            }
+            _ => {}
+        }
+        if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
+            return Err(ConfigError::InvalidParameter {
+                name: "tolerance",
+                value: self.tolerance,
+                reason: "the tolerance must be finite and non-negative",
+            });
+        }
+        Ok(())
+    }
+
+    /// `(T, t_b)` for a window of `m` rows.
+    fn schedule(&self, m: usize) -> (usize, usize) {
+        let t = match self.iterations {
+            Iterations::OnePass => m,
+            Iterations::Fixed(t) => t,
+        };
+        let t_b = match self.burn_in {
+            BurnIn::Fraction(f) => (f * t as f64) as usize,
+            BurnIn::Fixed(t_b) => t_b,
+        };
+        (t, t_b.min(t - 1))
+    }
+}
+
+/// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
+/// needs: `2n + 6·m_max + m_max²` scalars (the last term is the lazily filled Gram matrix).
+///
+/// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
+pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
+    2 * n + 6 * m_max + m_max * m_max
+}
+
+/// Storage for an estimator's buffers: anything that derefs to a mutable slice.
+pub trait Storage<T>: AsRef<[T]> + AsMut<[T]> {}
+impl<T, S: AsRef<[T]> + AsMut<[T]>> Storage<T> for S {}
+
+/// The Kaczmarz kernel shared by the four variants; use the aliases [`RandomizedKaczmarz`],
+/// [`TailAveragedKaczmarz`], [`GreedyKaczmarz`] and [`TagK`].
+///
+/// `GREEDY` selects rows by Bai & Wu's rule instead of by row norm; `AVERAGE` reports the tail
+/// average instead of the last iterate. Both are resolved at compile time.
+pub struct Kaczmarz<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> {
+    config: KaczmarzConfig,
+    n: usize,
+    m_max: usize,
+    buf: S,
+    rng: ChaCha8Rng,
+    _scalar: PhantomData<T>,
+}
+
+/// Randomised Kaczmarz (Strohmer & Vershynin 2009): rows drawn with probability `‖a_i‖²/‖A‖_F²`.
+pub type RandomizedKaczmarz<T, S> = Kaczmarz<T, S, false, false>;
+/// Tail-averaged randomised Kaczmarz (TARK): RK reporting the average of the iterates after the burn-in.
+pub type TailAveragedKaczmarz<T, S> = Kaczmarz<T, S, false, true>;
+/// Greedy randomised Kaczmarz (GRK, Bai & Wu 2018).
+pub type GreedyKaczmarz<T, S> = Kaczmarz<T, S, true, false>;
+/// TAG-K: greedy row selection (GRK) plus tail averaging, warm-started from the previous average.
+pub type TagK<T, S> = Kaczmarz<T, S, true, true>;
+
+/// Disjoint views of the buffer.
+struct Parts<'a, T> {
+    estimate: &'a mut [T],
+    work: &'a mut [T],
+    norm2: &'a mut [T],
+    inv_norm2: &'a mut [T],
+    resid: &'a mut [T],
+    coef: &'a mut [T],
+    coef_avg: &'a mut [T],
+    scratch: &'a mut [T],
+    gram: &'a mut [T],
+}
+
+impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
+    Kaczmarz<T, S, GREEDY, AVERAGE>
+{
+    /// Builds an estimator of dimension `n` for windows of at most `m_max` rows, in
+    /// caller-provided storage of at least [`kaczmarz_buffer_len`]`(n, m_max)` scalars.
+    /// The initial estimate is zero.
+    pub fn with_storage(
+        n: usize,
+        m_max: usize,
+        config: KaczmarzConfig,
+        mut buf: S,
+    ) -> Result<Self, ConfigError> {
+        if n == 0 {
+            return Err(ConfigError::ZeroDimension);
+        }
+        if m_max == 0 {
+            return Err(ConfigError::ZeroCapacity);
+        }
+        config.validate()?;
+        let needed = kaczmarz_buffer_len(n, m_max);
+        let found = buf.as_ref().len();
+        if found < needed {
+            return Err(ConfigError::BufferTooSmall { needed, found });
+        }
+        buf.as_mut().fill(T::zero());
+        Ok(Self {
+            rng: ChaCha8Rng::seed_from_u64(config.seed),
+            config,
+            n,
+            m_max,
+            buf,
+            _scalar: PhantomData,
+        })
+    }
+
+    /// The configuration this estimator was built with.
+    pub fn config(&self) -> &KaczmarzConfig {
+        &self.config
+    }
+
+    /// The storage, handed back (for example to reuse a static buffer).
+    pub fn into_storage(self) -> S {
+        self.buf
+    }
+
+    fn parts(&mut self) -> Parts<'_, T> {
+        let (n, m) = (self.n, self.m_max);
+        let rest = self.buf.as_mut();
+        let (estimate, rest) = rest.split_at_mut(n);
+        let (work, rest) = rest.split_at_mut(n);
+        let (norm2, rest) = rest.split_at_mut(m);
+        let (inv_norm2, rest) = rest.split_at_mut(m);
+        let (resid, rest) = rest.split_at_mut(m);
+        let (coef, rest) = rest.split_at_mut(m);
+        let (coef_avg, rest) = rest.split_at_mut(m);
+        let (scratch, rest) = rest.split_at_mut(m);
+        let gram = &mut rest[..m * m];
+        Parts {
+            estimate,
+            work,
+            norm2,
+            inv_norm2,
+            resid,
+            coef,
+            coef_avg,
+            scratch,
+            gram,
+        }
+    }
+
+    /// A uniform draw in `[0, 1)` with 53 random bits.
+    #[inline]
+    fn uniform(rng: &mut ChaCha8Rng) -> T {
+        T::cast((rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64))
+    }
+
+    fn run(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+        let n = self.n;
+        let m = check_window_shape(n, self.m_max, a, b)?;
+        let (t_total, t_b) = self.config.schedule(m);
+        let tol = T::cast(self.config.tolerance);
+        let tol2 = tol * tol;
+        // Work on a copy of the generator: it is committed only if the update succeeds.
+        let mut rng = self.rng.clone();
+        let p = self.parts();
+
+        // Setup: row norms and the prior residual in one pass over A.
+        let mut fro2 = T::zero();
+        let mut rnorm2 = T::zero();
+        for i in 0..m {
+            let row = &a[i * n..(i + 1) * n];
+            let (nn, ax) = norm2_and_dot(row, p.estimate);
+            let r = b[i] - ax;
+            if !(nn.is_finite() && r.is_finite()) {
+                check_window_finite(n, a, b)?;
+                // Finite entries whose squares overflow.
+                return Err(EstimatorError::NonFiniteRegressor { row: i, col: 0 });
+            }
+            p.norm2[i] = nn;
+            if nn > T::zero() {
+                p.inv_norm2[i] = T::one() / nn;
+                p.resid[i] = r;
+                fro2 += nn;
+                rnorm2 += r * r;
+            } else {
+                // A zero row carries no information: never chosen, never divided by.
+                p.inv_norm2[i] = T::zero();
+                p.resid[i] = T::zero();
+            }
+            p.coef[i] = T::zero();
+            p.coef_avg[i] = T::zero();
+        }
+        if fro2 <= T::zero() {
+            return Err(EstimatorError::NoUsableRow);
+        }
+        if !fro2.is_finite() || !rnorm2.is_finite() {
+            return Err(EstimatorError::Diverged);
+        }
+        let prior_residual_norm = rnorm2.sqrt().as_f64();
+
+        // Weight of a step taken at iteration s (1-based) in the tail average of x_{t_b+1..T}.
+        let tail_len = T::cast((t_total - t_b) as f64);
+        let weight = |s: usize| -> T {
+            let first = if s > t_b { s } else { t_b + 1 };
+            T::cast((t_total - first + 1) as f64) / tail_len
+        };
+
+        let mut iterations = 0;
+        let mut converged = rnorm2 <= tol2;
+        if GREEDY {
+            // Mark every Gram column as not yet computed: a squared norm is never negative.
+            for i in 0..m {
+                p.gram[i * m + i] = -T::one();
+            }
+            let inv_fro2 = T::one() / fro2;
+            while !converged && iterations < t_total {
+                iterations += 1;
+                let i = greedy_row(m, p.resid, p.norm2, p.inv_norm2, p.scratch, rnorm2, inv_fro2, &mut rng);
+                let alpha = p.resid[i] * p.inv_norm2[i];
+                p.coef[i] += alpha;
+                if AVERAGE {
+                    p.coef_avg[i] += alpha * weight(iterations);
+                }
+                gram_column(a, n, m, i, p.norm2, p.gram);
+                let col = &p.gram[i * m..(i + 1) * m];
+                rnorm2 = T::zero();
+                for (rj, gji) in p.resid[..m].iter_mut().zip(col) {
+                    *rj -= alpha * *gji;
+                    rnorm2 += *rj * *rj;
+                }
+                // The projection zeroes row i's residual exactly; do not let round-off say otherwise.
+                rnorm2 -= p.resid[i] * p.resid[i];
+                p.resid[i] = T::zero();
+                if rnorm2 < T::zero() {
+                    rnorm2 = T::zero();
+                }
+                converged = rnorm2 <= tol2;
+            }
+        } else {
+            // Cumulative row norms for sampling i ∝ ‖a_i‖².
+            let mut cum = T::zero();
+            for i in 0..m {
+                cum += p.norm2[i];
+                p.scratch[i] = cum;
+            }
+            p.work.copy_from_slice(p.estimate);
+            let check_every = m;
+            while !converged && iterations < t_total {
+                if iterations > 0 && tol > T::zero() && iterations % check_every == 0 {
+                    rnorm2 = T::zero();
+                    for i in 0..m {
+                        if p.norm2[i] > T::zero() {
+                            let r = b[i] - dot(&a[i * n..(i + 1) * n], p.work);
+                            rnorm2 += r * r;
+                        }
+                    }
+                    if rnorm2 <= tol2 {
+                        converged = true;
+                        break;
+                    }
+                }
+                iterations += 1;
+                let target = Self::uniform(&mut rng) * cum;
+                let i = sample_cumulative(&p.scratch[..m], p.norm2, target);
+                let row = &a[i * n..(i + 1) * n];
+                let alpha = (b[i] - dot(row, p.work)) * p.inv_norm2[i];
+                axpy(alpha, row, p.work);
+                p.coef[i] += alpha;
+                if AVERAGE {
+                    p.coef_avg[i] += alpha * weight(iterations);
+                }
+            }
+        }
+
+        // Finish: x = x₀ + Aᵀc (last iterate) or x̄ = x₀ + Aᵀc̄ (tail average), into `work`.
+        if GREEDY || AVERAGE {
+            let coef: &[T] = if AVERAGE { p.coef_avg } else { p.coef };
+            p.work.copy_from_slice(p.estimate);
+            for i in 0..m {
+                if coef[i] != T::zero() {
+                    axpy(coef[i], &a[i * n..(i + 1) * n], p.work);
+                }
+            }
+        }
+        if p.work.iter().any(|v| !v.is_finite()) {
+            return Err(EstimatorError::Diverged);
+        }
+        p.estimate.copy_from_slice(p.work);
+        self.rng = rng;
+        Ok(UpdateInfo {
+            rows: m,
+            iterations,
+            prior_residual_norm,
+            converged,
+        })
+    }
+}
+
+/// Bai & Wu's greedy choice of a row; `scratch` receives the candidates' cumulative weights.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn greedy_row<T: Real>(
+    m: usize,
+    resid: &[T],
+    norm2: &[T],
+    inv_norm2: &[T],
+    scratch: &mut [T],
+    rnorm2: T,
+    inv_fro2: T,
+    rng: &mut ChaCha8Rng,
+) -> usize {
+    let mut max_ratio = T::zero();
+    let mut argmax = 0;
+    for i in 0..m {
+        let ratio = resid[i] * resid[i] * inv_norm2[i];
+        if ratio > max_ratio {
+            max_ratio = ratio;
+            argmax = i;
+        }
+    }
+    let eps = T::cast(0.5) * (max_ratio / rnorm2 + inv_fro2);
+    let threshold = eps * rnorm2;
+    let mut total = T::zero();
+    for i in 0..m {
+        let r2 = resid[i] * resid[i];
+        if norm2[i] > T::zero() && r2 >= threshold * norm2[i] {
+            total += r2;
+        }
+        scratch[i] = total;
+    }
+    if !(total > T::zero()) {
+        // Round-off emptied the candidate set; the largest ratio is always a candidate.
+        return argmax;
+    }
+    let u = T::cast((rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64));
+    let target = u * total;
+    // First candidate whose cumulative weight exceeds the target (non-candidates add nothing,
+    // so they never satisfy the strict inequality at their own index unless weight is positive).
+    let mut prev = T::zero();
+    for i in 0..m {
+        if scratch[i] > target && scratch[i] > prev {
+            return i;
+        }
+        prev = scratch[i];
+    }
+    argmax
+}
+
+/// Index `i` with `cum[i-1] ≤ target < cum[i]` among rows of positive weight.
+#[inline]
+fn sample_cumulative<T: Real>(cum: &[T], norm2: &[T], target: T) -> usize {
+    let i = cum.partition_point(|&c| c <= target);
+    let mut i = i.min(cum.len() - 1);
+    // Guard against landing on a zero row at the very end through round-off.
+    while norm2[i] <= T::zero() && i > 0 {
+        i -= 1;
+    }
+    i
+}
+
+/// Fills row `i` of the Gram matrix (`G[i][j] = a_iᵀa_j`, equal to column `i`) unless it is
+/// already there, reusing entries of rows computed earlier.
+#[inline]
+fn gram_column<T: Real>(a: &[T], n: usize, m: usize, i: usize, norm2: &[T], gram: &mut [T]) {
+    if gram[i * m + i] >= T::zero() {
+        return;
+    }
+    let ai = &a[i * n..(i + 1) * n];
+    for j in 0..m {
+        let g = if j == i {
+            norm2[i]
+        } else if gram[j * m + j] >= T::zero() {
+            gram[j * m + i]
+        } else if norm2[j] > T::zero() {
+            dot(ai, &a[j * n..(j + 1) * n])
+        } else {
+            T::zero()
+        };
+        gram[i * m + j] = g;
+    }
+}
+
+impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> OnlineEstimator<T>
+    for Kaczmarz<T, S, GREEDY, AVERAGE>
+{
+    fn name(&self) -> &str {
+        match (GREEDY, AVERAGE) {
+            (false, false) => "RK",
+            (false, true) => "TARK",
+            (true, false) => "GRK",
+            (true, true) => "TAG-K",
+        }
+    }
+
+    fn dim(&self) -> usize {
+        self.n
+    }
+
+    fn capacity(&self) -> usize {
+        self.m_max
+    }
+
+    fn estimate(&self) -> &[T] {
+        &self.buf.as_ref()[..self.n]
+    }
+
+    fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+        self.run(a, b)
+    }
+
+    fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
+        validate_estimate(self.n, estimate)?;
+        let n = self.n;
+        self.buf.as_mut()[..n].copy_from_slice(estimate);
+        self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
+        Ok(())
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl<T: Real, const GREEDY: bool, const AVERAGE: bool>
+    Kaczmarz<T, alloc::vec::Vec<T>, GREEDY, AVERAGE>
+{
+    /// Builds an estimator of dimension `n` for windows of at most `m_max` rows, with its
+    /// buffers on the heap (allocated once, here). The initial estimate is zero.
+    pub fn new(n: usize, m_max: usize, config: KaczmarzConfig) -> Result<Self, ConfigError> {
+        Self::with_storage(
+            n,
+            m_max,
+            config,
+            alloc::vec![T::zero(); kaczmarz_buffer_len(n, m_max)],
+        )
+    }
+}

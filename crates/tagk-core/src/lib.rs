@@ -1,0 +1,22 @@
+#![doc = include_str!("../README.md")]
+#![no_std]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+
+mod error;
+mod estimator;
+pub mod kaczmarz;
+pub mod linalg;
+mod real;
+
+pub use error::{ConfigError, EstimatorError};
+pub use estimator::{
+    OnlineEstimator, UpdateInfo, check_window_finite, check_window_shape, validate_estimate,
+    validate_window,
+};
+pub use kaczmarz::{
+    BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
+    TagK, TailAveragedKaczmarz, kaczmarz_buffer_len,
+};
+pub use real::Real;
