@@ -8,7 +8,11 @@
 use crate::Real;
 
 /// `xᵀy` for equal-length slices (extra entries of the longer slice are ignored).
-#[inline]
+///
+/// Summation order: four interleaved partial sums over the first `4⌊len/4⌋` entries, combined
+/// as `(s₀ + s₂) + (s₁ + s₃)`, then the remaining entries added in order — the same order as
+/// [`dot4`], so a value does not depend on which kernel computed it.
+#[inline(always)]
 pub fn dot<T: Real>(x: &[T], y: &[T]) -> T {
     let len = x.len().min(y.len());
     let (x, y) = (&x[..len], &y[..len]);
@@ -22,15 +26,102 @@ pub fn dot<T: Real>(x: &[T], y: &[T]) -> T {
         acc[2] = p[2].mul_add_fast(q[2], acc[2]);
         acc[3] = p[3].mul_add_fast(q[3], acc[3]);
     }
-    let mut tail = T::zero();
+    let mut sum = (acc[0] + acc[2]) + (acc[1] + acc[3]);
     for (p, q) in xr.iter().zip(yr) {
-        tail = p.mul_add_fast(*q, tail);
+        sum = p.mul_add_fast(*q, sum);
     }
-    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+    sum
+}
+
+/// `[xᵀr₀, xᵀr₁, xᵀr₂, xᵀr₃]`: four dot products sharing one pass over `x`.
+///
+/// Sixteen independent partial sums keep the multiply and add units busy instead of waiting
+/// on one accumulator; the result is bit-identical to four calls of [`dot`]. All slices must
+/// have at least `x.len()` entries.
+#[inline]
+pub fn dot4<T: Real>(x: &[T], rows: [&[T]; 4]) -> [T; 4] {
+    let len = x.len();
+    let r = rows.map(|row| &row[..len]);
+    let mut acc = [[T::zero(); 4]; 4];
+    let full = len - len % 4;
+    let mut k = 0;
+    while k < full {
+        let xs: [T; 4] = [x[k], x[k + 1], x[k + 2], x[k + 3]];
+        for q in 0..4 {
+            let rq = &r[q][k..k + 4];
+            for l in 0..4 {
+                acc[q][l] = xs[l].mul_add_fast(rq[l], acc[q][l]);
+            }
+        }
+        k += 4;
+    }
+    let mut out = [T::zero(); 4];
+    for q in 0..4 {
+        let mut sum = (acc[q][0] + acc[q][2]) + (acc[q][1] + acc[q][3]);
+        for kk in full..len {
+            sum = x[kk].mul_add_fast(r[q][kk], sum);
+        }
+        out[q] = sum;
+    }
+    out
+}
+
+/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, written as a full symmetric
+/// `m × m` row-major matrix into `gram` (at least `m²` entries), using [`dot4`] tiles on the
+/// upper triangle: `m(m+1)/2` dot products of length `n`.
+pub fn gram<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
+    for i in 0..m {
+        let ai = &a[i * n..(i + 1) * n];
+        let mut j = i;
+        while j + 4 <= m {
+            let g = dot4(
+                ai,
+                [
+                    &a[j * n..],
+                    &a[(j + 1) * n..],
+                    &a[(j + 2) * n..],
+                    &a[(j + 3) * n..],
+                ],
+            );
+            for q in 0..4 {
+                gram[i * m + j + q] = g[q];
+                gram[(j + q) * m + i] = g[q];
+            }
+            j += 4;
+        }
+        while j < m {
+            let g = dot(ai, &a[j * n..(j + 1) * n]);
+            gram[i * m + j] = g;
+            gram[j * m + i] = g;
+            j += 1;
+        }
+    }
+}
+
+/// `out[i] = a_iᵀx` for the `m` rows of a row-major `m × n` matrix (`x` has `n` entries).
+pub fn mat_vec<T: Real>(a: &[T], n: usize, m: usize, x: &[T], out: &mut [T]) {
+    let mut i = 0;
+    while i + 4 <= m {
+        let v = dot4(
+            x,
+            [
+                &a[i * n..],
+                &a[(i + 1) * n..],
+                &a[(i + 2) * n..],
+                &a[(i + 3) * n..],
+            ],
+        );
+        out[i..i + 4].copy_from_slice(&v);
+        i += 4;
+    }
+    while i < m {
+        out[i] = dot(x, &a[i * n..(i + 1) * n]);
+        i += 1;
+    }
 }
 
 /// `(xᵀx, xᵀy)` in one pass over `x`: a row's squared norm and its product with an estimate.
-#[inline]
+#[inline(always)]
 pub fn norm2_and_dot<T: Real>(x: &[T], y: &[T]) -> (T, T) {
     let len = x.len().min(y.len());
     let (x, y) = (&x[..len], &y[..len]);
@@ -56,11 +147,139 @@ pub fn norm2_and_dot<T: Real>(x: &[T], y: &[T]) -> (T, T) {
     )
 }
 
+/// `m` rounded up to a multiple of 8: the row stride of the transposed, padded regressor.
+pub const fn padded(m: usize) -> usize {
+    m.div_ceil(8) * 8
+}
+
+/// Writes `Aᵀ` of a row-major `m × n` matrix into `at` as an `n × stride` row-major matrix
+/// (`stride = padded(m)`), zero in the padding columns.
+#[inline(always)]
+pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
+    let stride = padded(m);
+    let (m4, n4) = (m - m % 4, n - n % 4);
+    // 4 × 4 tiles: four loads of four, four stores of four.
+    let mut j = 0;
+    while j < m4 {
+        let mut k = 0;
+        while k < n4 {
+            let tile: [[T; 4]; 4] = core::array::from_fn(|p| {
+                let row = &a[(j + p) * n + k..(j + p) * n + k + 4];
+                [row[0], row[1], row[2], row[3]]
+            });
+            for q in 0..4 {
+                let out = &mut at[(k + q) * stride + j..(k + q) * stride + j + 4];
+                out.copy_from_slice(&[tile[0][q], tile[1][q], tile[2][q], tile[3][q]]);
+            }
+            k += 4;
+        }
+        for k in n4..n {
+            for p in 0..4 {
+                at[k * stride + j + p] = a[(j + p) * n + k];
+            }
+        }
+        j += 4;
+    }
+    for k in 0..n {
+        let row = &mut at[k * stride..(k + 1) * stride];
+        for jj in m4..m {
+            row[jj] = a[jj * n + k];
+        }
+        row[m..].fill(T::zero());
+    }
+}
+
+/// The Gram matrix `G = A Aᵀ` (full, symmetric, `m × m` row-major into `gram`) from the
+/// transposed, padded regressor `at` of [`transpose_padded`].
+///
+/// A 4 × 8 register-blocked outer-product kernel over the upper-triangle blocks: each step
+/// loads an 8-vector, broadcasts four scalars and performs 32 multiply-adds into eight
+/// independent accumulator vectors, with no horizontal reductions. `G_ij = Σ_k a_ik a_jk` is
+/// summed in order of `k`; `G_ij` and `G_ji` are the same value.
+#[inline(always)]
+pub fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
+    let stride = padded(m);
+    let mut bi = 0;
+    while bi < m {
+        // 4 × 8 blocks from the 8-aligned column block containing row `bi` onwards: the upper
+        // triangle plus a few entries below it, which agree bit for bit with their mirror
+        // images (the products commute and the sums run in the same order).
+        let mut bj = bi - bi % 8;
+        while bj < m {
+            let mut acc = [[T::zero(); 8]; 4];
+            for k in 0..n {
+                let row = &at[k * stride..(k + 1) * stride];
+                let u = [row[bi], row[bi + 1], row[bi + 2], row[bi + 3]];
+                let v = [
+                    row[bj],
+                    row[bj + 1],
+                    row[bj + 2],
+                    row[bj + 3],
+                    row[bj + 4],
+                    row[bj + 5],
+                    row[bj + 6],
+                    row[bj + 7],
+                ];
+                for p in 0..4 {
+                    for q in 0..8 {
+                        acc[p][q] = u[p].mul_add_fast(v[q], acc[p][q]);
+                    }
+                }
+            }
+            if bi + 4 <= m && bj + 8 <= m {
+                // Interior block: contiguous row segments and their mirror images.
+                for (p, acc_p) in acc.iter().enumerate() {
+                    gram[(bi + p) * m + bj..(bi + p) * m + bj + 8].copy_from_slice(acc_p);
+                }
+                for q in 0..8 {
+                    gram[(bj + q) * m + bi..(bj + q) * m + bi + 4]
+                        .copy_from_slice(&[acc[0][q], acc[1][q], acc[2][q], acc[3][q]]);
+                }
+            } else {
+                for (p, acc_p) in acc.iter().enumerate() {
+                    let i = bi + p;
+                    if i >= m {
+                        break;
+                    }
+                    for (q, &g) in acc_p.iter().enumerate() {
+                        let j = bj + q;
+                        if j >= m {
+                            break;
+                        }
+                        gram[i * m + j] = g;
+                        gram[j * m + i] = g;
+                    }
+                }
+            }
+            bj += 8;
+        }
+        bi += 4;
+    }
+}
+
+/// `out[j] = b_j − Σ_k a_jk x_k` for `j < padded(m)` from the transposed, padded regressor
+/// (`out` needs `padded(m)` entries; padding entries receive `0 − 0`). Summed in order of `k`.
+#[inline(always)]
+pub fn residual_transposed<T: Real>(at: &[T], n: usize, m: usize, x: &[T], b: &[T], out: &mut [T]) {
+    let stride = padded(m);
+    let out = &mut out[..stride];
+    out.fill(T::zero());
+    for (k, &xk) in x[..n].iter().enumerate() {
+        axpy(xk, &at[k * stride..(k + 1) * stride], out);
+    }
+    let b = &b[..m];
+    for j in 0..m {
+        out[j] = b[j] - out[j];
+    }
+}
+
 /// `y ← y + α x`.
-#[inline]
+#[inline(always)]
 pub fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi = xi.mul_add_fast(alpha, *yi);
+    let len = y.len().min(x.len());
+    let (x, y) = (&x[..len], &mut y[..len]);
+    for k in 0..len {
+        y[k] = x[k].mul_add_fast(alpha, y[k]);
     }
 }
 
@@ -94,6 +313,54 @@ mod tests {
             let nn_naive: f64 = x[..len].iter().map(|a| a * a).sum();
             assert!((nn - nn_naive).abs() < 1e-13);
             assert!((xy - naive).abs() < 1e-13);
+        }
+    }
+
+    #[test]
+    fn dot4_gram_and_mat_vec_are_bit_identical_to_dot() {
+        let (m, n) = (7, 11);
+        let a: [f64; 77] = core::array::from_fn(|i| ((i * 7 % 13) as f64 - 6.0) * 0.31);
+        let x: [f64; 11] = core::array::from_fn(|i| (i as f64).cos());
+        let mut g = [0.0; 49];
+        gram(&a, n, m, &mut g);
+        let mut ax = [0.0; 7];
+        mat_vec(&a, n, m, &x, &mut ax);
+        for i in 0..m {
+            let ai = &a[i * n..(i + 1) * n];
+            assert_eq!(ax[i].to_bits(), dot(&x, ai).to_bits());
+            for j in 0..m {
+                let aj = &a[j * n..(j + 1) * n];
+                assert_eq!(g[i * m + j].to_bits(), dot(ai, aj).to_bits());
+                let naive: f64 = ai.iter().zip(aj).map(|(p, q)| p * q).sum();
+                assert!((g[i * m + j] - naive).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn transposed_gram_and_residual_match_naive_sums() {
+        for (m, n) in [(1, 1), (3, 2), (7, 11), (8, 4), (30, 10)] {
+            let a: [f64; 300] = core::array::from_fn(|i| ((i * 7 % 13) as f64 - 6.0) * 0.31);
+            let a = &a[..m * n];
+            let x: [f64; 11] = core::array::from_fn(|i| (i as f64).cos());
+            let b: [f64; 30] = core::array::from_fn(|i| (i as f64 * 0.7).sin());
+            let mut at = [0.0; 11 * 32];
+            transpose_padded(a, n, m, &mut at);
+            let mut g = [0.0; 900];
+            gram_transposed(&at, n, m, &mut g);
+            let mut r = [0.0; 32];
+            residual_transposed(&at, n, m, &x[..n], &b[..m], &mut r);
+            for i in 0..m {
+                let ai = &a[i * n..(i + 1) * n];
+                let ax: f64 = ai.iter().zip(&x).map(|(p, q)| p * q).sum();
+                assert!((r[i] - (b[i] - ax)).abs() < 1e-12);
+                for j in 0..m {
+                    let aj = &a[j * n..(j + 1) * n];
+                    let naive: f64 = ai.iter().zip(aj).map(|(p, q)| p * q).sum();
+                    assert!((g[i * m + j] - naive).abs() < 1e-12, "{m}x{n} G[{i}][{j}]");
+                    assert_eq!(g[i * m + j].to_bits(), g[j * m + i].to_bits());
+                }
+            }
         }
     }
 

@@ -1,0 +1,70 @@
+//! Dense-algebra backends of the RLS and Kalman-filter baselines, per update.
+//!
+//! Run: `cargo bench --bench baselines_backend -- --warm-up-time 1 --measurement-time 2`.
+//! Same synthetic windows as the `estimators` bench (entries U[−1, 1], consistent plus 1e-3
+//! noise, fixed seed), `m = 30`. The figures decide `tagk_baselines::Backend::Auto`.
+
+use std::hint::black_box;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::SeedableRng;
+use tagk::baselines::{Backend, KalmanConfig, KalmanFilter, Rls, RlsConfig};
+use tagk::core::OnlineEstimator;
+
+const M: usize = 30;
+const STREAM: usize = 64;
+
+fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
+    use rand::RngExt;
+    let mut rng = ChaCha8Rng::seed_from_u64(2024 + n as u64);
+    let theta: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+    (0..STREAM)
+        .map(|_| {
+            let a: Vec<f64> = (0..M * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let b = a
+                .chunks(n)
+                .map(|row| {
+                    row.iter().zip(&theta).map(|(x, t)| x * t).sum::<f64>()
+                        + 1e-3 * rng.random_range(-1.0..1.0)
+                })
+                .collect();
+            (a, b)
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let sizes: Vec<usize> = std::env::var("TAGK_BACKEND_SIZES")
+        .ok()
+        .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![10, 40, 80, 120]);
+    for n in sizes {
+        let stream = windows(n);
+        let mut group = c.benchmark_group(format!("backend/n={n},m={M}"));
+        let mut backends = vec![Backend::Loops, Backend::Faer, Backend::NalgebraDyn];
+        if n == 10 {
+            backends.push(Backend::NalgebraFixed);
+        }
+        for backend in backends {
+            let ests: Vec<(&str, Box<dyn OnlineEstimator<f64>>)> = vec![
+                ("RLS", Box::new(Rls::new(n, M, RlsConfig::LOW.with_backend(backend)).unwrap())),
+                ("KF", Box::new(KalmanFilter::new(n, M, KalmanConfig::LOW.with_backend(backend)).unwrap())),
+            ];
+            for (label, mut est) in ests {
+                let mut k = 0;
+                group.bench_function(BenchmarkId::new(label, format!("{backend:?}")), |bench| {
+                    bench.iter(|| {
+                        let (a, b) = &stream[k % STREAM];
+                        k += 1;
+                        black_box(est.update(black_box(a), black_box(b)).unwrap());
+                    })
+                });
+            }
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

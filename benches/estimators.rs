@@ -1,0 +1,74 @@
+//! Per-update time of every estimator on synthetic windows from a fixed seed.
+//!
+//! `n = 10, m = 30` is the quadrotor case; `n ∈ {40, 60, 80, 100, 120}, m = 30` is the TAG-K
+//! paper's Table III sweep. Each iteration feeds the next window of a pre-generated stream of
+//! consistent-plus-noise windows, so warm starts behave as in use.
+
+use std::hint::black_box;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::SeedableRng;
+use tagk::baselines::{KalmanFilter, Rls};
+use tagk::core::{
+    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK,
+    TailAveragedKaczmarz,
+};
+
+const M: usize = 30;
+const STREAM: usize = 64;
+
+fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
+    use rand::RngExt;
+    let mut rng = ChaCha8Rng::seed_from_u64(2024 + n as u64);
+    let theta: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+    (0..STREAM)
+        .map(|_| {
+            let a: Vec<f64> = (0..M * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let b = a
+                .chunks(n)
+                .map(|row| {
+                    row.iter().zip(&theta).map(|(x, t)| x * t).sum::<f64>()
+                        + 1e-3 * rng.random_range(-1.0..1.0)
+                })
+                .collect();
+            (a, b)
+        })
+        .collect()
+}
+
+fn estimators(n: usize) -> Vec<Box<dyn OnlineEstimator<f64>>> {
+    let cfg = KaczmarzConfig::default().with_seed(1);
+    vec![
+        Box::new(TagK::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),
+        Box::new(GreedyKaczmarz::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),
+        Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),
+        Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),
+        Box::new(Rls::rls_low(n, M).unwrap()),
+        Box::new(Rls::rls_high(n, M).unwrap()),
+        Box::new(KalmanFilter::kf_low(n, M).unwrap()),
+        Box::new(KalmanFilter::kf_high(n, M).unwrap()),
+    ]
+}
+
+fn bench(c: &mut Criterion) {
+    for n in [10, 40, 60, 80, 100, 120] {
+        let stream = windows(n);
+        let mut group = c.benchmark_group(format!("update/n={n},m={M}"));
+        for mut est in estimators(n) {
+            let name = est.name().to_string();
+            let mut k = 0;
+            group.bench_function(BenchmarkId::from_parameter(&name), |bench| {
+                bench.iter(|| {
+                    let (a, b) = &stream[k % STREAM];
+                    k += 1;
+                    black_box(est.update(black_box(a), black_box(b)).unwrap());
+                })
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,366 @@
+//! The block update shared by RLS and the Kalman filter, and its preallocated workspace.
+//!
+//! Given the prior covariance `P` (`n × n`, symmetric), a window `A` (`m × n`, row-major), the
+//! residual `r = b − A θ` and a diagonal term `d` (`λ` for RLS, `σ_R²` for the Kalman filter):
+//!
+//! 1. `U = A P` (`m × n`), stored beside `r` as the `m × (n+1)` block `[U | r]`;
+//! 2. `S = U Aᵀ + d·I` (`m × m`, lower triangle only);
+//! 3. `S = L Lᵀ` (Cholesky, in place; a non-positive pivot is a numerical failure);
+//! 4. `[G | w] = L⁻¹ [U | r]` (one forward substitution for both);
+//! 5. `Δθ = Gᵀ w`, which equals `K r` with the gain `K = P Aᵀ S⁻¹ = Gᵀ L⁻¹`;
+//! 6. `P ← s·(P − Gᵀ G)` on the upper triangle, mirrored (`s = 1/λ` for RLS, `1` for the
+//!    Kalman filter); `Gᵀ G = Uᵀ S⁻¹ U = K A P`.
+//!
+//! No gain matrix and no inverse is ever formed. Cost: `m n²` (step 1) + `m² n/2` (2) + `m³/6`
+//! (3) + `m² n/2` (4) + `m n` (5) + `m n²/2` (6) multiply-adds: `O(m n²)` for `m ≤ n`.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::triangular::{self as tri, BlockStructure};
+use faer::prelude::{Reborrow, ReborrowMut};
+use faer::{Accum, MatMut, MatRef, Par};
+use tagk_core::EstimatorError;
+use tagk_core::linalg::{axpy, dot};
+
+use crate::Backend;
+
+/// Buffers for one estimator's block update, sized once for `n` and `m_max`.
+pub(crate) struct Workspace {
+    n: usize,
+    m_max: usize,
+    backend: Backend,
+    /// `m_max × (n+1)` row-major: `[U | r]`, then `[G | w]`.
+    ur: Vec<f64>,
+    /// `m_max × m_max` row-major (only the leading `m × m` block, stride `m`, is used):
+    /// `S`, then `L` in its lower triangle.
+    s: Vec<f64>,
+    /// `Δθ = Gᵀ w` (`n`).
+    dtheta: Vec<f64>,
+    /// Scratch for faer's Cholesky factorisation.
+    faer_mem: MemBuffer,
+}
+
+const CHOLESKY_FAILED: &str =
+    "the innovation covariance A P Aᵀ + D is not numerically positive definite";
+const COVARIANCE_INDEFINITE: &str =
+    "the updated covariance has a non-positive diagonal entry (lost positive definiteness)";
+
+impl Workspace {
+    /// Allocates every buffer the update needs (`backend` already resolved).
+    pub(crate) fn new(n: usize, m_max: usize, backend: Backend) -> Self {
+        let req = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+            m_max,
+            Par::Seq,
+            Default::default(),
+        );
+        Self {
+            n,
+            m_max,
+            backend: backend.resolve(n),
+            ur: vec![0.0; m_max * (n + 1)],
+            s: vec![0.0; m_max * m_max],
+            dtheta: vec![0.0; n],
+            faer_mem: MemBuffer::new(req),
+        }
+    }
+
+    /// The backend in use.
+    pub(crate) fn backend(&self) -> Backend {
+        self.backend
+    }
+
+    /// `Δθ` of the last successful [`Workspace::update`].
+    pub(crate) fn dtheta(&self) -> &[f64] {
+        &self.dtheta
+    }
+
+    /// Stores `r = b − A θ` and returns `‖r‖₂` over the non-zero rows of `A`.
+    ///
+    /// The window must already be validated (shape and finiteness, `m = b.len() ≤ m_max`).
+    /// Errors: every row zero ([`EstimatorError::NoUsableRow`]); a residual that overflows
+    /// ([`EstimatorError::Diverged`]).
+    pub(crate) fn residual(&mut self, a: &[f64], b: &[f64], theta: &[f64]) -> Result<f64, EstimatorError> {
+        let n = self.n;
+        let n1 = n + 1;
+        debug_assert!(b.len() <= self.m_max);
+        let mut usable = false;
+        let mut norm2 = 0.0;
+        for (i, (row, &bi)) in a.chunks_exact(n).zip(b).enumerate() {
+            let r = bi - dot(row, theta);
+            self.ur[i * n1 + n] = r;
+            if row.iter().any(|&v| v != 0.0) {
+                usable = true;
+                norm2 += r * r;
+            }
+        }
+        if !usable {
+            return Err(EstimatorError::NoUsableRow);
+        }
+        if !norm2.is_finite() {
+            return Err(EstimatorError::Diverged);
+        }
+        Ok(norm2.sqrt())
+    }
+
+    /// Runs steps 1–6 of the module docs on `p` in place (`p` holds the prior on entry and,
+    /// on success, the posterior); `Δθ` goes to [`Workspace::dtheta`]. Needs
+    /// [`Workspace::residual`] first. On error `p` holds garbage: callers pass a scratch copy.
+    pub(crate) fn update(&mut self, a: &[f64], m: usize, d: f64, scale: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+        match self.backend {
+            Backend::Faer => self.update_faer(a, m, d, p)?,
+            Backend::NalgebraDyn => self.update_nalgebra_dyn(a, m, d, p)?,
+            Backend::NalgebraFixed => self.update_nalgebra_fixed::<10, 30>(a, m, d, p)?,
+            _ => self.update_loops(a, m, d, p)?,
+        }
+        finish_covariance(p, self.n, scale)
+    }
+
+    fn update_loops(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+        let n = self.n;
+        let n1 = n + 1;
+        let ur = &mut self.ur[..m * n1];
+        let s = &mut self.s[..m * m];
+
+        // 1. U = A P, row by row: u_i = Σ_k a_ik p_k (rows of P).
+        for (ui, ai) in ur.chunks_exact_mut(n1).zip(a.chunks_exact(n)) {
+            let ui = &mut ui[..n];
+            ui.fill(0.0);
+            for (k, &aik) in ai.iter().enumerate() {
+                if aik != 0.0 {
+                    axpy(aik, &p[k * n..(k + 1) * n], ui);
+                }
+            }
+        }
+        // 2. S = U Aᵀ + d I, lower triangle.
+        for i in 0..m {
+            let ui = &ur[i * n1..i * n1 + n];
+            for j in 0..=i {
+                s[i * m + j] = dot(ui, &a[j * n..(j + 1) * n]);
+            }
+            s[i * m + i] += d;
+        }
+        // 3. Cholesky, lower, in place.
+        cholesky_lower(s, m)?;
+        // 4. [G | w] = L⁻¹ [U | r], forward substitution on whole rows.
+        for i in 0..m {
+            let (done, rest) = ur.split_at_mut(i * n1);
+            let gi = &mut rest[..n1];
+            for j in 0..i {
+                let lij = s[i * m + j];
+                if lij != 0.0 {
+                    axpy(-lij, &done[j * n1..(j + 1) * n1], gi);
+                }
+            }
+            let inv = 1.0 / s[i * m + i];
+            for v in gi.iter_mut() {
+                *v *= inv;
+            }
+        }
+        // 5. Δθ = Gᵀ w.
+        self.dtheta.fill(0.0);
+        for gi in ur.chunks_exact(n1) {
+            let wi = gi[n];
+            if wi != 0.0 {
+                axpy(wi, &gi[..n], &mut self.dtheta);
+            }
+        }
+        // 6. P ← P − Gᵀ G, upper triangle: row k gets −Σ_i g_ik g_i[k..].
+        for k in 0..n {
+            let prow = &mut p[k * n + k..(k + 1) * n];
+            for gi in ur.chunks_exact(n1) {
+                let gik = gi[k];
+                if gik != 0.0 {
+                    axpy(-gik, &gi[k..n], prow);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn update_faer(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+        let n = self.n;
+        let n1 = n + 1;
+        let av = MatRef::from_row_major_slice(&a[..m * n], m, n);
+        // Row-major with row stride n+1, built as the transpose of a column-major view:
+        // faer 0.24.4's `MatMut::from_row_major_slice_with_stride_mut` swaps the strides
+        // (it builds a column-major view) and then writes out of bounds.
+        let mut urv = MatMut::from_column_major_slice_with_stride_mut(&mut self.ur[..m * n1], n1, m, n1)
+            .transpose_mut();
+        let mut pv = MatMut::from_row_major_slice_mut(p, n, n);
+        let mut sv = MatMut::from_row_major_slice_mut(&mut self.s[..m * m], m, m);
+
+        // 1. U = A P.
+        faer::linalg::matmul::matmul(urv.rb_mut().subcols_mut(0, n), Accum::Replace, av, pv.rb(), 1.0, Par::Seq);
+        // 2. S = U Aᵀ + d I, lower triangle.
+        tri::matmul(
+            sv.rb_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            urv.rb().subcols(0, n),
+            BlockStructure::Rectangular,
+            av.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            Par::Seq,
+        );
+        for i in 0..m {
+            sv[(i, i)] += d;
+        }
+        // 3. Cholesky.
+        let stack = MemStack::new(&mut self.faer_mem);
+        faer::linalg::cholesky::llt::factor::cholesky_in_place(
+            sv.rb_mut(),
+            Default::default(),
+            Par::Seq,
+            stack,
+            Default::default(),
+        )
+        .map_err(|_| EstimatorError::NumericalFailure(CHOLESKY_FAILED))?;
+        // 4. [G | w] = L⁻¹ [U | r].
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(sv.rb(), urv.rb_mut(), Par::Seq);
+        // 5. Δθ = Gᵀ w.
+        let g = urv.rb().subcols(0, n);
+        let w = urv.rb().subcols(n, 1);
+        let dtheta = MatMut::from_column_major_slice_mut(&mut self.dtheta, n, 1);
+        faer::linalg::matmul::matmul(dtheta, Accum::Replace, g.transpose(), w, 1.0, Par::Seq);
+        // 6. P ← P − Gᵀ G, upper triangle.
+        tri::matmul(
+            pv.rb_mut(),
+            BlockStructure::TriangularUpper,
+            Accum::Add,
+            g.transpose(),
+            BlockStructure::Rectangular,
+            g,
+            BlockStructure::Rectangular,
+            -1.0,
+            Par::Seq,
+        );
+        Ok(())
+    }
+}
+
+/// In-place Cholesky factorisation `S = L Lᵀ` of the leading `m × m` block (row-major,
+/// stride `m`), reading and writing the lower triangle only.
+fn cholesky_lower(s: &mut [f64], m: usize) -> Result<(), EstimatorError> {
+    for j in 0..m {
+        let (head, tail) = s.split_at_mut((j + 1) * m);
+        let rowj = &mut head[j * m..];
+        let djj = rowj[j] - dot(&rowj[..j], &rowj[..j]);
+        if !(djj > 0.0 && djj.is_finite()) {
+            return Err(EstimatorError::NumericalFailure(CHOLESKY_FAILED));
+        }
+        let ljj = djj.sqrt();
+        rowj[j] = ljj;
+        let inv = 1.0 / ljj;
+        let lj = &head[j * m..j * m + j];
+        for rowi in tail.chunks_exact_mut(m) {
+            rowi[j] = (rowi[j] - dot(&rowi[..j], lj)) * inv;
+        }
+    }
+    Ok(())
+}
+
+/// Scales the upper triangle of `p` by `scale`, mirrors it into the lower triangle and checks
+/// the result: every entry finite ([`EstimatorError::Diverged`] otherwise) and a positive
+/// diagonal ([`EstimatorError::NumericalFailure`] otherwise).
+fn finish_covariance(p: &mut [f64], n: usize, scale: f64) -> Result<(), EstimatorError> {
+    let mut finite = true;
+    let mut positive = true;
+    for k in 0..n {
+        let dkk = p[k * n + k] * scale;
+        p[k * n + k] = dkk;
+        finite &= dkk.is_finite();
+        positive &= dkk > 0.0;
+        for l in k + 1..n {
+            let v = p[k * n + l] * scale;
+            p[k * n + l] = v;
+            p[l * n + k] = v;
+            finite &= v.is_finite();
+        }
+    }
+    if !finite {
+        return Err(EstimatorError::Diverged);
+    }
+    if !positive {
+        return Err(EstimatorError::NumericalFailure(COVARIANCE_INDEFINITE));
+    }
+    Ok(())
+}
+
+// ---- EXPERIMENT: nalgebra backends (measurement only) ----
+impl Workspace {
+    fn update_nalgebra_dyn(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+        use nalgebra::{DMatrixView, DMatrixViewMut};
+        let n = self.n;
+        let n1 = n + 1;
+        {
+            let at = DMatrixView::from_slice(&a[..m * n], n, m);
+            let pv = DMatrixView::from_slice(p, n, n);
+            let mut ut = DMatrixViewMut::from_slice_with_strides_mut(&mut self.ur[..m * n1], n, m, 1, n1);
+            ut.gemm(1.0, &pv, &at, 0.0);
+            let mut sv = DMatrixViewMut::from_slice(&mut self.s[..m * m], m, m);
+            sv.gemm_tr(1.0, &ut, &at, 0.0);
+        }
+        let ur = &mut self.ur[..m * n1];
+        let s = &mut self.s[..m * m];
+        for i in 0..m {
+            s[i * m + i] += d;
+        }
+        cholesky_lower(s, m)?;
+        for i in 0..m {
+            let (done, rest) = ur.split_at_mut(i * n1);
+            let gi = &mut rest[..n1];
+            for j in 0..i {
+                let lij = s[i * m + j];
+                if lij != 0.0 {
+                    axpy(-lij, &done[j * n1..(j + 1) * n1], gi);
+                }
+            }
+            let inv = 1.0 / s[i * m + i];
+            for v in gi.iter_mut() {
+                *v *= inv;
+            }
+        }
+        self.dtheta.fill(0.0);
+        for gi in ur.chunks_exact(n1) {
+            axpy(gi[n], &gi[..n], &mut self.dtheta);
+        }
+        let g = DMatrixView::from_slice_with_strides(&self.ur[..m * n1], m, n, n1, 1);
+        let mut pv = DMatrixViewMut::from_slice(p, n, n);
+        pv.gemm_tr(-1.0, &g, &g, 1.0);
+        Ok(())
+    }
+
+    fn update_nalgebra_fixed<const N: usize, const M: usize>(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+        use nalgebra::{SMatrix, SVector, Cholesky};
+        assert!(self.n == N && m <= M);
+        let n1 = N + 1;
+        let mut am = SMatrix::<f64, M, N>::zeros();
+        let mut r = SVector::<f64, M>::zeros();
+        for i in 0..m {
+            for k in 0..N {
+                am[(i, k)] = a[i * N + k];
+            }
+            r[i] = self.ur[i * n1 + N];
+        }
+        let pm = SMatrix::<f64, N, N>::from_row_slice(p);
+        let u = am * pm;
+        let mut s = u * am.transpose();
+        for i in 0..M {
+            s[(i, i)] += d;
+        }
+        let chol = Cholesky::new(s).ok_or(EstimatorError::NumericalFailure(CHOLESKY_FAILED))?;
+        let l = chol.l_dirty();
+        let mut g = u;
+        l.solve_lower_triangular_unchecked_mut(&mut g);
+        l.solve_lower_triangular_unchecked_mut(&mut r);
+        let dt = g.tr_mul(&r);
+        self.dtheta.copy_from_slice(dt.as_slice());
+        let pn = pm - g.tr_mul(&g);
+        for k in 0..N {
+            for l in 0..N {
+                p[k * N + l] = pn[(k, l)];
+            }
+        }
+        Ok(())
+    }
+}

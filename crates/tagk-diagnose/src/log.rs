@@ -1,0 +1,515 @@
+//! Flight logs (CONVENTIONS §6): the in-memory [`FlightLog`], its CSV reader/writer and the
+//! validation that names the offending line and column.
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use crate::error::LogError;
+
+/// Allowed deviation of the attitude quaternion's norm from 1 before a log is rejected.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
+
+/// Fewest samples a log must have to be fitted (the 10 rigid-body parameters, a few effects,
+/// and the 5 blocks of the cross-validation need a few hundred samples).
+pub const MIN_ROWS: usize = 200;
+
+/// Required columns, in the order of CONVENTIONS §6.
+pub const REQUIRED_COLUMNS: [&str; 20] = [
+    "t", "px", "py", "pz", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz", "fx", "fy",
+    "fz", "tx", "ty", "tz",
+];
+
+/// Optional columns with a meaning in CONVENTIONS §6.
+pub const OPTIONAL_COLUMNS: [&str; 10] =
+    ["ax", "ay", "az", "dwx", "dwy", "dwz", "w1", "w2", "w3", "w4"];
+
+/// A flight log in memory: one entry per sample in every signal, SI units (CONVENTIONS §6).
+///
+/// The simulator (or any Rust program) fills it directly with [`FlightLog::push`]; CSV files
+/// are read with [`FlightLog::from_csv_path`]. Call [`FlightLog::validate`] before use (the
+/// diagnosis does it for you).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlightLog {
+    /// Time [s], strictly increasing.
+    pub t: Vec<f64>,
+    /// World position of the body origin [m].
+    pub position: Vec<[f64; 3]>,
+    /// World velocity of the body origin [m/s].
+    pub velocity: Vec<[f64; 3]>,
+    /// Attitude `(w, x, y, z)`, Hamilton, body → world (CONVENTIONS §2).
+    pub attitude: Vec<[f64; 4]>,
+    /// Body angular velocity [rad/s].
+    pub omega: Vec<[f64; 3]>,
+    /// Actuator wrench `[fx, fy, fz, tx, ty, tz]`, body frame, about the origin [N, N m].
+    pub wrench: Vec<[f64; 6]>,
+    /// World linear acceleration `p̈` [m/s²]; `None`: derived from the velocity.
+    pub accel: Option<Vec<[f64; 3]>>,
+    /// Body angular acceleration [rad/s²]; `None`: derived from `omega`.
+    pub omega_dot: Option<Vec<[f64; 3]>>,
+    /// Rotor speeds `w1..w4` [rad/s], if logged.
+    pub rotor_speeds: Option<Vec<[f64; 4]>>,
+    /// Any other columns, by name (kept and offered as signals for custom effects).
+    pub extra: Vec<(String, Vec<f64>)>,
+}
+
+/// One sample, for [`FlightLog::push`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LogSample {
+    /// Time [s].
+    pub t: f64,
+    /// World position [m].
+    pub position: [f64; 3],
+    /// World velocity [m/s].
+    pub velocity: [f64; 3],
+    /// Attitude quaternion `(w, x, y, z)`.
+    pub attitude: [f64; 4],
+    /// Body angular velocity [rad/s].
+    pub omega: [f64; 3],
+    /// Actuator wrench `[fx, fy, fz, tx, ty, tz]` [N, N m], body frame.
+    pub wrench: [f64; 6],
+    /// World acceleration `p̈` [m/s²], if measured.
+    pub accel: Option<[f64; 3]>,
+    /// Body angular acceleration [rad/s²], if measured.
+    pub omega_dot: Option<[f64; 3]>,
+    /// Rotor speeds [rad/s], if measured.
+    pub rotor_speeds: Option<[f64; 4]>,
+}
+
+impl FlightLog {
+    /// An empty log.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// `true` if there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Appends one sample. The optional signals are kept only if every sample has them: the
+    /// first sample decides, and a later sample without a signal the first one had drops it.
+    pub fn push(&mut self, s: &LogSample) {
+        let first = self.t.is_empty();
+        self.t.push(s.t);
+        self.position.push(s.position);
+        self.velocity.push(s.velocity);
+        self.attitude.push(s.attitude);
+        self.omega.push(s.omega);
+        self.wrench.push(s.wrench);
+        push_opt(&mut self.accel, s.accel, first);
+        push_opt(&mut self.omega_dot, s.omega_dot, first);
+        push_opt(&mut self.rotor_speeds, s.rotor_speeds, first);
+    }
+
+    /// Adds an extra named signal (one value per sample).
+    pub fn add_extra(&mut self, name: &str, values: Vec<f64>) {
+        self.extra.push((name.to_string(), values));
+    }
+
+    /// Looks a scalar signal up by its CSV column name (standard or extra); `None` if absent.
+    pub fn signal(&self, name: &str) -> Option<Vec<f64>> {
+        let pick3 = |v: &Vec<[f64; 3]>, k: usize| v.iter().map(|x| x[k]).collect();
+        let std3 = |name: &str| -> Option<(usize, usize)> {
+            let table: [(&str, usize, usize); 12] = [
+                ("px", 0, 0),
+                ("py", 0, 1),
+                ("pz", 0, 2),
+                ("vx", 1, 0),
+                ("vy", 1, 1),
+                ("vz", 1, 2),
+                ("wx", 2, 0),
+                ("wy", 2, 1),
+                ("wz", 2, 2),
+                ("ax", 3, 0),
+                ("ay", 3, 1),
+                ("az", 3, 2),
+            ];
+            table
+                .iter()
+                .find(|(n, _, _)| *n == name)
+                .map(|(_, g, k)| (*g, *k))
+        };
+        if name == "t" {
+            return Some(self.t.clone());
+        }
+        if let Some((g, k)) = std3(name) {
+            return match g {
+                0 => Some(pick3(&self.position, k)),
+                1 => Some(pick3(&self.velocity, k)),
+                2 => Some(pick3(&self.omega, k)),
+                _ => self.accel.as_ref().map(|a| pick3(a, k)),
+            };
+        }
+        if let Some(k) = ["dwx", "dwy", "dwz"].iter().position(|n| *n == name) {
+            return self.omega_dot.as_ref().map(|a| pick3(a, k));
+        }
+        if let Some(k) = ["qw", "qx", "qy", "qz"].iter().position(|n| *n == name) {
+            return Some(self.attitude.iter().map(|q| q[k]).collect());
+        }
+        if let Some(k) = ["fx", "fy", "fz", "tx", "ty", "tz"]
+            .iter()
+            .position(|n| *n == name)
+        {
+            return Some(self.wrench.iter().map(|w| w[k]).collect());
+        }
+        if let Some(k) = ["w1", "w2", "w3", "w4"].iter().position(|n| *n == name) {
+            return self
+                .rotor_speeds
+                .as_ref()
+                .map(|r| r.iter().map(|x| x[k]).collect());
+        }
+        self.extra
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.clone())
+    }
+
+    /// Checks the log: equal signal lengths, finite values, strictly increasing time, unit
+    /// quaternions (within [`QUATERNION_NORM_TOLERANCE`]) and at least [`MIN_ROWS`] samples.
+    /// Line numbers in the errors are those of the equivalent CSV file (sample `i` is line
+    /// `i + 2`).
+    ///
+    /// # Errors
+    /// The first problem found, as a [`LogError`].
+    pub fn validate(&self) -> Result<(), LogError> {
+        let n = self.t.len();
+        let check_len = |name: &str, got: usize| {
+            if got == n {
+                Ok(())
+            } else {
+                Err(LogError::LengthMismatch {
+                    column: name.to_string(),
+                    got,
+                    expected: n,
+                })
+            }
+        };
+        check_len("position", self.position.len())?;
+        check_len("velocity", self.velocity.len())?;
+        check_len("attitude", self.attitude.len())?;
+        check_len("omega", self.omega.len())?;
+        check_len("wrench", self.wrench.len())?;
+        if let Some(a) = &self.accel {
+            check_len("accel", a.len())?;
+        }
+        if let Some(a) = &self.omega_dot {
+            check_len("omega_dot", a.len())?;
+        }
+        if let Some(a) = &self.rotor_speeds {
+            check_len("rotor_speeds", a.len())?;
+        }
+        for (name, v) in &self.extra {
+            check_len(name, v.len())?;
+        }
+        for i in 0..n {
+            let line = i + 2;
+            let finite = |col: &str, x: f64| {
+                if x.is_finite() {
+                    Ok(())
+                } else {
+                    Err(LogError::NonFinite {
+                        line,
+                        column: col.to_string(),
+                        value: x,
+                    })
+                }
+            };
+            finite("t", self.t[i])?;
+            for (k, c) in ["px", "py", "pz"].iter().enumerate() {
+                finite(c, self.position[i][k])?;
+            }
+            for (k, c) in ["vx", "vy", "vz"].iter().enumerate() {
+                finite(c, self.velocity[i][k])?;
+            }
+            for (k, c) in ["qw", "qx", "qy", "qz"].iter().enumerate() {
+                finite(c, self.attitude[i][k])?;
+            }
+            for (k, c) in ["wx", "wy", "wz"].iter().enumerate() {
+                finite(c, self.omega[i][k])?;
+            }
+            for (k, c) in ["fx", "fy", "fz", "tx", "ty", "tz"].iter().enumerate() {
+                finite(c, self.wrench[i][k])?;
+            }
+            if let Some(a) = &self.accel {
+                for (k, c) in ["ax", "ay", "az"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            if let Some(a) = &self.omega_dot {
+                for (k, c) in ["dwx", "dwy", "dwz"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            if let Some(a) = &self.rotor_speeds {
+                for (k, c) in ["w1", "w2", "w3", "w4"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            for (name, v) in &self.extra {
+                finite(name, v[i])?;
+            }
+            if i > 0 && self.t[i] <= self.t[i - 1] {
+                return Err(LogError::NonIncreasingTime {
+                    line,
+                    t: self.t[i],
+                    previous: self.t[i - 1],
+                });
+            }
+            let q = self.attitude[i];
+            let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                return Err(LogError::QuaternionNorm {
+                    line,
+                    norm,
+                    tolerance: QUATERNION_NORM_TOLERANCE,
+                });
+            }
+        }
+        if n < MIN_ROWS {
+            return Err(LogError::TooShort {
+                rows: n,
+                needed: MIN_ROWS,
+            });
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a CSV flight log from a file.
+    ///
+    /// # Errors
+    /// [`LogError::Io`] if the file cannot be opened, otherwise as [`FlightLog::from_csv_reader`].
+    pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
+        let path = path.as_ref();
+        let file = std::fs::File::open(path).map_err(|e| LogError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::from_csv_reader(std::io::BufReader::new(file))
+    }
+
+    /// Reads and validates a CSV flight log (CONVENTIONS §6): one header row, then one row per
+    /// sample. Unknown columns are kept in [`FlightLog::extra`].
+    ///
+    /// # Errors
+    /// A [`LogError`] naming the line and column of the first problem.
+    pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(reader);
+        let header: Vec<String> = rdr
+            .headers()
+            .map_err(|e| LogError::Malformed {
+                line: 1,
+                message: e.to_string(),
+            })?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        for (j, name) in header.iter().enumerate() {
+            if let Some(k) = header[..j].iter().position(|h| h == name) {
+                return Err(LogError::DuplicateColumn {
+                    column: name.clone(),
+                    first: k + 1,
+                    second: j + 1,
+                });
+            }
+        }
+        let idx = |name: &str| header.iter().position(|h| h == name);
+        for c in REQUIRED_COLUMNS {
+            if idx(c).is_none() {
+                return Err(LogError::MissingColumn {
+                    column: c.to_string(),
+                });
+            }
+        }
+        // Optional groups are all-or-nothing.
+        let group = |names: &[&str]| -> Result<Option<Vec<usize>>, LogError> {
+            let found: Vec<Option<usize>> = names.iter().map(|n| idx(n)).collect();
+            if found.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            if let Some(k) = found.iter().position(Option::is_none) {
+                return Err(LogError::MissingColumn {
+                    column: names[k].to_string(),
+                });
+            }
+            Ok(Some(found.into_iter().flatten().collect()))
+        };
+        let acc_cols = group(&["ax", "ay", "az"])?;
+        let dw_cols = group(&["dwx", "dwy", "dwz"])?;
+        let rot_cols = group(&["w1", "w2", "w3", "w4"])?;
+        let req: Vec<usize> = REQUIRED_COLUMNS.iter().filter_map(|c| idx(c)).collect();
+        let extra_cols: Vec<usize> = (0..header.len())
+            .filter(|j| {
+                let h = header[*j].as_str();
+                !REQUIRED_COLUMNS.contains(&h) && !OPTIONAL_COLUMNS.contains(&h)
+            })
+            .collect();
+        let mut log = FlightLog {
+            accel: acc_cols.as_ref().map(|_| Vec::new()),
+            omega_dot: dw_cols.as_ref().map(|_| Vec::new()),
+            rotor_speeds: rot_cols.as_ref().map(|_| Vec::new()),
+            extra: extra_cols
+                .iter()
+                .map(|&j| (header[j].clone(), Vec::new()))
+                .collect(),
+            ..FlightLog::default()
+        };
+        let mut record = csv::StringRecord::new();
+        let mut line = 1usize;
+        let mut values = vec![0.0; header.len()];
+        loop {
+            match rdr.read_record(&mut record) {
+                Ok(false) => break,
+                Ok(true) => {}
+                Err(e) => {
+                    let l = e.position().map_or(line + 1, |p| p.line() as usize);
+                    return Err(LogError::Malformed {
+                        line: l,
+                        message: e.to_string(),
+                    });
+                }
+            }
+            line = record.position().map_or(line + 1, |p| p.line() as usize);
+            if record.len() != header.len() {
+                return Err(LogError::Malformed {
+                    line,
+                    message: format!("{} fields, header has {}", record.len(), header.len()),
+                });
+            }
+            for (j, field) in record.iter().enumerate() {
+                let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
+                    line,
+                    column: header[j].clone(),
+                    value: field.to_string(),
+                })?;
+                if !x.is_finite() {
+                    return Err(LogError::NonFinite {
+                        line,
+                        column: header[j].clone(),
+                        value: x,
+                    });
+                }
+                values[j] = x;
+            }
+            let v = |k: usize| values[req[k]];
+            let t = v(0);
+            if let Some(&prev) = log.t.last()
+                && t <= prev
+            {
+                return Err(LogError::NonIncreasingTime {
+                    line,
+                    t,
+                    previous: prev,
+                });
+            }
+            let q = [v(7), v(8), v(9), v(10)];
+            let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                return Err(LogError::QuaternionNorm {
+                    line,
+                    norm,
+                    tolerance: QUATERNION_NORM_TOLERANCE,
+                });
+            }
+            log.t.push(t);
+            log.position.push([v(1), v(2), v(3)]);
+            log.velocity.push([v(4), v(5), v(6)]);
+            log.attitude.push(q);
+            log.omega.push([v(11), v(12), v(13)]);
+            log.wrench
+                .push([v(14), v(15), v(16), v(17), v(18), v(19)]);
+            if let (Some(c), Some(a)) = (&acc_cols, &mut log.accel) {
+                a.push([values[c[0]], values[c[1]], values[c[2]]]);
+            }
+            if let (Some(c), Some(a)) = (&dw_cols, &mut log.omega_dot) {
+                a.push([values[c[0]], values[c[1]], values[c[2]]]);
+            }
+            if let (Some(c), Some(a)) = (&rot_cols, &mut log.rotor_speeds) {
+                a.push([values[c[0]], values[c[1]], values[c[2]], values[c[3]]]);
+            }
+            for (k, &j) in extra_cols.iter().enumerate() {
+                log.extra[k].1.push(values[j]);
+            }
+        }
+        if log.len() < MIN_ROWS {
+            return Err(LogError::TooShort {
+                rows: log.len(),
+                needed: MIN_ROWS,
+            });
+        }
+        Ok(log)
+    }
+
+    /// Writes the log as CSV (CONVENTIONS §6 column names; optional groups only if present).
+    ///
+    /// # Errors
+    /// [`LogError::Io`] on a write failure.
+    pub fn write_csv<W: Write>(&self, writer: W) -> Result<(), LogError> {
+        let io = |e: csv::Error| LogError::Io {
+            path: "<csv writer>".to_string(),
+            message: e.to_string(),
+        };
+        let mut w = csv::Writer::from_writer(writer);
+        let mut header: Vec<String> = REQUIRED_COLUMNS.iter().map(|s| s.to_string()).collect();
+        if self.accel.is_some() {
+            header.extend(["ax", "ay", "az"].map(String::from));
+        }
+        if self.omega_dot.is_some() {
+            header.extend(["dwx", "dwy", "dwz"].map(String::from));
+        }
+        if self.rotor_speeds.is_some() {
+            header.extend(["w1", "w2", "w3", "w4"].map(String::from));
+        }
+        header.extend(self.extra.iter().map(|(n, _)| n.clone()));
+        w.write_record(&header).map_err(io)?;
+        let mut row: Vec<String> = Vec::with_capacity(header.len());
+        for i in 0..self.len() {
+            row.clear();
+            let mut put = |x: f64| row.push(format!("{x:e}"));
+            put(self.t[i]);
+            self.position[i].iter().for_each(|x| put(*x));
+            self.velocity[i].iter().for_each(|x| put(*x));
+            self.attitude[i].iter().for_each(|x| put(*x));
+            self.omega[i].iter().for_each(|x| put(*x));
+            self.wrench[i].iter().for_each(|x| put(*x));
+            if let Some(a) = &self.accel {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            if let Some(a) = &self.omega_dot {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            if let Some(a) = &self.rotor_speeds {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            for (_, v) in &self.extra {
+                put(v[i]);
+            }
+            w.write_record(&row).map_err(io)?;
+        }
+        w.flush().map_err(|e| LogError::Io {
+            path: "<csv writer>".to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(())
+    }
+}
+
+fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
+    match (first, x) {
+        (true, Some(x)) => *v = Some(vec![x]),
+        (true, None) => *v = None,
+        (false, Some(x)) => {
+            if let Some(v) = v {
+                v.push(x);
+            }
+        }
+        (false, None) => *v = None,
+    }
+}

@@ -1,0 +1,147 @@
+//! Small statistics toolbox: autocorrelation, effective sample size, chi-square tail.
+
+/// Sample autocorrelation `ρ_k = Σ r̃ᵢ r̃ᵢ₊ₖ / Σ r̃ᵢ²` of the mean-removed series `r̃`, for
+/// `k = 0..=max_lag` (`ρ₀ = 1`). A constant series gives `ρ_k = 0` for `k ≥ 1`.
+pub fn autocorrelation(r: &[f64], max_lag: usize) -> Vec<f64> {
+    let n = r.len();
+    let mut out = vec![0.0; max_lag + 1];
+    if n == 0 {
+        return out;
+    }
+    out[0] = 1.0;
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let c0: f64 = r.iter().map(|x| (x - mean) * (x - mean)).sum();
+    if c0 <= 0.0 {
+        return out;
+    }
+    for (k, o) in out.iter_mut().enumerate().skip(1) {
+        if k >= n {
+            break;
+        }
+        let mut s = 0.0;
+        for i in 0..n - k {
+            s += (r[i] - mean) * (r[i + k] - mean);
+        }
+        *o = s / c0;
+    }
+    out
+}
+
+/// Integrated autocorrelation factor `κ = 1 + 2 Σ_{k≥1} ρ_k`, the sum truncated at the first
+/// non-positive `ρ_k` (initial-positive-sequence rule) or at `max_lag`; at least 1.
+/// The effective sample size of `n` correlated samples is `n / κ`.
+pub fn autocorrelation_factor(r: &[f64], max_lag: usize) -> f64 {
+    let rho = autocorrelation(r, max_lag.min(r.len().saturating_sub(1)));
+    let mut kappa = 1.0;
+    for &p in rho.iter().skip(1) {
+        if p <= 0.0 {
+            break;
+        }
+        kappa += 2.0 * p;
+    }
+    kappa.max(1.0)
+}
+
+/// Natural log of the gamma function for `x > 0` (Stirling series after shifting `x ≥ 8`;
+/// absolute error below 1e-12).
+pub fn ln_gamma(x: f64) -> f64 {
+    let mut x = x;
+    let mut shift = 0.0;
+    while x < 8.0 {
+        shift -= x.ln();
+        x += 1.0;
+    }
+    let x2 = x * x;
+    let series = 1.0 / (12.0 * x) - 1.0 / (360.0 * x * x2) + 1.0 / (1260.0 * x * x2 * x2)
+        - 1.0 / (1680.0 * x * x2 * x2 * x2);
+    shift + (x - 0.5) * x.ln() - x + 0.5 * (2.0 * std::f64::consts::PI).ln() + series
+}
+
+/// Regularised upper incomplete gamma `Q(a, x) = Γ(a, x) / Γ(a)` for `a > 0`, `x ≥ 0`
+/// (series for `x < a + 1`, Lentz continued fraction otherwise).
+pub fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let ln_pre = -x + a * x.ln() - ln_gamma(a);
+    if x < a + 1.0 {
+        // P(a, x) = e^{-x} x^a / Γ(a+1) Σ x^n / ((a+1)…(a+n))
+        let mut term = 1.0 / a;
+        let mut sum = term;
+        let mut ap = a;
+        for _ in 0..10_000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        (1.0 - sum * ln_pre.exp()).clamp(0.0, 1.0)
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        (ln_pre.exp() * h).clamp(0.0, 1.0)
+    }
+}
+
+/// Upper tail `P(X > x)` of a chi-square variable with `k` degrees of freedom.
+pub fn chi2_survival(x: f64, k: f64) -> f64 {
+    gamma_q(0.5 * k, 0.5 * x)
+}
+
+/// Median of a slice (NaN-free input); 0 for an empty slice.
+pub fn median(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let mut v = x.to_vec();
+    v.sort_by(|a, b| a.total_cmp(b));
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Quantile by linear interpolation of the sorted sample (`q ∈ [0, 1]`).
+pub fn quantile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let pos = q.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    let f = pos - lo as f64;
+    sorted[lo] * (1.0 - f) + sorted[hi] * f
+}
+
+/// Root mean square (0 for an empty slice).
+pub fn rms(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+}

@@ -1,0 +1,136 @@
+//! Quadrotor actuator model: rotor layout, thrust/torque coefficients and the mixer
+//! (CONVENTIONS §4).
+//!
+//! Rotor numbering follows the Crazyflie: M1 front-right `(+x, −y)`, M2 back-right
+//! `(−x, −y)`, M3 back-left `(−x, +y)`, M4 front-left `(+x, +y)` (body frame: x forward,
+//! y left, z up). M1 and M3 spin clockwise seen from above, M2 and M4 counter-clockwise;
+//! a clockwise rotor's drag reaction turns the body counter-clockwise (`+z`), so
+//! `spin_directions = [+1, −1, +1, −1]` are the signs of each rotor's reaction torque about
+//! body `+z`.
+
+use nalgebra::{Matrix4, Vector3, Vector4};
+
+use crate::{InertialParams, Wrench};
+
+/// Rigid-body and actuator parameters of a quadrotor with rotors thrusting along body `+z`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuadrotorModel {
+    /// Inertial parameters of the vehicle about the body origin (CONVENTIONS §1).
+    pub params: InertialParams,
+    /// Distance from the body origin to each motor axis [m].
+    pub arm: f64,
+    /// Rotor hub positions in the body frame [m].
+    pub rotor_positions: [Vector3<f64>; 4],
+    /// Sign of each rotor's reaction torque about body `+z` (`+1`: rotor spins clockwise seen
+    /// from above).
+    pub spin_directions: [f64; 4],
+    /// Thrust coefficient `k_f` in `T = k_f ω²` [N/(rad/s)²].
+    pub k_f: f64,
+    /// Reaction-torque coefficient `k_m` in `Q = k_m ω²` [N m/(rad/s)²].
+    pub k_m: f64,
+    /// Largest rotor speed [rad/s].
+    pub max_rotor_speed: f64,
+}
+
+impl QuadrotorModel {
+    /// The nominal Crazyflie 2.1 of CONVENTIONS §4: 0.035 kg, centre of mass at the origin,
+    /// the tabulated inertia, X configuration with motors at `(±0.0325, ±0.0325, 0)` m
+    /// (0.046 m from the centre), `k_f = 2.3e-8`, `k_m = 7.8e-10`, `ω_max = 2500 rad/s`.
+    pub fn crazyflie_2_1() -> Self {
+        let d = 0.0325;
+        Self {
+            params: InertialParams::from_array([
+                0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5,
+            ]),
+            arm: 0.046,
+            rotor_positions: [
+                Vector3::new(d, -d, 0.0),
+                Vector3::new(-d, -d, 0.0),
+                Vector3::new(-d, d, 0.0),
+                Vector3::new(d, d, 0.0),
+            ],
+            spin_directions: [1.0, -1.0, 1.0, -1.0],
+            k_f: 2.3e-8,
+            k_m: 7.8e-10,
+            max_rotor_speed: 2500.0,
+        }
+    }
+
+    /// Torque-to-thrust ratio `k_m / k_f` [m].
+    pub fn torque_coefficient(&self) -> f64 {
+        self.k_m / self.k_f
+    }
+
+    /// Largest thrust of one rotor, `k_f ω_max²` [N].
+    pub fn max_thrust_per_rotor(&self) -> f64 {
+        self.k_f * self.max_rotor_speed * self.max_rotor_speed
+    }
+
+    /// The actuator wrench (body frame, about the origin) of the four rotor thrusts [N]:
+    /// force `(0, 0, ΣT_i)`, torque `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i (k_m/k_f) T_i)`.
+    pub fn wrench_from_thrusts(&self, thrusts: &[f64; 4]) -> Wrench {
+        let kappa = self.torque_coefficient();
+        let mut force = Vector3::zeros();
+        let mut torque = Vector3::zeros();
+        for ((t, r), s) in thrusts
+            .iter()
+            .zip(&self.rotor_positions)
+            .zip(&self.spin_directions)
+        {
+            let f = Vector3::new(0.0, 0.0, *t);
+            force += f;
+            torque += r.cross(&f);
+            torque.z += s * kappa * t;
+        }
+        Wrench { force, torque }
+    }
+
+    /// The actuator wrench of four rotor speeds [rad/s] (`T_i = k_f ω_i²`).
+    pub fn wrench_from_rotor_speeds(&self, speeds: &[f64; 4]) -> Wrench {
+        self.wrench_from_thrusts(&speeds.map(|w| self.k_f * w * w))
+    }
+
+    /// The 4×4 mixer `M` with `[f_z, τ_x, τ_y, τ_z]ᵀ = M [T_1, T_2, T_3, T_4]ᵀ`:
+    /// rows `1`, `y_i`, `−x_i`, `s_i k_m/k_f`.
+    pub fn mixer_matrix(&self) -> Matrix4<f64> {
+        let kappa = self.torque_coefficient();
+        Matrix4::from_fn(|r, c| {
+            let p = &self.rotor_positions[c];
+            match r {
+                0 => 1.0,
+                1 => p.y,
+                2 => -p.x,
+                _ => self.spin_directions[c] * kappa,
+            }
+        })
+    }
+
+    /// Rotor thrusts [N] that produce total thrust `f_z` [N] and torque `torque` [N m]: the
+    /// inverse mixer, not clipped to `[0, max_thrust_per_rotor]` (see
+    /// [`clamp_thrusts`](Self::clamp_thrusts)). For a layout whose mixer is singular (not the
+    /// case for any X or + configuration), the minimum-norm least-squares thrusts are returned.
+    pub fn thrusts_from_wrench(&self, f_z: f64, torque: &Vector3<f64>) -> [f64; 4] {
+        let m = self.mixer_matrix();
+        let rhs = Vector4::new(f_z, torque.x, torque.y, torque.z);
+        let t = match m.lu().solve(&rhs) {
+            Some(t) if t.iter().all(|v| v.is_finite()) => t,
+            _ => m
+                .svd(true, true)
+                .solve(&rhs, 1e-12 * m.amax())
+                .unwrap_or_else(|_| Vector4::zeros()),
+        };
+        [t[0], t[1], t[2], t[3]]
+    }
+
+    /// Clips each thrust to `[0, max_thrust_per_rotor]` [N].
+    pub fn clamp_thrusts(&self, thrusts: &[f64; 4]) -> [f64; 4] {
+        let hi = self.max_thrust_per_rotor();
+        thrusts.map(|t| t.clamp(0.0, hi))
+    }
+
+    /// Rotor speeds [rad/s] for thrusts [N], `ω = sqrt(T / k_f)`; a negative thrust (which a
+    /// fixed-pitch rotor cannot make) maps to speed 0.
+    pub fn rotor_speeds_from_thrusts(&self, thrusts: &[f64; 4]) -> [f64; 4] {
+        thrusts.map(|t| (t.max(0.0) / self.k_f).sqrt())
+    }
+}

@@ -1,0 +1,84 @@
+//! The one error type of the simulator and the experiments.
+
+use tagk_control::ControlError;
+use tagk_core::{ConfigError, EstimatorError};
+use tagk_dynamics::DynamicsError;
+
+/// Everything that can go wrong when configuring or running a simulation.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// A mass that is not strictly positive (vehicle or payload) [kg].
+    #[error("{what} mass must be positive and finite, got {mass} kg")]
+    NonPositiveMass {
+        /// Which body.
+        what: &'static str,
+        /// The offending mass [kg].
+        mass: f64,
+    },
+    /// A duration or time step that is not strictly positive and finite [s].
+    #[error("{what} must be positive and finite, got {value} s")]
+    InvalidDuration {
+        /// Which duration.
+        what: &'static str,
+        /// The offending value [s].
+        value: f64,
+    },
+    /// The vehicle with its payload cannot hover: a rotor would need more than its limit.
+    #[error(
+        "payload needs {required:.4} N on one rotor to hover, above the {available:.4} N limit"
+    )]
+    PayloadBeyondThrust {
+        /// Largest hover trim thrust of one rotor with the payload [N].
+        required: f64,
+        /// Largest thrust of one rotor [N].
+        available: f64,
+    },
+    /// Any other out-of-range or non-finite configuration value.
+    #[error("invalid {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is allowed.
+        reason: &'static str,
+    },
+    /// A configuration string that names nothing known (CLI).
+    #[error("unknown {what} `{value}` (expected one of: {expected})")]
+    Unknown {
+        /// Kind of name.
+        what: &'static str,
+        /// The string given.
+        value: String,
+        /// The accepted names.
+        expected: &'static str,
+    },
+    /// The dynamics crate rejected an input.
+    #[error("dynamics: {0}")]
+    Dynamics(#[from] DynamicsError),
+    /// The controller could not be designed.
+    #[error("control: {0}")]
+    Control(#[from] ControlError),
+    /// An estimator could not be built.
+    #[error("estimator configuration: {0}")]
+    EstimatorConfig(#[from] ConfigError),
+    /// An estimator rejected a window.
+    #[error("estimator: {0}")]
+    Estimator(#[from] EstimatorError),
+    /// File output failed.
+    #[error("I/O: {0}")]
+    Io(#[from] std::io::Error),
+    /// CSV output failed.
+    #[error("CSV: {0}")]
+    Csv(#[from] csv::Error),
+    /// JSON output failed.
+    #[error("JSON: {0}")]
+    Json(#[from] serde_json::Error),
+    /// Drawing a figure failed.
+    #[error("plot: {0}")]
+    Plot(String),
+    /// A rayon thread pool could not be built.
+    #[error("thread pool: {0}")]
+    ThreadPool(#[from] rayon::ThreadPoolBuildError),
+}

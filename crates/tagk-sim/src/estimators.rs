@@ -1,0 +1,172 @@
+//! The estimators compared in the experiments, built by name.
+
+use serde::{Deserialize, Serialize};
+use tagk_baselines::{KalmanFilter, Rls};
+use tagk_core::{
+    BurnIn, GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK,
+    TailAveragedKaczmarz,
+};
+
+use crate::SimError;
+
+/// Parameter dimension of one rigid body.
+pub const N_PARAMS: usize = 10;
+
+/// An estimator algorithm with the TAG-K paper's settings (CONVENTIONS §5).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+pub enum EstimatorKind {
+    /// RLS, forgetting factor 0.99, `P₀ = 10³·I`.
+    RlsLow,
+    /// RLS, forgetting factor 0.96, `P₀ = 10³·I`.
+    RlsHigh,
+    /// Random-walk Kalman filter, `σ_Q = 1e-3`, `σ_R = 1e-5`.
+    KfLow,
+    /// Random-walk Kalman filter, `σ_Q = 1e-1`, `σ_R = 1e-3`.
+    KfHigh,
+    /// Tail-averaged greedy Kaczmarz, `T = m`.
+    #[value(name = "tagk")]
+    TagK,
+    /// Greedy Kaczmarz (no averaging).
+    Grk,
+    /// Tail-averaged randomised Kaczmarz.
+    Tark,
+    /// Randomised Kaczmarz.
+    Rk,
+}
+
+impl EstimatorKind {
+    /// The five estimators of the paper's Table II, in its order.
+    pub const TABLE_II: [EstimatorKind; 5] = [
+        EstimatorKind::RlsLow,
+        EstimatorKind::RlsHigh,
+        EstimatorKind::KfLow,
+        EstimatorKind::KfHigh,
+        EstimatorKind::TagK,
+    ];
+    /// The Kaczmarz family of the ablation (Fig. 4b).
+    pub const KACZMARZ: [EstimatorKind; 4] = [
+        EstimatorKind::Rk,
+        EstimatorKind::Tark,
+        EstimatorKind::Grk,
+        EstimatorKind::TagK,
+    ];
+
+    /// Display name (as in the paper).
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimatorKind::RlsLow => "RLS-low",
+            EstimatorKind::RlsHigh => "RLS-high",
+            EstimatorKind::KfLow => "KF-low",
+            EstimatorKind::KfHigh => "KF-high",
+            EstimatorKind::TagK => "TAG-K",
+            EstimatorKind::Grk => "GRK",
+            EstimatorKind::Tark => "TARK",
+            EstimatorKind::Rk => "RK",
+        }
+    }
+
+    /// `true` for the Kaczmarz family (which uses a burn-in and a seed).
+    pub fn is_kaczmarz(self) -> bool {
+        matches!(
+            self,
+            EstimatorKind::TagK | EstimatorKind::Grk | EstimatorKind::Tark | EstimatorKind::Rk
+        )
+    }
+}
+
+/// An estimator with its experiment options.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorSpec {
+    /// Algorithm.
+    pub kind: EstimatorKind,
+    /// Burn-in fraction `t_b / T` of the tail-averaged Kaczmarz variants (ignored otherwise).
+    pub burn_in: f64,
+    /// Fig. 4a's "early adaptation": TAG-K runs alongside, and the first update after each
+    /// payload event takes TAG-K's estimate instead (the estimator is
+    /// [`reset`](OnlineEstimator::reset) to it, covariance back to `P₀`).
+    pub early_tagk: bool,
+}
+
+/// The default TAG-K burn-in fraction (see the crate README's burn-in study).
+pub const DEFAULT_BURN_IN: f64 = 0.5;
+
+impl EstimatorSpec {
+    /// `kind` with the default burn-in and no early adaptation.
+    pub fn new(kind: EstimatorKind) -> Self {
+        Self {
+            kind,
+            burn_in: DEFAULT_BURN_IN,
+            early_tagk: false,
+        }
+    }
+
+    /// Sets the burn-in fraction.
+    pub fn with_burn_in(mut self, burn_in: f64) -> Self {
+        self.burn_in = burn_in;
+        self
+    }
+
+    /// Turns on early adaptation.
+    pub fn with_early_tagk(mut self) -> Self {
+        self.early_tagk = true;
+        self
+    }
+
+    /// Label for tables: the name, with the burn-in for non-default TAG-K/TARK and a `+TAG-K`
+    /// suffix for early adaptation.
+    pub fn label(&self) -> String {
+        let mut s = self.kind.name().to_string();
+        if matches!(self.kind, EstimatorKind::TagK | EstimatorKind::Tark)
+            && (self.burn_in - DEFAULT_BURN_IN).abs() > 1e-12
+        {
+            s.push_str(&format!(" (t_b={:.2}T)", self.burn_in));
+        }
+        if self.early_tagk {
+            s.push_str(" +TAG-K");
+        }
+        s
+    }
+
+    /// Builds the estimator for windows of at most `m_max` rows, seeded with `seed`
+    /// (Kaczmarz variants), initial estimate zero (callers reset it to the prior).
+    ///
+    /// # Errors
+    /// [`SimError::EstimatorConfig`] for a burn-in outside `[0, 1)` or `m_max = 0`.
+    pub fn build(
+        &self,
+        m_max: usize,
+        seed: u64,
+    ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
+        build_kind(self.kind, self.burn_in, m_max, seed)
+    }
+}
+
+/// Builds one estimator (see [`EstimatorSpec::build`]).
+///
+/// # Errors
+/// As [`EstimatorSpec::build`].
+pub fn build_kind(
+    kind: EstimatorKind,
+    burn_in: f64,
+    m_max: usize,
+    seed: u64,
+) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
+    let n = N_PARAMS;
+    let cfg = KaczmarzConfig::default()
+        .with_seed(seed)
+        .with_burn_in(BurnIn::Fraction(burn_in));
+    Ok(match kind {
+        EstimatorKind::RlsLow => Box::new(Rls::rls_low(n, m_max)?),
+        EstimatorKind::RlsHigh => Box::new(Rls::rls_high(n, m_max)?),
+        EstimatorKind::KfLow => Box::new(KalmanFilter::kf_low(n, m_max)?),
+        EstimatorKind::KfHigh => Box::new(KalmanFilter::kf_high(n, m_max)?),
+        EstimatorKind::TagK => Box::new(TagK::<f64, Vec<f64>>::new(n, m_max, cfg)?),
+        EstimatorKind::Grk => Box::new(GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
+        EstimatorKind::Tark => {
+            Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?)
+        }
+        EstimatorKind::Rk => Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
+    })
+}

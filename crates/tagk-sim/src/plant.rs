@@ -1,0 +1,282 @@
+//! The simulated vehicle: a 6-DoF rigid body with the full Newton–Euler dynamics of
+//! CONVENTIONS §3, quaternion attitude, four rotors with speed limits, optional motor lag and
+//! the other [`PlantEffects`], integrated by classical fourth-order Runge–Kutta.
+//!
+//! State: world position `p` and velocity `v` of the body origin [m, m/s], attitude `q`
+//! (body → world, Hamilton, scalar first), body rate `ω` [rad/s] and, with motor lag, the four
+//! actual rotor speeds [rad/s]. With the actuator wrench `w` (body frame, about the origin)
+//! the accelerations come from `tagk_dynamics::forward_dynamics` (the one implementation of
+//! the Newton–Euler equations): `(a, ω̇) = FD(θ, w, ω)`, `p̈ = R a + g_w`, `q̇ = ½ q ⊗ (0, ω)`.
+//! The quaternion is renormalised after every step.
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use tagk_dynamics::{
+    GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench, try_forward_dynamics,
+};
+
+use crate::{PlantEffects, SimError};
+
+/// Full plant state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantState {
+    /// Position of the body origin, world frame [m].
+    pub position: Vector3<f64>,
+    /// Velocity of the body origin, world frame [m/s].
+    pub velocity: Vector3<f64>,
+    /// Attitude, body → world.
+    pub attitude: UnitQuaternion<f64>,
+    /// Angular velocity, body frame [rad/s].
+    pub body_rate: Vector3<f64>,
+    /// Actual rotor speeds [rad/s] (equal to the clamped command without motor lag).
+    pub rotor_speeds: [f64; 4],
+}
+
+impl PlantState {
+    /// At rest at `position`, level, rotors stopped.
+    pub fn at_rest(position: Vector3<f64>) -> Self {
+        Self {
+            position,
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            body_rate: Vector3::zeros(),
+            rotor_speeds: [0.0; 4],
+        }
+    }
+}
+
+/// Time derivative of the plant state (quaternion derivative as a raw 4-vector).
+#[derive(Debug, Clone, Copy)]
+struct Derivative {
+    dp: Vector3<f64>,
+    dv: Vector3<f64>,
+    dq: Quaternion<f64>,
+    dw: Vector3<f64>,
+    dr: [f64; 4],
+}
+
+/// Instantaneous accelerations of the plant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Accelerations {
+    /// Proper acceleration of the origin `a = Rᵀ(p̈ − g_w)`, body frame [m/s²] (what an
+    /// ideal accelerometer at the origin reads).
+    pub proper: Vector3<f64>,
+    /// World acceleration `p̈` [m/s²].
+    pub world: Vector3<f64>,
+    /// Angular acceleration `ω̇`, body frame [rad/s²].
+    pub angular: Vector3<f64>,
+    /// Total non-gravitational wrench acting on the body (rotors and effects), body frame.
+    pub wrench: Wrench,
+}
+
+/// The simulated quadrotor.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    model: QuadrotorModel,
+    params: InertialParams,
+    effects: PlantEffects,
+    state: PlantState,
+}
+
+impl Plant {
+    /// A plant with actuator layout `model` (its `k_f`, `k_m`, speed limit, rotor positions),
+    /// true inertial parameters `params`, the given effects and initial state.
+    ///
+    /// # Errors
+    /// [`SimError::NonPositiveMass`] if `m ≤ 0`; [`SimError::Dynamics`] if the parameters
+    /// admit no forward dynamics; [`SimError::InvalidParameter`] for bad effects or state.
+    pub fn new(
+        model: QuadrotorModel,
+        params: InertialParams,
+        effects: PlantEffects,
+        state: PlantState,
+    ) -> Result<Self, SimError> {
+        validate_params(&params)?;
+        effects.validate()?;
+        let finite = state
+            .position
+            .iter()
+            .chain(state.velocity.iter())
+            .chain(state.body_rate.iter())
+            .chain(state.attitude.coords.iter())
+            .chain(state.rotor_speeds.iter())
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(SimError::InvalidParameter {
+                name: "initial state",
+                value: f64::NAN,
+                reason: "must be finite",
+            });
+        }
+        Ok(Self {
+            model,
+            params,
+            effects,
+            state,
+        })
+    }
+
+    /// Current state.
+    pub fn state(&self) -> &PlantState {
+        &self.state
+    }
+
+    /// True inertial parameters.
+    pub fn params(&self) -> &InertialParams {
+        &self.params
+    }
+
+    /// Replaces the true inertial parameters (a payload event).
+    ///
+    /// # Errors
+    /// As [`Plant::new`]; the plant is unchanged on error.
+    pub fn set_params(&mut self, params: InertialParams) -> Result<(), SimError> {
+        validate_params(&params)?;
+        self.params = params;
+        Ok(())
+    }
+
+    /// Actuator model.
+    pub fn model(&self) -> &QuadrotorModel {
+        &self.model
+    }
+
+    /// Plant effects.
+    pub fn effects(&self) -> &PlantEffects {
+        &self.effects
+    }
+
+    /// Clamps commanded rotor speeds to `[0, ω_max]` [rad/s] (NaN → 0).
+    pub fn clamp_speeds(&self, speeds: &[f64; 4]) -> [f64; 4] {
+        let hi = self.model.max_rotor_speed;
+        speeds.map(|w| if w.is_nan() { 0.0 } else { w.clamp(0.0, hi) })
+    }
+
+    fn wrench_at(&self, s: &PlantState, rotor: &[f64; 4]) -> Wrench {
+        let k = self.effects.thrust_multiplier(s.position.z);
+        let thrusts = rotor.map(|w| k * self.model.k_f * w * w);
+        let mut wrench = self.model.wrench_from_thrusts(&thrusts);
+        let sum: f64 = rotor.iter().sum();
+        wrench.force += self.effects.extra_force(&s.velocity, &s.attitude, sum);
+        wrench.torque += self.effects.extra_torque();
+        wrench
+    }
+
+    fn actual_rotor(&self, s: &PlantState, cmd: &[f64; 4]) -> [f64; 4] {
+        if self.effects.motor_lag.is_some() {
+            s.rotor_speeds
+        } else {
+            *cmd
+        }
+    }
+
+    /// Accelerations at state `s` under clamped command `cmd` [rad/s].
+    fn accelerations_at(&self, s: &PlantState, cmd: &[f64; 4]) -> Accelerations {
+        let rotor = self.actual_rotor(s, cmd);
+        let wrench = self.wrench_at(s, &rotor);
+        // The parameters were validated on entry, so the solve succeeds for finite input;
+        // a non-finite state (a diverged run) propagates as NaN and is caught by the caller.
+        let (proper, angular) = try_forward_dynamics(&self.params, &wrench, &s.body_rate)
+            .unwrap_or((Vector3::repeat(f64::NAN), Vector3::repeat(f64::NAN)));
+        let world = s.attitude * proper + GRAVITY_WORLD;
+        Accelerations {
+            proper,
+            world,
+            angular,
+            wrench,
+        }
+    }
+
+    /// Instantaneous accelerations of the current state under the command `speeds` [rad/s]
+    /// (clamped to the rotor limits).
+    pub fn accelerations(&self, speeds: &[f64; 4]) -> Accelerations {
+        let cmd = self.clamp_speeds(speeds);
+        self.accelerations_at(&self.state, &cmd)
+    }
+
+    fn derivative(&self, s: &PlantState, cmd: &[f64; 4]) -> Derivative {
+        let acc = self.accelerations_at(s, cmd);
+        let w = s.body_rate;
+        let dq = s.attitude.into_inner() * Quaternion::new(0.0, w.x, w.y, w.z) * 0.5;
+        let dr = match &self.effects.motor_lag {
+            Some(l) => core::array::from_fn(|i| (cmd[i] - s.rotor_speeds[i]) / l.time_constant),
+            None => [0.0; 4],
+        };
+        Derivative {
+            dp: s.velocity,
+            dv: acc.world,
+            dq,
+            dw: acc.angular,
+            dr,
+        }
+    }
+
+    fn advance(s: &PlantState, d: &Derivative, h: f64) -> PlantState {
+        let q = s.attitude.into_inner() + d.dq * h;
+        PlantState {
+            position: s.position + d.dp * h,
+            velocity: s.velocity + d.dv * h,
+            // Intermediate RK stages renormalise so the attitude stays a rotation.
+            attitude: UnitQuaternion::new_normalize(q),
+            body_rate: s.body_rate + d.dw * h,
+            rotor_speeds: core::array::from_fn(|i| s.rotor_speeds[i] + d.dr[i] * h),
+        }
+    }
+
+    /// Advances the state by one RK4 step of `dt` [s] with the rotor-speed command `speeds`
+    /// [rad/s] held constant (clamped to `[0, ω_max]`). Without motor lag the actual rotor
+    /// speeds equal the clamped command.
+    pub fn step(&mut self, speeds: &[f64; 4], dt: f64) {
+        let cmd = self.clamp_speeds(speeds);
+        let s0 = self.state;
+        let k1 = self.derivative(&s0, &cmd);
+        let k2 = self.derivative(&Self::advance(&s0, &k1, 0.5 * dt), &cmd);
+        let k3 = self.derivative(&Self::advance(&s0, &k2, 0.5 * dt), &cmd);
+        let k4 = self.derivative(&Self::advance(&s0, &k3, dt), &cmd);
+        let w = dt / 6.0;
+        let comb3 = |a: Vector3<f64>, b: Vector3<f64>, c: Vector3<f64>, d: Vector3<f64>| {
+            (a + (b + c) * 2.0 + d) * w
+        };
+        let dq = (k1.dq + (k2.dq + k3.dq) * 2.0 + k4.dq) * w;
+        let mut next = PlantState {
+            position: s0.position + comb3(k1.dp, k2.dp, k3.dp, k4.dp),
+            velocity: s0.velocity + comb3(k1.dv, k2.dv, k3.dv, k4.dv),
+            attitude: UnitQuaternion::new_normalize(s0.attitude.into_inner() + dq),
+            body_rate: s0.body_rate + comb3(k1.dw, k2.dw, k3.dw, k4.dw),
+            rotor_speeds: core::array::from_fn(|i| {
+                s0.rotor_speeds[i] + (k1.dr[i] + 2.0 * (k2.dr[i] + k3.dr[i]) + k4.dr[i]) * w
+            }),
+        };
+        if self.effects.motor_lag.is_none() {
+            next.rotor_speeds = cmd;
+        }
+        self.state = next;
+    }
+
+    /// `true` while every state component is finite.
+    pub fn is_finite(&self) -> bool {
+        let s = &self.state;
+        s.position
+            .iter()
+            .chain(s.velocity.iter())
+            .chain(s.body_rate.iter())
+            .chain(s.attitude.coords.iter())
+            .all(|v| v.is_finite())
+    }
+}
+
+/// Checks true plant parameters: finite, `m > 0`, positive-definite inertia about the centre
+/// of mass (so the forward dynamics exist).
+///
+/// # Errors
+/// [`SimError::NonPositiveMass`], [`SimError::Dynamics`].
+pub fn validate_params(params: &InertialParams) -> Result<(), SimError> {
+    let m = params.mass();
+    if !(m > 0.0 && m.is_finite()) {
+        return Err(SimError::NonPositiveMass {
+            what: "vehicle",
+            mass: m,
+        });
+    }
+    try_forward_dynamics(params, &Wrench::zero(), &Vector3::zeros())?;
+    Ok(())
+}
