@@ -38,15 +38,11 @@ fn bench(c: &mut Criterion) {
     let sizes: Vec<usize> = std::env::var("TAGK_BACKEND_SIZES")
         .ok()
         .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
-        .unwrap_or_else(|| vec![10, 40, 80, 120]);
+        .unwrap_or_else(|| vec![10, 20, 30, 40, 80, 120]);
     for n in sizes {
         let stream = windows(n);
         let mut group = c.benchmark_group(format!("backend/n={n},m={M}"));
-        let mut backends = vec![Backend::Loops, Backend::Faer, Backend::NalgebraDyn];
-        if n == 10 {
-            backends.push(Backend::NalgebraFixed);
-        }
-        for backend in backends {
+        for backend in [Backend::Loops, Backend::Faer] {
             let ests: Vec<(&str, Box<dyn OnlineEstimator<f64>>)> = vec![
                 ("RLS", Box::new(Rls::new(n, M, RlsConfig::LOW.with_backend(backend)).unwrap())),
                 ("KF", Box::new(KalmanFilter::new(n, M, KalmanConfig::LOW.with_backend(backend)).unwrap())),

@@ -97,7 +97,7 @@ impl KalmanFilter {
         self.state.trace()
     }
 
-    /// The backend in use ([`Backend::Auto`] resolved for this dimension).
+    /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
         self.state.ws.backend()
     }

@@ -35,7 +35,7 @@ mod kernel;
 mod rls;
 mod state;
 
-pub use config::{AUTO_FAER_MIN_DIM, Backend, KalmanConfig, RlsConfig, WindupGuard};
+pub use config::{Backend, KalmanConfig, RlsConfig, WindupGuard};
 pub use kalman::KalmanFilter;
 pub use rls::Rls;
 pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, UpdateInfo};

@@ -77,7 +77,7 @@ impl Rls {
         self.state.trace()
     }
 
-    /// The backend in use ([`Backend::Auto`] resolved for this dimension).
+    /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
         self.state.ws.backend()
     }

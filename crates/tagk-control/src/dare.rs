@@ -27,8 +27,8 @@
 use nalgebra::{DMatrix, DefaultAllocator, Dim, Matrix, OMatrix, RawStorage, allocator::Allocator};
 
 use crate::linalg::{
-    cholesky_in_place, cholesky_solve_in_place, frobenius_diff, lu_in_place, lu_solve_in_place,
-    max_asymmetry, symmetrize,
+    backward_lower_t_in_place, cholesky_in_place, cholesky_solve_in_place, forward_lower_in_place,
+    frobenius_diff, lu_in_place, lu_solve_transposed_in_place, max_asymmetry, symmetrize,
 };
 
 /// Relative tolerance under which `Q`, `R` and `P₀` count as symmetric:
@@ -76,7 +76,9 @@ pub enum DareError {
     },
     /// `R + BᵀPB` (iteration) or `I + GH` (doubling) lost definiteness / became singular,
     /// e.g. because the warm start `P₀` was indefinite.
-    #[error("breakdown at iteration {iteration}: R + B^T P B not positive definite or I + G H singular")]
+    #[error(
+        "breakdown at iteration {iteration}: R + B^T P B not positive definite or I + G H singular"
+    )]
     Breakdown {
         /// Iteration at which it happened (1-based).
         iteration: usize,
@@ -88,7 +90,9 @@ pub enum DareError {
         iteration: usize,
     },
     /// The iteration cap was reached before the relative-change test passed.
-    #[error("no convergence after {iterations} iterations (last relative change {relative_change:e})")]
+    #[error(
+        "no convergence after {iterations} iterations (last relative change {relative_change:e})"
+    )]
     NotConverged {
         /// Iterations performed.
         iterations: usize,
@@ -136,15 +140,19 @@ where
     pub residual: f64,
 }
 
-/// Workspace of one Riccati step.
+/// Workspace of one Riccati step (allocated once per solve).
 struct RiccatiWork<N: Dim, M: Dim>
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
+    at: OMatrix<f64, N, N>,
+    bt: OMatrix<f64, M, N>,
     pa: OMatrix<f64, N, N>,
-    pb: OMatrix<f64, N, M>,
+    btp: OMatrix<f64, M, N>,
     bpa: OMatrix<f64, M, N>,
     s: OMatrix<f64, M, M>,
+    y: OMatrix<f64, M, N>,
+    yt: OMatrix<f64, N, M>,
     k: OMatrix<f64, M, N>,
     next: OMatrix<f64, N, N>,
 }
@@ -153,18 +161,27 @@ impl<N: Dim, M: Dim> RiccatiWork<N, M>
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
-    fn new(n: N, m: M) -> Self {
+    fn new(a: &OMatrix<f64, N, N>, b: &OMatrix<f64, N, M>) -> Self {
+        let (n, m) = b.shape_generic();
         Self {
+            at: a.transpose(),
+            bt: b.transpose(),
             pa: OMatrix::zeros_generic(n, n),
-            pb: OMatrix::zeros_generic(n, m),
+            btp: OMatrix::zeros_generic(m, n),
             bpa: OMatrix::zeros_generic(m, n),
             s: OMatrix::zeros_generic(m, m),
+            y: OMatrix::zeros_generic(m, n),
+            yt: OMatrix::zeros_generic(n, m),
             k: OMatrix::zeros_generic(m, n),
             next: OMatrix::zeros_generic(n, n),
         }
     }
 
     /// `next = 𝓡(p)`, `k = (R + BᵀpB)⁻¹Bᵀp A`. Returns `false` if `R + BᵀpB` is not PD.
+    ///
+    /// With `S = R + BᵀPB = LLᵀ` and `Y = L⁻¹BᵀPA`: `K = L⁻ᵀY` and
+    /// `𝓡(P) = Q + Aᵀ(PA) − YᵀY`. Every product is a plain (non-transposed) `gemm` on
+    /// pre-transposed operands: column `axpy`s, which vectorise.
     fn step(
         &mut self,
         a: &OMatrix<f64, N, N>,
@@ -173,19 +190,23 @@ where
         r: &OMatrix<f64, M, M>,
         p: &OMatrix<f64, N, N>,
     ) -> bool {
+        let m = self.s.nrows();
         p.mul_to(a, &mut self.pa);
-        p.mul_to(b, &mut self.pb);
-        b.tr_mul_to(&self.pa, &mut self.bpa);
+        self.bt.mul_to(p, &mut self.btp);
+        self.btp.mul_to(a, &mut self.bpa);
         self.s.copy_from(r);
-        self.s.gemm_tr(1.0, b, &self.pb, 1.0);
-        if !cholesky_in_place(&mut self.s) {
+        self.s.gemm(1.0, &self.btp, b, 1.0);
+        if !cholesky_in_place(self.s.as_mut_slice(), m) {
             return false;
         }
-        self.k.copy_from(&self.bpa);
-        cholesky_solve_in_place(&self.s, &mut self.k);
+        self.y.copy_from(&self.bpa);
+        forward_lower_in_place(self.s.as_slice(), m, self.y.as_mut_slice());
+        self.k.copy_from(&self.y);
+        backward_lower_t_in_place(self.s.as_slice(), m, self.k.as_mut_slice());
+        self.y.transpose_to(&mut self.yt);
         self.next.copy_from(q);
-        self.next.gemm_tr(1.0, a, &self.pa, 1.0);
-        self.next.gemm_tr(-1.0, &self.bpa, &self.k, 1.0);
+        self.next.gemm(1.0, &self.at, &self.pa, 1.0);
+        self.next.gemm(-1.0, &self.yt, &self.y, 1.0);
         symmetrize(&mut self.next);
         true
     }
@@ -213,7 +234,10 @@ fn check_symmetric<D: Dim, S: RawStorage<f64, D, D>>(
     what: &'static str,
     m: &Matrix<f64, D, D, S>,
 ) -> Result<(), DareError> {
-    let scale = m.iter().fold(0.0_f64, |acc, v| acc.max(v.abs())).max(1e-300);
+    let scale = m
+        .iter()
+        .fold(0.0_f64, |acc, v| acc.max(v.abs()))
+        .max(1e-300);
     let asym = max_asymmetry(m);
     if asym > SYMMETRY_TOL * scale {
         return Err(DareError::NotSymmetric {
@@ -255,7 +279,7 @@ where
         check_symmetric("P0", p0)?;
     }
     let mut rc = r.clone();
-    if !cholesky_in_place(&mut rc) {
+    if !cholesky_in_place(rc.as_mut_slice(), m) {
         return Err(DareError::RNotPositiveDefinite {
             min_eigenvalue: min_eigenvalue(r),
         });
@@ -267,7 +291,7 @@ where
     for i in 0..n {
         qs[(i, i)] += shift;
     }
-    if !cholesky_in_place(&mut qs) {
+    if !cholesky_in_place(qs.as_mut_slice(), n) {
         return Err(DareError::QNotPositiveSemidefinite {
             min_eigenvalue: min_eigenvalue(q),
         });
@@ -322,8 +346,7 @@ where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
     validate(a, b, q, r, Some(p))?;
-    let (n, m) = b.shape_generic();
-    let mut work = RiccatiWork::new(n, m);
+    let mut work = RiccatiWork::new(a, b);
     Ok(finish(a, b, q, r, p.clone(), 0, &mut work)?.residual)
 }
 
@@ -349,8 +372,7 @@ where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
     validate(a, b, q, r, Some(p0))?;
-    let (n, m) = b.shape_generic();
-    let mut work = RiccatiWork::new(n, m);
+    let mut work = RiccatiWork::new(a, b);
     let mut p = p0.clone();
     let mut relative_change = f64::INFINITY;
     for it in 1..=options.max_iterations {
@@ -417,19 +439,19 @@ where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
     validate(a, b, q, r, None)?;
-    let (n, m) = b.shape_generic();
-    let nn = n.value();
-    let mut work = RiccatiWork::new(n, m);
+    let n = a.shape_generic().0;
+    let (nn, mm) = b.shape();
+    let mut work = RiccatiWork::new(a, b);
 
-    // G = B R⁻¹ Bᵀ via the Cholesky factor of R (work.s) and Y = R⁻¹Bᵀ (work.k).
+    // G = B R⁻¹ Bᵀ via the Cholesky factor of R (work.s) and R⁻¹Bᵀ (work.k).
     work.s.copy_from(r);
-    if !cholesky_in_place(&mut work.s) {
+    if !cholesky_in_place(work.s.as_mut_slice(), mm) {
         return Err(DareError::RNotPositiveDefinite {
             min_eigenvalue: min_eigenvalue(r),
         });
     }
-    b.transpose_to(&mut work.k);
-    cholesky_solve_in_place(&work.s, &mut work.k);
+    work.k.copy_from(&work.bt);
+    cholesky_solve_in_place(work.s.as_slice(), mm, work.k.as_mut_slice());
     let mut g = OMatrix::<f64, N, N>::zeros_generic(n, n);
     b.mul_to(&work.k, &mut g);
     symmetrize(&mut g);
@@ -457,14 +479,17 @@ where
         // W = I + G H, factorised.
         w.fill_with_identity();
         w.gemm(1.0, &g, &h, 1.0);
-        if !lu_in_place(&mut w, piv) {
+        if !lu_in_place(w.as_mut_slice(), nn, piv) {
             return Err(DareError::Breakdown { iteration: it });
         }
-        y1.copy_from(&e);
-        lu_solve_in_place(&w, piv, &mut y1); // W⁻¹E
-        y2.copy_from(&g);
-        lu_solve_in_place(&w, piv, &mut y2); // W⁻¹G (symmetric)
+        // Y1 = W⁻¹E and Y2 = W⁻¹G, solved in transposed form (rows contiguous).
         e.transpose_to(&mut et);
+        t.copy_from(&et);
+        lu_solve_transposed_in_place(w.as_slice(), nn, piv, t.as_mut_slice());
+        t.transpose_to(&mut y1);
+        tmp.copy_from(&g); // Gᵀ = G
+        lu_solve_transposed_in_place(w.as_slice(), nn, piv, tmp.as_mut_slice());
+        tmp.transpose_to(&mut y2);
 
         // H ← H + Eᵀ (H W⁻¹E)
         h.mul_to(&y1, &mut t);

@@ -4,7 +4,8 @@
 pub use nalgebra;
 
 pub mod dare;
-mod linalg;
+#[doc(hidden)]
+pub mod linalg;
 pub mod lqr;
 pub mod quadrotor;
 

@@ -1,85 +1,94 @@
-//! Small dense kernels that work in place on any nalgebra storage, so that the
-//! Riccati solvers do not allocate inside their loops (nalgebra's `Cholesky` and
-//! `LU` consume their argument, which would allocate for `DMatrix`).
+//! Small dense kernels on contiguous column-major slices, so that the Riccati solvers
+//! neither allocate inside their loops (nalgebra's `Cholesky` and `LU` consume their
+//! argument, which allocates for `DMatrix`) nor pay for bounds checks in the inner loops:
+//! every inner loop is an `axpy` or a dot product over contiguous memory.
 
 use nalgebra::{Dim, Matrix, RawStorage, StorageMut};
 
-/// Cholesky factorisation in place: on success the lower triangle of `m` holds `L`
-/// with `m = L Lᵀ` (the strict upper triangle is left untouched and never read).
-/// Returns `false` if `m` is not (numerically) positive definite.
-pub(crate) fn cholesky_in_place<D: Dim, S: StorageMut<f64, D, D>>(
-    m: &mut Matrix<f64, D, D, S>,
-) -> bool {
-    let n = m.nrows();
+/// `y[i] -= a[i] * s` over equal-length slices.
+#[inline(always)]
+fn axpy_neg(y: &mut [f64], a: &[f64], s: f64) {
+    for (yi, ai) in y.iter_mut().zip(a) {
+        *yi -= ai * s;
+    }
+}
+
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Cholesky factorisation in place of the `n×n` column-major `a`: on success its lower
+/// triangle holds `L` with `a = L Lᵀ`. Only the lower triangle is read; the strict upper
+/// triangle is left as it was. Returns `false` if `a` is not (numerically) positive
+/// definite or holds non-finite values.
+pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    debug_assert_eq!(a.len(), n * n);
     for j in 0..n {
-        let mut d = m[(j, j)];
+        let (left, right) = a.split_at_mut(j * n);
+        let col_j = &mut right[..n];
+        // col_j[j..] -= Σ_k L[j,k] · L[j.., k]
         for k in 0..j {
-            let ljk = m[(j, k)];
-            d -= ljk * ljk;
+            let col_k = &left[k * n..(k + 1) * n];
+            axpy_neg(&mut col_j[j..], &col_k[j..], col_k[j]);
         }
+        let d = col_j[j];
         // `!(d > 0)` also rejects NaN.
         if !(d > 0.0 && d.is_finite()) {
             return false;
         }
         let ljj = d.sqrt();
-        m[(j, j)] = ljj;
-        for i in (j + 1)..n {
-            let mut s = m[(i, j)];
-            for k in 0..j {
-                s -= m[(i, k)] * m[(j, k)];
-            }
-            m[(i, j)] = s / ljj;
+        col_j[j] = ljj;
+        let inv = 1.0 / ljj;
+        for v in &mut col_j[j + 1..] {
+            *v *= inv;
         }
     }
     true
 }
 
-/// Solves `L Lᵀ X = B` in place (`B` is overwritten by `X`), with `L` from
+/// Solves `L Y = B` in place (`B` is `n×ncols`, column-major) with the factor of
 /// [`cholesky_in_place`].
-pub(crate) fn cholesky_solve_in_place<D, C, S1, S2>(
-    l: &Matrix<f64, D, D, S1>,
-    b: &mut Matrix<f64, D, C, S2>,
-) where
-    D: Dim,
-    C: Dim,
-    S1: RawStorage<f64, D, D>,
-    S2: StorageMut<f64, D, C>,
-{
-    let n = l.nrows();
-    for col in 0..b.ncols() {
-        for i in 0..n {
-            let mut s = b[(i, col)];
-            for k in 0..i {
-                s -= l[(i, k)] * b[(k, col)];
-            }
-            b[(i, col)] = s / l[(i, i)];
-        }
-        for i in (0..n).rev() {
-            let mut s = b[(i, col)];
-            for k in (i + 1)..n {
-                s -= l[(k, i)] * b[(k, col)];
-            }
-            b[(i, col)] = s / l[(i, i)];
+pub(crate) fn forward_lower_in_place(l: &[f64], n: usize, b: &mut [f64]) {
+    for col in b.chunks_exact_mut(n) {
+        for k in 0..n {
+            let lk = &l[k * n..(k + 1) * n];
+            let yk = col[k] / lk[k];
+            col[k] = yk;
+            axpy_neg(&mut col[k + 1..], &lk[k + 1..], yk);
         }
     }
 }
 
-/// LU factorisation with partial pivoting in place (`P m = L U`, unit lower `L`
-/// below the diagonal, `U` on and above). `piv[k]` is the row swapped with row `k`
-/// at step `k`. Returns `false` if a pivot is zero or not finite.
-pub(crate) fn lu_in_place<D: Dim, S: StorageMut<f64, D, D>>(
-    m: &mut Matrix<f64, D, D, S>,
-    piv: &mut [usize],
-) -> bool {
-    let n = m.nrows();
-    debug_assert!(piv.len() >= n);
+/// Solves `Lᵀ X = Y` in place (`Y` is `n×ncols`, column-major).
+pub(crate) fn backward_lower_t_in_place(l: &[f64], n: usize, b: &mut [f64]) {
+    for col in b.chunks_exact_mut(n) {
+        for i in (0..n).rev() {
+            let li = &l[i * n..(i + 1) * n];
+            let s = dot(&li[i + 1..], &col[i + 1..]);
+            col[i] = (col[i] - s) / li[i];
+        }
+    }
+}
+
+/// Solves `L Lᵀ X = B` in place.
+pub(crate) fn cholesky_solve_in_place(l: &[f64], n: usize, b: &mut [f64]) {
+    forward_lower_in_place(l, n, b);
+    backward_lower_t_in_place(l, n, b);
+}
+
+/// LU factorisation with partial pivoting in place (`P a = L U`; unit lower `L` below the
+/// diagonal, `U` on and above) of the `n×n` column-major `a`. `piv[k]` is the row swapped
+/// with row `k` at step `k`. Returns `false` if a pivot is zero or not finite.
+pub fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
+    debug_assert_eq!(a.len(), n * n);
     for k in 0..n {
+        let col_k = &a[k * n..(k + 1) * n];
         let mut p = k;
-        let mut best = m[(k, k)].abs();
-        for i in (k + 1)..n {
-            let v = m[(i, k)].abs();
-            if v > best {
-                best = v;
+        let mut best = col_k[k].abs();
+        for (i, v) in col_k.iter().enumerate().skip(k + 1) {
+            if v.abs() > best {
+                best = v.abs();
                 p = i;
             }
         }
@@ -88,67 +97,109 @@ pub(crate) fn lu_in_place<D: Dim, S: StorageMut<f64, D, D>>(
         }
         piv[k] = p;
         if p != k {
-            m.swap_rows(k, p);
+            for col in a.chunks_exact_mut(n) {
+                col.swap(k, p);
+            }
         }
-        let inv = 1.0 / m[(k, k)];
-        for i in (k + 1)..n {
-            m[(i, k)] *= inv;
+        let (left, right) = a.split_at_mut((k + 1) * n);
+        let col_k = &mut left[k * n..];
+        let inv = 1.0 / col_k[k];
+        for v in &mut col_k[k + 1..] {
+            *v *= inv;
         }
-        for j in (k + 1)..n {
-            let mkj = m[(k, j)];
-            if mkj != 0.0 {
-                for i in (k + 1)..n {
-                    let lik = m[(i, k)];
-                    m[(i, j)] -= lik * mkj;
-                }
+        let col_k = &*col_k;
+        for col_j in right.chunks_exact_mut(n) {
+            let ukj = col_j[k];
+            if ukj != 0.0 {
+                axpy_neg(&mut col_j[k + 1..], &col_k[k + 1..], ukj);
             }
         }
     }
     true
 }
 
-/// Solves `m X = B` in place with the factors of [`lu_in_place`].
-pub(crate) fn lu_solve_in_place<D, C, S1, S2>(
-    lu: &Matrix<f64, D, D, S1>,
-    piv: &[usize],
-    b: &mut Matrix<f64, D, C, S2>,
-) where
-    D: Dim,
-    C: Dim,
-    S1: RawStorage<f64, D, D>,
-    S2: StorageMut<f64, D, C>,
-{
-    let n = lu.nrows();
+/// Solves `a X = B` in place with the factors of [`lu_in_place`] (`B` is `n×ncols`).
+///
+/// All right-hand sides are processed together for each pivot, so the factor column is
+/// sliced once per step and the inner loops are branch-free `axpy`s.
+pub fn lu_solve_in_place(lu: &[f64], n: usize, piv: &[usize], b: &mut [f64]) {
+    debug_assert_eq!(lu.len(), n * n);
     for (k, &p) in piv.iter().enumerate().take(n) {
         if p != k {
-            b.swap_rows(k, p);
+            for col in b.chunks_exact_mut(n) {
+                col.swap(k, p);
+            }
         }
     }
-    for col in 0..b.ncols() {
-        // Forward substitution with the unit lower factor (column oriented).
-        for k in 0..n {
-            let bk = b[(k, col)];
-            if bk != 0.0 {
-                for i in (k + 1)..n {
-                    b[(i, col)] -= lu[(i, k)] * bk;
-                }
-            }
+    // Forward substitution with the unit lower factor.
+    for k in 0..n {
+        let lk = &lu[k * n + k + 1..(k + 1) * n];
+        for col in b.chunks_exact_mut(n) {
+            let (head, tail) = col.split_at_mut(k + 1);
+            axpy_neg(tail, lk, head[k]);
         }
-        // Back substitution with the upper factor (column oriented).
-        for k in (0..n).rev() {
-            let xk = b[(k, col)] / lu[(k, k)];
-            b[(k, col)] = xk;
-            if xk != 0.0 {
-                for i in 0..k {
-                    b[(i, col)] -= lu[(i, k)] * xk;
-                }
-            }
+    }
+    // Back substitution with the upper factor.
+    for k in (0..n).rev() {
+        let uk = &lu[k * n..k * n + k];
+        let inv = 1.0 / lu[k * n + k];
+        for col in b.chunks_exact_mut(n) {
+            let (head, tail) = col.split_at_mut(k);
+            let xk = tail[0] * inv;
+            tail[0] = xk;
+            axpy_neg(head, uk, xk);
+        }
+    }
+}
+
+/// Solves `a X = B` in place with the factors of [`lu_in_place`], for `B` given
+/// **transposed**: `bt` holds `Bᵀ` column-major (`ncols × n`), i.e. row `i` of `B` is the
+/// contiguous chunk `bt[i·ncols .. (i+1)·ncols]`. On return `bt` holds `Xᵀ`.
+///
+/// The substitutions become row operations `row_i −= l_ik · row_k` on contiguous rows of
+/// length `ncols` — far fewer and longer `axpy`s than [`lu_solve_in_place`] when
+/// `ncols ≥ n`.
+pub fn lu_solve_transposed_in_place(lu: &[f64], n: usize, piv: &[usize], bt: &mut [f64]) {
+    debug_assert_eq!(lu.len(), n * n);
+    if n == 0 {
+        return;
+    }
+    let w = bt.len() / n;
+    for (k, &p) in piv.iter().enumerate().take(n) {
+        if p != k {
+            let (lo, hi) = bt.split_at_mut(p * w);
+            lo[k * w..(k + 1) * w].swap_with_slice(&mut hi[..w]);
+        }
+    }
+    // Forward substitution with the unit lower factor: row_i −= L[i,k] row_k, k < i.
+    for i in 1..n {
+        let (done, rest) = bt.split_at_mut(i * w);
+        let row_i = &mut rest[..w];
+        for k in 0..i {
+            let lik = lu[k * n + i];
+            axpy_neg(row_i, &done[k * w..(k + 1) * w], lik);
+        }
+    }
+    // Back substitution with the upper factor: row_i = (row_i − Σ_{k>i} U[i,k] row_k) / U[i,i].
+    for i in (0..n).rev() {
+        let (head, done) = bt.split_at_mut((i + 1) * w);
+        let row_i = &mut head[i * w..];
+        for k in (i + 1)..n {
+            let uik = lu[k * n + i];
+            axpy_neg(row_i, &done[(k - i - 1) * w..(k - i) * w], uik);
+        }
+        let inv = 1.0 / lu[i * n + i];
+        for v in row_i.iter_mut() {
+            *v *= inv;
         }
     }
 }
 
 /// Frobenius norm of `a − b`.
-pub(crate) fn frobenius_diff<R, C, S1, S2>(a: &Matrix<f64, R, C, S1>, b: &Matrix<f64, R, C, S2>) -> f64
+pub(crate) fn frobenius_diff<R, C, S1, S2>(
+    a: &Matrix<f64, R, C, S1>,
+    b: &Matrix<f64, R, C, S2>,
+) -> f64
 where
     R: Dim,
     C: Dim,
@@ -195,26 +246,32 @@ mod tests {
     fn cholesky_reconstructs_and_solves() {
         let a = Matrix3::new(4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0);
         let mut l = a;
-        assert!(cholesky_in_place(&mut l));
+        assert!(cholesky_in_place(l.as_mut_slice(), 3));
         let lower = l.lower_triangle();
         assert!((lower * lower.transpose() - a).norm() < 1e-14);
         let x_true = Matrix3x2::new(1.0, -2.0, 0.5, 3.0, -1.5, 0.25);
         let mut b = a * x_true;
-        cholesky_solve_in_place(&l, &mut b);
+        cholesky_solve_in_place(l.as_slice(), 3, b.as_mut_slice());
         assert!((b - x_true).norm() < 1e-13);
+        // The two halves separately: L⁻¹ then L⁻ᵀ.
+        let mut y = a * x_true;
+        forward_lower_in_place(l.as_slice(), 3, y.as_mut_slice());
+        assert!((lower * y - a * x_true).norm() < 1e-13);
+        backward_lower_t_in_place(l.as_slice(), 3, y.as_mut_slice());
+        assert!((y - x_true).norm() < 1e-13);
     }
 
     #[test]
     fn cholesky_rejects_indefinite_and_nan() {
         let mut a = Matrix3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0);
-        assert!(!cholesky_in_place(&mut a));
+        assert!(!cholesky_in_place(a.as_mut_slice(), 3));
         let mut b = Matrix3::identity();
         b[(1, 1)] = f64::NAN;
-        assert!(!cholesky_in_place(&mut b));
+        assert!(!cholesky_in_place(b.as_mut_slice(), 3));
     }
 
     #[test]
-    fn lu_solves_against_nalgebra_reference() {
+    fn lu_solves_against_known_solution() {
         // Needs pivoting: zero leading entry.
         let a = SMatrix::<f64, 4, 4>::new(
             0.0, 2.0, 1.0, -1.0, 3.0, 1.0, 0.0, 2.0, 1.0, -1.0, 4.0, 0.5, 2.0, 0.0, 1.0, 3.0,
@@ -223,16 +280,29 @@ mod tests {
         let mut b = a * x_true;
         let mut lu = a;
         let mut piv = [0usize; 4];
-        assert!(lu_in_place(&mut lu, &mut piv));
-        lu_solve_in_place(&lu, &piv, &mut b);
+        assert!(lu_in_place(lu.as_mut_slice(), 4, &mut piv));
+        lu_solve_in_place(lu.as_slice(), 4, &piv, b.as_mut_slice());
         assert!((b - x_true).norm() < 1e-12, "{}", (b - x_true).norm());
 
-        let ad = DMatrix::from_column_slice(4, 4, a.as_slice());
-        let mut lud = ad.clone();
+        let mut lud = DMatrix::from_column_slice(4, 4, a.as_slice());
         let mut bd = DMatrix::from_column_slice(4, 2, (a * x_true).as_slice());
-        assert!(lu_in_place(&mut lud, &mut piv));
-        lu_solve_in_place(&lud, &piv, &mut bd);
+        assert!(lu_in_place(lud.as_mut_slice(), 4, &mut piv));
+        lu_solve_in_place(lud.as_slice(), 4, &piv, bd.as_mut_slice());
         assert!((bd - DMatrix::from_column_slice(4, 2, x_true.as_slice())).norm() < 1e-12);
+    }
+
+    #[test]
+    fn transposed_solve_matches() {
+        let a = SMatrix::<f64, 4, 4>::new(
+            0.0, 2.0, 1.0, -1.0, 3.0, 1.0, 0.0, 2.0, 1.0, -1.0, 4.0, 0.5, 2.0, 0.0, 1.0, 3.0,
+        );
+        let x_true = SMatrix::<f64, 4, 6>::from_fn(|i, j| (i as f64 + 1.0) * 0.5 - j as f64);
+        let mut bt = (a * x_true).transpose();
+        let mut lu = a;
+        let mut piv = [0usize; 4];
+        assert!(lu_in_place(lu.as_mut_slice(), 4, &mut piv));
+        lu_solve_transposed_in_place(lu.as_slice(), 4, &piv, bt.as_mut_slice());
+        assert!((bt.transpose() - x_true).norm() < 1e-12);
     }
 
     #[test]
@@ -240,6 +310,15 @@ mod tests {
         let a = Matrix3::new(1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 0.0, 0.0);
         let mut lu = a;
         let mut piv = [0usize; 3];
-        assert!(!lu_in_place(&mut lu, &mut piv));
+        assert!(!lu_in_place(lu.as_mut_slice(), 3, &mut piv));
+    }
+
+    #[test]
+    fn symmetry_helpers() {
+        let mut m = Matrix3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0);
+        assert_eq!(max_asymmetry(&m), 4.0);
+        symmetrize(&mut m);
+        assert_eq!(m, Matrix3::new(1.0, 3.0, 5.0, 3.0, 5.0, 7.0, 5.0, 7.0, 9.0));
+        assert!((frobenius_diff(&m, &Matrix3::zeros()) - m.norm()).abs() < 1e-15);
     }
 }

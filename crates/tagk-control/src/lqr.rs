@@ -6,8 +6,8 @@ use tagk_dynamics::{InertialParams, QuadrotorModel};
 use crate::ControlError;
 use crate::dare::{DareOptions, DareSolution, solve_dare, solve_dare_sda};
 use crate::quadrotor::{
-    DiscreteModel, ErrorState, GainMatrix, OperatingPoint, QuadrotorState, STATE_DIM,
-    StateMatrix, discretize, error_state, hover_trim, linearize, to_heading_frame, yaw_of,
+    DiscreteModel, ErrorState, GainMatrix, OperatingPoint, QuadrotorState, STATE_DIM, StateMatrix,
+    discretize, error_state, hover_trim, linearize, to_heading_frame, yaw_of,
 };
 
 /// Default control rate of the TAG-K protocol: 50 Hz.
@@ -179,9 +179,13 @@ impl Lqr {
                 &weights.q,
                 &options,
             )?,
-            RiccatiSolver::Doubling => {
-                solve_dare_sda(&d.discrete.a, &d.discrete.b, &weights.q, &weights.r, &options)?
-            }
+            RiccatiSolver::Doubling => solve_dare_sda(
+                &d.discrete.a,
+                &d.discrete.b,
+                &weights.q,
+                &weights.r,
+                &options,
+            )?,
         };
         Ok(Self {
             model: *model,

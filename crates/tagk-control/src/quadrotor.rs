@@ -237,7 +237,11 @@ pub fn trim_thrusts(
     if !state.is_finite() {
         return Err(ControlError::NonFinite { what: "state" });
     }
-    if !(accel_world.iter().chain(omega_dot.iter()).all(|v| v.is_finite())) {
+    if !(accel_world
+        .iter()
+        .chain(omega_dot.iter())
+        .all(|v| v.is_finite()))
+    {
         return Err(ControlError::NonFinite {
             what: "reference acceleration",
         });
@@ -289,8 +293,8 @@ pub fn linearize(
     })?;
     let omega = op.state.body_rate;
     let wrench: Wrench = model.wrench_from_thrusts(&op.thrusts);
-    let (a_ref, _omega_dot_ref) = try_forward_dynamics(params, &wrench, &omega)
-        .map_err(ControlError::Dynamics)?;
+    let (a_ref, _omega_dot_ref) =
+        try_forward_dynamics(params, &wrench, &omega).map_err(ControlError::Dynamics)?;
 
     // Wrench of thrusts: rows f_x, f_y = 0; f_z, τ from the mixer.
     let mix = model.mixer_matrix();
@@ -302,9 +306,10 @@ pub fn linearize(
     let h = params.first_moment();
     let inertia = params.inertia_origin();
     let mut d_bias = SMatrix::<f64, 6, 3>::zeros();
-    d_bias
-        .fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(Matrix3::identity() * omega.dot(&h) + omega * h.transpose() - h * omega.transpose() * 2.0));
+    d_bias.fixed_view_mut::<3, 3>(0, 0).copy_from(
+        &(Matrix3::identity() * omega.dot(&h) + omega * h.transpose()
+            - h * omega.transpose() * 2.0),
+    );
     d_bias
         .fixed_view_mut::<3, 3>(3, 0)
         .copy_from(&(skew(&omega) * inertia - skew(&(inertia * omega))));
@@ -353,8 +358,10 @@ pub fn discretize(model: &ContinuousModel, dt: f64) -> Result<DiscreteModel, Con
         });
     }
     let mut aug = SMatrix::<f64, 16, 16>::zeros();
-    aug.fixed_view_mut::<12, 12>(0, 0).copy_from(&(model.a * dt));
-    aug.fixed_view_mut::<12, 4>(0, 12).copy_from(&(model.b * dt));
+    aug.fixed_view_mut::<12, 12>(0, 0)
+        .copy_from(&(model.a * dt));
+    aug.fixed_view_mut::<12, 4>(0, 12)
+        .copy_from(&(model.b * dt));
     let e = aug.exp();
     if e.iter().any(|v| !v.is_finite()) {
         return Err(ControlError::NonFinite {

@@ -47,7 +47,10 @@ fn scalar_dare_matches_closed_form() {
         let it = solve_dare_cold(&am, &bm, &qm, &rm, &tight()).unwrap();
         let sda = solve_dare_sda(&am, &bm, &qm, &rm, &tight()).unwrap();
         for p in [it.p[(0, 0)], sda.p[(0, 0)]] {
-            assert!((p - p_exact).abs() <= 1e-12 * p_exact, "{a} {b} {q} {r}: {p} vs {p_exact}");
+            assert!(
+                (p - p_exact).abs() <= 1e-12 * p_exact,
+                "{a} {b} {q} {r}: {p} vs {p_exact}"
+            );
         }
         let k_exact = p_exact * a * b / (r + b * b * p_exact);
         assert!((it.k[(0, 0)] - k_exact).abs() <= 1e-12 * k_exact.abs());
@@ -94,19 +97,36 @@ fn double_integrator_matches_two_independent_methods() {
     let acl = a - b * it.k;
     assert!(acl.complex_eigenvalues().iter().all(|l| l.norm() < 1.0));
     // A few doubling steps replace many Riccati steps.
-    assert!(sda.iterations * 4 < it.iterations, "{} vs {}", sda.iterations, it.iterations);
+    assert!(
+        sda.iterations * 4 < it.iterations,
+        "{} vs {}",
+        sda.iterations,
+        it.iterations
+    );
 }
 
 #[test]
 fn dynamic_and_static_paths_agree() {
     let (a, b, q, r) = double_integrator();
     let s = solve_dare_cold(&a, &b, &q, &r, &DareOptions::default()).unwrap();
-    let d = solve_dare_cold(&to_d(&a), &to_d(&b), &to_d(&q), &to_d(&r), &DareOptions::default())
-        .unwrap();
+    let d = solve_dare_cold(
+        &to_d(&a),
+        &to_d(&b),
+        &to_d(&q),
+        &to_d(&r),
+        &DareOptions::default(),
+    )
+    .unwrap();
     assert_eq!(s.iterations, d.iterations);
     assert!((to_d(&s.p) - &d.p).norm() <= 1e-12 * d.p.norm());
-    let sd = solve_dare_sda(&to_d(&a), &to_d(&b), &to_d(&q), &to_d(&r), &DareOptions::default())
-        .unwrap();
+    let sd = solve_dare_sda(
+        &to_d(&a),
+        &to_d(&b),
+        &to_d(&q),
+        &to_d(&r),
+        &DareOptions::default(),
+    )
+    .unwrap();
     assert!((to_d(&s.p) - &sd.p).norm() <= 1e-9 * d.p.norm());
 }
 
@@ -185,7 +205,10 @@ fn typed_errors() {
     let b_unstab = SMatrix::<f64, 2, 1>::new(0.0, 1.0);
     let res = solve_dare_cold(&a_unstab, &b_unstab, &q, &r, &opts);
     assert!(
-        matches!(res, Err(DareError::Diverged { .. } | DareError::NotConverged { .. })),
+        matches!(
+            res,
+            Err(DareError::Diverged { .. } | DareError::NotConverged { .. })
+        ),
         "{res:?}"
     );
     let res = solve_dare_sda(&a_unstab, &b_unstab, &q, &r, &opts);
@@ -198,10 +221,23 @@ fn typed_errors() {
     ));
 }
 
-fn random_system(seed: [f64; 16]) -> (SMatrix<f64, 3, 3>, SMatrix<f64, 3, 2>, SMatrix<f64, 3, 3>, Matrix2<f64>) {
+fn random_system(
+    seed: [f64; 16],
+) -> (
+    SMatrix<f64, 3, 3>,
+    SMatrix<f64, 3, 2>,
+    SMatrix<f64, 3, 3>,
+    Matrix2<f64>,
+) {
     let a = SMatrix::<f64, 3, 3>::from_fn(|i, j| 1.2 * seed[3 * i + j] / 3f64.sqrt());
     let b = SMatrix::<f64, 3, 2>::from_fn(|i, j| seed[9 + 2 * i + j]);
-    let c = SMatrix::<f64, 3, 3>::from_fn(|i, j| if i == j { 1.0 } else { 0.3 * seed[(i + j) % 16] });
+    let c = SMatrix::<f64, 3, 3>::from_fn(|i, j| {
+        if i == j {
+            1.0
+        } else {
+            0.3 * seed[(i + j) % 16]
+        }
+    });
     let q = c.transpose() * c;
     let l = Matrix2::new(1.0 + seed[15].abs(), 0.0, 0.2, 0.5);
     let r = l * l.transpose();

@@ -1,24 +1,33 @@
-use nalgebra::SMatrix;
+use nalgebra::Vector3;
 use std::hint::black_box;
-use std::time::Instant;
-type M12 = SMatrix<f64, 12, 12>;
+use tagk_control::*;
+use tagk_dynamics::QuadrotorModel;
 
 #[test]
-fn micro() {
-    let a = M12::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 3.0 } else { 0.0 });
-    let b = M12::from_fn(|i, j| ((i * 5 + j * 2) % 13) as f64 * 0.1);
-    let mut c = M12::zeros();
-    let n = 200_000;
-    let t = Instant::now();
-    for _ in 0..n { black_box(&a).mul_to(black_box(&b), &mut c); black_box(&c); }
-    println!("mul_to {:.1} ns", t.elapsed().as_nanos() as f64 / n as f64);
-    let t = Instant::now();
-    for _ in 0..n { black_box(&a).tr_mul_to(black_box(&b), &mut c); black_box(&c); }
-    println!("tr_mul_to {:.1} ns", t.elapsed().as_nanos() as f64 / n as f64);
-    let t = Instant::now();
-    for _ in 0..n { c = black_box(&a) * black_box(&b); black_box(&c); }
-    println!("op* {:.1} ns", t.elapsed().as_nanos() as f64 / n as f64);
-    let t = Instant::now();
-    for _ in 0..n { let lu = black_box(a).lu(); c = lu.solve(black_box(&b)).unwrap(); black_box(&c); }
-    println!("nalgebra lu+solve12 {:.1} ns", t.elapsed().as_nanos() as f64 / n as f64);
+fn cpu() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let w = LqrWeights::crazyflie();
+    let payload = model
+        .params
+        .with_point_mass(0.5 * 0.035, Vector3::new(0.3 * 0.046, 0.0, 0.0));
+    let op = hover_trim(&model, &payload, Vector3::zeros(), 0.0).unwrap();
+    let d = discretize(&linearize(&model, &payload, &op).unwrap(), DEFAULT_DT).unwrap();
+    let opts = DareOptions::default();
+    let which = std::env::var("WHICH").unwrap();
+    let n: usize = 5000;
+    let opn = hover_trim(&model, &model.params, Vector3::zeros(), 0.0).unwrap();
+    let dn = discretize(&linearize(&model, &model.params, &opn).unwrap(), DEFAULT_DT).unwrap();
+    let p0 = solve_dare_sda(&dn.a, &dn.b, &w.q, &w.r, &opts).unwrap().p;
+    for _ in 0..n {
+        match which.as_str() {
+            "sda" => {
+                black_box(solve_dare_sda(black_box(&d.a), &d.b, &w.q, &w.r, &opts).unwrap());
+            }
+            "warm" => {
+                black_box(solve_dare(black_box(&d.a), &d.b, &w.q, &w.r, &p0, &opts).unwrap());
+            }
+            "none" => {}
+            _ => panic!(),
+        }
+    }
 }

@@ -20,7 +20,9 @@ pub enum EstimatorError {
         capacity: usize,
     },
     /// The regressor's length is not `rows × cols` (row-major `A`, `rows = b.len()`).
-    #[error("the regressor has {found} entries, expected {expected} ({rows} rows × {cols} columns)")]
+    #[error(
+        "the regressor has {found} entries, expected {expected} ({rows} rows × {cols} columns)"
+    )]
     ShapeMismatch {
         /// `rows × cols`.
         expected: usize,

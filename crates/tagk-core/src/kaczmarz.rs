@@ -46,9 +46,11 @@ use rand_chacha::ChaCha8Rng;
 use rand_core::{Rng, SeedableRng};
 
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
-use crate::linalg::{
-    axpy, dot, gram_transposed, norm2_and_dot, padded, residual_transposed, transpose_padded,
-};
+use crate::linalg::{axpy, dot, norm2_and_dot, padded};
+#[cfg(not(target_arch = "x86_64"))]
+use crate::linalg::{gram_rows, residual_rows};
+#[cfg(target_arch = "x86_64")]
+use crate::linalg::{gram_transposed, residual_transposed, transpose_padded};
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
 
 /// How many projections an update performs.
@@ -176,13 +178,19 @@ impl KaczmarzConfig {
 }
 
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
-/// needs: `2n + (6 + n)·p + p² + p/4` scalars with `p = m_max` rounded up to a multiple of 4
-/// (`p²` holds the Gram matrix, `n·p` a transposed copy of the window).
+/// needs: `2n + 6p + p² + p/4` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
+/// holds the Gram matrix), plus `n·p` on x86-64 for a transposed copy of the window.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     let p = padded(m_max);
-    2 * n + (6 + n) * p + p * p + p / 4
+    // The transposed copy of a window is only kept on x86-64 (see the Gram kernels).
+    let transposed = if cfg!(target_arch = "x86_64") {
+        n * p
+    } else {
+        0
+    };
+    2 * n + 6 * p + p * p + p / 4 + transposed
 }
 
 /// Storage for an estimator's buffers: anything that derefs to a mutable slice.
@@ -284,8 +292,12 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (coef_avg, rest) = rest.split_at_mut(m);
         let (scratch, rest) = rest.split_at_mut(m);
         let (gram, rest) = rest.split_at_mut(m * m);
-        let (transposed, rest) = rest.split_at_mut(n * m);
-        let block_sums = &mut rest[..m / 4];
+        let (block_sums, rest) = rest.split_at_mut(m / 4);
+        let transposed = if cfg!(target_arch = "x86_64") {
+            &mut rest[..n * m]
+        } else {
+            &mut rest[..0]
+        };
         Parts {
             estimate,
             work,
@@ -332,14 +344,25 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         // Setup: row norms and the prior residual r = b − A x₀.
         if GREEDY {
             // The greedy variants need nearly every Gram entry anyway (they visit most rows of
-            // a window), so the full matrix is built at once from a transposed copy of A with a
-            // register-blocked kernel; its diagonal holds the squared row norms.
-            transpose_padded(a, n, m, p.transposed);
-            gram_transposed(p.transposed, n, m, p.gram);
+            // a window), so the full matrix is built at once with a register-tiled kernel; its
+            // diagonal holds the squared row norms. Two tilings of the same sums, chosen for
+            // the target: an 8-wide tile over a transposed copy of A where SIMD units are wide
+            // (x86-64), a 2 × 4 tile on the rows where registers are few (a Cortex-M7 FPU has
+            // sixteen). Both give the same bits.
+            #[cfg(target_arch = "x86_64")]
+            {
+                transpose_padded(a, n, m, p.transposed);
+                gram_transposed(p.transposed, n, m, p.gram);
+                residual_transposed(p.transposed, n, m, p.estimate, b, p.resid);
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            {
+                gram_rows(a, n, m, p.gram);
+                residual_rows(a, n, m, p.estimate, b, p.resid);
+            }
             for i in 0..m {
                 p.norm2[i] = p.gram[i * m + i];
             }
-            residual_transposed(p.transposed, n, m, p.estimate, b, p.resid);
         } else {
             for i in 0..m {
                 let (nn, ax) = norm2_and_dot(&a[i * n..(i + 1) * n], p.estimate);
@@ -575,10 +598,10 @@ fn sample_blocks<T: Real>(w: &[T], block_sums: &[T], target: T) -> usize {
     let start = 4 * b;
     let end = (start + 4).min(w.len());
     let mut chosen = None;
-    for j in start..end {
-        if w[j] > T::zero() {
+    for (j, &wj) in w.iter().enumerate().take(end).skip(start) {
+        if wj > T::zero() {
             chosen = Some(j);
-            acc += w[j];
+            acc += wj;
             if acc > target {
                 break;
             }

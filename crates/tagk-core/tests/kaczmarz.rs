@@ -31,7 +31,11 @@ fn mat_vec(a: &[f64], x: &[f64]) -> Vec<f64> {
 }
 
 fn dist(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt()
+    x.iter()
+        .zip(y)
+        .map(|(p, q)| (p - q).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Least-squares solution by the normal equations with Gaussian elimination (independent of
@@ -47,7 +51,11 @@ fn least_squares(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
     }
     for c in 0..n {
         let p = (c..n)
-            .max_by(|&x, &y| g[x * (n + 1) + c].abs().total_cmp(&g[y * (n + 1) + c].abs()))
+            .max_by(|&x, &y| {
+                g[x * (n + 1) + c]
+                    .abs()
+                    .total_cmp(&g[y * (n + 1) + c].abs())
+            })
             .unwrap();
         for k in 0..=n {
             g.swap(c * (n + 1) + k, p * (n + 1) + k);
@@ -61,11 +69,14 @@ fn least_squares(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
             }
         }
     }
-    (0..n).map(|i| g[i * (n + 1) + n] / g[i * (n + 1) + i]).collect()
+    (0..n)
+        .map(|i| g[i * (n + 1) + n] / g[i * (n + 1) + i])
+        .collect()
 }
 
 /// A straightforward reference: explicit iterate, full residual recomputed every iteration,
 /// explicit running sum of the tail iterates. Draws random numbers exactly like the kernel.
+#[allow(clippy::too_many_arguments)]
 fn reference(
     greedy: bool,
     average: bool,
@@ -84,14 +95,26 @@ fn reference(
     let mut sum = vec![0.0; n];
     for s in 1..=t {
         let r: Vec<f64> = (0..m)
-            .map(|i| b[i] - a[i * n..(i + 1) * n].iter().zip(&x).map(|(p, q)| p * q).sum::<f64>())
+            .map(|i| {
+                b[i] - a[i * n..(i + 1) * n]
+                    .iter()
+                    .zip(&x)
+                    .map(|(p, q)| p * q)
+                    .sum::<f64>()
+            })
             .collect();
         let i = if greedy {
             let rn2: f64 = r.iter().map(|v| v * v).sum();
             let maxr = (0..m).map(|i| r[i] * r[i] / norms[i]).fold(0.0, f64::max);
             let eps = 0.5 * (maxr / rn2 + 1.0 / fro2);
             let w: Vec<f64> = (0..m)
-                .map(|i| if r[i] * r[i] >= eps * rn2 * norms[i] { r[i] * r[i] } else { 0.0 })
+                .map(|i| {
+                    if r[i] * r[i] >= eps * rn2 * norms[i] {
+                        r[i] * r[i]
+                    } else {
+                        0.0
+                    }
+                })
                 .collect();
             let total: f64 = w.iter().sum();
             let target = uniform(rng) * total;
@@ -157,11 +180,27 @@ fn every_variant_matches_the_naive_reference() {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let want = reference(greedy, average, &a, &b, n, &x0, t, t_b, &mut rng);
             let err = dist(est.estimate(), &want);
-            assert!(err < 1e-9 * (1.0 + dist(&want, &vec![0.0; n])), "{}: {err}", est.name());
+            assert!(
+                err < 1e-9 * (1.0 + dist(&want, &vec![0.0; n])),
+                "{}: {err}",
+                est.name()
+            );
         };
-        check(false, false, &mut RandomizedKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap());
-        check(false, true, &mut TailAveragedKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap());
-        check(true, false, &mut GreedyKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap());
+        check(
+            false,
+            false,
+            &mut RandomizedKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap(),
+        );
+        check(
+            false,
+            true,
+            &mut TailAveragedKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap(),
+        );
+        check(
+            true,
+            false,
+            &mut GreedyKaczmarz::<f64, Heap>::new(n, m, cfg).unwrap(),
+        );
         check(true, true, &mut TagK::<f64, Heap>::new(n, m, cfg).unwrap());
     }
 }
@@ -258,7 +297,9 @@ fn tail_averaging_lowers_the_spread_on_inconsistent_systems() {
     assert!(tagk < 0.5 * grk, "TAG-K {tagk} vs GRK {grk}");
     // Not asserted, reported: greedy selection keeps returning to the noisiest rows, so GRK's
     // spread exceeds RK's and TAG-K's averaged spread is only comparable to plain RK's.
-    println!("mean squared distance to the LS solution: RK {rk:.4} TARK {tark:.4} GRK {grk:.4} TAG-K {tagk:.4}");
+    println!(
+        "mean squared distance to the LS solution: RK {rk:.4} TARK {tark:.4} GRK {grk:.4} TAG-K {tagk:.4}"
+    );
 }
 
 /// A stream of fresh windows whose true parameters jump: TAG-K tracks the jump faster than TARK.
@@ -277,7 +318,10 @@ fn tagk_recovers_from_a_step_change_faster_than_tark() {
             .map(|k| {
                 let a = random_matrix(&mut data, m, n);
                 let theta = if k < 20 { &before } else { &after };
-                let b = mat_vec(&a, theta).iter().map(|v| v + 0.01 * gauss(&mut data)).collect();
+                let b = mat_vec(&a, theta)
+                    .iter()
+                    .map(|v| v + 0.01 * gauss(&mut data))
+                    .collect();
                 (a, b)
             })
             .collect();
@@ -341,24 +385,42 @@ fn bad_windows_give_typed_errors_and_keep_the_estimate() {
     let mut bad_b = b.clone();
     bad_b[2] = f64::INFINITY;
     let huge = vec![1e300; m * n];
-    assert_eq!(est.update(&bad_a, &b), Err(EstimatorError::NonFiniteRegressor { row: 1, col: 2 }));
-    assert_eq!(est.update(&a, &bad_b), Err(EstimatorError::NonFiniteMeasurement { row: 2 }));
-    assert_eq!(est.update(&a[..5], &b[..2]).unwrap_err(), EstimatorError::ShapeMismatch {
-        expected: 6,
-        found: 5,
-        rows: 2,
-        cols: 3
-    });
+    assert_eq!(
+        est.update(&bad_a, &b),
+        Err(EstimatorError::NonFiniteRegressor { row: 1, col: 2 })
+    );
+    assert_eq!(
+        est.update(&a, &bad_b),
+        Err(EstimatorError::NonFiniteMeasurement { row: 2 })
+    );
+    assert_eq!(
+        est.update(&a[..5], &b[..2]).unwrap_err(),
+        EstimatorError::ShapeMismatch {
+            expected: 6,
+            found: 5,
+            rows: 2,
+            cols: 3
+        }
+    );
     assert_eq!(est.update(&[], &[]), Err(EstimatorError::EmptyWindow));
     assert_eq!(
         est.update(&vec![1.0; 5 * n], &[1.0; 5]),
-        Err(EstimatorError::WindowTooLarge { rows: 5, capacity: 4 })
+        Err(EstimatorError::WindowTooLarge {
+            rows: 5,
+            capacity: 4
+        })
     );
     assert!(matches!(
         est.update(&huge, &b),
         Err(EstimatorError::NonFiniteRegressor { .. })
     ));
-    assert_eq!(est.reset(&[1.0]), Err(EstimatorError::DimensionMismatch { expected: 3, found: 1 }));
+    assert_eq!(
+        est.reset(&[1.0]),
+        Err(EstimatorError::DimensionMismatch {
+            expected: 3,
+            found: 1
+        })
+    );
     assert_eq!(
         est.reset(&[1.0, f64::NAN, 0.0]),
         Err(EstimatorError::NonFiniteEstimate { index: 1 })
@@ -376,16 +438,36 @@ fn bad_windows_give_typed_errors_and_keep_the_estimate() {
 fn configuration_is_validated() {
     use tagk_core::ConfigError;
     let d = KaczmarzConfig::default();
-    assert_eq!(TagK::<f64, Heap>::new(0, 3, d).err(), Some(ConfigError::ZeroDimension));
-    assert_eq!(TagK::<f64, Heap>::new(3, 0, d).err(), Some(ConfigError::ZeroCapacity));
+    assert_eq!(
+        TagK::<f64, Heap>::new(0, 3, d).err(),
+        Some(ConfigError::ZeroDimension)
+    );
+    assert_eq!(
+        TagK::<f64, Heap>::new(3, 0, d).err(),
+        Some(ConfigError::ZeroCapacity)
+    );
     let c = d.with_iterations(Iterations::Fixed(0));
-    assert_eq!(TagK::<f64, Heap>::new(3, 3, c).err(), Some(ConfigError::ZeroIterations));
-    let c = d.with_iterations(Iterations::Fixed(5)).with_burn_in(BurnIn::Fixed(5));
-    assert!(matches!(TagK::<f64, Heap>::new(3, 3, c), Err(ConfigError::BurnInTooLarge { .. })));
+    assert_eq!(
+        TagK::<f64, Heap>::new(3, 3, c).err(),
+        Some(ConfigError::ZeroIterations)
+    );
+    let c = d
+        .with_iterations(Iterations::Fixed(5))
+        .with_burn_in(BurnIn::Fixed(5));
+    assert!(matches!(
+        TagK::<f64, Heap>::new(3, 3, c),
+        Err(ConfigError::BurnInTooLarge { .. })
+    ));
     let c = d.with_burn_in(BurnIn::Fraction(1.0));
-    assert!(matches!(TagK::<f64, Heap>::new(3, 3, c), Err(ConfigError::InvalidParameter { .. })));
+    assert!(matches!(
+        TagK::<f64, Heap>::new(3, 3, c),
+        Err(ConfigError::InvalidParameter { .. })
+    ));
     let c = d.with_tolerance(-1.0);
-    assert!(matches!(TagK::<f64, Heap>::new(3, 3, c), Err(ConfigError::InvalidParameter { .. })));
+    assert!(matches!(
+        TagK::<f64, Heap>::new(3, 3, c),
+        Err(ConfigError::InvalidParameter { .. })
+    ));
     let short = vec![0.0f64; 10];
     assert!(matches!(
         TagK::<f64, Vec<f64>>::with_storage(3, 3, d, short),
@@ -433,5 +515,8 @@ fn early_stop_counts_as_remaining_iterates() {
     // Greedy picks row 1 first (larger residual 4 vs 3, sampled ∝ r²: both are candidates).
     let first_row_one = [(3.0 * 0.0 + 3.0 * 9.0) / 10.0, 4.0];
     let first_row_zero = [3.0, (4.0 * 9.0) / 10.0];
-    assert!(dist(x, &first_row_one) < 1e-12 || dist(x, &first_row_zero) < 1e-12, "{x:?}");
+    assert!(
+        dist(x, &first_row_one) < 1e-12 || dist(x, &first_row_zero) < 1e-12,
+        "{x:?}"
+    );
 }

@@ -1,7 +1,9 @@
 //! Property tests: finiteness, transactional errors, determinism.
 
 use proptest::prelude::*;
-use tagk_core::{GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz};
+use tagk_core::{
+    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
+};
 
 const N: usize = 6;
 const M: usize = 8;
@@ -9,10 +11,7 @@ const M: usize = 8;
 fn window() -> impl Strategy<Value = (Vec<f64>, Vec<f64>)> {
     (1usize..=M).prop_flat_map(|m| {
         (
-            prop::collection::vec(
-                prop_oneof![Just(0.0), -1e3f64..1e3, -1e-3f64..1e-3],
-                m * N,
-            ),
+            prop::collection::vec(prop_oneof![Just(0.0), -1e3f64..1e3, -1e-3f64..1e-3], m * N),
             prop::collection::vec(-1e3f64..1e3, m),
         )
     })

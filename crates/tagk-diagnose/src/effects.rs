@@ -100,6 +100,10 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn check(&self, _signals: &Signals) -> Result<(), String> {
         Ok(())
     }
+    /// `true` if the effect is only identifiable with a known mass ([`crate::Model::with_known_mass`]).
+    fn needs_known_mass(&self) -> bool {
+        false
+    }
     /// The nonlinear parameter to scan, if any.
     fn scan(&self) -> Option<ScanSpec> {
         None
@@ -201,7 +205,8 @@ impl Effect for QuadraticDrag {
     }
 }
 
-/// Rotor (blade-flapping / induced) drag: `f_ext,xy = −k (Σ ωᵢ) v_b,xy`; needs rotor speeds.
+/// Rotor (blade-flapping / induced) drag: `f_ext,k = −k_k (Σ |ωᵢ|) v_b,k` per body axis;
+/// needs rotor speeds.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RotorDrag;
 
@@ -210,10 +215,10 @@ impl Effect for RotorDrag {
         "rotor-drag"
     }
     fn description(&self) -> &str {
-        "rotor drag proportional to the summed rotor speed times the in-plane body velocity"
+        "rotor drag proportional to the summed rotor speed times the body-frame velocity"
     }
     fn channels(&self) -> Vec<Channel> {
-        vec![0, 1]
+        vec![0, 1, 2]
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
         if s.rotor_speeds.is_some() {
@@ -226,7 +231,7 @@ impl Effect for RotorDrag {
         let Some(w) = &s.rotor_speeds else {
             return Vec::new();
         };
-        ["k_x", "k_y"]
+        ["k_x", "k_y", "k_z"]
             .iter()
             .enumerate()
             .map(|(k, n)| {
@@ -244,7 +249,7 @@ impl Effect for RotorDrag {
             .collect()
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
-        nonneg(&["k_x", "k_y"], coef, se, "rotor-drag coefficient")
+        nonneg(&["k_x", "k_y", "k_z"], coef, se, "rotor-drag coefficient")
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         ("horizontal body speed [m/s]".into(), horiz_speed(s))
@@ -252,7 +257,10 @@ impl Effect for RotorDrag {
 }
 
 /// First-order actuator dynamics: the delivered thrust and torques follow the logged command
-/// through `τ ẏ = u − y`. Column: `lag_τ(b) − b` on `fz, tx, ty, tz` (coefficient ≈ 1).
+/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz`, with `y` the exact response
+/// to the piecewise-constant command sampled in the middle of each sample interval (see
+/// [`first_order_lag`]); the coefficient is ≈ 1 for that sampling, between `e^{−Δt/2τ}` and
+/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible.
 #[derive(Debug, Clone)]
 pub struct MotorLag {
     /// Time constants scanned [s].
@@ -269,25 +277,76 @@ impl Default for MotorLag {
     }
 }
 
-/// First-order lag of a series with time constant `tau` [s] (exact for a piecewise-constant
-/// input that switches at the samples, the new value applying from its own sample on):
-/// `y_k = α y_{k−1} + (1 − α) u_k`, `α = exp(−Δt/τ)`, `y_0 = u_0`.
+/// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` [s]) to a command
+/// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)` and sampled at
+/// its middle `t_k` (the convention of logs whose rows describe one control interval):
+/// with `Y_k` the state at the end of interval `k`,
+/// `y_k = u_k + e^{−Δt/2τ} (Y_{k−1} − u_k)`, `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`,
+/// starting at rest on the first command (`Y_0 = u_0`).
 pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
     let mut y = Vec::with_capacity(u.len());
     if u.is_empty() {
         return y;
     }
     y.push(u[0]);
+    let mut end = u[0];
     for k in 1..u.len() {
-        let a = if tau > 0.0 {
-            (-(t[k] - t[k - 1]) / tau).exp()
+        let dt = t[k] - t[k - 1];
+        let (a_half, a_full) = if tau > 0.0 {
+            ((-0.5 * dt / tau).exp(), (-dt / tau).exp())
         } else {
-            0.0
+            (0.0, 0.0)
         };
-        let prev = y[k - 1];
-        y.push(a * prev + (1.0 - a) * u[k]);
+        y.push(u[k] + a_half * (end - u[k]));
+        end = u[k] + a_full * (end - u[k]);
     }
     y
+}
+
+/// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
+/// through the squares: the mixer `[fz, tx, ty, tz]ᵀ = M [ω₁², …, ω₄²]ᵀ` is identified from the
+/// log itself (least squares; it must reproduce the logged wrench to 1e-3 relative on at least
+/// 90 % of the samples — saturated samples may disagree — otherwise
+/// `None` and the lag is applied to the wrench directly), and the delivered wrench is
+/// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` per sample.
+fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
+    let w = s.rotor_speeds.as_ref()?;
+    let sq: Vec<[f64; 4]> = w.iter().map(|x| x.map(|v| v * v)).collect();
+    let mut g = nalgebra::Matrix4::<f64>::zeros();
+    let mut rhs = nalgebra::Matrix4::<f64>::zeros();
+    for (x, b) in sq.iter().zip(&s.wrench) {
+        let xv = nalgebra::Vector4::from(*x);
+        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
+        g += xv * xv.transpose();
+        rhs += xv * bv.transpose();
+    }
+    let mt = g.cholesky()?.solve(&rhs); // (4 rotors × 4 channels) = Mᵀ
+    let mut good = 0usize;
+    for (x, b) in sq.iter().zip(&s.wrench) {
+        let pred = mt.transpose() * nalgebra::Vector4::from(*x);
+        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
+        if (pred - bv).norm() <= 1e-3 * bv.norm() {
+            good += 1;
+        }
+    }
+    if good * 10 < s.len() * 9 {
+        return None;
+    }
+    let lagged: Vec<Vec<f64>> = (0..4)
+        .map(|r| {
+            let u: Vec<f64> = w.iter().map(|x| x[r]).collect();
+            first_order_lag(&s.t, &u, tau)
+        })
+        .collect();
+    Some(
+        (0..s.len())
+            .map(|i| {
+                let x = nalgebra::Vector4::from_fn(|r, _| lagged[r][i] * lagged[r][i]);
+                let y = mt.transpose() * x;
+                [y[0], y[1], y[2], y[3]]
+            })
+            .collect(),
+    )
 }
 
 impl Effect for MotorLag {
@@ -310,10 +369,16 @@ impl Effect for MotorLag {
     fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
         let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
-        for (c, d) in data.iter_mut().enumerate().skip(2) {
-            let u = s.channel(c);
-            let y = first_order_lag(&s.t, &u, tau);
-            *d = Some(y.iter().zip(&u).map(|(y, u)| y - u).collect());
+        if let Some(lagged) = lagged_wrench_from_rotors(s, tau) {
+            for (c, d) in data.iter_mut().enumerate().skip(2) {
+                *d = Some(lagged.iter().zip(&s.wrench).map(|(y, b)| y[c - 2] - b[c]).collect());
+            }
+        } else {
+            for (c, d) in data.iter_mut().enumerate().skip(2) {
+                let u = s.channel(c);
+                let y = first_order_lag(&s.t, &u, tau);
+                *d = Some(y.iter().zip(&u).map(|(y, u)| y - u).collect());
+            }
         }
         vec![EffectColumn {
             name: "g_lag".into(),
@@ -322,7 +387,7 @@ impl Effect for MotorLag {
         }]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
-        if !(0.5..=1.5).contains(&coef[0]) {
+        if !(0.4..=2.5).contains(&coef[0]) {
             return Plausibility::bad(format!(
                 "lag gain {:.2} far from 1: the lag shape does not match",
                 coef[0]
@@ -349,7 +414,7 @@ impl Effect for MotorLag {
 
 /// A constant time offset `d` between the actuator stream and the motion stream: the wrench
 /// acting at `t` is the logged `b(t − d)`. Column `b(t − d) − b(t)` on all six channels
-/// (coefficient ≈ 1); `d` scanned.
+/// (coefficient ≈ 1, plausible in `[0.8, 1.25]`); `d` scanned.
 #[derive(Debug, Clone)]
 pub struct TimeDelay {
     /// Delays scanned [s] (positive: the actuator log is early).
@@ -403,7 +468,7 @@ impl Effect for TimeDelay {
         }]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
-        if !(0.5..=1.5).contains(&coef[0]) {
+        if !(0.8..=1.25).contains(&coef[0]) {
             return Plausibility::bad(format!(
                 "delay gain {:.2} far from 1: not a pure time shift",
                 coef[0]
@@ -422,13 +487,15 @@ impl Effect for TimeDelay {
     }
 }
 
-/// Ground effect: extra thrust near the ground, `f_z,ext = c · f_z (R / 4 z)²` (first-order
-/// Cheeseman–Bennett, `c ≈ 1`), with `z` the height above the ground plane `z = 0`.
+/// Ground effect: extra rotor thrust (and rotor torques) near the ground after Cheeseman and
+/// Bennett: `T_IGE/T_OGE = 1/(1 − (R/4z)²)`, so the external wrench is
+/// `c · [0, 0, f_z, τ_x, τ_y, τ_z] · ((1/(1 − (R/4z)²)) − 1)` with `c ≈ 1`, `z` the height of
+/// the body origin above the ground plane `z = 0` (clamped to `z ≥ R`).
 #[derive(Debug, Clone, Copy)]
 pub struct GroundEffect {
     /// Rotor radius `R` [m] (Crazyflie: 0.0225 m).
     pub rotor_radius: f64,
-    /// Heights below this are clamped [m] (avoids the singularity at `z = 0`).
+    /// Heights below this are clamped [m] (avoids the singularity at `z = R/4`).
     pub min_height: f64,
 }
 
@@ -436,7 +503,7 @@ impl Default for GroundEffect {
     fn default() -> Self {
         Self {
             rotor_radius: 0.0225,
-            min_height: 0.01,
+            min_height: 0.0225,
         }
     }
 }
@@ -445,7 +512,7 @@ impl GroundEffect {
     fn shape(&self, z: f64) -> f64 {
         let z = z.max(self.min_height);
         let r = self.rotor_radius / (4.0 * z);
-        r * r
+        1.0 / (1.0 - r * r) - 1.0
     }
 }
 
@@ -457,19 +524,24 @@ impl Effect for GroundEffect {
         "extra rotor thrust near the ground, growing like (R/4z)^2 as the height z falls"
     }
     fn channels(&self) -> Vec<Channel> {
-        vec![2]
+        vec![2, 3, 4, 5]
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
-        vec![EffectColumn::on(
-            "c_ge",
-            "1",
-            2,
-            s.position
-                .iter()
-                .zip(&s.wrench)
-                .map(|(p, w)| w[2] * self.shape(p.z))
-                .collect(),
-        )]
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for (c, d) in data.iter_mut().enumerate().skip(2) {
+            *d = Some(
+                s.position
+                    .iter()
+                    .zip(&s.wrench)
+                    .map(|(p, w)| w[c] * self.shape(p.z))
+                    .collect(),
+            );
+        }
+        vec![EffectColumn {
+            name: "c_ge".into(),
+            unit: "1".into(),
+            data,
+        }]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         nonneg(&["c_ge"], coef, se, "ground-effect gain")
@@ -560,7 +632,8 @@ impl Effect for Wind {
 }
 
 /// Thrust-gain error: the delivered collective thrust is `(1 + κ)` times the logged one
-/// (a wrong thrust coefficient, battery sag). Column `f_z` on `fz`.
+/// (a wrong thrust coefficient, battery sag), and so are the rotor torques. Column
+/// `[0, 0, f_z, τ_x, τ_y, τ_z]`. Identifiable only with a known mass.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ThrustGain;
 
@@ -572,10 +645,21 @@ impl Effect for ThrustGain {
         "delivered thrust is a constant factor (1 + kappa) times the logged thrust"
     }
     fn channels(&self) -> Vec<Channel> {
-        vec![2]
+        vec![2, 3, 4, 5]
+    }
+    fn needs_known_mass(&self) -> bool {
+        true
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
-        vec![EffectColumn::on("kappa", "1", 2, s.channel(2))]
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for (c, d) in data.iter_mut().enumerate().skip(2) {
+            *d = Some(s.channel(c));
+        }
+        vec![EffectColumn {
+            name: "kappa".into(),
+            unit: "1".into(),
+            data,
+        }]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         if coef[0].abs() > 0.5 {

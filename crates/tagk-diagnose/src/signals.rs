@@ -15,6 +15,9 @@ pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];
 /// A wrench channel, `0..6` = `fx, fy, fz, tx, ty, tz` (body frame, torques about the origin).
 pub type Channel = usize;
 
+/// Half-width of the Savitzky–Golay smoothing of the velocity used by the drag effects.
+pub const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
+
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
 pub struct Signals {
@@ -24,7 +27,9 @@ pub struct Signals {
     pub rotation: Vec<Matrix3<f64>>,
     /// World position [m].
     pub position: Vec<Vector3<f64>>,
-    /// Body-frame velocity `Rᵀ v` [m/s].
+    /// Body-frame velocity `Rᵀ v` [m/s], from the logged velocity smoothed by a
+    /// Savitzky–Golay filter of half-width [`VELOCITY_SMOOTHING_HALF_WIDTH`] (velocity noise
+    /// in a regressor column would bias drag coefficients towards zero).
     pub velocity_body: Vec<Vector3<f64>>,
     /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame [m/s²].
     pub accel_proper: Vec<Vector3<f64>>,
@@ -77,11 +82,17 @@ impl Signals {
             derived_omega_dot,
             log: log.clone(),
         };
+        let vs: Vec<Vec<f64>> = (0..3)
+            .map(|k| {
+                let v: Vec<f64> = log.velocity.iter().map(|x| x[k]).collect();
+                crate::deriv::savitzky_golay_smooth(&log.t, &v, VELOCITY_SMOOTHING_HALF_WIDTH)
+            })
+            .collect();
         for i in 0..n {
             let q = log.attitude[i];
             let uq = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
             let r = uq.to_rotation_matrix().into_inner();
-            let v = Vector3::from(log.velocity[i]);
+            let v = Vector3::new(vs[0][i], vs[1][i], vs[2][i]);
             let a = Vector3::from(accel_world[i]);
             s.rotation.push(r);
             s.position.push(Vector3::from(log.position[i]));

@@ -17,12 +17,13 @@ use crate::{DynamicsError, GRAVITY_WORLD, InertialParams, newton_euler, rigid_bo
 
 /// The kind of a movable joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum JointKind {
-    /// Rotation about the axis [rad], with position limits in the URDF (not enforced here).
+    /// Rotation about the axis \[rad\], with position limits in the URDF (not enforced here).
     Revolute,
-    /// Rotation about the axis [rad] without limits.
+    /// Rotation about the axis \[rad\] without limits.
     Continuous,
-    /// Translation along the axis [m].
+    /// Translation along the axis \[m\].
     Prismatic,
 }
 
@@ -35,10 +36,11 @@ impl JointKind {
 
 /// A rigid transform: `x_parent = rotation · x_child + translation`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Pose {
     /// Child axes expressed in the parent frame.
     pub rotation: Matrix3<f64>,
-    /// Child origin in the parent frame [m].
+    /// Child origin in the parent frame \[m\].
     pub translation: Vector3<f64>,
 }
 
@@ -74,7 +76,7 @@ impl Pose {
         }
     }
 
-    /// Maps a point from the child frame to the parent frame [m].
+    /// Maps a point from the child frame to the parent frame \[m\].
     pub fn transform_point(&self, p: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * p + self.translation
     }
@@ -268,17 +270,17 @@ impl SerialChain {
         self.bodies.iter().map(|b| b.joint.as_str()).collect()
     }
 
-    /// Gravity in the base frame [m/s²] (default `(0, 0, −9.81)`).
+    /// Gravity in the base frame \[m/s²\] (default `(0, 0, −9.81)`).
     pub fn gravity(&self) -> Vector3<f64> {
         self.gravity
     }
 
-    /// Sets gravity in the base frame [m/s²].
+    /// Sets gravity in the base frame \[m/s²\].
     pub fn set_gravity(&mut self, gravity: Vector3<f64>) {
         self.gravity = gravity;
     }
 
-    /// This chain with another gravity vector [m/s², base frame].
+    /// This chain with another gravity vector \[m/s², base frame\].
     pub fn with_gravity(mut self, gravity: Vector3<f64>) -> Self {
         self.gravity = gravity;
         self
@@ -499,7 +501,7 @@ impl SerialChain {
     }
 
     /// Inverse dynamics by the recursive Newton–Euler algorithm with the nominal parameters:
-    /// joint torques [N m] / forces [N] for positions `q`, velocities `q̇` and accelerations
+    /// joint torques \[N m\] / forces \[N\] for positions `q`, velocities `q̇` and accelerations
     /// `q̈` (rad or m, per second, per second²), under this chain's gravity.
     ///
     /// # Errors
@@ -691,7 +693,7 @@ impl SerialChain {
         Ok(chol.solve(&(DVector::from_column_slice(tau) - h)))
     }
 
-    /// Kinetic energy [J]: `Σ ½ m vᵀv + vᵀ(ω × h) + ½ ωᵀ I ω` over the bodies, with `v`, `ω`
+    /// Kinetic energy \[J\]: `Σ ½ m vᵀv + vᵀ(ω × h) + ½ ωᵀ I ω` over the bodies, with `v`, `ω`
     /// the body-frame velocity of each body origin and angular velocity.
     ///
     /// # Errors
@@ -728,7 +730,7 @@ impl SerialChain {
         Ok(energy)
     }
 
-    /// Potential energy in this chain's gravity field [J], `−Σ m gᵀ p_com` with the centres of
+    /// Potential energy in this chain's gravity field \[J\], `−Σ m gᵀ p_com` with the centres of
     /// mass in the base frame (zero at the base origin).
     ///
     /// # Errors

@@ -16,13 +16,13 @@ pub enum DynamicsError {
     /// A mass was negative.
     #[error("negative mass {mass} kg")]
     NegativeMass {
-        /// The offending mass [kg].
+        /// The offending mass \[kg\].
         mass: f64,
     },
     /// An inertia matrix was not symmetric.
     #[error("inertia matrix is not symmetric (largest asymmetry {asymmetry:e} kg m^2)")]
     AsymmetricInertia {
-        /// `max |I − Iᵀ|` [kg m²].
+        /// `max |I − Iᵀ|` \[kg m²\].
         asymmetry: f64,
     },
     /// An inertia matrix about the centre of mass had a negative eigenvalue.
@@ -30,7 +30,7 @@ pub enum DynamicsError {
         "inertia about the centre of mass is not positive semi-definite (smallest eigenvalue {min_eigenvalue:e} kg m^2)"
     )]
     InertiaNotPositiveSemiDefinite {
-        /// Smallest eigenvalue [kg m²].
+        /// Smallest eigenvalue \[kg m²\].
         min_eigenvalue: f64,
     },
     /// The 6×6 spatial inertia was singular or indefinite, so the forward dynamics has no
@@ -39,7 +39,7 @@ pub enum DynamicsError {
         "spatial inertia is not positive definite (mass {mass} kg); forward dynamics undefined"
     )]
     SingularSpatialInertia {
-        /// The mass of the parameters that were given [kg].
+        /// The mass of the parameters that were given \[kg\].
         mass: f64,
     },
     /// A buffer or vector had the wrong length.
@@ -88,7 +88,7 @@ pub enum DynamicsError {
     UrdfNegativeMass {
         /// The link.
         link: String,
-        /// Its mass [kg].
+        /// Its mass \[kg\].
         mass: f64,
     },
     /// A link's inertial contains NaN or infinity.
@@ -105,7 +105,7 @@ pub enum DynamicsError {
     NonPositiveDefiniteInertia {
         /// The link.
         link: String,
-        /// Smallest eigenvalue of the inertia about the centre of mass [kg m²].
+        /// Smallest eigenvalue of the inertia about the centre of mass \[kg m²\].
         min_eigenvalue: f64,
     },
     /// The joints form a closed loop.

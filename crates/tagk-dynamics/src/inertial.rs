@@ -12,21 +12,23 @@ use crate::math::parallel_axis;
 /// Inertial parameters of one rigid body,
 /// `θ = [m, h_x, h_y, h_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]` (SI units).
 ///
-/// `m` is the mass [kg], `h = m c` the first mass moment [kg m] with `c` the centre of mass in
-/// the body frame [m], and `I` the rotational inertia about the body-frame **origin**,
-/// expressed in body axes [kg m²] (Pinocchio's `toDynamicParameters` order). The vector is
+/// `m` is the mass \[kg\], `h = m c` the first mass moment \[kg m\] with `c` the centre of mass in
+/// the body frame \[m\], and `I` the rotational inertia about the body-frame **origin**,
+/// expressed in body axes \[kg m²\] (Pinocchio's `toDynamicParameters` order). The vector is
 /// stored as is: an estimate may be physically inconsistent, and the checks
 /// ([`is_physically_consistent`](Self::is_physically_consistent),
 /// [`safety_gate`](Self::safety_gate)) say so.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct InertialParams([f64; 10]);
 
 /// Thresholds of the TAG-K paper's safety gate (CONVENTIONS §1).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SafetyGate {
-    /// `L_arm`: largest allowed distance of the centre of mass from the body origin [m].
+    /// `L_arm`: largest allowed distance of the centre of mass from the body origin \[m\].
     pub max_com_offset: f64,
-    /// `α`: largest allowed eigenvalue of the inertia about the origin [kg m²].
+    /// `α`: largest allowed eigenvalue of the inertia about the origin \[kg m²\].
     pub max_inertia_eigenvalue: f64,
 }
 
@@ -50,29 +52,29 @@ pub enum GateViolation {
     /// `m ≤ 0`.
     #[error("mass {mass} kg is not positive")]
     NonPositiveMass {
-        /// The estimated mass [kg].
+        /// The estimated mass \[kg\].
         mass: f64,
     },
     /// `‖c‖ > L_arm`.
     #[error("centre of mass is {offset} m from the origin (limit {limit} m)")]
     ComOffsetTooLarge {
-        /// `‖c‖` [m].
+        /// `‖c‖` \[m\].
         offset: f64,
-        /// `L_arm` [m].
+        /// `L_arm` \[m\].
         limit: f64,
     },
     /// The inertia about the origin is not positive definite.
     #[error("inertia is not positive definite (smallest eigenvalue {min_eigenvalue:e} kg m^2)")]
     InertiaNotPositiveDefinite {
-        /// Smallest eigenvalue of `I` [kg m²].
+        /// Smallest eigenvalue of `I` \[kg m²\].
         min_eigenvalue: f64,
     },
     /// `λ_max(I) > α`.
     #[error("largest inertia eigenvalue {max_eigenvalue:e} kg m^2 exceeds {limit:e}")]
     InertiaEigenvalueTooLarge {
-        /// Largest eigenvalue of `I` [kg m²].
+        /// Largest eigenvalue of `I` \[kg m²\].
         max_eigenvalue: f64,
-        /// `α` [kg m²].
+        /// `α` \[kg m²\].
         limit: f64,
     },
 }
@@ -130,8 +132,8 @@ impl InertialParams {
         &self.0
     }
 
-    /// Builds θ from mass `m` [kg], first moment `h = m c` [kg m] and inertia about the body
-    /// origin [kg m²] (only its upper triangle is read). No checks.
+    /// Builds θ from mass `m` \[kg\], first moment `h = m c` \[kg m\] and inertia about the body
+    /// origin \[kg m²\] (only its upper triangle is read). No checks.
     pub fn from_mass_first_moment_inertia(
         mass: f64,
         first_moment: Vector3<f64>,
@@ -152,8 +154,8 @@ impl InertialParams {
         ])
     }
 
-    /// Builds θ from mass `m` [kg], centre of mass `c` in the body frame [m] and the inertia
-    /// about the centre of mass in body axes [kg m²], using `I_O = I_C + m (cᵀc·1 − c cᵀ)`.
+    /// Builds θ from mass `m` \[kg\], centre of mass `c` in the body frame \[m\] and the inertia
+    /// about the centre of mass in body axes \[kg m²\], using `I_O = I_C + m (cᵀc·1 − c cᵀ)`.
     ///
     /// # Errors
     /// [`DynamicsError::NonFinite`] for NaN/∞ input, [`DynamicsError::NegativeMass`],
@@ -198,13 +200,13 @@ impl InertialParams {
         ))
     }
 
-    /// A point mass `mass` [kg] at `position` [m, body frame].
+    /// A point mass `mass` \[kg\] at `position` \[m, body frame\].
     pub fn point_mass(mass: f64, position: Vector3<f64>) -> Self {
         Self::from_mass_first_moment_inertia(mass, position * mass, parallel_axis(&position) * mass)
     }
 
-    /// A homogeneous axis-aligned solid box of `mass` [kg], centred at `centre` [m, body frame],
-    /// with full edge lengths `size` [m] along the body axes.
+    /// A homogeneous axis-aligned solid box of `mass` \[kg\], centred at `centre` \[m, body frame\],
+    /// with full edge lengths `size` \[m\] along the body axes.
     pub fn solid_box(mass: f64, centre: Vector3<f64>, size: Vector3<f64>) -> Self {
         let s2 = size.component_mul(&size);
         let ic = Matrix3::from_diagonal(&Vector3::new(s2.y + s2.z, s2.x + s2.z, s2.x + s2.y))
@@ -216,35 +218,35 @@ impl InertialParams {
         )
     }
 
-    /// Mass `m` [kg].
+    /// Mass `m` \[kg\].
     pub const fn mass(&self) -> f64 {
         self.0[0]
     }
 
-    /// First mass moment `h = m c` [kg m], body frame.
+    /// First mass moment `h = m c` \[kg m\], body frame.
     pub fn first_moment(&self) -> Vector3<f64> {
         Vector3::new(self.0[1], self.0[2], self.0[3])
     }
 
-    /// Centre of mass `c = h / m` [m], body frame; the zero vector when `m == 0` (use
+    /// Centre of mass `c = h / m` \[m\], body frame; the zero vector when `m == 0` (use
     /// [`try_com`](Self::try_com) to tell that case apart).
     pub fn com(&self) -> Vector3<f64> {
         self.try_com().unwrap_or_else(Vector3::zeros)
     }
 
-    /// Centre of mass `c = h / m` [m], or `None` when `m == 0` or θ is not finite.
+    /// Centre of mass `c = h / m` \[m\], or `None` when `m == 0` or θ is not finite.
     pub fn try_com(&self) -> Option<Vector3<f64>> {
         let m = self.mass();
         (m != 0.0 && self.is_finite()).then(|| self.first_moment() / m)
     }
 
-    /// Rotational inertia about the body origin, body axes [kg m²] (symmetric).
+    /// Rotational inertia about the body origin, body axes \[kg m²\] (symmetric).
     pub fn inertia_origin(&self) -> Matrix3<f64> {
         let t = &self.0;
         Matrix3::new(t[4], t[5], t[7], t[5], t[6], t[8], t[7], t[8], t[9])
     }
 
-    /// Rotational inertia about the centre of mass, body axes [kg m²]:
+    /// Rotational inertia about the centre of mass, body axes \[kg m²\]:
     /// `I_C = I_O − (hᵀh·1 − h hᵀ)/m`; equals `I_O` when `m == 0`.
     pub fn inertia_com(&self) -> Matrix3<f64> {
         let m = self.mass();
@@ -259,12 +261,12 @@ impl InertialParams {
         self.0.iter().all(|v| v.is_finite())
     }
 
-    /// This body with a point mass `mass` [kg] rigidly attached at `position` [m, body frame].
+    /// This body with a point mass `mass` \[kg\] rigidly attached at `position` \[m, body frame\].
     pub fn with_point_mass(&self, mass: f64, position: Vector3<f64>) -> Self {
         *self + Self::point_mass(mass, position)
     }
 
-    /// This body with a point mass `mass` [kg] at `position` [m, body frame] taken off (the
+    /// This body with a point mass `mass` \[kg\] at `position` \[m, body frame\] taken off (the
     /// exact inverse of [`with_point_mass`](Self::with_point_mass)).
     pub fn without_point_mass(&self, mass: f64, position: Vector3<f64>) -> Self {
         *self - Self::point_mass(mass, position)
@@ -280,7 +282,7 @@ impl InertialParams {
         *self - Self::solid_box(mass, centre, size)
     }
 
-    /// The same body's parameters about another origin: `new_origin_offset` [m] is the new
+    /// The same body's parameters about another origin: `new_origin_offset` \[m\] is the new
     /// origin's position in the current body frame, axes unchanged. Mass is kept,
     /// `h' = h − m d`, and `I'` follows the parallel-axis rule (no division by `m`, so it is
     /// exact for any θ).
@@ -290,7 +292,7 @@ impl InertialParams {
 
     /// The same body's parameters in another frame `F'`, where a point `x` of the current
     /// frame has coordinates `x' = R x + p` in `F'` (`rotation` = `R`, the current axes
-    /// expressed in `F'`; `translation` = `p` [m], the current origin in `F'`):
+    /// expressed in `F'`; `translation` = `p` \[m\], the current origin in `F'`):
     /// `h' = R h + m p` and, with `g = R h`,
     /// `I' = R I Rᵀ + (2 pᵀg + m pᵀp)·1 − g pᵀ − p gᵀ − m p pᵀ`
     /// (expand `Σ m_i (x'ᵀx'·1 − x' x'ᵀ)` with `x' = R x + p`).
@@ -308,7 +310,7 @@ impl InertialParams {
     }
 
     /// The 4×4 pseudo-inertia `J = [[½ tr(I)·1 − I, h], [hᵀ, m]]` (Wensing, Kim & Slotine 2017);
-    /// its upper-left block is the second moment `Σ = ∫ x xᵀ dm` about the origin [kg m²].
+    /// its upper-left block is the second moment `Σ = ∫ x xᵀ dm` about the origin \[kg m²\].
     pub fn pseudo_inertia(&self) -> Matrix4<f64> {
         let i = self.inertia_origin();
         let sigma = Matrix3::identity() * (0.5 * i.trace()) - i;
@@ -331,7 +333,7 @@ impl InertialParams {
         Self::from_mass_first_moment_inertia(j[(3, 3)], h, i)
     }
 
-    /// Smallest eigenvalue of the pseudo-inertia [kg m²-ish units], or `None` if θ is not
+    /// Smallest eigenvalue of the pseudo-inertia \[kg m²-ish units\], or `None` if θ is not
     /// finite. Positive iff the parameters are physically consistent.
     pub fn min_pseudo_inertia_eigenvalue(&self) -> Option<f64> {
         self.is_finite()

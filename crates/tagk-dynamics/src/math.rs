@@ -20,12 +20,24 @@ pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
     Rotation3::from_euler_angles(roll, pitch, yaw).into_inner()
 }
 
-/// The rotation by `angle` [rad] about the unit vector `axis`.
+/// The rotation by `angle` \[rad\] about the unit vector `axis`.
 #[inline]
 pub fn axis_angle(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
+    // Rodrigues: R = c·1 + s·S(a) + (1 − c)·a aᵀ.
     let (s, c) = angle.sin_cos();
-    let k = skew(axis);
-    Matrix3::identity() + k * s + k * k * (1.0 - c)
+    let t = 1.0 - c;
+    let (x, y, z) = (axis.x, axis.y, axis.z);
+    Matrix3::new(
+        c + t * x * x,
+        t * x * y - s * z,
+        t * x * z + s * y,
+        t * x * y + s * z,
+        c + t * y * y,
+        t * y * z - s * x,
+        t * x * z - s * y,
+        t * y * z + s * x,
+        c + t * z * z,
+    )
 }
 
 #[cfg(test)]
@@ -40,6 +52,21 @@ mod tests {
         let rz = axis_angle(&Vector3::z(), y);
         let expected = rz * ry * rx;
         assert!((rotation_from_rpy(r, p, y) - expected).abs().max() < 1e-14);
+    }
+
+    #[test]
+    fn axis_angle_is_exponential_of_skew() {
+        let a = Vector3::new(0.3, -0.5, 0.8).normalize();
+        let angle = 1.234;
+        // exp(S(a)·angle) by its power series.
+        let k = skew(&a) * angle;
+        let mut term = Matrix3::identity();
+        let mut sum = Matrix3::identity();
+        for n in 1..40 {
+            term = term * k / n as f64;
+            sum += term;
+        }
+        assert!((axis_angle(&a, angle) - sum).amax() < 1e-14);
     }
 
     #[test]

@@ -14,21 +14,22 @@ use crate::{InertialParams, Wrench};
 
 /// Rigid-body and actuator parameters of a quadrotor with rotors thrusting along body `+z`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct QuadrotorModel {
     /// Inertial parameters of the vehicle about the body origin (CONVENTIONS §1).
     pub params: InertialParams,
-    /// Distance from the body origin to each motor axis [m].
+    /// Distance from the body origin to each motor axis \[m\].
     pub arm: f64,
-    /// Rotor hub positions in the body frame [m].
+    /// Rotor hub positions in the body frame \[m\].
     pub rotor_positions: [Vector3<f64>; 4],
     /// Sign of each rotor's reaction torque about body `+z` (`+1`: rotor spins clockwise seen
     /// from above).
     pub spin_directions: [f64; 4],
-    /// Thrust coefficient `k_f` in `T = k_f ω²` [N/(rad/s)²].
+    /// Thrust coefficient `k_f` in `T = k_f ω²` \[N/(rad/s)²\].
     pub k_f: f64,
-    /// Reaction-torque coefficient `k_m` in `Q = k_m ω²` [N m/(rad/s)²].
+    /// Reaction-torque coefficient `k_m` in `Q = k_m ω²` \[N m/(rad/s)²\].
     pub k_m: f64,
-    /// Largest rotor speed [rad/s].
+    /// Largest rotor speed \[rad/s\].
     pub max_rotor_speed: f64,
 }
 
@@ -56,17 +57,17 @@ impl QuadrotorModel {
         }
     }
 
-    /// Torque-to-thrust ratio `k_m / k_f` [m].
+    /// Torque-to-thrust ratio `k_m / k_f` \[m\].
     pub fn torque_coefficient(&self) -> f64 {
         self.k_m / self.k_f
     }
 
-    /// Largest thrust of one rotor, `k_f ω_max²` [N].
+    /// Largest thrust of one rotor, `k_f ω_max²` \[N\].
     pub fn max_thrust_per_rotor(&self) -> f64 {
         self.k_f * self.max_rotor_speed * self.max_rotor_speed
     }
 
-    /// The actuator wrench (body frame, about the origin) of the four rotor thrusts [N]:
+    /// The actuator wrench (body frame, about the origin) of the four rotor thrusts \[N\]:
     /// force `(0, 0, ΣT_i)`, torque `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i (k_m/k_f) T_i)`.
     pub fn wrench_from_thrusts(&self, thrusts: &[f64; 4]) -> Wrench {
         let kappa = self.torque_coefficient();
@@ -85,7 +86,7 @@ impl QuadrotorModel {
         Wrench { force, torque }
     }
 
-    /// The actuator wrench of four rotor speeds [rad/s] (`T_i = k_f ω_i²`).
+    /// The actuator wrench of four rotor speeds \[rad/s\] (`T_i = k_f ω_i²`).
     pub fn wrench_from_rotor_speeds(&self, speeds: &[f64; 4]) -> Wrench {
         self.wrench_from_thrusts(&speeds.map(|w| self.k_f * w * w))
     }
@@ -105,7 +106,7 @@ impl QuadrotorModel {
         })
     }
 
-    /// Rotor thrusts [N] that produce total thrust `f_z` [N] and torque `torque` [N m]: the
+    /// Rotor thrusts \[N\] that produce total thrust `f_z` \[N\] and torque `torque` \[N m\]: the
     /// inverse mixer, not clipped to `[0, max_thrust_per_rotor]` (see
     /// [`clamp_thrusts`](Self::clamp_thrusts)). For a layout whose mixer is singular (not the
     /// case for any X or + configuration), the minimum-norm least-squares thrusts are returned.
@@ -122,13 +123,13 @@ impl QuadrotorModel {
         [t[0], t[1], t[2], t[3]]
     }
 
-    /// Clips each thrust to `[0, max_thrust_per_rotor]` [N].
+    /// Clips each thrust to `[0, max_thrust_per_rotor]` \[N\].
     pub fn clamp_thrusts(&self, thrusts: &[f64; 4]) -> [f64; 4] {
         let hi = self.max_thrust_per_rotor();
         thrusts.map(|t| t.clamp(0.0, hi))
     }
 
-    /// Rotor speeds [rad/s] for thrusts [N], `ω = sqrt(T / k_f)`; a negative thrust (which a
+    /// Rotor speeds \[rad/s\] for thrusts \[N\], `ω = sqrt(T / k_f)`; a negative thrust (which a
     /// fixed-pitch rotor cannot make) maps to speed 0.
     pub fn rotor_speeds_from_thrusts(&self, thrusts: &[f64; 4]) -> [f64; 4] {
         thrusts.map(|t| (t.max(0.0) / self.k_f).sqrt())

@@ -14,10 +14,11 @@ pub type RigidBodyRegressor = SMatrix<f64, 6, 10>;
 
 /// A wrench (force and torque) on a body, in the body frame, torque about the body origin.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Wrench {
-    /// Force [N], body frame.
+    /// Force \[N\], body frame.
     pub force: Vector3<f64>,
-    /// Torque about the body origin [N m], body frame.
+    /// Torque about the body origin \[N m\], body frame.
     pub torque: Vector3<f64>,
 }
 
@@ -27,7 +28,7 @@ impl Wrench {
         Self::default()
     }
 
-    /// Builds a wrench from force [N] and torque [N m].
+    /// Builds a wrench from force \[N\] and torque \[N m\].
     pub fn new(force: Vector3<f64>, torque: Vector3<f64>) -> Self {
         Self { force, torque }
     }
@@ -90,7 +91,7 @@ impl Sub for Wrench {
 
 /// Proper acceleration of the body origin in the body frame, `a = Rᵀ (p̈ − g_w)` — what an
 /// ideal accelerometer at the origin reads — from the attitude (body → world) and the world
-/// acceleration `p̈` [m/s²]. Uses [`GRAVITY_WORLD`].
+/// acceleration `p̈` \[m/s²\]. Uses [`GRAVITY_WORLD`].
 pub fn proper_acceleration(
     attitude: &UnitQuaternion<f64>,
     accel_world: &Vector3<f64>,
@@ -103,8 +104,8 @@ pub fn proper_acceleration(
 ///
 /// `f = m a + ω̇ × h + ω × (ω × h)`, `τ = I ω̇ + ω × (I ω) + h × a`
 ///
-/// with `accel` the proper acceleration `a = Rᵀ(p̈ − g_w)` of the origin [m/s²], `omega` the
-/// body angular velocity `ω` [rad/s] and `omega_dot` its derivative `ω̇` [rad/s²], all in the
+/// with `accel` the proper acceleration `a = Rᵀ(p̈ − g_w)` of the origin \[m/s²\], `omega` the
+/// body angular velocity `ω` \[rad/s\] and `omega_dot` its derivative `ω̇` \[rad/s²\], all in the
 /// body frame. Gravity is inside `a`, so the result is the non-gravitational (actuator)
 /// wrench.
 pub fn newton_euler(
@@ -121,8 +122,8 @@ pub fn newton_euler(
     Wrench { force, torque }
 }
 
-/// Inverse of [`newton_euler`]: the proper acceleration `a` [m/s², body frame] of the origin
-/// and the angular acceleration `ω̇` [rad/s², body frame] produced by `wrench` at angular
+/// Inverse of [`newton_euler`]: the proper acceleration `a` \[m/s², body frame\] of the origin
+/// and the angular acceleration `ω̇` \[rad/s², body frame\] produced by `wrench` at angular
 /// velocity `omega`.
 ///
 /// Solves the 6×6 spatial-inertia system `[[m·1, −S(h)], [S(h), I]] [a; ω̇] = [f − ω×(ω×h);
@@ -168,7 +169,7 @@ pub fn try_forward_dynamics(
 
 /// Inverse of [`newton_euler`] for trusted parameters (the simulator's plant); see
 /// [`try_forward_dynamics`] for the equations. Returns `(a, ω̇)`: proper acceleration of the
-/// origin [m/s²] and angular acceleration [rad/s²], both in the body frame.
+/// origin \[m/s²\] and angular acceleration \[rad/s²\], both in the body frame.
 ///
 /// # Panics
 /// If [`try_forward_dynamics`] fails: non-finite input, `m ≤ 0`, or an inertia about the

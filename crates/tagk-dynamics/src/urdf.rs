@@ -24,6 +24,7 @@ use crate::{DynamicsError, InertialParams};
 
 /// Options for loading a URDF.
 #[derive(Debug, Clone, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct UrdfOptions {
     /// Movable joints to treat as fixed at their zero position (for example a gripper's
     /// fingers, to study the arm alone). Each name must exist in the URDF.

@@ -51,7 +51,7 @@ impl WindowBuilder {
     }
 
     /// Appends one frame, dropping the oldest when full: the proper acceleration of the body
-    /// origin `a` [m/s²], angular velocity `ω` [rad/s] and acceleration `ω̇` [rad/s²] (all body
+    /// origin `a` \[m/s²\], angular velocity `ω` \[rad/s\] and acceleration `ω̇` \[rad/s²\] (all body
     /// frame, CONVENTIONS §3) and the measured actuator wrench (body frame, about the origin).
     ///
     /// # Errors

@@ -91,13 +91,18 @@ done
 # instructions in the estimator's update function (a dot-product or Gram kernel).
 hot_loop() { # demangled-symbol substring -> llvm-mca input on stdout
   "$LLVM_BIN/llvm-objdump" -d -C --mcpu=cortex-m7 --no-show-raw-insn "$ELF" | awk -v sym="$1" '
+    function hex(s,   i, v) {  # "0x1f" or "1f" -> 31 (mawk has no strtonum)
+      sub(/^0x/, "", s); v = 0
+      for (i = 1; i <= length(s); i++) v = v * 16 + index("0123456789abcdef", substr(s, i, 1)) - 1
+      return v
+    }
     /^[0-9a-f]+ <.*>:$/ { infn = index($0, sym) > 0; next }
     infn && /^ +[0-9a-f]+:/ {
-      addr = strtonum("0x" substr($1, 1, length($1) - 1)); line = $0
+      addr = hex(substr($1, 1, length($1) - 1)); line = $0
       sub(/^ +[0-9a-f]+:[ \t]+/, "", line); sub(/[ \t]*@.*$/, "", line)
       n++; A[n] = addr; L[n] = line
       if (line ~ /^b[a-z]*(\.w)?[ \t]+0x[0-9a-f]+/) {
-        split(line, f, /[ \t]+/); t = strtonum(f[2])
+        split(line, f, /[ \t]+/); t = hex(f[2])
         if (t < addr) { nb++; BS[nb] = t; BE[nb] = addr }
       }
     }
@@ -111,12 +116,14 @@ hot_loop() { # demangled-symbol substring -> llvm-mca input on stdout
         if (fp > best) { best = fp; bk = k }
       }
       if (!best) exit 1
+      # llvm-mca does not follow branches: the back edge jumps to .Lhot, exits to .Lend.
       print ".Lhot:"
       for (i = 1; i <= n; i++) if (A[i] >= BS[bk] && A[i] <= BE[bk]) {
         line = L[i]
-        if (A[i] == BE[bk]) sub(/[ \t]+0x.*$/, " .Lhot", line)
+        sub(/0x[0-9a-f]+ <.*$/, (A[i] == BE[bk]) ? ".Lhot" : ".Lend", line)
         print line
       }
+      print ".Lend:"
     }'
 }
 factor() { # symbol-substring name -> cycles per instruction of the hot loop

@@ -1,6 +1,6 @@
 //! Cycle counters: how the harness times one update.
 //!
-//! - [`DwtCycleCounter`] (feature `cortex-m`, `target_arch = "arm"`, ARMv7-M or later): the
+//! - `DwtCycleCounter` (feature `cortex-m`, `target_arch = "arm"`, ARMv7-M or later): the
 //!   Cortex-M Data Watchpoint and Trace unit's `CYCCNT`, one tick per core clock cycle.
 //!   QEMU does not model it (it reads 0 there); use the instruction-counting plugin instead.
 //! - [`StdClock`] (feature `std`): nanoseconds from `std::time::Instant` on the host.

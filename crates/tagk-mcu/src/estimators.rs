@@ -90,14 +90,16 @@ impl EstimatorKind {
             Self::KfHigh => {
                 McuEstimator::Kf(KalmanFilter::with_storage(n, m, KfConfig::high(), buf)?)
             }
-            Self::TagK => {
-                McuEstimator::TagK(TagK::with_storage(n, m, tagk_paper_config(), buf)?)
-            }
+            Self::TagK => McuEstimator::TagK(TagK::with_storage(n, m, tagk_paper_config(), buf)?),
         })
     }
 }
 
 /// One of the Table III estimators over a borrowed buffer, behind [`OnlineEstimator`].
+///
+/// The TAG-K variant is the largest (its ChaCha8 generator keeps a 256-byte block buffer);
+/// without an allocator it stays inline rather than boxed.
+#[allow(clippy::large_enum_variant)]
 pub enum McuEstimator<'a, T: Real> {
     /// Recursive least squares.
     Rls(Rls<T, &'a mut [T]>),

@@ -25,8 +25,8 @@ use rand_core::{Rng, SeedableRng};
 use tagk_core::{OnlineEstimator, Real};
 
 use crate::counter::CycleCounter;
-use crate::estimators::EstimatorKind;
 use crate::error::HarnessError;
+use crate::estimators::EstimatorKind;
 
 /// The seed of every synthetic window (plus `n`).
 pub const SEED: u64 = 0x7461_676b_2d6d_6375;
@@ -88,8 +88,16 @@ pub const CASES: [Case; 30] = {
     }; 30];
     let precisions = [Precision::F64, Precision::F32];
     let kinds = [
-        [EstimatorKind::RlsLow, EstimatorKind::KfLow, EstimatorKind::TagK],
-        [EstimatorKind::RlsLow, EstimatorKind::KfHigh, EstimatorKind::TagK],
+        [
+            EstimatorKind::RlsLow,
+            EstimatorKind::KfLow,
+            EstimatorKind::TagK,
+        ],
+        [
+            EstimatorKind::RlsLow,
+            EstimatorKind::KfHigh,
+            EstimatorKind::TagK,
+        ],
     ];
     let mut i = 0;
     while i < 30 {
@@ -257,7 +265,9 @@ impl CaseReport {
     /// Compares the checksum with a reference run's (for the firmware: the host's, computed
     /// at build time); hash and sum must match exactly.
     pub fn verify(&self, expected: Checksum) -> Result<(), HarnessError> {
-        if self.checksum.hash == expected.hash && self.checksum.sum.to_bits() == expected.sum.to_bits() {
+        if self.checksum.hash == expected.hash
+            && self.checksum.sum.to_bits() == expected.sum.to_bits()
+        {
             Ok(())
         } else {
             Err(HarnessError::ChecksumMismatch {
@@ -271,8 +281,7 @@ impl CaseReport {
     }
 
     /// The column titles matching [`Display`](fmt::Display) rows.
-    pub const HEADER: &'static str =
-        "estimator   n   m prec  state[B]  reps  mean[ticks]   min[ticks]   max[ticks]  hash               sum";
+    pub const HEADER: &'static str = "estimator   n   m prec  state[B]  reps  mean[ticks]   min[ticks]   max[ticks]  hash               sum";
 }
 
 impl fmt::Display for CaseReport {

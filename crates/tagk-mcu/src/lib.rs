@@ -10,11 +10,11 @@ mod error;
 pub mod estimators;
 pub mod harness;
 
-pub use counter::{CycleCounter, NullCounter};
 #[cfg(all(feature = "cortex-m", target_arch = "arm"))]
 pub use counter::DwtCycleCounter;
 #[cfg(feature = "std")]
 pub use counter::StdClock;
+pub use counter::{CycleCounter, NullCounter};
 pub use covariance::{KalmanFilter, KfConfig, Rls, RlsConfig, covariance_buffer_len};
 pub use error::HarnessError;
 pub use estimators::{EstimatorKind, McuEstimator, tagk_paper_config};

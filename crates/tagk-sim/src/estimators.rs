@@ -87,6 +87,32 @@ pub struct EstimatorSpec {
     /// payload event takes TAG-K's estimate instead (the estimator is
     /// [`reset`](OnlineEstimator::reset) to it, covariance back to `P₀`).
     pub early_tagk: bool,
+    /// Column equilibration: the estimator sees the window `A D` and estimates `D⁻¹θ`, with
+    /// `D = diag(m₀, m₀L, m₀L, m₀L, ī, …, ī)` from the nominal mass `m₀`, `L = L_arm` and
+    /// `ī = tr(I₀)/3` (see [`column_scales`]). The paper's estimators work in SI units
+    /// (`false`).
+    pub scaled: bool,
+    /// Noise-aware stopping of the Kaczmarz variants, as a multiple `κ` of the expected
+    /// noise floor of the window's residual: iterations stop once
+    /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(3k)` (the force rows' share of accelerometer noise,
+    /// `k` frames; see [`noise_floor`]). `0` (the default) never stops early.
+    pub noise_tolerance: f64,
+}
+
+/// Expected norm of the residual `b − A θ` at the true `θ` caused by accelerometer noise of
+/// standard deviation `sigma_accel` [m/s²] on a window of `frames` frames of a body of mass
+/// `mass` [kg]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` [N].
+pub fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
+    mass * sigma_accel * ((3 * frames) as f64).sqrt()
+}
+
+/// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal`
+/// (CONVENTIONS order) and arm length `arm` [m]: typical magnitudes of each parameter, so
+/// that every column of `A D` has the units of the measurement.
+pub fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
+    let m = nominal[0];
+    let i = (nominal[4] + nominal[6] + nominal[9]) / 3.0;
+    [m, m * arm, m * arm, m * arm, i, i, i, i, i, i]
 }
 
 /// The default TAG-K burn-in fraction (see the crate README's burn-in study).
@@ -99,7 +125,21 @@ impl EstimatorSpec {
             kind,
             burn_in: DEFAULT_BURN_IN,
             early_tagk: false,
+            scaled: false,
+            noise_tolerance: 0.0,
         }
+    }
+
+    /// Sets the noise-aware stopping multiple ([`EstimatorSpec::noise_tolerance`]).
+    pub fn with_noise_tolerance(mut self, kappa: f64) -> Self {
+        self.noise_tolerance = kappa;
+        self
+    }
+
+    /// Turns on column equilibration ([`EstimatorSpec::scaled`]).
+    pub fn with_scaling(mut self) -> Self {
+        self.scaled = true;
+        self
     }
 
     /// Sets the burn-in fraction.
@@ -123,6 +163,12 @@ impl EstimatorSpec {
         {
             s.push_str(&format!(" (t_b={:.2}T)", self.burn_in));
         }
+        if self.scaled {
+            s.push_str(" (scaled)");
+        }
+        if self.noise_tolerance > 0.0 && self.kind.is_kaczmarz() {
+            s.push_str(&format!(" (tol {}σ)", self.noise_tolerance));
+        }
         if self.early_tagk {
             s.push_str(" +TAG-K");
         }
@@ -130,16 +176,19 @@ impl EstimatorSpec {
     }
 
     /// Builds the estimator for windows of at most `m_max` rows, seeded with `seed`
-    /// (Kaczmarz variants), initial estimate zero (callers reset it to the prior).
+    /// (Kaczmarz variants), with residual tolerance `tolerance` (Kaczmarz variants,
+    /// measurement units), initial estimate zero (callers reset it to the prior).
     ///
     /// # Errors
-    /// [`SimError::EstimatorConfig`] for a burn-in outside `[0, 1)` or `m_max = 0`.
+    /// [`SimError::EstimatorConfig`] for a burn-in outside `[0, 1)`, `m_max = 0` or a bad
+    /// tolerance.
     pub fn build(
         &self,
         m_max: usize,
         seed: u64,
+        tolerance: f64,
     ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
-        build_kind(self.kind, self.burn_in, m_max, seed)
+        build_kind(self.kind, self.burn_in, m_max, seed, tolerance)
     }
 }
 
@@ -152,10 +201,12 @@ pub fn build_kind(
     burn_in: f64,
     m_max: usize,
     seed: u64,
+    tolerance: f64,
 ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
     let n = N_PARAMS;
     let cfg = KaczmarzConfig::default()
         .with_seed(seed)
+        .with_tolerance(tolerance)
         .with_burn_in(BurnIn::Fraction(burn_in));
     Ok(match kind {
         EstimatorKind::RlsLow => Box::new(Rls::rls_low(n, m_max)?),

@@ -24,11 +24,17 @@ pub fn kleinman_hewer(
         let lhs = DMatrix::<f64>::identity(n * n, n * n) - act.kronecker(&act);
         let rhs_m = q + k.transpose() * r * &k;
         let rhs = DMatrix::from_column_slice(n * n, 1, rhs_m.as_slice());
-        let vecp = lhs.lu().solve(&rhs).expect("Stein system singular: K not stabilising");
+        let vecp = lhs
+            .lu()
+            .solve(&rhs)
+            .expect("Stein system singular: K not stabilising");
         let mut p = DMatrix::from_column_slice(n, n, vecp.as_slice());
         p = 0.5 * (&p + p.transpose());
         let s = r + b.transpose() * &p * b;
-        k = s.lu().solve(&(b.transpose() * &p * a)).expect("R + BᵀPB singular");
+        k = s
+            .lu()
+            .solve(&(b.transpose() * &p * a))
+            .expect("R + BᵀPB singular");
         let done = (&p - &p_prev).norm() <= 1e-14 * p.norm();
         p_prev = p;
         if done {
@@ -52,7 +58,8 @@ pub fn symplectic_eigenvector_solution(
     let a_inv_t = a.clone().try_inverse().expect("A singular").transpose();
     let g = b * r.clone().try_inverse().expect("R singular") * b.transpose();
     let mut z = DMatrix::<f64>::zeros(2 * n, 2 * n);
-    z.view_mut((0, 0), (n, n)).copy_from(&(a + &g * &a_inv_t * q));
+    z.view_mut((0, 0), (n, n))
+        .copy_from(&(a + &g * &a_inv_t * q));
     z.view_mut((0, n), (n, n)).copy_from(&(-(&g * &a_inv_t)));
     z.view_mut((n, 0), (n, n)).copy_from(&(-(&a_inv_t * q)));
     z.view_mut((n, n), (n, n)).copy_from(&a_inv_t);

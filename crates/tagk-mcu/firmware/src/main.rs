@@ -81,7 +81,9 @@ fn run_checked(
     arena: &mut [f64],
     counter: &mut DwtCycleCounter,
 ) -> bool {
-    match run(CASES[index], reps, arena, counter).and_then(|r| r.verify(EXPECTED[index]).map(|()| r)) {
+    match run(CASES[index], reps, arena, counter)
+        .and_then(|r| r.verify(EXPECTED[index]).map(|()| r))
+    {
         Ok(report) => {
             hprintln!("{:>2} {} ok", index, report);
             true
@@ -112,7 +114,11 @@ fn run_table(arena: &mut [f64], counter: &mut DwtCycleCounter) -> bool {
             passed += 1;
         }
     }
-    hprintln!("firmware: {} passed, {} failed", passed, CASES.len() - passed);
+    hprintln!(
+        "firmware: {} passed, {} failed",
+        passed,
+        CASES.len() - passed
+    );
     passed == CASES.len()
 }
 
@@ -140,6 +146,8 @@ fn read_selection() -> Option<(usize, usize)> {
     let not_read = unsafe { syscall!(READ, fd, buf.as_mut_ptr(), buf.len()) };
     unsafe { syscall!(CLOSE, fd) };
     let text = core::str::from_utf8(&buf[..buf.len().saturating_sub(not_read)]).ok()?;
-    let mut fields = text.split_ascii_whitespace().map(|f| f.parse::<usize>().ok());
+    let mut fields = text
+        .split_ascii_whitespace()
+        .map(|f| f.parse::<usize>().ok());
     Some((fields.next()??, fields.next()??))
 }

@@ -1,0 +1,442 @@
+//! The one Monte Carlo driver behind every experiment.
+//!
+//! A sweep flies `trials` closed-loop trials for every (noise level, estimator) cell. Trial
+//! `i` of noise level `j` gets the seed `trial_seed(seed, j, i)` and the trajectory
+//! `TrajectoryKind::ALL[i % 5]`, the same for every estimator (paired comparison). Trials
+//! run in parallel with rayon in chunks; each chunk's small per-trial summaries are folded
+//! into the cell aggregates **in trial order**, so every number except wall-clock update
+//! times is identical at any thread count, and memory stays bounded by the chunk size (plus
+//! one position error per trial for the CDFs and whatever [`Capture`] asks for).
+
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::metrics::UpdateTimes;
+use crate::sim::{Adaptation, NoiseLevel, SimConfig, TraceSample, simulate};
+use crate::trajectory::TrajectoryKind;
+use crate::{EstimatorSpec, SimError};
+
+/// What a sweep keeps beyond the aggregate metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Capture {
+    /// Keep the full per-step trace of the first `traces` trials of every cell.
+    pub traces: usize,
+    /// Accumulate the mean parameter error on the control-step grid over all trials of every
+    /// cell (Fig. 3b / 4b curves).
+    pub error_curve: bool,
+}
+
+/// A sweep's configuration.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    /// Noise levels (rows of the cell grid).
+    pub noise_levels: Vec<NoiseLevel>,
+    /// Estimators (columns of the cell grid).
+    pub estimators: Vec<EstimatorSpec>,
+    /// Trials per cell.
+    pub trials: usize,
+    /// Base seed.
+    pub seed: u64,
+    /// Template flight: everything except seed, trajectory, noise and adaptation, which the
+    /// driver sets per trial.
+    pub base: SimConfig,
+    /// If set, every trial flies this trajectory kind instead of cycling through all five.
+    pub trajectory: Option<TrajectoryKind>,
+    /// Extra data to keep.
+    pub capture: Capture,
+    /// Show an indicatif progress bar on stderr.
+    pub progress: bool,
+}
+
+impl Sweep {
+    /// The paper's Table II sweep: 4 noise levels × `estimators`, `trials` per cell.
+    pub fn new(estimators: Vec<EstimatorSpec>, trials: usize, seed: u64) -> Self {
+        Self {
+            noise_levels: NoiseLevel::ALL.to_vec(),
+            estimators,
+            trials,
+            seed,
+            base: SimConfig::default(),
+            trajectory: None,
+            capture: Capture::default(),
+            progress: false,
+        }
+    }
+}
+
+/// Seed of trial `trial` at noise level index `level` (independent of the estimator).
+pub fn trial_seed(seed: u64, level: usize, trial: usize) -> u64 {
+    use rand::RngExt;
+    crate::sim::sub_rng(seed ^ ((level as u64) << 40), trial as u64 + 17).random::<u64>()
+}
+
+/// Aggregated results of one (noise level, estimator) cell.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CellSummary {
+    /// Noise level.
+    pub noise: NoiseLevel,
+    /// Estimator.
+    pub estimator: EstimatorSpec,
+    /// Estimator label.
+    pub label: String,
+    /// Trials flown.
+    pub trials: usize,
+    /// Mean position error over the trials that did not abort [cm].
+    pub position_error_cm: f64,
+    /// Mean parameter error `‖θ̂ − θ‖₂` over trials (each the mean over its updates).
+    pub parameter_error: f64,
+    /// Mean relative mass error.
+    pub rel_mass: f64,
+    /// Mean relative first-moment error.
+    pub rel_first_moment: f64,
+    /// Mean relative inertia error.
+    pub rel_inertia: f64,
+    /// Mean (t+1) error over trials that have one.
+    pub t1_error: f64,
+    /// Success rate [%].
+    pub success_pct: f64,
+    /// Success rate judged after the first post-event update [%].
+    pub success_after_update_pct: f64,
+    /// Abort rate [%].
+    pub aborted_pct: f64,
+    /// Median estimator update time [µs].
+    pub update_median_us: f64,
+    /// 95th-percentile estimator update time [µs].
+    pub update_p95_us: f64,
+    /// Per-trial position errors [cm] (in trial order; NaN for aborted trials), for CDFs.
+    pub position_errors: Vec<f64>,
+    /// Mean parameter error per control step (if [`Capture::error_curve`]).
+    pub error_curve: Vec<f64>,
+    /// Full traces of the first trials (if [`Capture::traces`]).
+    #[serde(skip)]
+    pub traces: Vec<Vec<TraceSample>>,
+}
+
+#[derive(Default)]
+struct Accumulator {
+    trials: usize,
+    pos_sum: f64,
+    pos_n: usize,
+    pe_sum: f64,
+    pe_n: usize,
+    mass: f64,
+    fm: f64,
+    inertia: f64,
+    t1_sum: f64,
+    t1_n: usize,
+    success: usize,
+    success_upd: usize,
+    aborted: usize,
+    times: UpdateTimes,
+    positions: Vec<f64>,
+    curve_sum: Vec<f64>,
+    curve_n: Vec<usize>,
+    traces: Vec<Vec<TraceSample>>,
+}
+
+struct TrialSummary {
+    cell: usize,
+    metrics: crate::TrialMetrics,
+    times: Vec<f64>,
+    trace: Vec<TraceSample>,
+    keep_trace: bool,
+}
+
+/// Results of a sweep: one [`CellSummary`] per (noise level, estimator), noise-major.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SweepResult {
+    /// Cells, `cells[level * estimators + estimator]`.
+    pub cells: Vec<CellSummary>,
+    /// Trials per cell.
+    pub trials: usize,
+    /// Base seed.
+    pub seed: u64,
+    /// Wall-clock time of the sweep [s].
+    pub elapsed_s: f64,
+    /// Rayon threads used.
+    pub threads: usize,
+}
+
+impl Sweep {
+    /// Runs the sweep on the current rayon thread pool (use `ThreadPool::install` to pick
+    /// one).
+    ///
+    /// # Errors
+    /// The first configuration error of any trial ([`SimConfig::validate`]); `trials == 0`
+    /// or no estimator/noise level is an [`SimError::InvalidParameter`].
+    pub fn run(&self) -> Result<SweepResult, SimError> {
+        if self.trials == 0 || self.estimators.is_empty() || self.noise_levels.is_empty() {
+            return Err(SimError::InvalidParameter {
+                name: "sweep size (trials, estimators, noise levels)",
+                value: 0.0,
+                reason: "must all be non-empty",
+            });
+        }
+        self.base.validate()?;
+        let start = std::time::Instant::now();
+        let n_est = self.estimators.len();
+        let n_cells = self.noise_levels.len() * n_est;
+        let total = n_cells * self.trials;
+        let bar = if self.progress {
+            let b = ProgressBar::new(total as u64);
+            if let Ok(style) = ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({per_sec}, eta {eta})",
+            ) {
+                b.set_style(style);
+            }
+            b
+        } else {
+            ProgressBar::hidden()
+        };
+        let mut acc: Vec<Accumulator> = (0..n_cells).map(|_| Accumulator::default()).collect();
+        // Job order: trial-major, so every chunk mixes cells and all cells progress together.
+        let chunk = 512;
+        let mut job = 0;
+        while job < total {
+            let end = (job + chunk).min(total);
+            let results: Vec<Result<TrialSummary, SimError>> = (job..end)
+                .into_par_iter()
+                .map(|j| {
+                    let r = self.run_job(j, n_cells);
+                    bar.inc(1);
+                    r
+                })
+                .collect();
+            for r in results {
+                let s = r?;
+                fold(&mut acc[s.cell], s);
+            }
+            job = end;
+        }
+        bar.finish_and_clear();
+        let cells = acc
+            .into_iter()
+            .enumerate()
+            .map(|(c, a)| {
+                let spec = self.estimators[c % n_est];
+                finish(self.noise_levels[c / n_est], spec, a)
+            })
+            .collect();
+        Ok(SweepResult {
+            cells,
+            trials: self.trials,
+            seed: self.seed,
+            elapsed_s: start.elapsed().as_secs_f64(),
+            threads: rayon::current_num_threads(),
+        })
+    }
+
+    fn run_job(&self, job: usize, n_cells: usize) -> Result<TrialSummary, SimError> {
+        let trial = job / n_cells;
+        let cell = job % n_cells;
+        let n_est = self.estimators.len();
+        let level = cell / n_est;
+        let spec = self.estimators[cell % n_est];
+        let keep_trace = trial < self.capture.traces;
+        let mut cfg = self.base.clone();
+        cfg.seed = trial_seed(self.seed, level, trial);
+        cfg.trajectory = self
+            .trajectory
+            .unwrap_or(TrajectoryKind::ALL[trial % TrajectoryKind::ALL.len()]);
+        cfg.noise = self.noise_levels[level];
+        cfg.adaptation = Adaptation::Estimator(spec);
+        cfg.record_trace = keep_trace || self.capture.error_curve;
+        cfg.record_log = false;
+        let out = simulate(&cfg)?;
+        Ok(TrialSummary {
+            cell,
+            times: out.updates.iter().map(|u| u.micros).collect(),
+            metrics: out.metrics,
+            trace: out.trace,
+            keep_trace,
+        })
+    }
+}
+
+fn fold(a: &mut Accumulator, s: TrialSummary) {
+    let m = &s.metrics;
+    a.trials += 1;
+    if m.aborted {
+        a.aborted += 1;
+        a.positions.push(f64::NAN);
+    } else {
+        a.pos_sum += m.position_error_cm;
+        a.pos_n += 1;
+        a.positions.push(m.position_error_cm);
+    }
+    if m.parameter_error.is_finite() {
+        a.pe_sum += m.parameter_error;
+        a.mass += m.group_errors.mass;
+        a.fm += m.group_errors.first_moment;
+        a.inertia += m.group_errors.inertia;
+        a.pe_n += 1;
+    }
+    if m.t1_error.is_finite() {
+        a.t1_sum += m.t1_error;
+        a.t1_n += 1;
+    }
+    a.success += usize::from(m.success);
+    a.success_upd += usize::from(m.success_after_update);
+    for t in &s.times {
+        a.times.record(*t);
+    }
+    if !s.trace.is_empty() {
+        if a.curve_sum.len() < s.trace.len() {
+            a.curve_sum.resize(s.trace.len(), 0.0);
+            a.curve_n.resize(s.trace.len(), 0);
+        }
+        for (i, t) in s.trace.iter().enumerate() {
+            if t.parameter_error.is_finite() {
+                a.curve_sum[i] += t.parameter_error;
+                a.curve_n[i] += 1;
+            }
+        }
+        if s.keep_trace {
+            a.traces.push(s.trace);
+        }
+    }
+}
+
+fn mean(sum: f64, n: usize) -> f64 {
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
+fn finish(noise: NoiseLevel, spec: EstimatorSpec, a: Accumulator) -> CellSummary {
+    let pct = |k: usize| 100.0 * k as f64 / a.trials.max(1) as f64;
+    CellSummary {
+        noise,
+        estimator: spec,
+        label: spec.label(),
+        trials: a.trials,
+        position_error_cm: mean(a.pos_sum, a.pos_n),
+        parameter_error: mean(a.pe_sum, a.pe_n),
+        rel_mass: mean(a.mass, a.pe_n),
+        rel_first_moment: mean(a.fm, a.pe_n),
+        rel_inertia: mean(a.inertia, a.pe_n),
+        t1_error: mean(a.t1_sum, a.t1_n),
+        success_pct: pct(a.success),
+        success_after_update_pct: pct(a.success_upd),
+        aborted_pct: pct(a.aborted),
+        update_median_us: a.times.median(),
+        update_p95_us: a.times.p95(),
+        position_errors: a.positions,
+        error_curve: a
+            .curve_sum
+            .iter()
+            .zip(&a.curve_n)
+            .map(|(s, n)| mean(*s, *n))
+            .collect(),
+        traces: a.traces,
+    }
+}
+
+impl SweepResult {
+    /// The Table II layout as fixed-width text.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        s.push_str(&format!(
+            "{:<7} {:<26} {:>9} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9}\n",
+            "noise", "estimator", "pos [cm]", "param", "(t+1)", "succ %", "abort %", "med [us]",
+            "P95 [us]"
+        ));
+        for c in &self.cells {
+            s.push_str(&format!(
+                "{:<7} {:<26} {:>9.3} {:>10.3e} {:>10.3e} {:>8.1} {:>8.1} {:>9.2} {:>9.2}\n",
+                c.noise.name(),
+                c.label,
+                c.position_error_cm,
+                c.parameter_error,
+                c.t1_error,
+                c.success_pct,
+                c.aborted_pct,
+                c.update_median_us,
+                c.update_p95_us
+            ));
+        }
+        s
+    }
+
+    /// The table as Markdown (for READMEs).
+    pub fn markdown(&self) -> String {
+        let mut s = String::from(
+            "| noise | estimator | position error [cm] | parameter error | (t+1) error | success % | aborted % | update median / P95 [µs] |\n|---|---|---|---|---|---|---|---|\n",
+        );
+        for c in &self.cells {
+            s.push_str(&format!(
+                "| {} | {} | {:.3} | {:.2e} | {:.2e} | {:.1} | {:.1} | {:.2} / {:.2} |\n",
+                c.noise.name(),
+                c.label,
+                c.position_error_cm,
+                c.parameter_error,
+                c.t1_error,
+                c.success_pct,
+                c.aborted_pct,
+                c.update_median_us,
+                c.update_p95_us
+            ));
+        }
+        s
+    }
+
+    /// Writes one CSV row per cell (aggregates only).
+    ///
+    /// # Errors
+    /// I/O and CSV errors.
+    pub fn write_csv(&self, path: &std::path::Path) -> Result<(), SimError> {
+        let mut w = csv::Writer::from_path(path)?;
+        w.write_record([
+            "noise",
+            "estimator",
+            "trials",
+            "position_error_cm",
+            "parameter_error",
+            "rel_mass",
+            "rel_first_moment",
+            "rel_inertia",
+            "t1_error",
+            "success_pct",
+            "success_after_update_pct",
+            "aborted_pct",
+            "update_median_us",
+            "update_p95_us",
+        ])?;
+        for c in &self.cells {
+            w.write_record([
+                c.noise.name().to_string(),
+                c.label.clone(),
+                c.trials.to_string(),
+                c.position_error_cm.to_string(),
+                c.parameter_error.to_string(),
+                c.rel_mass.to_string(),
+                c.rel_first_moment.to_string(),
+                c.rel_inertia.to_string(),
+                c.t1_error.to_string(),
+                c.success_pct.to_string(),
+                c.success_after_update_pct.to_string(),
+                c.aborted_pct.to_string(),
+                c.update_median_us.to_string(),
+                c.update_p95_us.to_string(),
+            ])?;
+        }
+        w.flush()?;
+        Ok(())
+    }
+
+    /// Writes the whole result (including per-trial position errors and curves) as JSON.
+    ///
+    /// # Errors
+    /// I/O and JSON errors.
+    pub fn write_json(&self, path: &std::path::Path) -> Result<(), SimError> {
+        let f = std::io::BufWriter::new(std::fs::File::create(path)?);
+        serde_json::to_writer_pretty(f, self)?;
+        Ok(())
+    }
+
+    /// The cell of `noise` and estimator label `label`, if any.
+    pub fn cell(&self, noise: NoiseLevel, label: &str) -> Option<&CellSummary> {
+        self.cells
+            .iter()
+            .find(|c| c.noise == noise && c.label == label)
+    }
+}
