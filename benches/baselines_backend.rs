@@ -38,7 +38,7 @@ fn bench(c: &mut Criterion) {
     let sizes: Vec<usize> = std::env::var("TAGK_BACKEND_SIZES")
         .ok()
         .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
-        .unwrap_or_else(|| vec![10, 20, 30, 40, 80, 120]);
+        .unwrap_or_else(|| vec![10, 20, 40, 80, 120]);
     for n in sizes {
         let stream = windows(n);
         let mut group = c.benchmark_group(format!("backend/n={n},m={M}"));

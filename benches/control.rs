@@ -5,13 +5,15 @@
 //!   (P₀ = the nominal vehicle's solution — what `Lqr::redesign` does after a payload
 //!   event), the doubling algorithm (SDA), and the same solvers on `DMatrix` to compare the
 //!   statically sized fast path with the general one.
-//! - `linearize/*`: hover trim + analytic Jacobians, and the 16×16 ZOH matrix exponential.
+//! - `linearize/*`: hover trim + analytic Jacobians; the zero-order hold as used (Taylor
+//!   scaling-and-squaring on the 12×12 blocks) and, for comparison, nalgebra's Padé
+//!   exponential of the 16×16 augmented matrix.
 //! - `lqr/redesign`: the whole re-design the simulator runs after an accepted estimate.
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use tagk::control::nalgebra::{DMatrix, Vector3};
+use tagk::control::nalgebra::{DMatrix, SMatrix, Vector3};
 use tagk::control::{
     DEFAULT_DT, DareOptions, Lqr, LqrWeights, RiccatiSolver, discretize, hover_trim, linearize,
     solve_dare, solve_dare_cold, solve_dare_sda,
@@ -19,9 +21,10 @@ use tagk::control::{
 use tagk::dynamics::{InertialParams, QuadrotorModel};
 
 fn payload_params(model: &QuadrotorModel) -> InertialParams {
-    model
-        .params
-        .with_point_mass(0.5 * model.params.mass(), Vector3::new(0.3 * model.arm, 0.0, 0.0))
+    model.params.with_point_mass(
+        0.5 * model.params.mass(),
+        Vector3::new(0.3 * model.arm, 0.0, 0.0),
+    )
 }
 
 fn bench_control(c: &mut Criterion) {
@@ -46,7 +49,12 @@ fn bench_control(c: &mut Criterion) {
     let sda = solve_dare_sda(&d_pay.a, &d_pay.b, &q, &r, &opts).unwrap();
     eprintln!(
         "iterations: cold {} (residual {:.1e}), warm {} ({:.1e}), sda {} doublings ({:.1e})",
-        cold.iterations, cold.residual, warm.iterations, warm.residual, sda.iterations, sda.residual
+        cold.iterations,
+        cold.residual,
+        warm.iterations,
+        warm.residual,
+        sda.iterations,
+        sda.residual
     );
 
     let mut g = c.benchmark_group("dare");
@@ -60,7 +68,10 @@ fn bench_control(c: &mut Criterion) {
         b.iter(|| solve_dare_sda(black_box(&d_pay.a), &d_pay.b, &q, &r, &opts).unwrap())
     });
     let to_d = |m: &[f64], rows: usize, cols: usize| DMatrix::from_column_slice(rows, cols, m);
-    let (ad, bd) = (to_d(d_pay.a.as_slice(), 12, 12), to_d(d_pay.b.as_slice(), 12, 4));
+    let (ad, bd) = (
+        to_d(d_pay.a.as_slice(), 12, 12),
+        to_d(d_pay.b.as_slice(), 12, 4),
+    );
     let (qd, rd, pd) = (
         to_d(q.as_slice(), 12, 12),
         to_d(r.as_slice(), 4, 4),
@@ -83,8 +94,16 @@ fn bench_control(c: &mut Criterion) {
             linearize(&model, &payload, &op).unwrap()
         })
     });
-    g.bench_function("zoh_expm_16x16", |b| {
+    g.bench_function("zoh_taylor_12x12", |b| {
         b.iter(|| discretize(black_box(&cont), DEFAULT_DT).unwrap())
+    });
+    let mut aug = SMatrix::<f64, 16, 16>::zeros();
+    aug.fixed_view_mut::<12, 12>(0, 0)
+        .copy_from(&(cont.a * DEFAULT_DT));
+    aug.fixed_view_mut::<12, 4>(0, 12)
+        .copy_from(&(cont.b * DEFAULT_DT));
+    g.bench_function("zoh_pade_augmented_16x16", |b| {
+        b.iter(|| black_box(&aug).exp())
     });
     g.finish();
 

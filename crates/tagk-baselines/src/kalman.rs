@@ -19,17 +19,19 @@ use crate::{Backend, KalmanConfig};
 /// P  = P⁻ − K S Kᵀ = P⁻ − Gᵀ G
 /// ```
 ///
-/// **Covariance update: the symmetric form `P⁻ − Gᵀ G`, not the Joseph form.** With
+/// **Covariance update: the symmetrised form `P⁻ − Gᵀ G`, not the Joseph form.** With
 /// `G = L⁻¹ A P⁻`, the subtracted term `K S Kᵀ = K A P⁻` is a Gram matrix: only its upper
-/// triangle is computed and it is mirrored, so `P` is symmetric *exactly* (the drift of the
-/// plain `(I − K A) P⁻` form, the usual reason for Joseph, cannot occur), and it costs
-/// `m n²/2` multiply-adds. The Joseph form `(I − KA) P⁻ (I − KA)ᵀ + K R Kᵀ` protects against
-/// an inaccurate gain, but costs `2n³` as written (or, rearranged to `O(m n²)`, becomes a
-/// difference of nearly equal terms and loses its positive-semidefinite-by-construction
-/// property), so it would make the baseline several times slower at `n = 120, m = 30` for no
-/// gain here: the gain is applied through the same Cholesky factor that defines `G`, so the
-/// subtraction is the exact Schur complement of the factorised `S`. As a safeguard every
-/// update checks that `P` stays finite with a positive diagonal; otherwise it is refused
+/// triangle is computed and it is mirrored, so `P` is symmetric *exactly* (the asymmetric drift
+/// of the plain `(I − K A) P⁻` product, the usual reason for Joseph, cannot occur), at
+/// `m n²/2` multiply-adds. The Joseph form `(I − KA) P⁻ (I − KA)ᵀ + K R Kᵀ` costs `2n³` as
+/// written, 4–5× the whole update at `n = 120, m = 30`, and its `O(m n²)` rearrangement is
+/// again a difference of nearly equal terms, so it buys nothing over the symmetrised form in
+/// the one regime where either loses accuracy: a window that pins a direction far below
+/// rounding level of the prior (`p₀ ‖a‖² / σ_R² ≳ 10¹²`; KF-low's first window on
+/// quadrotor data is one). That regime is detected (a diagonal entry that kept fewer than ~4
+/// digits, or a failed Cholesky factorisation of `S`) and the window is redone in
+/// information form, which is well conditioned there (see the crate docs). Every update
+/// also checks that `P` stays finite with a positive diagonal; otherwise it is refused
 /// ([`EstimatorError::Diverged`] / [`EstimatorError::NumericalFailure`]) and the state is kept.
 ///
 /// The cost per update is `O(m n²)` (see the crate docs); nothing is allocated after
@@ -130,7 +132,7 @@ impl OnlineEstimator<f64> for KalmanFilter {
         for k in 0..n {
             st.p_next[k * n + k] += self.q;
         }
-        st.ws.update(a, m, self.r, 1.0, &mut st.p_next)?;
+        st.ws.update(a, m, self.r, 1.0, &st.p, self.q, &mut st.p_next)?;
         st.commit()?;
         Ok(UpdateInfo {
             rows: m,

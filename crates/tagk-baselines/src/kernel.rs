@@ -13,6 +13,18 @@
 //!
 //! No gain matrix and no inverse is ever formed. Cost: `m n²` (step 1) + `m² n/2` (2) + `m³/6`
 //! (3) + `m² n/2` (4) + `m n` (5) + `m n²/2` (6) multiply-adds: `O(m n²)` for `m ≤ n`.
+//!
+//! **Fallback for extreme dynamic range.** Steps 3 and 6 need `d` to be well above the
+//! rounding level of `A P Aᵀ`. When a window pins some direction far more tightly than the
+//! prior did (`p₀ ‖a‖² / d` beyond ~10¹², e.g. the first window of "KF-low": `P₀ = 10³`,
+//! `σ_R² = 10⁻¹⁰`, quadrotor rows of norm ~10), either the Cholesky factorisation of the
+//! numerically singular `S` fails, or step 6 subtracts nearly equal matrices and leaves some
+//! `P⁺_kk` with no correct digit (`P⁺_kk < 10⁴ ε · P_kk`). In both cases the window is redone
+//! in information form, `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, with Cholesky
+//! factorisations of the `n × n` matrices `P` and `P⁻¹ + Aᵀ A / d` (well conditioned in this
+//! regime, where `P` is still close to its prior). That costs about `n³ + m n²`, only on such
+//! windows; if it fails too, the update is refused with
+//! [`EstimatorError::NumericalFailure`].
 
 use faer::linalg::matmul::triangular::{self as tri, BlockStructure};
 use faer::prelude::{Reborrow, ReborrowMut};
@@ -34,7 +46,15 @@ pub(crate) struct Workspace {
     s: Vec<f64>,
     /// `Δθ = Gᵀ w` (`n`).
     dtheta: Vec<f64>,
+    /// Information-form fallback: two `n × n` matrices and `Aᵀ r` (`n`).
+    fa: Vec<f64>,
+    fb: Vec<f64>,
+    atr: Vec<f64>,
 }
+
+/// The fallback threshold: `P⁺_kk < CANCELLATION · P_kk` means fewer than ~4 significant
+/// digits of `P⁺_kk` survived the subtraction of step 6 (see the module docs).
+const CANCELLATION: f64 = 1e4 * f64::EPSILON;
 
 const CHOLESKY_FAILED: &str =
     "the innovation covariance A P Aᵀ + D is not numerically positive definite";
@@ -51,7 +71,32 @@ impl Workspace {
             ur: vec![0.0; m_max * (n + 1)],
             s: vec![0.0; m_max * m_max],
             dtheta: vec![0.0; n],
+            fa: vec![0.0; n * n],
+            fb: vec![0.0; n * n],
+            atr: vec![0.0; n],
         }
+    }
+
+    /// For [`Backend::Faer`]: runs one update on a dummy full-size window so that faer's
+    /// per-thread packing buffers (sized by the L3 cache, allocated on first use in a thread)
+    /// exist before the first real `update`. `p_scratch` (`n × n`) is overwritten.
+    pub(crate) fn warm_up(&mut self, p_scratch: &mut [f64]) {
+        if self.backend != Backend::Faer {
+            return;
+        }
+        let (n, m) = (self.n, self.m_max);
+        let mut a = vec![0.0; m * n];
+        for i in 0..m {
+            a[i * n + i % n] = 1.0;
+            self.ur[i * (n + 1) + n] = 1.0;
+        }
+        p_scratch.fill(0.0);
+        for k in 0..n {
+            p_scratch[k * n + k] = 1.0;
+        }
+        // S = A Aᵀ + I is positive definite: this cannot fail, and its result is discarded.
+        let _ = self.update_faer(&a, m, 1.0, p_scratch);
+        self.dtheta.fill(0.0);
     }
 
     /// The backend in use.
@@ -92,15 +137,92 @@ impl Workspace {
         Ok(norm2.sqrt())
     }
 
-    /// Runs steps 1–6 of the module docs on `p` in place (`p` holds the prior on entry and,
-    /// on success, the posterior); `Δθ` goes to [`Workspace::dtheta`]. Needs
-    /// [`Workspace::residual`] first. On error `p` holds garbage: callers pass a scratch copy.
-    pub(crate) fn update(&mut self, a: &[f64], m: usize, d: f64, scale: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
-        match self.backend {
-            Backend::Faer => self.update_faer(a, m, d, p)?,
-            _ => self.update_loops(a, m, d, p)?,
+    /// Runs steps 1–6 of the module docs (or the information-form fallback).
+    ///
+    /// `p` holds the prior covariance `P` on entry and, on success, the posterior; `Δθ` goes
+    /// to [`Workspace::dtheta`]. `p_prev + q·I` must equal the prior `P` (for RLS `p_prev` is
+    /// the current covariance and `q = 0`; for the Kalman filter `P = P_prev + σ_Q² I`): the
+    /// fallback rebuilds `P` from it. Needs [`Workspace::residual`] first. On error `p` holds
+    /// garbage: callers pass a scratch buffer.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn update(
+        &mut self,
+        a: &[f64],
+        m: usize,
+        d: f64,
+        scale: f64,
+        p_prev: &[f64],
+        q: f64,
+        p: &mut [f64],
+    ) -> Result<(), EstimatorError> {
+        let n = self.n;
+        let block = match self.backend {
+            Backend::Faer => self.update_faer(a, m, d, p),
+            _ => self.update_loops(a, m, d, p),
+        };
+        match block {
+            // Δθ from the block update is kept (its error is bounded by the conditioning of S,
+            // not by the cancellation in step 6); only P is recomputed.
+            Ok(()) => {
+                if (0..n).any(|k| !(p[k * n + k] > CANCELLATION * (p_prev[k * n + k] + q))) {
+                    self.information_form(a, m, d, p_prev, q, p, false)?;
+                }
+            }
+            // The Cholesky factorisation of S failed, before `r` was overwritten by `w`.
+            Err(_) => self.information_form(a, m, d, p_prev, q, p, true)?,
         }
-        finish_covariance(p, self.n, scale)
+        finish_covariance(p, n, scale)
+    }
+
+    /// The fallback of the module docs: `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹` into `p` and, if
+    /// `with_theta`, `Δθ = P⁺ Aᵀ r / d` (`r` from [`Workspace::residual`], still intact), with
+    /// `P = p_prev + q·I`. Plain loops: this path is rare.
+    #[allow(clippy::too_many_arguments)]
+    fn information_form(
+        &mut self,
+        a: &[f64],
+        m: usize,
+        d: f64,
+        p_prev: &[f64],
+        q: f64,
+        p: &mut [f64],
+        with_theta: bool,
+    ) -> Result<(), EstimatorError> {
+        let n = self.n;
+        let n1 = n + 1;
+        let (fa, fb) = (&mut self.fa, &mut self.fb);
+        // P = C Cᵀ, then P⁻¹ = C⁻ᵀ C⁻¹ into `fa`.
+        fa.copy_from_slice(p_prev);
+        for k in 0..n {
+            fa[k * n + k] += q;
+        }
+        cholesky_lower(fa, n)?;
+        invert_lower(fa, fb, n);
+        gram_lower_inverse(fb, fa, n);
+        // Information matrix P⁻¹ + Aᵀ A / d (lower triangle) and Aᵀ r.
+        let inv_d = 1.0 / d;
+        self.atr.fill(0.0);
+        for (i, ai) in a.chunks_exact(n).take(m).enumerate() {
+            axpy(self.ur[i * n1 + n], ai, &mut self.atr);
+            for k in 0..n {
+                let c = ai[k] * inv_d;
+                if c != 0.0 {
+                    axpy(c, &ai[..=k], &mut fa[k * n..k * n + k + 1]);
+                }
+            }
+        }
+        // P⁺ = (C' C'ᵀ)⁻¹.
+        cholesky_lower(fa, n)?;
+        invert_lower(fa, fb, n);
+        gram_lower_inverse(fb, fa, n);
+        // Δθ = P⁺ Aᵀ r / d, and P⁺ into `p` (full: `fa` holds both triangles).
+        if with_theta {
+            for k in 0..n {
+                self.dtheta[k] = dot(&fa[k * n..(k + 1) * n], &self.atr) * inv_d;
+            }
+        }
+        p.copy_from_slice(fa);
+        Ok(())
     }
 
     fn update_loops(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
@@ -261,6 +383,38 @@ fn cholesky_lower(s: &mut [f64], m: usize) -> Result<(), EstimatorError> {
         }
     }
     Ok(())
+}
+
+/// `inv ← L⁻¹` for the lower-triangular `L` in the lower triangle of `l` (`n × n`,
+/// row-major); the strict upper triangle of `inv` is zeroed.
+fn invert_lower(l: &[f64], inv: &mut [f64], n: usize) {
+    inv.fill(0.0);
+    // Column j of L⁻¹ by forward substitution on e_j, written row-wise.
+    for j in 0..n {
+        inv[j * n + j] = 1.0 / l[j * n + j];
+        for i in j + 1..n {
+            let mut s = 0.0;
+            for k in j..i {
+                s += l[i * n + k] * inv[k * n + j];
+            }
+            inv[i * n + j] = -s / l[i * n + i];
+        }
+    }
+}
+
+/// `out ← Xᵀ X` (full, symmetric) for the lower-triangular `X` in `x` (`n × n`, row-major):
+/// with `X = L⁻¹`, `Xᵀ X = (L Lᵀ)⁻¹`.
+fn gram_lower_inverse(x: &[f64], out: &mut [f64], n: usize) {
+    for j in 0..n {
+        for l in j..n {
+            let mut s = 0.0;
+            for k in l..n {
+                s += x[k * n + j] * x[k * n + l];
+            }
+            out[j * n + l] = s;
+            out[l * n + j] = s;
+        }
+    }
 }
 
 /// Scales the upper triangle of `p` by `scale`, mirrors it into the lower triangle and checks

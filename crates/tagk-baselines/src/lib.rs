@@ -18,8 +18,23 @@
 //!
 //! In total about `1.5 m n² + m² n + m³/6` multiply-adds: `O(m n²)` for `m ≤ n`, never
 //! `O(n³)`, and no inverse or gain matrix is formed. The Kalman filter adds `P ← P + σ_Q²·I`
-//! (`n`) before step 1; RLS scales by `s = 1/λ` in step 6. All buffers (`2n² + m(n+1) + m² + 3n`
-//! values) are allocated by the constructor; `update` does not allocate.
+//! (`n`) before step 1; RLS scales by `s = 1/λ` in step 6. Measured per-update times are in
+//! the README.
+//!
+//! **Extreme dynamic range.** When a window pins a direction far below the rounding level of
+//! the prior (`p₀ ‖a‖² / d ≳ 10¹²` with `d = λ` or `σ_R²`; in practice the first window of
+//! "KF-low", `P₀ = 10³`, `σ_R² = 10⁻¹⁰`), `S` is numerically singular or step 6 cancels to
+//! no correct digits. This is detected (a failed Cholesky pivot, or a diagonal entry
+//! `P⁺_kk < 10⁴ ε P_kk`) and that window is redone in information form,
+//! `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, by Cholesky factorisations of `n × n`
+//! matrices: about `n³ + m n²`, on such windows only.
+//!
+//! **Memory.** All buffers (`4n² + m(n+1) + m² + 4n` values) are allocated by the
+//! constructor and `update` does not allocate. With [`Backend::Faer`], faer additionally keeps
+//! per-thread packing buffers (sized by the L3 cache) that it allocates on first use in a
+//! thread; the constructor runs one dummy update so they exist for the constructing thread (an
+//! estimator moved to another thread triggers that one-time allocation there on its first
+//! update).
 //!
 //! # Failure handling
 //!

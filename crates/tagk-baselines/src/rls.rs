@@ -107,7 +107,7 @@ impl OnlineEstimator<f64> for Rls {
         let prior_residual_norm = st.ws.residual(a, b, &st.theta)?;
         let lambda = self.config.lambda;
         st.p_next.copy_from_slice(&st.p);
-        st.ws.update(a, m, lambda, 1.0 / lambda, &mut st.p_next)?;
+        st.ws.update(a, m, lambda, 1.0 / lambda, &st.p, 0.0, &mut st.p_next)?;
         if let WindupGuard::MaxTrace(max_trace) = self.config.windup_guard {
             let tr = trace(&st.p_next, n);
             if tr > max_trace {

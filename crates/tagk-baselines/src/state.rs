@@ -32,6 +32,7 @@ impl FilterState {
             p_next: vec![0.0; n * n],
             ws: Workspace::new(n, m_max, backend),
         };
+        s.ws.warm_up(&mut s.p_next);
         s.reset_covariance();
         s
     }

@@ -19,8 +19,9 @@
 //!   started from `P = 0`, so it converges quadratically; it cannot use a warm start.
 //!
 //! Both are generic over nalgebra dimensions: `SMatrix<f64, 12, 12>` / `SMatrix<f64, 12, 4>`
-//! (statically sized, no heap allocation at all) and `DMatrix<f64>` (one workspace allocation
-//! per call, none inside the loop) go through the same code.
+//! (statically sized: no heap allocation on success) and `DMatrix<f64>` (workspace allocated
+//! once per call, nothing inside the loop) go through the same code; the hot kernels have a
+//! constant-size fast path for `n = 12`.
 //! Linear systems are solved by Cholesky (for `R + BᵀPB`) and partially pivoted LU
 //! (for `I + GH` in the doubling); no inverse is formed.
 
@@ -300,6 +301,33 @@ where
 }
 
 /// Relative residual and gain of the final `P`: one more Riccati step.
+/// Relative residual of `p` (one Riccati step into `work`, which also leaves the gain of
+/// `p` in `work.k`).
+fn residual_of<N: Dim, M: Dim>(
+    a: &OMatrix<f64, N, N>,
+    b: &OMatrix<f64, N, M>,
+    q: &OMatrix<f64, N, N>,
+    r: &OMatrix<f64, M, M>,
+    p: &OMatrix<f64, N, N>,
+    iteration: usize,
+    work: &mut RiccatiWork<N, M>,
+) -> Result<f64, DareError>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
+{
+    if !work.step(a, b, q, r, p) {
+        return Err(DareError::Breakdown { iteration });
+    }
+    let norm = p.norm();
+    let res = frobenius_diff(&work.next, p);
+    let residual = if norm > 0.0 { res / norm } else { res };
+    if !residual.is_finite() {
+        return Err(DareError::Diverged { iteration });
+    }
+    Ok(residual)
+}
+
+/// The solution for `p`: its gain and residual from one more Riccati step.
 fn finish<N: Dim, M: Dim>(
     a: &OMatrix<f64, N, N>,
     b: &OMatrix<f64, N, M>,
@@ -312,19 +340,7 @@ fn finish<N: Dim, M: Dim>(
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
 {
-    if !work.step(a, b, q, r, &p) {
-        return Err(DareError::Breakdown {
-            iteration: iterations + 1,
-        });
-    }
-    let norm = p.norm();
-    let res = frobenius_diff(&work.next, &p);
-    let residual = if norm > 0.0 { res / norm } else { res };
-    if !residual.is_finite() {
-        return Err(DareError::Diverged {
-            iteration: iterations + 1,
-        });
-    }
+    let residual = residual_of(a, b, q, r, &p, iterations + 1, work)?;
     Ok(DareSolution {
         p,
         k: work.k.clone(),
@@ -422,9 +438,14 @@ where
 /// ```
 ///
 /// and `Hₖ → P` quadratically (`Hₖ` is the `2ᵏ`-step Riccati iterate from zero).
-/// Stops when `‖Hₖ₊₁ − Hₖ‖_F ≤ options.tolerance · ‖Hₖ₊₁‖_F` or after
+/// Stops when `‖Hₖ₊₁ − Hₖ‖_F ≤ options.tolerance · ‖Hₖ₊₁‖_F`, or — tested once that
+/// relative increment is below `√tolerance`, which saves the last, confirming doubling —
+/// when the relative DARE residual of `Hₖ₊₁` is `≤ options.tolerance`. Fails after
 /// `options.max_iterations` doubling steps (capped at 64). The gain and residual come
 /// from one final Riccati step, as in [`solve_dare`].
+///
+/// The linear systems with `W` are solved by partially pivoted LU, in transposed form so
+/// that the substitutions run along contiguous rows.
 ///
 /// # Errors
 /// As [`solve_dare`].
@@ -512,6 +533,19 @@ where
         relative_change = if norm > 0.0 { change / norm } else { change };
         if change <= options.tolerance * norm {
             return finish(a, b, q, r, h, it, &mut work);
+        }
+        // Quadratic convergence: once the increment is below √tol the next one is about
+        // tol, so test the residual (one Riccati step) before paying for another doubling.
+        if relative_change <= options.tolerance.sqrt() {
+            let residual = residual_of(a, b, q, r, &h, it + 1, &mut work)?;
+            if residual <= options.tolerance {
+                return Ok(DareSolution {
+                    p: h,
+                    k: work.k.clone(),
+                    iterations: it,
+                    residual,
+                });
+            }
         }
     }
     Err(DareError::NotConverged {

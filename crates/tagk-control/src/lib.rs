@@ -2,12 +2,14 @@
 
 /// The nalgebra version used in this crate's API (re-exported for convenience).
 pub use nalgebra;
+/// The inertial parameters and actuator model this crate designs for.
+pub use tagk_dynamics::{InertialParams, QuadrotorModel};
 
 pub mod dare;
-#[doc(hidden)]
-pub mod linalg;
+mod linalg;
 pub mod lqr;
 pub mod quadrotor;
+pub mod zoh;
 
 pub use dare::{
     DareError, DareOptions, DareSolution, dare_residual, solve_dare, solve_dare_cold,
@@ -16,8 +18,9 @@ pub use dare::{
 pub use lqr::{DEFAULT_DT, Lqr, LqrWeights, RiccatiSolver, SolveReport};
 pub use quadrotor::{
     ContinuousModel, DiscreteModel, ErrorState, OperatingPoint, QuadrotorState, discretize,
-    discretize_zoh, error_state, hover_trim, linearize, trim_thrusts,
+    error_state, hover_trim, linearize, trim_thrusts,
 };
+pub use zoh::discretize_zoh;
 
 /// Errors of `tagk-control`.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -44,7 +47,7 @@ pub enum ControlError {
     /// The control period must be positive and finite.
     #[error("invalid time step {dt} s")]
     InvalidTimeStep {
-        /// The offending value [s].
+        /// The offending value \[s\].
         dt: f64,
     },
     /// `A` must be square and `B` must have as many rows as `A`.
@@ -58,7 +61,7 @@ pub enum ControlError {
     /// The requested reference acceleration needs a force across body `z`.
     #[error("trim infeasible: requires {lateral_force:e} N across body z")]
     TrimInfeasible {
-        /// Magnitude of the required lateral force [N].
+        /// Magnitude of the required lateral force \[N\].
         lateral_force: f64,
     },
 }

@@ -80,8 +80,19 @@ pub(crate) fn cholesky_solve_in_place(l: &[f64], n: usize, b: &mut [f64]) {
 /// LU factorisation with partial pivoting in place (`P a = L U`; unit lower `L` below the
 /// diagonal, `U` on and above) of the `n×n` column-major `a`. `piv[k]` is the row swapped
 /// with row `k` at step `k`. Returns `false` if a pivot is zero or not finite.
-pub fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
+pub(crate) fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
+    // Fast path for the 12-state quadrotor: a constant `n` lets LLVM unroll and vectorise.
+    if n == 12 {
+        lu_in_place_impl(a, 12, piv)
+    } else {
+        lu_in_place_impl(a, n, piv)
+    }
+}
+
+#[inline(always)]
+fn lu_in_place_impl(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
     debug_assert_eq!(a.len(), n * n);
+    let a = &mut a[..n * n];
     for k in 0..n {
         let col_k = &a[k * n..(k + 1) * n];
         let mut p = k;
@@ -118,53 +129,31 @@ pub fn lu_in_place(a: &mut [f64], n: usize, piv: &mut [usize]) -> bool {
     true
 }
 
-/// Solves `a X = B` in place with the factors of [`lu_in_place`] (`B` is `n×ncols`).
-///
-/// All right-hand sides are processed together for each pivot, so the factor column is
-/// sliced once per step and the inner loops are branch-free `axpy`s.
-pub fn lu_solve_in_place(lu: &[f64], n: usize, piv: &[usize], b: &mut [f64]) {
-    debug_assert_eq!(lu.len(), n * n);
-    for (k, &p) in piv.iter().enumerate().take(n) {
-        if p != k {
-            for col in b.chunks_exact_mut(n) {
-                col.swap(k, p);
-            }
-        }
-    }
-    // Forward substitution with the unit lower factor.
-    for k in 0..n {
-        let lk = &lu[k * n + k + 1..(k + 1) * n];
-        for col in b.chunks_exact_mut(n) {
-            let (head, tail) = col.split_at_mut(k + 1);
-            axpy_neg(tail, lk, head[k]);
-        }
-    }
-    // Back substitution with the upper factor.
-    for k in (0..n).rev() {
-        let uk = &lu[k * n..k * n + k];
-        let inv = 1.0 / lu[k * n + k];
-        for col in b.chunks_exact_mut(n) {
-            let (head, tail) = col.split_at_mut(k);
-            let xk = tail[0] * inv;
-            tail[0] = xk;
-            axpy_neg(head, uk, xk);
-        }
-    }
-}
-
 /// Solves `a X = B` in place with the factors of [`lu_in_place`], for `B` given
 /// **transposed**: `bt` holds `Bᵀ` column-major (`ncols × n`), i.e. row `i` of `B` is the
 /// contiguous chunk `bt[i·ncols .. (i+1)·ncols]`. On return `bt` holds `Xᵀ`.
 ///
 /// The substitutions become row operations `row_i −= l_ik · row_k` on contiguous rows of
-/// length `ncols` — far fewer and longer `axpy`s than [`lu_solve_in_place`] when
+/// length `ncols` — fewer and longer `axpy`s than column-wise substitution when
 /// `ncols ≥ n`.
-pub fn lu_solve_transposed_in_place(lu: &[f64], n: usize, piv: &[usize], bt: &mut [f64]) {
-    debug_assert_eq!(lu.len(), n * n);
+pub(crate) fn lu_solve_transposed_in_place(lu: &[f64], n: usize, piv: &[usize], bt: &mut [f64]) {
     if n == 0 {
         return;
     }
     let w = bt.len() / n;
+    // Fast path for the 12-state quadrotor (constant trip counts).
+    if n == 12 && w == 12 {
+        lu_solve_transposed_impl(lu, 12, 12, piv, bt)
+    } else {
+        lu_solve_transposed_impl(lu, n, w, piv, bt)
+    }
+}
+
+#[inline(always)]
+fn lu_solve_transposed_impl(lu: &[f64], n: usize, w: usize, piv: &[usize], bt: &mut [f64]) {
+    debug_assert_eq!(lu.len(), n * n);
+    let lu = &lu[..n * n];
+    let bt = &mut bt[..n * w];
     for (k, &p) in piv.iter().enumerate().take(n) {
         if p != k {
             let (lo, hi) = bt.split_at_mut(p * w);
@@ -277,18 +266,19 @@ mod tests {
             0.0, 2.0, 1.0, -1.0, 3.0, 1.0, 0.0, 2.0, 1.0, -1.0, 4.0, 0.5, 2.0, 0.0, 1.0, 3.0,
         );
         let x_true = SMatrix::<f64, 4, 2>::new(1.0, 2.0, -1.0, 0.5, 3.0, -2.0, 0.25, 1.0);
-        let mut b = a * x_true;
+        let mut bt = (a * x_true).transpose();
         let mut lu = a;
         let mut piv = [0usize; 4];
         assert!(lu_in_place(lu.as_mut_slice(), 4, &mut piv));
-        lu_solve_in_place(lu.as_slice(), 4, &piv, b.as_mut_slice());
-        assert!((b - x_true).norm() < 1e-12, "{}", (b - x_true).norm());
+        lu_solve_transposed_in_place(lu.as_slice(), 4, &piv, bt.as_mut_slice());
+        assert!((bt.transpose() - x_true).norm() < 1e-12);
 
         let mut lud = DMatrix::from_column_slice(4, 4, a.as_slice());
-        let mut bd = DMatrix::from_column_slice(4, 2, (a * x_true).as_slice());
+        let mut btd = DMatrix::from_column_slice(2, 4, (a * x_true).transpose().as_slice());
         assert!(lu_in_place(lud.as_mut_slice(), 4, &mut piv));
-        lu_solve_in_place(lud.as_slice(), 4, &piv, bd.as_mut_slice());
-        assert!((bd - DMatrix::from_column_slice(4, 2, x_true.as_slice())).norm() < 1e-12);
+        lu_solve_transposed_in_place(lud.as_slice(), 4, &piv, btd.as_mut_slice());
+        let x_d = DMatrix::from_column_slice(2, 4, x_true.transpose().as_slice());
+        assert!((btd - x_d).norm() < 1e-12);
     }
 
     #[test]

@@ -2,8 +2,8 @@
 //!
 //! # Nonlinear model (CONVENTIONS §2–§4)
 //!
-//! State: world position `p` [m], world velocity `v` [m/s], attitude `R` (unit quaternion,
-//! body → world), body rate `ω` [rad/s]. Input: the four rotor thrusts `u` [N], mapped by the
+//! State: world position `p` \[m\], world velocity `v` \[m/s\], attitude `R` (unit quaternion,
+//! body → world), body rate `ω` \[rad/s\]. Input: the four rotor thrusts `u` \[N\], mapped by the
 //! mixer to the actuator wrench `w(u) = [0, 0, f_z; τ]` (body frame, about the origin).
 //! With the inertial parameters `θ` (mass `m`, first moment `h = m c`, inertia `I` about the
 //! origin) the Newton–Euler equations of §3 are the symmetric 6×6 system
@@ -25,7 +25,7 @@
 //! e = [ p − p_r ;  v − v_r ;  δ ;  ω − ω_r ],     R = R_r · exp(S(δ))
 //! ```
 //!
-//! i.e. `δ = log(R_rᵀ R)` is the rotation vector [rad] of the attitude error **in the body
+//! i.e. `δ = log(R_rᵀ R)` is the rotation vector \[rad\] of the attitude error **in the body
 //! frame** (right perturbation); position and velocity errors are in the world frame.
 //! See [`error_state`] / [`apply_error`].
 //!
@@ -54,7 +54,7 @@
 //! the origin `c × m g_b`, so with a centre-of-mass offset the four trim thrusts differ.
 //! They are `M_mix⁻¹ [m g, g h_y, −g h_x, 0]`.
 
-use nalgebra::{DMatrix, Matrix3, Matrix6, SMatrix, SVector, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, UnitQuaternion, Vector3};
 use tagk_dynamics::{
     GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench, math::skew, newton_euler,
     try_forward_dynamics,
@@ -78,31 +78,31 @@ pub type ErrorState = SVector<f64, STATE_DIM>;
 
 /// Offsets of the blocks of the error state.
 pub mod idx {
-    /// Position error (world) [m].
+    /// Position error (world) \[m\].
     pub const POS: usize = 0;
-    /// Velocity error (world) [m/s].
+    /// Velocity error (world) \[m/s\].
     pub const VEL: usize = 3;
-    /// Attitude error rotation vector (body) [rad].
+    /// Attitude error rotation vector (body) \[rad\].
     pub const ATT: usize = 6;
-    /// Body-rate error (body) [rad/s].
+    /// Body-rate error (body) \[rad/s\].
     pub const RATE: usize = 9;
 }
 
 /// Full nonlinear state of the quadrotor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct QuadrotorState {
-    /// Position of the body origin, world frame [m].
+    /// Position of the body origin, world frame \[m\].
     pub position: Vector3<f64>,
-    /// Velocity of the body origin, world frame [m/s].
+    /// Velocity of the body origin, world frame \[m/s\].
     pub velocity: Vector3<f64>,
     /// Attitude, body → world (CONVENTIONS §2).
     pub attitude: UnitQuaternion<f64>,
-    /// Angular velocity, body frame [rad/s].
+    /// Angular velocity, body frame \[rad/s\].
     pub body_rate: Vector3<f64>,
 }
 
 impl QuadrotorState {
-    /// At rest at `position` [m], level, heading `yaw` [rad] about world `z`.
+    /// At rest at `position` \[m\], level, heading `yaw` \[rad\] about world `z`.
     pub fn hover(position: Vector3<f64>, yaw: f64) -> Self {
         Self {
             position,
@@ -147,19 +147,19 @@ pub fn apply_error(reference: &QuadrotorState, e: &ErrorState) -> QuadrotorState
     }
 }
 
-/// A reference state with the rotor thrusts [N] applied there.
+/// A reference state with the rotor thrusts \[N\] applied there.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OperatingPoint {
     /// Reference state.
     pub state: QuadrotorState,
-    /// Reference rotor thrusts [N] (M1..M4 as in `tagk_dynamics::quadrotor`).
+    /// Reference rotor thrusts \[N\] (M1..M4 as in `tagk_dynamics::quadrotor`).
     pub thrusts: [f64; 4],
 }
 
 /// Continuous-time linear error model `ė = A e + B Δu` (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContinuousModel {
-    /// State matrix [1/s].
+    /// State matrix \[1/s\].
     pub a: StateMatrix,
     /// Input matrix: rows in the units of `ė` per newton of rotor thrust.
     pub b: InputMatrix,
@@ -172,7 +172,7 @@ pub struct DiscreteModel {
     pub a: StateMatrix,
     /// Input matrix `∫₀^dt exp(A s) ds B`.
     pub b: InputMatrix,
-    /// Sample time [s].
+    /// Sample time \[s\].
     pub dt: f64,
 }
 
@@ -198,7 +198,7 @@ fn spatial_inertia(params: &InertialParams) -> Matrix6<f64> {
     m6
 }
 
-/// Hover trim at `position` [m] and heading `yaw` [rad]: level attitude, zero velocity and
+/// Hover trim at `position` \[m\] and heading `yaw` \[rad\]: level attitude, zero velocity and
 /// rate, and the (generally unequal) rotor thrusts `M_mix⁻¹ [m g, g h_y, −g h_x, 0]` that
 /// hold it (module docs). The thrusts are **not** clipped: compare them with
 /// `model.max_thrust_per_rotor()` (see [`trim_within_limits`]).
@@ -217,8 +217,8 @@ pub fn hover_trim(
     Ok(OperatingPoint { state, thrusts })
 }
 
-/// Rotor thrusts [N] that realise world acceleration `accel_world` [m/s²] and body angular
-/// acceleration `omega_dot` [rad/s²] at `state` (inverse dynamics `newton_euler` of §3,
+/// Rotor thrusts \[N\] that realise world acceleration `accel_world` \[m/s²\] and body angular
+/// acceleration `omega_dot` \[rad/s²\] at `state` (inverse dynamics `newton_euler` of §3,
 /// then the inverse mixer). For hover pass zeros.
 ///
 /// # Errors
@@ -337,86 +337,19 @@ pub fn linearize(
     Ok(ContinuousModel { a, b })
 }
 
-fn check_dt(dt: f64) -> Result<(), ControlError> {
-    if !(dt > 0.0 && dt.is_finite()) {
-        return Err(ControlError::InvalidTimeStep { dt });
-    }
-    Ok(())
-}
-
-/// Zero-order-hold discretisation of the 12-state model over `dt` [s]:
-/// `exp([[A, B], [0, 0]] dt) = [[A_d, B_d], [0, 1]]`, with nalgebra's scaling-and-squaring
-/// Padé matrix exponential on the 16×16 augmented matrix (no heap allocation).
+/// Zero-order-hold discretisation of the 12-state model over `dt` \[s\] by
+/// [`discretize_zoh`](crate::zoh::discretize_zoh) (scaling-and-squaring Taylor series of
+/// `exp(A dt)` and `∫₀^dt exp(A s) ds`, no heap allocation).
 ///
 /// # Errors
 /// [`ControlError::InvalidTimeStep`] unless `dt > 0` and finite; [`ControlError::NonFinite`].
 pub fn discretize(model: &ContinuousModel, dt: f64) -> Result<DiscreteModel, ControlError> {
-    check_dt(dt)?;
-    if model.a.iter().chain(model.b.iter()).any(|v| !v.is_finite()) {
-        return Err(ControlError::NonFinite {
-            what: "continuous model",
-        });
-    }
-    let mut aug = SMatrix::<f64, 16, 16>::zeros();
-    aug.fixed_view_mut::<12, 12>(0, 0)
-        .copy_from(&(model.a * dt));
-    aug.fixed_view_mut::<12, 4>(0, 12)
-        .copy_from(&(model.b * dt));
-    let e = aug.exp();
-    if e.iter().any(|v| !v.is_finite()) {
-        return Err(ControlError::NonFinite {
-            what: "matrix exponential",
-        });
-    }
-    Ok(DiscreteModel {
-        a: e.fixed_view::<12, 12>(0, 0).into_owned(),
-        b: e.fixed_view::<12, 4>(0, 12).into_owned(),
-        dt,
-    })
-}
-
-/// Zero-order-hold discretisation of a general `ẋ = A x + B u` (`A` n×n, `B` n×m) over
-/// `dt` [s], as [`discretize`] but for dynamic sizes. Returns `(A_d, B_d)`.
-///
-/// # Errors
-/// [`ControlError::ShapeMismatch`], [`ControlError::InvalidTimeStep`],
-/// [`ControlError::NonFinite`].
-pub fn discretize_zoh(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    dt: f64,
-) -> Result<(DMatrix<f64>, DMatrix<f64>), ControlError> {
-    check_dt(dt)?;
-    let n = a.nrows();
-    if a.ncols() != n || b.nrows() != n {
-        return Err(ControlError::ShapeMismatch {
-            a: a.shape(),
-            b: b.shape(),
-        });
-    }
-    if a.iter().chain(b.iter()).any(|v| !v.is_finite()) {
-        return Err(ControlError::NonFinite {
-            what: "continuous model",
-        });
-    }
-    let m = b.ncols();
-    let mut aug = DMatrix::<f64>::zeros(n + m, n + m);
-    aug.view_mut((0, 0), (n, n)).copy_from(&(a * dt));
-    aug.view_mut((0, n), (n, m)).copy_from(&(b * dt));
-    let e = if n + m == 0 { aug } else { aug.exp() };
-    if e.iter().any(|v| !v.is_finite()) {
-        return Err(ControlError::NonFinite {
-            what: "matrix exponential",
-        });
-    }
-    Ok((
-        e.view((0, 0), (n, n)).into_owned(),
-        e.view((0, n), (n, m)).into_owned(),
-    ))
+    let (a, b) = crate::zoh::discretize_zoh(&model.a, &model.b, dt)?;
+    Ok(DiscreteModel { a, b, dt })
 }
 
 /// Rotates the position and velocity blocks of an error state from the world frame into
-/// the heading frame of yaw `yaw` [rad] (`e_p ← R_z(yaw)ᵀ e_p`, same for `e_v`); attitude
+/// the heading frame of yaw `yaw` \[rad\] (`e_p ← R_z(yaw)ᵀ e_p`, same for `e_v`); attitude
 /// and rate errors are body-frame already. A hover design at yaw 0 applied to such rotated
 /// errors equals the hover design at yaw `yaw` (the hover model is yaw-equivariant).
 pub fn to_heading_frame(e: &ErrorState, yaw: f64) -> ErrorState {
@@ -430,7 +363,7 @@ pub fn to_heading_frame(e: &ErrorState, yaw: f64) -> ErrorState {
     out
 }
 
-/// Yaw [rad] of an attitude (ZYX Euler angle about world `z`).
+/// Yaw \[rad\] of an attitude (ZYX Euler angle about world `z`).
 pub fn yaw_of(attitude: &UnitQuaternion<f64>) -> f64 {
     attitude.euler_angles().2
 }

@@ -281,41 +281,55 @@ pub fn residual_transposed<T: Real>(at: &[T], n: usize, m: usize, x: &[T], b: &[
 /// [`gram_transposed`]: the two kernels return the same bits, so a microcontroller and a host
 /// agree to the last bit.
 pub fn gram_rows<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
-    let row = |i: usize| &a[i * n..(i + 1) * n];
+    // Row pairs; for each, column blocks of four from its diagonal on, edges in smaller tiles.
     let mut bi = 0;
     while bi < m {
-        let mut bj = bi - bi % 4;
+        let mut bj = bi;
         while bj < m {
-            if bi + 2 <= m && bj + 4 <= m {
-                let (u0, u1) = (row(bi), row(bi + 1));
-                let v = [row(bj), row(bj + 1), row(bj + 2), row(bj + 3)];
-                let mut acc = [[T::zero(); 4]; 2];
-                for k in 0..n {
-                    let (x0, x1) = (u0[k], u1[k]);
-                    for q in 0..4 {
-                        let y = v[q][k];
-                        acc[0][q] = x0.mul_add_fast(y, acc[0][q]);
-                        acc[1][q] = x1.mul_add_fast(y, acc[1][q]);
-                    }
-                }
-                for (p, acc_p) in acc.iter().enumerate() {
-                    for (q, &g) in acc_p.iter().enumerate() {
-                        gram[(bi + p) * m + bj + q] = g;
-                        gram[(bj + q) * m + bi + p] = g;
-                    }
-                }
-            } else {
-                for i in bi..(bi + 2).min(m) {
-                    for j in bj..(bj + 4).min(m) {
-                        let g = dot_in_order(row(i), row(j));
-                        gram[i * m + j] = g;
-                        gram[j * m + i] = g;
-                    }
-                }
+            match (m - bi >= 2, (m - bj).min(4)) {
+                (true, 4) => gram_tile::<T, 2, 4>(a, n, m, bi, bj, gram),
+                (true, 3) => gram_tile::<T, 2, 3>(a, n, m, bi, bj, gram),
+                (true, 2) => gram_tile::<T, 2, 2>(a, n, m, bi, bj, gram),
+                (true, _) => gram_tile::<T, 2, 1>(a, n, m, bi, bj, gram),
+                (false, 4) => gram_tile::<T, 1, 4>(a, n, m, bi, bj, gram),
+                (false, 3) => gram_tile::<T, 1, 3>(a, n, m, bi, bj, gram),
+                (false, 2) => gram_tile::<T, 1, 2>(a, n, m, bi, bj, gram),
+                (false, _) => gram_tile::<T, 1, 1>(a, n, m, bi, bj, gram),
             }
             bj += 4;
         }
         bi += 2;
+    }
+}
+
+/// One `P × Q` tile of [`gram_rows`]: rows `bi..bi+P` against rows `bj..bj+Q`, written to
+/// both triangles.
+#[inline(always)]
+fn gram_tile<T: Real, const P: usize, const Q: usize>(
+    a: &[T],
+    n: usize,
+    m: usize,
+    bi: usize,
+    bj: usize,
+    gram: &mut [T],
+) {
+    let u: [&[T]; P] = core::array::from_fn(|p| &a[(bi + p) * n..(bi + p + 1) * n]);
+    let v: [&[T]; Q] = core::array::from_fn(|q| &a[(bj + q) * n..(bj + q + 1) * n]);
+    let mut acc = [[T::zero(); Q]; P];
+    for k in 0..n {
+        let y: [T; Q] = core::array::from_fn(|q| v[q][k]);
+        for p in 0..P {
+            let x = u[p][k];
+            for q in 0..Q {
+                acc[p][q] = x.mul_add_fast(y[q], acc[p][q]);
+            }
+        }
+    }
+    for (p, acc_p) in acc.iter().enumerate() {
+        for (q, &g) in acc_p.iter().enumerate() {
+            gram[(bi + p) * m + bj + q] = g;
+            gram[(bj + q) * m + bi + p] = g;
+        }
     }
 }
 

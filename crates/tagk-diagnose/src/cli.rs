@@ -66,7 +66,9 @@ impl DiagnoseArgs {
 ///
 /// # Errors
 /// Unknown effect names, malformed custom specifications, a non-positive mass.
-pub fn plan(args: &DiagnoseArgs) -> Result<(Model, Vec<EffectRef>, DiagnoseOptions), DiagnoseError> {
+pub fn plan(
+    args: &DiagnoseArgs,
+) -> Result<(Model, Vec<EffectRef>, DiagnoseOptions), DiagnoseError> {
     let mut customs: Vec<EffectRef> = Vec::new();
     for spec in &args.custom {
         customs.push(std::sync::Arc::new(CustomEffect::parse(spec)?));
@@ -81,7 +83,9 @@ pub fn plan(args: &DiagnoseArgs) -> Result<(Model, Vec<EffectRef>, DiagnoseOptio
     let mut base = Model::rigid_body();
     if let Some(m) = args.mass {
         if !(m > 0.0 && m.is_finite()) {
-            return Err(DiagnoseError::Fit(format!("--mass must be positive, got {m}")));
+            return Err(DiagnoseError::Fit(format!(
+                "--mass must be positive, got {m}"
+            )));
         }
         base = base.with_known_mass(m);
     }

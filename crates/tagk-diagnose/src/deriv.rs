@@ -29,7 +29,11 @@ pub fn savitzky_golay_derivative(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
         let hi = (i + h).min(n - 1);
         // Ensure at least 3 points.
         let (lo, hi) = if hi - lo < 2 {
-            if lo == 0 { (0, 2.min(n - 1)) } else { (n - 3, n - 1) }
+            if lo == 0 {
+                (0, 2.min(n - 1))
+            } else {
+                (n - 3, n - 1)
+            }
         } else {
             (lo, hi)
         };
@@ -75,7 +79,11 @@ pub fn savitzky_golay_smooth(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
         let lo = i.saturating_sub(h);
         let hi = (i + h).min(n - 1);
         let (lo, hi) = if hi - lo < 2 {
-            if lo == 0 { (0, 2.min(n - 1)) } else { (n - 3, n - 1) }
+            if lo == 0 {
+                (0, 2.min(n - 1))
+            } else {
+                (n - 3, n - 1)
+            }
         } else {
             (lo, hi)
         };

@@ -6,8 +6,8 @@ use tagk_dynamics::SafetyGate;
 use crate::effects::{EffectRef, builtin_effects};
 use crate::error::DiagnoseError;
 use crate::fit::{
-    ChannelFit, ColData, Coefficient, Fit, FittedEffect, GramEngine, Model, THETA_NAMES,
-    THETA_UNITS, effect_design, fit_model, rigid_design, scan_min,
+    ChannelFit, Coefficient, Fit, FittedEffect, GramEngine, Model, THETA_NAMES, THETA_UNITS,
+    effect_design, fit_model, rigid_design, scan_min,
 };
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
 use crate::stats;
@@ -245,7 +245,9 @@ pub fn diagnose(
             }
             Some(sp) => {
                 let (g, _) = scan_min(&sp.grid, |g| {
-                    engine.evaluate(&effect_design(e.as_ref(), s, Some(g))).sse_full
+                    engine
+                        .evaluate(&effect_design(e.as_ref(), s, Some(g)))
+                        .sse_full
                 });
                 let cols = effect_design(e.as_ref(), s, Some(g));
                 let ev = engine.evaluate(&cols);
@@ -326,10 +328,11 @@ pub fn diagnose(
             driver: dname,
         });
     }
-    // Physically plausible, significant explanations first; then by held-out reduction.
+    // Recommendable explanations (significant, plausible, large enough) first; then by
+    // held-out reduction.
     ranking.sort_by(|a, b| {
-        let ka = a.significant && a.plausible;
-        let kb = b.significant && b.plausible;
+        let ka = a.significant && a.plausible && a.reduction >= opts.min_reduction;
+        let kb = b.significant && b.plausible && b.reduction >= opts.min_reduction;
         kb.cmp(&ka).then(b.reduction.total_cmp(&a.reduction))
     });
     let recommended = ranking
@@ -411,7 +414,11 @@ pub fn diagnose(
         for (k, axis) in ["x", "y", "z"].iter().enumerate() {
             let se = fit.theta_se[1 + k].map_or(f64::INFINITY, |s| s / m);
             if com[k].abs() - 2.0 * se > opts.airframe_radius {
-                outside.push(format!("c_{axis} = {:.1} cm (± {:.1})", com[k] * 100.0, se * 100.0));
+                outside.push(format!(
+                    "c_{axis} = {:.1} cm (± {:.1})",
+                    com[k] * 100.0,
+                    se * 100.0
+                ));
             }
         }
         if !outside.is_empty() {
@@ -444,11 +451,13 @@ pub fn diagnose(
         Some(r) => {
             let c = ranking.iter().find(|c| &c.effect == r);
             format!(
-                "missing physics: `{r}` (held-out residual −{:.0} %)",
-                c.map_or(0.0, |c| c.reduction * 100.0)
+                "missing physics: `{r}` (held-out residual {:+.0} %)",
+                c.map_or(0.0, |c| -c.reduction * 100.0)
             )
         }
-        None => "model adequate: no candidate effect lowers the held-out residual significantly".into(),
+        None => {
+            "model adequate: no candidate effect lowers the held-out residual significantly".into()
+        }
     };
     Ok(Diagnosis {
         model: fit.label.clone(),
@@ -486,7 +495,7 @@ fn explain(c: &Candidate, opts: &DiagnoseOptions, recommended: bool) -> String {
             .iter()
             .map(|ch| {
                 let k = CHANNEL_NAMES.iter().position(|n| n == ch).unwrap_or(0);
-                format!("{ch} −{:.0} %", c.reduction_per_channel[k] * 100.0)
+                format!("{ch} {:+.0} %", -c.reduction_per_channel[k] * 100.0)
             })
             .collect();
         format!(" ({})", per.join(", "))
@@ -514,9 +523,9 @@ fn explain(c: &Candidate, opts: &DiagnoseOptions, recommended: bool) -> String {
         "significant, explains less than the top candidate".to_string()
     };
     format!(
-        "{}: held-out residual −{:.1} %{}; {}{}; {}",
+        "{}: held-out residual {:+.1} %{}; {}{}; {}",
         c.effect,
-        c.reduction * 100.0,
+        -c.reduction * 100.0,
         chans,
         coefs.join(", "),
         scan,
@@ -627,8 +636,10 @@ fn regimes(s: &Signals, fit: &Fit) -> Vec<RegimeStat> {
         .map(|(name, unit, x)| {
             let mut sorted = x.clone();
             sorted.sort_by(|a, b| a.total_cmp(b));
-            let edges: Vec<f64> = (0..=4).map(|k| stats::quantile(&sorted, k as f64 / 4.0)).collect();
-            let mut sums = vec![[0.0; 6]; 4];
+            let edges: Vec<f64> = (0..=4)
+                .map(|k| stats::quantile(&sorted, k as f64 / 4.0))
+                .collect();
+            let mut sums = [[0.0; 6]; 4];
             let mut counts = vec![0usize; 4];
             for (i, xi) in x.iter().enumerate() {
                 let mut b = 0;
@@ -643,7 +654,9 @@ fn regimes(s: &Signals, fit: &Fit) -> Vec<RegimeStat> {
             let rms = sums
                 .iter()
                 .zip(&counts)
-                .map(|(s, &k)| std::array::from_fn(|c| if k > 0 { (s[c] / k as f64).sqrt() } else { 0.0 }))
+                .map(|(s, &k)| {
+                    std::array::from_fn(|c| if k > 0 { (s[c] / k as f64).sqrt() } else { 0.0 })
+                })
                 .collect();
             RegimeStat {
                 regime: name.into(),

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use nalgebra::Vector3;
 
-use crate::signals::{CHANNEL_NAMES, Channel, Signals, interp};
+use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// Names of the built-in effects, as accepted by `--with`.
 pub const BUILTIN_NAMES: [&str; 9] = [
@@ -157,7 +157,12 @@ impl Effect for LinearDrag {
             .iter()
             .enumerate()
             .map(|(k, n)| {
-                EffectColumn::on(n, "N s/m", k, s.velocity_body.iter().map(|v| -v[k]).collect())
+                EffectColumn::on(
+                    n,
+                    "N s/m",
+                    k,
+                    s.velocity_body.iter().map(|v| -v[k]).collect(),
+                )
             })
             .collect()
     }
@@ -260,7 +265,9 @@ impl Effect for RotorDrag {
 /// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz`, with `y` the exact response
 /// to the piecewise-constant command sampled in the middle of each sample interval (see
 /// [`first_order_lag`]); the coefficient is ≈ 1 for that sampling, between `e^{−Δt/2τ}` and
-/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible.
+/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible. Four nuisance
+/// columns `e^{−(t − t₀)/τ}` (one per channel) absorb the unknown actuator state at the start
+/// of the log.
 #[derive(Debug, Clone)]
 pub struct MotorLag {
     /// Time constants scanned [s].
@@ -290,13 +297,18 @@ pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
     }
     y.push(u[0]);
     let mut end = u[0];
+    let (mut last_dt, mut a_half, mut a_full) = (f64::NAN, 0.0, 0.0);
     for k in 1..u.len() {
         let dt = t[k] - t[k - 1];
-        let (a_half, a_full) = if tau > 0.0 {
-            ((-0.5 * dt / tau).exp(), (-dt / tau).exp())
-        } else {
-            (0.0, 0.0)
-        };
+        // Uniformly sampled logs reuse the factors (exp is the cost of a 1-D scan).
+        if dt != last_dt {
+            last_dt = dt;
+            (a_half, a_full) = if tau > 0.0 {
+                ((-0.5 * dt / tau).exp(), (-dt / tau).exp())
+            } else {
+                (0.0, 0.0)
+            };
+        }
         y.push(u[k] + a_half * (end - u[k]));
         end = u[k] + a_full * (end - u[k]);
     }
@@ -332,18 +344,50 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
     if good * 10 < s.len() * 9 {
         return None;
     }
-    let lagged: Vec<Vec<f64>> = (0..4)
-        .map(|r| {
-            let u: Vec<f64> = w.iter().map(|x| x[r]).collect();
-            first_order_lag(&s.t, &u, tau)
-        })
-        .collect();
+    // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
+    // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
+    let n = s.len();
+    let mut mid = vec![[0.0; 4]; n];
+    let mut mean = vec![[0.0; 4]; n];
+    let mut factors = (f64::NAN, (0.0, 0.0, 0.0, 0.0));
+    for r in 0..4 {
+        let mut end = w[0][r];
+        mid[0][r] = end * end;
+        mean[0][r] = end * end;
+        for i in 1..n {
+            let dt = s.t[i] - s.t[i - 1];
+            let u = w[i][r];
+            let e = end - u;
+            // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
+            if dt != factors.0 {
+                factors = (
+                    dt,
+                    if tau > 0.0 {
+                        let x = dt / tau;
+                        (
+                            (-0.5 * x).exp(),
+                            (-x).exp(),
+                            (1.0 - (-x).exp()) / x,
+                            (1.0 - (-2.0 * x).exp()) / (2.0 * x),
+                        )
+                    } else {
+                        (0.0, 0.0, 0.0, 0.0)
+                    },
+                );
+            }
+            let (a_half, a_full, m1, m2) = factors.1;
+            let ym = u + a_half * e;
+            mid[i][r] = ym * ym;
+            mean[i][r] = u * u + 2.0 * u * e * m1 + e * e * m2;
+            end = u + a_full * e;
+        }
+    }
     Some(
-        (0..s.len())
+        (0..n)
             .map(|i| {
-                let x = nalgebra::Vector4::from_fn(|r, _| lagged[r][i] * lagged[r][i]);
-                let y = mt.transpose() * x;
-                [y[0], y[1], y[2], y[3]]
+                let ym = mt.transpose() * nalgebra::Vector4::from(mid[i]);
+                let ya = mt.transpose() * nalgebra::Vector4::from(mean[i]);
+                [ym[0], ya[1], ya[2], ya[3]]
             })
             .collect(),
     )
@@ -371,7 +415,13 @@ impl Effect for MotorLag {
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         if let Some(lagged) = lagged_wrench_from_rotors(s, tau) {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
-                *d = Some(lagged.iter().zip(&s.wrench).map(|(y, b)| y[c - 2] - b[c]).collect());
+                *d = Some(
+                    lagged
+                        .iter()
+                        .zip(&s.wrench)
+                        .map(|(y, b)| y[c - 2] - b[c])
+                        .collect(),
+                );
             }
         } else {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
@@ -380,11 +430,33 @@ impl Effect for MotorLag {
                 *d = Some(y.iter().zip(&u).map(|(y, u)| y - u).collect());
             }
         }
-        vec![EffectColumn {
+        let mut cols = vec![EffectColumn {
             name: "g_lag".into(),
             unit: "1".into(),
             data,
-        }]
+        }];
+        // The actuators' state when the log starts is unknown: its effect decays like
+        // e^{−(t − t₀)/τ}, a nuisance column per channel.
+        let decay: Vec<f64> =
+            s.t.iter()
+                .map(|t| {
+                    let x = if tau > 0.0 {
+                        (-(t - s.t[0]) / tau).exp()
+                    } else {
+                        0.0
+                    };
+                    if x < 1e-12 { 0.0 } else { x }
+                })
+                .collect();
+        for c in 2..6 {
+            cols.push(EffectColumn::on(
+                &format!("start_{}", CHANNEL_NAMES[c]),
+                if c == 2 { "N" } else { "N m" },
+                c,
+                decay.clone(),
+            ));
+        }
+        cols
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
         if !(0.4..=2.5).contains(&coef[0]) {
@@ -429,6 +501,31 @@ impl Default for TimeDelay {
     }
 }
 
+/// `x(t − d)` at every sample by linear interpolation (clamped at the ends), in one
+/// monotone sweep.
+fn shifted(t: &[f64], x: &[f64], d: f64) -> Vec<f64> {
+    let n = t.len();
+    let mut out = Vec::with_capacity(n);
+    let mut k = 0usize;
+    for &ti in t {
+        let tq = ti - d;
+        if tq <= t[0] {
+            out.push(x[0]);
+            continue;
+        }
+        if tq >= t[n - 1] {
+            out.push(x[n - 1]);
+            continue;
+        }
+        while k + 1 < n && t[k + 1] <= tq {
+            k += 1;
+        }
+        let f = (tq - t[k]) / (t[k + 1] - t[k]);
+        out.push(x[k] * (1.0 - f) + x[k + 1] * f);
+    }
+    out
+}
+
 impl Effect for TimeDelay {
     fn name(&self) -> &str {
         "time-delay"
@@ -455,9 +552,10 @@ impl Effect for TimeDelay {
                 continue;
             }
             *dd = Some(
-                s.t.iter()
+                shifted(&s.t, &u, d)
+                    .iter()
                     .zip(&u)
-                    .map(|(t, u0)| interp(&s.t, &u, t - d) - u0)
+                    .map(|(a, b)| a - b)
                     .collect(),
             );
         }
@@ -547,7 +645,10 @@ impl Effect for GroundEffect {
         nonneg(&["c_ge"], coef, se, "ground-effect gain")
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
-        ("height [m]".into(), s.position.iter().map(|p| p.z).collect())
+        (
+            "height [m]".into(),
+            s.position.iter().map(|p| p.z).collect(),
+        )
     }
 }
 
@@ -607,7 +708,8 @@ impl Effect for Wind {
             .map(|(j, n)| {
                 let mut e = Vector3::zeros();
                 e[j] = 1.0;
-                let body: Vec<Vector3<f64>> = s.rotation.iter().map(|r| r.transpose() * e).collect();
+                let body: Vec<Vector3<f64>> =
+                    s.rotation.iter().map(|r| r.transpose() * e).collect();
                 let mut data: [Option<Vec<f64>>; 6] = Default::default();
                 for (c, d) in data.iter_mut().enumerate().take(3) {
                     *d = Some(body.iter().map(|v| v[c]).collect());
@@ -626,7 +728,10 @@ impl Effect for Wind {
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         (
             "yaw angle [rad]".into(),
-            s.rotation.iter().map(|r| r[(1, 0)].atan2(r[(0, 0)])).collect(),
+            s.rotation
+                .iter()
+                .map(|r| r[(1, 0)].atan2(r[(0, 0)]))
+                .collect(),
         )
     }
 }
@@ -819,4 +924,9 @@ pub fn builtin_by_name(name: &str) -> Result<EffectRef, crate::DiagnoseError> {
         .into_iter()
         .find(|e| e.name() == name)
         .ok_or_else(|| crate::DiagnoseError::UnknownEffect(name.to_string()))
+}
+
+#[cfg(test)]
+pub(crate) fn shifted_for_tests(t: &[f64], x: &[f64], d: f64) -> Vec<f64> {
+    shifted(t, x, d)
 }

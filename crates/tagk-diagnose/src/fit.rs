@@ -193,12 +193,8 @@ pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
     let mut buf = [0.0; 60];
     for i in 0..n {
         // Infallible: the buffer has 60 entries.
-        let _ = write_rigid_body_regressor(
-            &s.accel_proper[i],
-            &s.omega[i],
-            &s.omega_dot[i],
-            &mut buf,
-        );
+        let _ =
+            write_rigid_body_regressor(&s.accel_proper[i], &s.omega[i], &s.omega_dot[i], &mut buf);
         for (j, col) in cols.iter_mut().enumerate() {
             for (c, d) in col.iter_mut().enumerate() {
                 if let Some(v) = d {
@@ -246,7 +242,10 @@ pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) ->
     effect
         .columns(s, p)
         .into_iter()
-        .map(|c| c.data.map(|d| d.map(|v| v.into_iter().map(|x| -x).collect())))
+        .map(|c| {
+            c.data
+                .map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()))
+        })
         .collect()
 }
 
@@ -340,7 +339,9 @@ pub(crate) fn weighted_qr_solve(
     }
     let rss = r[(p, p)] * r[(p, p)];
     if !rss.is_finite() || r11.iter().any(|x| !x.is_finite()) {
-        return Err(DiagnoseError::Fit("non-finite values in the QR factor".into()));
+        return Err(DiagnoseError::Fit(
+            "non-finite values in the QR factor".into(),
+        ));
     }
     let svd = r11.svd(true, true);
     let (Some(u), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
@@ -449,10 +450,11 @@ pub fn fit_model(
     weights: Option<[f64; 6]>,
 ) -> Result<Fit, DiagnoseError> {
     for e in model.effects() {
-        e.check(s).map_err(|reason| DiagnoseError::EffectUnavailable {
-            effect: e.name().to_string(),
-            reason,
-        })?;
+        e.check(s)
+            .map_err(|reason| DiagnoseError::EffectUnavailable {
+                effect: e.name().to_string(),
+                reason,
+            })?;
     }
     let (rigid, target) = rigid_design(model, s);
     let n = s.len();
@@ -463,10 +465,16 @@ pub fn fit_model(
         .iter()
         .map(|e| e.scan().map(|sc| sc.grid[sc.grid.len() / 2]))
         .collect();
-    let mut last: Option<(Vec<ColData>, Vec<[f64; 6]>, Vec<[f64; 6]>)> = None;
+    #[allow(clippy::type_complexity)]
+    let mut last: Option<(
+        Vec<ColData>,
+        Vec<[f64; 6]>,
+        Vec<[f64; 6]>,
+        Option<LsSolution>,
+    )> = None;
     for pass in 0..passes {
         if pass > 0 {
-            if let Some((_, _, res)) = &last {
+            if let Some((_, _, res, _)) = &last {
                 w = weights_from_residual(res);
             }
         }
@@ -481,7 +489,9 @@ pub fn fit_model(
             }
             let engine = GramEngine::new(s, &w, &fixed, Some(&target), 1);
             let (best, _) = scan_min(&spec.grid, |g| {
-                engine.evaluate(&effect_design(e.as_ref(), s, Some(g))).sse_full
+                engine
+                    .evaluate(&effect_design(e.as_ref(), s, Some(g)))
+                    .sse_full
             });
             params[k] = Some(best);
         }
@@ -489,8 +499,16 @@ pub fn fit_model(
         for (k, e) in model.effects().iter().enumerate() {
             cols.extend(effect_design(e.as_ref(), s, params[k]));
         }
-        let sol = weighted_qr_solve(&cols, &target, &w, 1.0)?;
-        let mut pred = predict(&cols, &sol.beta, n);
+        // Intermediate passes only set the weights: normal equations suffice; the final pass
+        // is the QR solve.
+        let (beta, sol) = if pass + 1 < passes {
+            let engine = GramEngine::new(s, &w, &cols, Some(&target), 1);
+            (engine.evaluate(&[]).beta, None)
+        } else {
+            let sol = weighted_qr_solve(&cols, &target, &w, 1.0)?;
+            (sol.beta.clone(), Some(sol))
+        };
+        let mut pred = predict(&cols, &beta, n);
         add_known_mass(model, s, &mut pred);
         let res: Vec<[f64; 6]> = s
             .wrench
@@ -498,13 +516,16 @@ pub fn fit_model(
             .zip(&pred)
             .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
             .collect();
-        last = Some((cols, pred, res));
+        last = Some((cols, pred, res, sol));
     }
-    let Some((cols, pred, res)) = last else {
+    let Some((_cols, pred, res, Some(mut sol))) = last else {
         return Err(DiagnoseError::Fit("no pass ran".into()));
     };
+    // Standard errors inflated for the residual's autocorrelation (σ² → κ σ²).
     let kappa = residual_kappa(&res, &w);
-    let sol = weighted_qr_solve(&cols, &target, &w, kappa)?;
+    for se in sol.se.iter_mut().flatten() {
+        *se *= kappa.sqrt();
+    }
     let mut theta = [0.0; 10];
     let mut theta_se = [None; 10];
     let nr = rigid.len();
@@ -527,7 +548,9 @@ pub fn fit_model(
         effects.push(FittedEffect {
             effect: e.name().to_string(),
             description: e.description().to_string(),
-            scanned: e.scan().and_then(|sp| params[k].map(|v| (sp.name, v, sp.unit))),
+            scanned: e
+                .scan()
+                .and_then(|sp| params[k].map(|v| (sp.name, v, sp.unit))),
             coefficients: ecols
                 .iter()
                 .enumerate()
@@ -612,8 +635,6 @@ pub(crate) fn scan_min(grid: &[f64], mut f: impl FnMut(f64) -> f64) -> (f64, f64
 pub(crate) struct Evaluation {
     /// Weighted in-sample SSE with the candidate.
     pub sse_full: f64,
-    /// Weighted in-sample SSE per channel.
-    pub sse_full_ch: [f64; 6],
     /// Held-out (blocked CV) weighted SSE.
     pub sse_cv: f64,
     /// Held-out SSE per channel.
@@ -754,12 +775,8 @@ impl<'a> GramEngine<'a> {
             out
         };
         let total = sum_pieces(&|_| true, None);
-        let (beta, cov_diag) = solve_gram(&total, pp);
+        let (beta, cov_diag) = solve_gram(&total, pp, None);
         let sse_full = sse_of(&total, pp, &beta);
-        let mut sse_full_ch = [0.0; 6];
-        for (c, o) in sse_full_ch.iter_mut().enumerate() {
-            *o = sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta);
-        }
         let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
         if self.folds > 1 {
             let k_of = |pi: usize| pi / 3;
@@ -770,7 +787,7 @@ impl<'a> GramEngine<'a> {
                         || (k + 1 < self.folds && pi == 3 * (k + 1))
                 };
                 let train = sum_pieces(&|pi| !excluded(pi), None);
-                let (bk, _) = solve_gram(&train, pp);
+                let (bk, _) = solve_gram(&train, pp, Some(&total));
                 for c in 0..6 {
                     let test = sum_pieces(&|pi| k_of(pi) == k, Some(c));
                     let e = sse_of(&test, pp, &bk);
@@ -780,11 +797,12 @@ impl<'a> GramEngine<'a> {
             }
         } else {
             sse_cv = sse_full;
-            sse_cv_ch = sse_full_ch;
+            for (c, o) in sse_cv_ch.iter_mut().enumerate() {
+                *o = sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta);
+            }
         }
         Evaluation {
             sse_full,
-            sse_full_ch,
             sse_cv,
             sse_cv_ch,
             beta,
@@ -839,12 +857,21 @@ fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Ve
 /// Solves the normal equations of a Gram matrix laid out as `[y, x…]²`: returns β for the
 /// `x` part (pseudo-inverse via a symmetric eigendecomposition of the equilibrated matrix,
 /// eigenvalues below 1e-12 of the largest dropped).
-fn solve_gram(gm: &[f64], pp: usize) -> (Vec<f64>, Vec<f64>) {
+///
+/// With `reference` (the Gram matrix of all the data), a column whose diagonal here is below
+/// 1e-10 of its reference diagonal — a column that (almost) vanishes on these samples, like a
+/// start-of-log transient in a training set without the start — is left out (coefficient 0).
+fn solve_gram(gm: &[f64], pp: usize, reference: Option<&[f64]>) -> (Vec<f64>, Vec<f64>) {
     let p = pp - 1;
     let mut d = vec![0.0; p];
     for j in 0..p {
         let g = gm[(j + 1) * pp + j + 1];
-        d[j] = if g > 0.0 { 1.0 / g.sqrt() } else { 0.0 };
+        let vanishes = reference.is_some_and(|r| g <= 1e-10 * r[(j + 1) * pp + j + 1]);
+        d[j] = if g > 0.0 && !vanishes {
+            1.0 / g.sqrt()
+        } else {
+            0.0
+        };
     }
     let a = DMatrix::<f64>::from_fn(p, p, |i, j| gm[(i + 1) * pp + j + 1] * d[i] * d[j]);
     let rhs = DVector::<f64>::from_fn(p, |i, _| gm[(i + 1) * pp] * d[i]);

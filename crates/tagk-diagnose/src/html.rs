@@ -16,7 +16,7 @@ pub const REPORT_FILE: &str = "index.html";
 const W: f64 = 460.0;
 const H: f64 = 220.0;
 const ML: f64 = 70.0;
-const MR: f64 = 12.0;
+const MR: f64 = 26.0;
 const MT: f64 = 26.0;
 const MB: f64 = 34.0;
 const MAX_POINTS: usize = 1200;
@@ -116,7 +116,11 @@ fn map(v: f64, r: (f64, f64), a: f64, b: f64) -> f64 {
 
 /// A line plot as an SVG element; `shade` are x-intervals drawn as red bands.
 pub fn line_plot(title: &str, xlabel: &str, series: &[Series<'_>], shade: &[(f64, f64)]) -> String {
-    let xr = range(series.iter().flat_map(|s| s.x.iter().copied()));
+    let xr = {
+        let (lo, hi) = range(series.iter().flat_map(|s| s.x.iter().copied()));
+        let pad = (hi - lo) / 1.1 * 0.05;
+        (lo + pad, hi - pad)
+    };
     let yr = range(series.iter().flat_map(|s| s.y.iter().copied()));
     let mut out = String::new();
     frame(&mut out, title, xr, yr, xlabel);
@@ -216,7 +220,12 @@ pub fn bar_chart(title: &str, bars: &[(String, f64, bool)]) -> String {
 }
 
 fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
-    let _ = write!(html, "<h2>{}</h2><p class=\"verdict\">{}</p>", escape(title), escape(&d.verdict));
+    let _ = write!(
+        html,
+        "<h2>{}</h2><p class=\"verdict\">{}</p>",
+        escape(title),
+        escape(&d.verdict)
+    );
     html.push_str("<table><tr><th>channel</th><th>fit %</th><th>residual RMS</th></tr>");
     for c in &d.channels {
         let _ = write!(
@@ -282,8 +291,18 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
             &format!("{} [{}]", CHANNEL_NAMES[c], CHANNEL_UNITS[c]),
             "time [s]",
             &[
-                Series { label: "measured", color: "#222", x: &d.t, y: &m },
-                Series { label: "predicted", color: "#d60", x: &d.t, y: &p },
+                Series {
+                    label: "measured",
+                    color: "#222",
+                    x: &d.t,
+                    y: &m,
+                },
+                Series {
+                    label: "predicted",
+                    color: "#d60",
+                    x: &d.t,
+                    y: &p,
+                },
             ],
             &[],
         ));
@@ -302,7 +321,12 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         html.push_str(&line_plot(
             &format!("residual {} [{}]", CHANNEL_NAMES[c], CHANNEL_UNITS[c]),
             "time [s]",
-            &[Series { label: "residual", color: "#c22", x: &d.t, y: &r }],
+            &[Series {
+                label: "residual",
+                color: "#c22",
+                x: &d.t,
+                y: &r,
+            }],
             &shade,
         ));
     }
@@ -322,7 +346,9 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         if chans.is_empty() {
             chans.push(
                 (0..6)
-                    .max_by(|&a, &b| top.reduction_per_channel[a].total_cmp(&top.reduction_per_channel[b]))
+                    .max_by(|&a, &b| {
+                        top.reduction_per_channel[a].total_cmp(&top.reduction_per_channel[b])
+                    })
                     .unwrap_or(0),
             );
         }
@@ -343,7 +369,13 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     let bars: Vec<(String, f64, bool)> = d
         .ranking
         .iter()
-        .map(|c| (c.effect.clone(), 100.0 * c.reduction, c.significant && c.plausible))
+        .map(|c| {
+            (
+                c.effect.clone(),
+                100.0 * c.reduction,
+                c.significant && c.plausible,
+            )
+        })
         .collect();
     html.push_str(&bar_chart("held-out residual reduction", &bars));
     html.push_str("<ol>");
@@ -352,7 +384,12 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     }
     html.push_str("</ol>");
     for u in &d.unavailable {
-        let _ = write!(html, "<p>{}: skipped, {}</p>", escape(&u.effect), escape(&u.reason));
+        let _ = write!(
+            html,
+            "<p>{}: skipped, {}</p>",
+            escape(&u.effect),
+            escape(&u.reason)
+        );
     }
 }
 
@@ -364,18 +401,29 @@ pub fn render(report: &Report) -> String {
     let _ = write!(
         html,
         "<p id=\"summary\">recommended: <b>{}</b></p>",
-        escape(report.recommended.as_deref().unwrap_or("none — model adequate"))
+        escape(
+            report
+                .recommended
+                .as_deref()
+                .unwrap_or("none — model adequate")
+        )
     );
     if let (Some(after), Some(change)) = (&report.after, &report.change) {
-        let _ = write!(html, "<h2>Before / after adding {}</h2>", escape(&report.with.join(", ")));
+        let _ = write!(
+            html,
+            "<h2>Before / after adding {}</h2>",
+            escape(&report.with.join(", "))
+        );
         html.push_str("<table id=\"before-after\"><tr><th>channel</th><th>fit % before</th><th>fit % after</th><th>RMS before</th><th>RMS after</th><th>change</th></tr>");
         for c in change {
             let _ = write!(
                 html,
                 "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.1} %</td></tr>",
                 c.name,
-                c.fit_percent_before.map_or("n/a".into(), |f| format!("{f:.1}")),
-                c.fit_percent_after.map_or("n/a".into(), |f| format!("{f:.1}")),
+                c.fit_percent_before
+                    .map_or("n/a".into(), |f| format!("{f:.1}")),
+                c.fit_percent_after
+                    .map_or("n/a".into(), |f| format!("{f:.1}")),
                 c.rms_before,
                 c.rms_after,
                 -100.0 * c.rms_reduction
@@ -389,15 +437,29 @@ pub fn render(report: &Report) -> String {
                 &format!("residual {} before/after", CHANNEL_NAMES[c]),
                 "time [s]",
                 &[
-                    Series { label: "before", color: "#c22", x: &report.before.t, y: &rb },
-                    Series { label: "after", color: "#2a7", x: &after.t, y: &ra },
+                    Series {
+                        label: "before",
+                        color: "#c22",
+                        x: &report.before.t,
+                        y: &rb,
+                    },
+                    Series {
+                        label: "after",
+                        color: "#2a7",
+                        x: &after.t,
+                        y: &ra,
+                    },
                 ],
                 &[],
             ));
         }
         html.push_str("</div>");
     }
-    section_diagnosis(&mut html, &format!("Model: {}", report.before.model), &report.before);
+    section_diagnosis(
+        &mut html,
+        &format!("Model: {}", report.before.model),
+        &report.before,
+    );
     if let Some(after) = &report.after {
         section_diagnosis(&mut html, &format!("Model: {}", after.model), after);
     }
@@ -411,7 +473,12 @@ pub fn render(report: &Report) -> String {
         html.push_str(&line_plot(
             "TAG-K mass estimate [kg]",
             "update",
-            &[Series { label: "mass", color: "#36c", x: &t, y: &o.mass_history }],
+            &[Series {
+                label: "mass",
+                color: "#36c",
+                x: &t,
+                y: &o.mass_history,
+            }],
             &[],
         ));
     }

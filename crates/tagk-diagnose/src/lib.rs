@@ -1,4 +1,7 @@
 #![doc = include_str!("../README.md")]
+// Channel-indexed numerical loops (c in 0..6 over several parallel arrays) read better with
+// indices than with zipped iterators.
+#![allow(clippy::needless_range_loop)]
 
 pub mod cli;
 pub mod deriv;
@@ -16,11 +19,16 @@ pub mod stats;
 pub use diagnose::{Candidate, DiagnoseOptions, Diagnosis, diagnose};
 pub use effects::{
     BodyBias, CustomEffect, Effect, EffectColumn, EffectRef, GroundEffect, LinearDrag, MotorLag,
-    Plausibility, QuadraticDrag, RotorDrag, ScanSpec, ThrustGain, TimeDelay, Wind,
-    builtin_by_name, builtin_effects,
+    Plausibility, QuadraticDrag, RotorDrag, ScanSpec, ThrustGain, TimeDelay, Wind, builtin_by_name,
+    builtin_effects,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use report::{Report, run_loop};
 pub use signals::Signals;
+
+#[cfg(test)]
+pub(crate) mod testdata;
+#[cfg(test)]
+mod unit_tests;

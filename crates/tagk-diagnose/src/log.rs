@@ -20,8 +20,9 @@ pub const REQUIRED_COLUMNS: [&str; 20] = [
 ];
 
 /// Optional columns with a meaning in CONVENTIONS §6.
-pub const OPTIONAL_COLUMNS: [&str; 10] =
-    ["ax", "ay", "az", "dwx", "dwy", "dwz", "w1", "w2", "w3", "w4"];
+pub const OPTIONAL_COLUMNS: [&str; 10] = [
+    "ax", "ay", "az", "dwx", "dwy", "dwz", "w1", "w2", "w3", "w4",
+];
 
 /// A flight log in memory: one entry per sample in every signal, SI units (CONVENTIONS §6).
 ///
@@ -423,8 +424,7 @@ impl FlightLog {
             log.velocity.push([v(4), v(5), v(6)]);
             log.attitude.push(q);
             log.omega.push([v(11), v(12), v(13)]);
-            log.wrench
-                .push([v(14), v(15), v(16), v(17), v(18), v(19)]);
+            log.wrench.push([v(14), v(15), v(16), v(17), v(18), v(19)]);
             if let (Some(c), Some(a)) = (&acc_cols, &mut log.accel) {
                 a.push([values[c[0]], values[c[1]], values[c[2]]]);
             }

@@ -45,7 +45,11 @@ pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummar
                 s2 += w[c] * w[c] * v.iter().map(|x| x * x).sum::<f64>();
             }
         }
-        scale[j] = if s2 > 0.0 { (n as f64 / s2).sqrt() } else { 1.0 };
+        scale[j] = if s2 > 0.0 {
+            (n as f64 / s2).sqrt()
+        } else {
+            1.0
+        };
     }
     let rows = 6 * WINDOW_FRAMES;
     let mut est = TagK::<f64, Vec<f64>>::new(10, rows, KaczmarzConfig::default())

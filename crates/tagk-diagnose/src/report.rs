@@ -123,7 +123,11 @@ pub fn run_loop(
                 name: b.name.clone(),
                 rms_before: b.rms,
                 rms_after: a.rms,
-                rms_reduction: if b.rms > 0.0 { 1.0 - a.rms / b.rms } else { 0.0 },
+                rms_reduction: if b.rms > 0.0 {
+                    1.0 - a.rms / b.rms
+                } else {
+                    0.0
+                },
                 fit_percent_before: b.fit_percent,
                 fit_percent_after: a.fit_percent,
             })
@@ -197,7 +201,11 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
         if let Some((n, v, u)) = &e.scanned {
             s.push_str(&format!(", {n} = {v:.3} {u}"));
         }
-        s.push_str(if e.plausible { "\n" } else { "  (IMPLAUSIBLE)\n" });
+        s.push_str(if e.plausible {
+            "\n"
+        } else {
+            "  (IMPLAUSIBLE)\n"
+        });
     }
     for w in &d.warnings {
         s.push_str(&format!("WARNING: {w}\n"));

@@ -55,7 +55,11 @@ pub fn batch_means_factor(r: &[f64]) -> f64 {
     }
     let used = nb * b;
     let mean = r[..used].iter().sum::<f64>() / used as f64;
-    let var = r[..used].iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / used as f64;
+    let var = r[..used]
+        .iter()
+        .map(|x| (x - mean) * (x - mean))
+        .sum::<f64>()
+        / used as f64;
     if var <= 0.0 {
         return 1.0;
     }

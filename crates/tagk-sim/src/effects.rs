@@ -285,7 +285,9 @@ impl PlantEffects {
             EffectKind::MotorLag => self.motor_lag = Some(MotorLag::crazyflie()),
             EffectKind::GroundEffect => self.ground_effect = Some(GroundEffect::crazyflie()),
             EffectKind::Wind => self.wind = Some(Wind::crazyflie()),
-            EffectKind::ThrustError => self.thrust_error = Some(ThrustCoefficientError::crazyflie()),
+            EffectKind::ThrustError => {
+                self.thrust_error = Some(ThrustCoefficientError::crazyflie())
+            }
             EffectKind::Bias => self.bias = Some(WrenchBias::crazyflie()),
         }
         self

@@ -13,9 +13,7 @@ use crate::SimError;
 pub const N_PARAMS: usize = 10;
 
 /// An estimator algorithm with the TAG-K paper's settings (CONVENTIONS §5).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 pub enum EstimatorKind {
     /// RLS, forgetting factor 0.99, `P₀ = 10³·I`.
     RlsLow,
@@ -215,9 +213,7 @@ pub fn build_kind(
         EstimatorKind::KfHigh => Box::new(KalmanFilter::kf_high(n, m_max)?),
         EstimatorKind::TagK => Box::new(TagK::<f64, Vec<f64>>::new(n, m_max, cfg)?),
         EstimatorKind::Grk => Box::new(GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
-        EstimatorKind::Tark => {
-            Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?)
-        }
+        EstimatorKind::Tark => Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
         EstimatorKind::Rk => Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
     })
 }

@@ -7,12 +7,12 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::SimError;
 use crate::estimators::{EstimatorKind, EstimatorSpec};
 use crate::monte_carlo::{Capture, Sweep, SweepResult};
 use crate::plot::{LineChart, Path3, Series, cdf, line_chart, path_chart_3d};
 use crate::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, simulate};
 use crate::trajectory::TrajectoryKind;
-use crate::SimError;
 
 /// Options every experiment takes.
 #[derive(Debug, Clone, clap::Args)]
@@ -80,6 +80,10 @@ pub struct NoiseSweepArgs {
     /// Common options (default 500 trials per cell).
     #[command(flatten)]
     pub common: CommonArgs,
+    /// Only the paper's five estimators (4 × 5 × 500 = 10 000 trials by default), without the
+    /// tuned TAG-K row.
+    #[arg(long)]
+    pub paper_only: bool,
 }
 
 fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec<Series> {
@@ -131,7 +135,11 @@ fn write_common(result: &SweepResult, dir: &Path) -> Result<(), SimError> {
 pub fn run_noise_sweep(args: &NoiseSweepArgs) -> Result<SweepResult, SimError> {
     let c = &args.common;
     let dir = c.out_dir("noise_sweep")?;
-    let mut sweep = Sweep::new(table_ii_estimators(), c.trials.unwrap_or(500), c.seed);
+    let mut estimators = table_ii_estimators();
+    if args.paper_only {
+        estimators.pop();
+    }
+    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(500), c.seed);
     sweep.progress = !c.quiet;
     let result = c.run_sweep(&sweep)?;
     println!(
@@ -152,12 +160,26 @@ pub fn run_noise_sweep(args: &NoiseSweepArgs) -> Result<SweepResult, SimError> {
             true,
             (|c: &crate::CellSummary| c.position_error_cm) as fn(&crate::CellSummary) -> f64,
         ),
-        ("success", "Success rate", "success [%]", false, |c| c.success_pct),
-        ("aborted", "Abort rate", "aborted [%]", false, |c| c.aborted_pct),
-        ("parameter_error", "Parameter error", "|theta_hat - theta|", true, |c| {
-            c.parameter_error
+        ("success", "Success rate", "success [%]", false, |c| {
+            c.success_pct
         }),
-        ("t1_error", "(t+1) error", "|theta_hat - theta| after event", true, |c| c.t1_error),
+        ("aborted", "Abort rate", "aborted [%]", false, |c| {
+            c.aborted_pct
+        }),
+        (
+            "parameter_error",
+            "Parameter error",
+            "|theta_hat - theta|",
+            true,
+            |c| c.parameter_error,
+        ),
+        (
+            "t1_error",
+            "(t+1) error",
+            "|theta_hat - theta| after event",
+            true,
+            |c| c.t1_error,
+        ),
     ] {
         line_chart(
             &dir.join(name),
@@ -294,7 +316,10 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
     line_chart(
         &dir.join("parameter_error_time"),
         &LineChart {
-            title: format!("Parameter error over time (mean of {} trials)", result.trials),
+            title: format!(
+                "Parameter error over time (mean of {} trials)",
+                result.trials
+            ),
             x_label: "time [s]".into(),
             y_label: "|theta_hat - theta|".into(),
             log_y: true,
@@ -439,7 +464,10 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
     line_chart(
         &dir.join("parameter_error_time"),
         &LineChart {
-            title: format!("Kaczmarz variants across payload events ({} trials)", result.trials),
+            title: format!(
+                "Kaczmarz variants across payload events ({} trials)",
+                result.trials
+            ),
             x_label: "time [s]".into(),
             y_label: "|theta_hat - theta|".into(),
             log_y: true,
@@ -485,7 +513,10 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
             series: vec![
                 Series {
                     label: "parameter error".into(),
-                    points: burn_sorted.iter().map(|(b, c)| (*b, c.parameter_error)).collect(),
+                    points: burn_sorted
+                        .iter()
+                        .map(|(b, c)| (*b, c.parameter_error))
+                        .collect(),
                 },
                 Series {
                     label: "(t+1) error".into(),
@@ -614,7 +645,10 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
             });
         }
     }
-    println!("{:<8} {:>5} {:>4} {:>12} {:>12}", "estimator", "n", "m", "median [us]", "P95 [us]");
+    println!(
+        "{:<8} {:>5} {:>4} {:>12} {:>12}",
+        "estimator", "n", "m", "median [us]", "P95 [us]"
+    );
     for r in &rows {
         println!(
             "{:<8} {:>5} {:>4} {:>12.2} {:>12.2}",

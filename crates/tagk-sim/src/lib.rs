@@ -1,11 +1,12 @@
 #![doc = include_str!("../README.md")]
 
+pub mod cli;
 pub mod effects;
-pub mod estimators;
 mod error;
+pub mod estimators;
+pub mod experiments;
 pub mod log;
 pub mod metrics;
-pub mod experiments;
 pub mod monte_carlo;
 pub mod plant;
 pub mod plot;
@@ -19,12 +20,12 @@ pub use effects::{
 pub use error::SimError;
 pub use estimators::{EstimatorKind, EstimatorSpec};
 pub use log::{LogSample, write_log_csv, write_log_csv_file};
+pub use monte_carlo::{Capture, CellSummary, Sweep, SweepResult};
 pub use plant::{Plant, PlantState};
 pub use sim::{
     Adaptation, Controller, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig,
     SimOutput, TrialMetrics, simulate,
 };
-pub use monte_carlo::{Capture, CellSummary, Sweep, SweepResult};
 pub use trajectory::{Trajectory, TrajectoryKind};
 
 /// The clap version this crate's argument structs derive with (the examples parse through it).

@@ -50,7 +50,10 @@ pub const LOG_HEADER: [&str; 30] = [
 /// [`SimError::InvalidParameter`] if the times are not strictly increasing; I/O and CSV
 /// errors.
 pub fn write_log_csv<W: Write>(samples: &[LogSample], writer: W) -> Result<(), SimError> {
-    if let Some(w) = samples.windows(2).find(|w| !(w[1].t > w[0].t)) {
+    if let Some(w) = samples
+        .windows(2)
+        .find(|w| w[1].t.partial_cmp(&w[0].t) != Some(std::cmp::Ordering::Greater))
+    {
         return Err(SimError::InvalidParameter {
             name: "log time",
             value: w[1].t,

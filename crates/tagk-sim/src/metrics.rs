@@ -83,7 +83,9 @@ pub fn t_plus_one_error(first_estimates: &[(Vec<f64>, InertialParams)]) -> f64 {
 
 /// **Aborted**: the tracking error exceeded [`ABORT_THRESHOLD`] at some control step.
 pub fn is_aborted(tracking_errors_m: &[f64]) -> bool {
-    tracking_errors_m.iter().any(|e| !(*e <= ABORT_THRESHOLD))
+    tracking_errors_m
+        .iter()
+        .any(|e| e.is_nan() || *e > ABORT_THRESHOLD)
 }
 
 /// **Success**: not aborted, and the tracking error is below [`SUCCESS_THRESHOLD`]

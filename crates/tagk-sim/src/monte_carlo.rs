@@ -336,13 +336,20 @@ impl SweepResult {
     pub fn table(&self) -> String {
         let mut s = String::new();
         s.push_str(&format!(
-            "{:<7} {:<26} {:>9} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9}\n",
-            "noise", "estimator", "pos [cm]", "param", "(t+1)", "succ %", "abort %", "med [us]",
+            "{:<7} {:<38} {:>9} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9}\n",
+            "noise",
+            "estimator",
+            "pos [cm]",
+            "param",
+            "(t+1)",
+            "succ %",
+            "abort %",
+            "med [us]",
             "P95 [us]"
         ));
         for c in &self.cells {
             s.push_str(&format!(
-                "{:<7} {:<26} {:>9.3} {:>10.3e} {:>10.3e} {:>8.1} {:>8.1} {:>9.2} {:>9.2}\n",
+                "{:<7} {:<38} {:>9.3} {:>10.3e} {:>10.3e} {:>8.1} {:>8.1} {:>9.2} {:>9.2}\n",
                 c.noise.name(),
                 c.label,
                 c.position_error_cm,

@@ -10,9 +10,7 @@
 //! The quaternion is renormalised after every step.
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
-use tagk_dynamics::{
-    GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench, try_forward_dynamics,
-};
+use tagk_dynamics::{GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench, try_forward_dynamics};
 
 use crate::{PlantEffects, SimError};
 

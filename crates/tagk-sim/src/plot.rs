@@ -42,6 +42,17 @@ pub fn colour(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
+/// Tick label: `1e-3` style on a log axis, up to 4 significant digits otherwise.
+fn axis_label(v: f64, log: bool) -> String {
+    if log {
+        format!("{v:.0e}")
+    } else {
+        let s = format!("{v:.4}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        if s == "-0" { "0".into() } else { s.to_string() }
+    }
+}
+
 /// One named polyline.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
@@ -113,6 +124,7 @@ where
         ($ctx:expr) => {{
             let mut ctx = $ctx;
             ctx.configure_mesh()
+                .y_label_formatter(&|v: &f64| axis_label(*v, chart.log_y))
                 .x_desc(chart.x_label.as_str())
                 .y_desc(chart.y_label.as_str())
                 .label_style(("sans-serif", 14))
@@ -136,7 +148,9 @@ where
                 ctx.draw_series(LineSeries::new(pts, c.stroke_width(2)))
                     .map_err(perr)?
                     .label(s.label.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
             }
             ctx.configure_series_labels()
                 .background_style(WHITE.mix(0.85))
@@ -147,9 +161,11 @@ where
         }};
     }
     if chart.log_y {
-        body!(builder
-            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
-            .map_err(perr)?);
+        body!(
+            builder
+                .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+                .map_err(perr)?
+        );
     } else {
         body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(perr)?);
     }
@@ -165,7 +181,10 @@ pub fn line_chart(stem: &Path, chart: &LineChart) -> Result<(), SimError> {
     register_embedded_font();
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    draw_lines(BitMapBackend::new(&png, (900, 560)).into_drawing_area(), chart)?;
+    draw_lines(
+        BitMapBackend::new(&png, (900, 560)).into_drawing_area(),
+        chart,
+    )?;
     draw_lines(SVGBackend::new(&svg, (900, 560)).into_drawing_area(), chart)?;
     Ok(())
 }
@@ -263,7 +282,15 @@ pub fn path_chart_3d(stem: &Path, title: &str, paths: &[Path3]) -> Result<(), Si
     register_embedded_font();
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    draw_3d(BitMapBackend::new(&png, (900, 700)).into_drawing_area(), title, paths)?;
-    draw_3d(SVGBackend::new(&svg, (900, 700)).into_drawing_area(), title, paths)?;
+    draw_3d(
+        BitMapBackend::new(&png, (900, 700)).into_drawing_area(),
+        title,
+        paths,
+    )?;
+    draw_3d(
+        SVGBackend::new(&svg, (900, 700)).into_drawing_area(),
+        title,
+        paths,
+    )?;
     Ok(())
 }

@@ -357,6 +357,12 @@ pub struct SimOutput {
     pub tracking_errors: Vec<f64>,
 }
 
+/// Relative change `‖P_{k+1} − P_k‖_F / ‖P_{k+1}‖_F` at which the warm-started Riccati
+/// iteration of a redesign stops: the gain is then accurate to about this relative level,
+/// far below what the closed loop can notice, at a fraction of the iterations of the
+/// `1e-11` default.
+pub const REDESIGN_TOLERANCE: f64 = 1e-8;
+
 /// LQR trajectory-tracking controller: the hover LQR of `tagk-control` around a reference
 /// that carries the path's feedforward. The reference attitude tilts body `z` along the
 /// desired specific force `a_ref − g_w` (yaw 0), and the collective thrust gets the
@@ -369,7 +375,8 @@ pub struct Controller {
 
 impl Controller {
     /// Designs for `params` at period `dt` [s] (Riccati doubling for the first design, warm
-    /// started Riccati iteration for every redesign).
+    /// started Riccati iteration for every redesign, stopping at a relative change of
+    /// [`REDESIGN_TOLERANCE`]).
     ///
     /// # Errors
     /// [`SimError::Control`].
@@ -385,7 +392,10 @@ impl Controller {
             weights,
             dt,
             RiccatiSolver::Doubling,
-            DareOptions::default(),
+            DareOptions {
+                tolerance: REDESIGN_TOLERANCE,
+                ..DareOptions::default()
+            },
         )?;
         lqr.set_solver(RiccatiSolver::Iteration);
         Ok(Self { lqr })
@@ -683,10 +693,17 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
 
     let m_max = 6 * config.window_frames;
     let scales = match &config.adaptation {
-        Adaptation::Estimator(spec) if spec.scaled => column_scales(&nominal.to_array(), ARM_LENGTH),
+        Adaptation::Estimator(spec) if spec.scaled => {
+            column_scales(&nominal.to_array(), ARM_LENGTH)
+        }
         _ => [1.0; 10],
     };
-    let prior: Vec<f64> = nominal.as_slice().iter().zip(&scales).map(|(t, d)| t / d).collect();
+    let prior: Vec<f64> = nominal
+        .as_slice()
+        .iter()
+        .zip(&scales)
+        .map(|(t, d)| t / d)
+        .collect();
     let mut estimator = match &config.adaptation {
         Adaptation::Estimator(spec) => {
             let tol = spec.noise_tolerance
@@ -698,8 +715,7 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
             let mut main = spec.build(m_max, est_seed, tol)?;
             main.reset(&prior)?;
             let early = if spec.early_tagk {
-                let mut e =
-                    build_kind(EstimatorKind::TagK, spec.burn_in, m_max, est_seed, tol)?;
+                let mut e = build_kind(EstimatorKind::TagK, spec.burn_in, m_max, est_seed, tol)?;
                 e.reset(&prior)?;
                 Some(e)
             } else {
@@ -773,7 +789,7 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
                 parameter_error: pe,
             });
         }
-        if !(err <= ABORT_THRESHOLD) && config.stop_on_abort {
+        if (err.is_nan() || err > ABORT_THRESHOLD) && config.stop_on_abort {
             break;
         }
 
@@ -880,11 +896,14 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
     let finite: Vec<f64> = tracking.iter().copied().filter(|e| e.is_finite()).collect();
     let n_up = updates.len() as f64;
     let (pe, ge) = if updates.is_empty() {
-        (f64::NAN, GroupErrors {
-            mass: f64::NAN,
-            first_moment: f64::NAN,
-            inertia: f64::NAN,
-        })
+        (
+            f64::NAN,
+            GroupErrors {
+                mass: f64::NAN,
+                first_moment: f64::NAN,
+                inertia: f64::NAN,
+            },
+        )
     } else {
         let mut pe = 0.0;
         let mut ge = GroupErrors::default();
@@ -896,11 +915,14 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
             ge.first_moment += g.first_moment;
             ge.inertia += g.inertia;
         }
-        (pe / n_up, GroupErrors {
-            mass: ge.mass / n_up,
-            first_moment: ge.first_moment / n_up,
-            inertia: ge.inertia / n_up,
-        })
+        (
+            pe / n_up,
+            GroupErrors {
+                mass: ge.mass / n_up,
+                first_moment: ge.first_moment / n_up,
+                inertia: ge.inertia / n_up,
+            },
+        )
     };
     let metrics = TrialMetrics {
         position_error_cm: position_error_cm(&finite),

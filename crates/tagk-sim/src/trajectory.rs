@@ -3,10 +3,10 @@
 //! (0.5 m/s and 0.5 rad/s of the path's angular rate, CONVENTIONS §5).
 //!
 //! Every path is `p(t) = c + shape(s(t), λ(t))` with the phase `s(t) = φ + Ω g(t)` and the
-//! progress `λ(t) = g(t) / g(T)` (used by the spiral's growing radius and the helix's climb).
+//! progress `λ(t) = g(t) / g(T*)` (used by the spiral's growing radius and the helix's climb).
 //! `g` starts the motion smoothly from rest: `g'(t)` is the smoothstep `3u² − 2u³`,
 //! `u = t / T_r`, over the first `T_r = 1.5 s`, then 1. Hence `|ṗ| ≤ Ω |∂shape/∂s| +
-//! |∂shape/∂λ| / g(T)`, and `Ω` is chosen so that this bound is at most 0.5 m/s (and
+//! |∂shape/∂λ| / g(T*)`, and `Ω` is chosen so that this bound is at most 0.5 m/s (and (`T* = max(T, 10 s)`)
 //! `Ω ≤ 0.5 rad/s`). The reference heading is yaw 0.
 
 use std::f64::consts::TAU;
@@ -25,9 +25,7 @@ pub const PEAK_RATE: f64 = 0.5;
 pub const RAMP_TIME: f64 = 1.5;
 
 /// The shape of a reference path.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 pub enum TrajectoryKind {
     /// Lemniscate of Gerono: `(a sin s, (b/2) sin 2s, 0)`.
     Figure8,
@@ -91,9 +89,14 @@ pub struct Trajectory {
     pub phase: f64,
     /// Angular rate `Ω` of the phase [rad/s].
     pub rate: f64,
-    /// Trial duration `T` [s] (sets the spiral's growth and the helix's climb rate).
+    /// Trial duration `T` [s] (sets the spiral's growth and the helix's climb rate, spread
+    /// over `max(T, MIN_GROWTH_TIME)`).
     pub duration: f64,
 }
+
+/// Shortest time over which the spiral grows and the helix climbs [s], so that short flights
+/// keep the speed limit.
+pub const MIN_GROWTH_TIME: f64 = 10.0;
 
 fn ramp(t: f64) -> f64 {
     let t = t.max(0.0);
@@ -112,7 +115,7 @@ impl Trajectory {
     /// `U[0, 2π)`, and the largest `Ω ≤ 0.5 rad/s` keeping the speed ≤ 0.5 m/s.
     ///
     /// # Errors
-    /// [`SimError::InvalidDuration`] unless `duration > RAMP_TIME` and finite;
+    /// [`SimError::InvalidDuration`] unless `duration > 0` and finite;
     /// [`SimError::InvalidParameter`] for a non-finite altitude.
     pub fn random<R: rand::Rng + ?Sized>(
         kind: TrajectoryKind,
@@ -120,9 +123,9 @@ impl Trajectory {
         altitude: Option<f64>,
         rng: &mut R,
     ) -> Result<Self, SimError> {
-        if !(duration > RAMP_TIME && duration.is_finite()) {
+        if !(duration > 0.0 && duration.is_finite()) {
             return Err(SimError::InvalidDuration {
-                what: "trial duration (must exceed the 1.5 s ramp)",
+                what: "trial duration",
                 value: duration,
             });
         }
@@ -174,8 +177,12 @@ impl Trajectory {
             TrajectoryKind::Spiral => (a, 0.7 * a),
             TrajectoryKind::Helix => (a, self.climb),
         };
-        let budget = 0.98 * PEAK_SPEED - dl / ramp(self.duration);
+        let budget = 0.98 * PEAK_SPEED - dl / self.growth_scale();
         (budget / ds).clamp(0.0, PEAK_RATE)
+    }
+
+    fn growth_scale(&self) -> f64 {
+        ramp(self.duration.max(MIN_GROWTH_TIME))
     }
 
     fn shape(&self, s: f64, lambda: f64) -> Vector3<f64> {
@@ -189,16 +196,14 @@ impl Trajectory {
                 let r = a * (0.3 + 0.7 * lambda);
                 Vector3::new(r * cs, r * sn, 0.0)
             }
-            TrajectoryKind::Helix => {
-                Vector3::new(a * cs, a * sn, self.climb * (lambda - 0.5))
-            }
+            TrajectoryKind::Helix => Vector3::new(a * cs, a * sn, self.climb * (lambda - 0.5)),
         }
     }
 
     /// Reference position at time `t` [s] (world frame, m).
     pub fn position(&self, t: f64) -> Vector3<f64> {
         let g = ramp(t);
-        let lambda = g / ramp(self.duration);
+        let lambda = g / self.growth_scale();
         Vector3::from(self.centre) + self.shape(self.phase + self.rate * g, lambda)
     }
 

@@ -8,6 +8,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use tagk_baselines::Backend;
 
+pub mod filters;
+
 /// One window: `a` (`m × n`, row-major) and `b` (`m`).
 #[derive(Clone, Debug)]
 pub struct Window {
@@ -119,6 +121,46 @@ impl TextbookKf {
     }
 }
 
+/// One step of [`TextbookKf`] and of [`InformationKf`] from the state `(theta, p)`; returns
+/// the result of the formulation whose system matrix (`S` or the information matrix) is
+/// better conditioned, as `(θ, P)` with `P` row-major.
+pub fn best_conditioned_step(
+    theta: &[f64],
+    p: &[f64],
+    sigma_q: f64,
+    sigma_r: f64,
+    w: &Window,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = theta.len();
+    let h = DMatrix::from_row_slice(w.rows(), n, &w.a);
+    let p_pred = DMatrix::from_row_slice(n, n, p) + DMatrix::identity(n, n) * sigma_q * sigma_q;
+    let r = sigma_r * sigma_r;
+    let s = &h * &p_pred * h.transpose() + DMatrix::identity(w.rows(), w.rows()) * r;
+    let info = p_pred.clone().cholesky().unwrap().inverse() + h.transpose() * &h / r;
+    let cond = |m: DMatrix<f64>| {
+        let ev = m.symmetric_eigen().eigenvalues;
+        ev.max() / ev.min()
+    };
+    let (theta, p) = if cond(s) <= cond(info) {
+        let mut kf = TextbookKf::new(n, sigma_q, sigma_r, 1.0);
+        kf.theta = DVector::from_column_slice(theta);
+        kf.p = DMatrix::from_row_slice(n, n, p);
+        kf.step(w);
+        (kf.theta, kf.p)
+    } else {
+        let mut kf = InformationKf::from_state(theta, p, sigma_q, sigma_r);
+        kf.step(w);
+        (kf.theta, kf.p)
+    };
+    (theta.as_slice().to_vec(), p.transpose().as_slice().to_vec())
+}
+
+/// `max |x − y|`.
+pub fn max_abs_diff(x: &[f64], y: &[f64]) -> f64 {
+    assert_eq!(x.len(), y.len());
+    x.iter().zip(y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+}
+
 /// `max |x − y| / max(1, max |y|)`.
 pub fn rel_err(x: &[f64], y: &[f64]) -> f64 {
     assert_eq!(x.len(), y.len());
@@ -128,3 +170,49 @@ pub fn rel_err(x: &[f64], y: &[f64]) -> f64 {
 
 /// The two concrete backends.
 pub const BACKENDS: [Backend; 2] = [Backend::Loops, Backend::Faer];
+
+/// The same random-walk filter in information form: the update solves the `n × n` system
+/// `(P⁻⁻¹ + Aᵀ A / σ_R²) Δθ = Aᵀ (b − A θ) / σ_R²` and sets `P = (P⁻⁻¹ + Aᵀ A / σ_R²)⁻¹`.
+/// Mathematically identical to [`TextbookKf`], but well conditioned when `σ_R` is tiny and
+/// `m > n` (where `S = A P Aᵀ + R` is nearly singular).
+pub struct InformationKf {
+    pub theta: DVector<f64>,
+    pub p: DMatrix<f64>,
+    q: f64,
+    r: f64,
+}
+
+impl InformationKf {
+    pub fn new(n: usize, sigma_q: f64, sigma_r: f64, p0: f64) -> Self {
+        Self {
+            theta: DVector::zeros(n),
+            p: DMatrix::identity(n, n) * p0,
+            q: sigma_q * sigma_q,
+            r: sigma_r * sigma_r,
+        }
+    }
+
+    /// Starts from a given state (`p` row-major `n × n`).
+    pub fn from_state(theta: &[f64], p: &[f64], sigma_q: f64, sigma_r: f64) -> Self {
+        let n = theta.len();
+        Self {
+            theta: DVector::from_column_slice(theta),
+            p: DMatrix::from_row_slice(n, n, p),
+            q: sigma_q * sigma_q,
+            r: sigma_r * sigma_r,
+        }
+    }
+
+    pub fn step(&mut self, w: &Window) {
+        let n = self.theta.len();
+        let h = DMatrix::from_row_slice(w.rows(), n, &w.a);
+        let z = DVector::from_column_slice(&w.b);
+        let p_pred = &self.p + DMatrix::identity(n, n) * self.q;
+        let info = p_pred.cholesky().expect("P⁻ positive definite").inverse()
+            + h.transpose() * &h / self.r;
+        let chol = info.cholesky().expect("information matrix positive definite");
+        let innovation = z - &h * &self.theta;
+        self.theta = &self.theta + chol.solve(&(h.transpose() * innovation / self.r));
+        self.p = chol.inverse();
+    }
+}

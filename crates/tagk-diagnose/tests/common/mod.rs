@@ -2,7 +2,9 @@
 #![allow(dead_code)]
 
 use tagk_diagnose::{FlightLog, LogSample};
-use tagk_sim::{Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, TrajectoryKind};
+use tagk_sim::{
+    Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, TrajectoryKind,
+};
 
 /// Log duration [s] of the proof tests.
 pub const DURATION: f64 = 25.0;
@@ -32,7 +34,9 @@ pub fn config(effect: Option<EffectKind>, seed: u64) -> SimConfig {
         // The simulator's default 50 ms lag destabilises the nominal LQR (the vehicle falls);
         // 20 ms is still in the range reported for Crazyflie-class motors.
         Some(EffectKind::MotorLag) => {
-            c.effects.motor_lag = Some(tagk_sim::MotorLag { time_constant: 0.02 });
+            c.effects.motor_lag = Some(tagk_sim::MotorLag {
+                time_constant: 0.02,
+            });
         }
         _ => {}
     }
@@ -62,7 +66,10 @@ pub fn to_log(samples: &[tagk_sim::LogSample]) -> FlightLog {
 /// a flight).
 pub fn sim_log(effect: Option<EffectKind>, seed: u64) -> FlightLog {
     let out = tagk_sim::simulate(&config(effect, seed)).expect("simulation runs");
-    assert!(!out.metrics.aborted, "flight with {effect:?} seed {seed} aborted");
+    assert!(
+        !out.metrics.aborted,
+        "flight with {effect:?} seed {seed} aborted"
+    );
     to_log(&out.log)
 }
 

@@ -1,0 +1,463 @@
+//! Unit tests of the fitting machinery against independent computations (ground truth of
+//! synthetic data, normal equations, brute-force cross-validation, closed forms).
+
+use nalgebra::{DMatrix, DVector, Vector3};
+use proptest::prelude::*;
+
+use crate::deriv::{savitzky_golay_derivative, savitzky_golay_smooth};
+use crate::diagnose::{DiagnoseOptions, diagnose};
+use crate::effects::{BodyBias, CustomEffect, Effect, LinearDrag, first_order_lag};
+use crate::fit::{
+    ColData, GramEngine, Model, channel_stats, fit_model, rigid_columns, weighted_qr_solve,
+};
+use crate::log::FlightLog;
+use crate::signals::Signals;
+use crate::stats;
+use crate::testdata::{crazyflie, synthetic_log};
+use crate::{DiagnoseError, LogError};
+
+fn none(_: &crate::testdata::State, _: &Vector3<f64>) -> [f64; 6] {
+    [0.0; 6]
+}
+
+#[test]
+fn fit_recovers_true_parameters_on_noise_free_data() {
+    let theta = crazyflie().with_point_mass(0.01, Vector3::new(0.008, -0.005, 0.003));
+    let log = synthetic_log(&theta, 800, 0.0, 1, &none);
+    let s = Signals::from_log(&log).unwrap();
+    let fit = Model::rigid_body().fit(&s).unwrap();
+    for (k, (a, b)) in fit
+        .theta
+        .as_slice()
+        .iter()
+        .zip(theta.as_slice())
+        .enumerate()
+    {
+        let scale = if k == 0 {
+            0.045
+        } else if k < 4 {
+            1e-4
+        } else {
+            3e-5
+        };
+        assert!((a - b).abs() < 1e-6 * scale, "θ[{k}] {a} vs {b}");
+    }
+    for c in &fit.channels {
+        assert!(c.rms < 1e-7, "{c:?}");
+    }
+}
+
+#[test]
+fn known_mass_is_kept_and_the_rest_recovered() {
+    let theta = crazyflie();
+    let log = synthetic_log(&theta, 600, 0.0, 2, &none);
+    let s = Signals::from_log(&log).unwrap();
+    let fit = Model::rigid_body().with_known_mass(0.035).fit(&s).unwrap();
+    assert_eq!(fit.theta.mass(), 0.035);
+    assert!(fit.theta_se[0].is_none());
+    assert!((fit.theta.as_slice()[9] - 2.93e-5).abs() < 1e-10);
+}
+
+#[test]
+fn qr_solution_matches_normal_equations() {
+    let log = synthetic_log(&crazyflie(), 400, 5e-3, 3, &|_, vb| {
+        [-0.02 * vb.x, 0.0, 0.0, 0.0, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let cols = rigid_columns(&s);
+    let w = [10.0, 10.0, 5.0, 1e4, 1e4, 2e4];
+    let sol = weighted_qr_solve(&cols, &s.wrench, &w, 1.0).unwrap();
+    // Independent: dense normal equations with nalgebra.
+    let n = s.len();
+    let a = DMatrix::<f64>::from_fn(6 * n, 10, |r, j| {
+        let (i, c) = (r / 6, r % 6);
+        cols[j][c].as_ref().map_or(0.0, |v| v[i]) * w[c]
+    });
+    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench[r / 6][r % 6] * w[r % 6]);
+    let x = (a.transpose() * &a)
+        .lu()
+        .solve(&(a.transpose() * b))
+        .unwrap();
+    for j in 0..10 {
+        assert!(
+            (sol.beta[j] - x[j]).abs() <= 1e-6 * x[j].abs().max(1e-9),
+            "β[{j}]"
+        );
+    }
+}
+
+#[test]
+fn gram_cross_validation_matches_brute_force() {
+    let log = synthetic_log(&crazyflie(), 500, 5e-3, 4, &|_, vb| {
+        [-0.01 * vb.x, -0.01 * vb.y, 0.0, 0.0, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let base = rigid_columns(&s);
+    let cand: Vec<ColData> = crate::fit::effect_design(&LinearDrag, &s, None);
+    let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
+    let folds = 5;
+    let engine = GramEngine::new(&s, &w, &base, None, folds);
+    let ev = engine.evaluate(&cand);
+    // Brute force: for each fold, QR-fit on the training samples (fold and one buffer of
+    // 1 s = 100 samples on each side removed), SSE on the held-out fold.
+    let n = s.len();
+    let buffer = 100usize.min(n / (4 * folds));
+    let mut all = base.clone();
+    all.extend(cand.clone());
+    let mut sse = 0.0;
+    for k in 0..folds {
+        let (a, b) = (k * n / folds, (k + 1) * n / folds);
+        let lo = if k == 0 { a } else { a - buffer };
+        let hi = if k + 1 == folds { b } else { b + buffer };
+        let train: Vec<usize> = (0..n).filter(|&i| i < lo || i >= hi).collect();
+        let sub = |col: &ColData, idx: &[usize]| -> ColData {
+            std::array::from_fn(|c| col[c].as_ref().map(|v| idx.iter().map(|&i| v[i]).collect()))
+        };
+        let tcols: Vec<ColData> = all.iter().map(|c| sub(c, &train)).collect();
+        let tb: Vec<[f64; 6]> = train.iter().map(|&i| s.wrench[i]).collect();
+        let sol = weighted_qr_solve(&tcols, &tb, &w, 1.0).unwrap();
+        for i in a..b {
+            for c in 0..6 {
+                let mut pred = 0.0;
+                for (j, col) in all.iter().enumerate() {
+                    pred += col[c].as_ref().map_or(0.0, |v| v[i]) * sol.beta[j];
+                }
+                sse += ((s.wrench[i][c] - pred) * w[c]).powi(2);
+            }
+        }
+    }
+    assert!(
+        (ev.sse_cv - sse).abs() <= 1e-6 * sse,
+        "{} vs {}",
+        ev.sse_cv,
+        sse
+    );
+}
+
+#[test]
+fn hidden_linear_drag_in_synthetic_data_is_ranked_first_and_recovered() {
+    let d = 0.012;
+    let log = synthetic_log(&crazyflie(), 1500, 5e-4, 5, &|_, vb| {
+        [-d * vb.x, -d * vb.y, -d * vb.z, 0.0, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let diag = diagnose(&Model::rigid_body(), &s, &DiagnoseOptions::default()).unwrap();
+    assert_eq!(
+        diag.recommended.as_deref(),
+        Some("linear-drag"),
+        "{:?}",
+        diag.ranking[0].explanation
+    );
+    let fit = fit_model(&Model::rigid_body().with(LinearDrag), &s, None).unwrap();
+    for c in &fit.effects[0].coefficients {
+        assert!((c.value - d).abs() < 0.05 * d, "{c:?}");
+    }
+    assert!(fit.channels[0].rms < 0.1 * diag.channels[0].rms);
+}
+
+#[test]
+fn clean_synthetic_data_is_adequate() {
+    for seed in 10..13 {
+        let log = synthetic_log(&crazyflie(), 1500, 5e-4, seed, &none);
+        let s = Signals::from_log(&log).unwrap();
+        let diag = diagnose(&Model::rigid_body(), &s, &DiagnoseOptions::default()).unwrap();
+        assert_eq!(
+            diag.recommended, None,
+            "seed {seed}: {:?}",
+            diag.ranking[0].explanation
+        );
+    }
+}
+
+#[test]
+fn torque_bias_hidden_in_the_centre_of_mass_is_flagged() {
+    // 0.02 N m about x on a 35 g vehicle: a COM 5.8 cm off to the side, beyond the airframe.
+    let log = synthetic_log(&crazyflie(), 1000, 5e-4, 6, &|_, _| {
+        [0.0, 0.0, 0.0, 0.02, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let diag = diagnose(&Model::rigid_body(), &s, &DiagnoseOptions::default()).unwrap();
+    assert!(
+        diag.warnings
+            .iter()
+            .any(|w| w.contains("centre of mass outside the airframe")),
+        "{:?}",
+        diag.warnings
+    );
+    // Adding the bias brings the centre of mass back inside.
+    let diag2 = diagnose(
+        &Model::rigid_body().with(BodyBias),
+        &s,
+        &DiagnoseOptions::default(),
+    )
+    .unwrap();
+    assert!(
+        diag2.com.iter().all(|c| c.abs() < 0.0325),
+        "{:?}",
+        diag2.com
+    );
+}
+
+#[test]
+fn fit_percent_matches_the_matlab_formula() {
+    let b = vec![
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [2.0; 6],
+        [3.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    ];
+    let r = vec![
+        [0.1, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [-0.1; 6],
+        [0.2, 0.0, 0.0, 0.0, 0.0, 0.0],
+    ];
+    let ch = channel_stats(&b, &r);
+    let expected = 100.0 * (1.0 - (0.06f64).sqrt() / 2f64.sqrt());
+    assert!((ch[0].fit_percent.unwrap() - expected).abs() < 1e-12);
+    assert!((ch[0].rms - (0.02f64).sqrt()).abs() < 1e-15);
+}
+
+#[test]
+fn chi_square_tail_matches_closed_forms() {
+    for &x in &[0.1, 1.0, 3.0, 10.0, 40.0] {
+        let q2 = stats::chi2_survival(x, 2.0);
+        assert!(
+            (q2 - (-x / 2.0f64).exp()).abs() < 1e-10 * (-x / 2.0f64).exp().max(1e-300) + 1e-14,
+            "{x}: {q2}"
+        );
+        let k4 = (-x / 2.0f64).exp() * (1.0 + x / 2.0);
+        assert!((stats::chi2_survival(x, 4.0) - k4).abs() < 1e-10 * k4 + 1e-14);
+    }
+    let mut fact = 1.0f64;
+    for n in 1..20 {
+        assert!((stats::ln_gamma(n as f64) - fact.ln()).abs() < 1e-10);
+        fact *= n as f64;
+    }
+}
+
+#[test]
+fn batch_means_factor_of_ar1_matches_theory() {
+    use rand_core::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let mut g = || {
+        let u1 = ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+        let u2 = ((rng.next_u64() >> 11) as f64) / (1u64 << 53) as f64;
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    let white: Vec<f64> = (0..40_000).map(|_| g()).collect();
+    let kw = stats::batch_means_factor(&white);
+    assert!((0.6..1.6).contains(&kw), "{kw}");
+    let phi = 0.8;
+    let mut x = 0.0;
+    let ar: Vec<f64> = (0..40_000)
+        .map(|_| {
+            x = phi * x + g();
+            x
+        })
+        .collect();
+    let k = stats::batch_means_factor(&ar);
+    let theory = (1.0 + phi) / (1.0 - phi);
+    assert!((k / theory - 1.0).abs() < 0.35, "{k} vs {theory}");
+    let rho = stats::autocorrelation(&ar, 3);
+    assert!((rho[1] - phi).abs() < 0.02);
+}
+
+#[test]
+fn first_order_lag_matches_the_step_response() {
+    let dt = 0.01;
+    let t: Vec<f64> = (0..100).map(|k| k as f64 * dt).collect();
+    let u: Vec<f64> = (0..100).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
+    let tau = 0.03;
+    let y = first_order_lag(&t, &u, tau);
+    // The command switches at t_1 − dt/2; sample k ≥ 1 is (k − 1/2) dt after the switch.
+    for k in 1..100 {
+        let exact = 1.0 - (-((k as f64 - 0.5) * dt) / tau).exp();
+        assert!((y[k] - exact).abs() < 1e-12, "k {k}");
+    }
+}
+
+#[test]
+fn custom_effect_spec_parses_and_rejects() {
+    let c = CustomEffect::parse("batt=vbat*fz@fz,tz").unwrap();
+    assert_eq!(c.name(), "batt");
+    assert_eq!(c.channels(), vec![2, 5]);
+    assert!(matches!(
+        CustomEffect::parse("x=a@qq"),
+        Err(DiagnoseError::BadCustomSpec { .. })
+    ));
+    assert!(matches!(
+        CustomEffect::parse("noequals"),
+        Err(DiagnoseError::BadCustomSpec { .. })
+    ));
+}
+
+#[test]
+fn custom_effect_from_a_log_column_is_found() {
+    // A hidden force along body x proportional to an extra logged signal.
+    let mut log = synthetic_log(&crazyflie(), 1200, 5e-4, 7, &|st, _| {
+        [0.003 * (0.37 * st.p.x * 7.0).sin(), 0.0, 0.0, 0.0, 0.0, 0.0]
+    });
+    let sig: Vec<f64> = log
+        .position
+        .iter()
+        .map(|p| (0.37 * p[0] * 7.0).sin())
+        .collect();
+    log.add_extra("gust", sig);
+    let s = Signals::from_log(&log).unwrap();
+    let mut opts = DiagnoseOptions::default();
+    opts.candidates.push(std::sync::Arc::new(
+        CustomEffect::parse("gust=gust@fx").unwrap(),
+    ));
+    let d = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
+    assert_eq!(d.recommended.as_deref(), Some("gust"));
+}
+
+fn csv_text(rows: usize) -> String {
+    let log = synthetic_log(&crazyflie(), rows, 0.0, 8, &none);
+    let mut buf = Vec::new();
+    log.write_csv(&mut buf).unwrap();
+    String::from_utf8(buf).unwrap()
+}
+
+#[test]
+fn csv_round_trip() {
+    let log = synthetic_log(&crazyflie(), 250, 0.0, 8, &none);
+    let mut buf = Vec::new();
+    log.write_csv(&mut buf).unwrap();
+    let back = FlightLog::from_csv_reader(buf.as_slice()).unwrap();
+    assert_eq!(back.len(), 250);
+    assert_eq!(back.wrench, log.wrench);
+    assert_eq!(back.accel, log.accel);
+}
+
+#[test]
+fn csv_errors_name_line_and_column() {
+    let text = csv_text(250);
+    let lines: Vec<&str> = text.lines().collect();
+    // Missing column.
+    let no_fz = text.replacen("fz,", "fq,", 1);
+    let e = FlightLog::from_csv_reader(no_fz.as_bytes()).unwrap_err();
+    assert_eq!(
+        e,
+        LogError::MissingColumn {
+            column: "fz".into()
+        }
+    );
+    // Duplicate column.
+    let dup = text.replacen("px,", "px,px_,", 1).replacen("px_", "px", 1);
+    let e = FlightLog::from_csv_reader(dup.as_bytes()).unwrap_err();
+    assert!(matches!(e, LogError::DuplicateColumn { .. }), "{e:?}");
+    // Non-increasing time on line 6 (row index 5).
+    let mut l2: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    let prev_t = l2[4].split(',').next().unwrap().to_string();
+    let rest: Vec<&str> = l2[5].split(',').skip(1).collect();
+    l2[5] = format!("{prev_t},{}", rest.join(","));
+    let e = FlightLog::from_csv_reader(l2.join("\n").as_bytes()).unwrap_err();
+    assert_eq!(e.line(), Some(6));
+    assert_eq!(e.column(), Some("t"));
+    // Non-finite value in column vy on line 10.
+    let mut l3: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    let mut f: Vec<String> = l3[9].split(',').map(str::to_string).collect();
+    f[5] = "NaN".into();
+    l3[9] = f.join(",");
+    let e = FlightLog::from_csv_reader(l3.join("\n").as_bytes()).unwrap_err();
+    assert!(
+        matches!(&e, LogError::NonFinite { line: 10, column, .. } if column == "vy"),
+        "{e:?}"
+    );
+    // Not a number.
+    let mut l4: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    let mut f: Vec<String> = l4[3].split(',').map(str::to_string).collect();
+    f[14] = "abc".into();
+    l4[3] = f.join(",");
+    let e = FlightLog::from_csv_reader(l4.join("\n").as_bytes()).unwrap_err();
+    assert!(
+        matches!(&e, LogError::NotANumber { line: 4, column, .. } if column == "fx"),
+        "{e:?}"
+    );
+    // Quaternion far from unit norm.
+    let mut l5: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    let mut f: Vec<String> = l5[7].split(',').map(str::to_string).collect();
+    f[7] = "2.0".into();
+    l5[7] = f.join(",");
+    let e = FlightLog::from_csv_reader(l5.join("\n").as_bytes()).unwrap_err();
+    assert!(
+        matches!(e, LogError::QuaternionNorm { line: 8, .. }),
+        "{e:?}"
+    );
+    // Too short.
+    let short = csv_text(50);
+    let e = FlightLog::from_csv_reader(short.as_bytes()).unwrap_err();
+    assert_eq!(
+        e,
+        LogError::TooShort {
+            rows: 50,
+            needed: crate::log::MIN_ROWS
+        }
+    );
+}
+
+#[test]
+fn in_memory_validation_names_the_line() {
+    let mut log = synthetic_log(&crazyflie(), 300, 0.0, 9, &none);
+    log.wrench[20][3] = f64::INFINITY;
+    let e = log.validate().unwrap_err();
+    assert!(
+        matches!(&e, LogError::NonFinite { line: 22, column, .. } if column == "tx"),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn savitzky_golay_is_exact_on_quadratics_with_uneven_time() {
+    let t: Vec<f64> = (0..60)
+        .map(|k| k as f64 * 0.01 + 0.003 * ((k * 7 % 5) as f64))
+        .collect();
+    let x: Vec<f64> = t.iter().map(|t| 2.0 - 3.0 * t + 4.5 * t * t).collect();
+    let d = savitzky_golay_derivative(&t, &x, 5);
+    let sm = savitzky_golay_smooth(&t, &x, 5);
+    for i in 0..t.len() {
+        assert!((d[i] - (-3.0 + 9.0 * t[i])).abs() < 1e-8, "i {i}");
+        assert!((sm[i] - x[i]).abs() < 1e-10);
+    }
+}
+
+proptest! {
+    #[test]
+    fn savitzky_golay_derivative_of_a_line_is_its_slope(
+        a in -10.0f64..10.0, b in -5.0f64..5.0, steps in proptest::collection::vec(0.001f64..0.05, 10..40), h in 1usize..8
+    ) {
+        let mut t = vec![0.0];
+        for s in &steps { let last = *t.last().unwrap(); t.push(last + s); }
+        let x: Vec<f64> = t.iter().map(|t| a * t + b).collect();
+        let d = savitzky_golay_derivative(&t, &x, h);
+        for v in d { prop_assert!((v - a).abs() < 1e-6 * (1.0 + a.abs())); }
+    }
+
+    #[test]
+    fn fit_percent_never_exceeds_100(
+        vals in proptest::collection::vec((-1.0f64..1.0, -0.5f64..0.5), 3..50)
+    ) {
+        let b: Vec<[f64; 6]> = vals.iter().map(|(y, _)| [*y; 6]).collect();
+        let r: Vec<[f64; 6]> = vals.iter().map(|(_, e)| [*e; 6]).collect();
+        for c in channel_stats(&b, &r) {
+            if let Some(f) = c.fit_percent { prop_assert!(f <= 100.0); }
+            prop_assert!(c.rms >= 0.0);
+        }
+    }
+}
+
+proptest! {
+    #[test]
+    fn time_shift_sweep_matches_pointwise_interpolation(
+        d in -0.2f64..0.2, steps in proptest::collection::vec(0.001f64..0.03, 5..60)
+    ) {
+        let mut t = vec![0.0];
+        for s in &steps { let last = *t.last().unwrap(); t.push(last + s); }
+        let x: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + t * t).collect();
+        let fast = crate::effects::shifted_for_tests(&t, &x, d);
+        for (i, ti) in t.iter().enumerate() {
+            let slow = crate::signals::interp(&t, &x, ti - d);
+            prop_assert!((fast[i] - slow).abs() < 1e-12);
+        }
+    }
+}

@@ -1,0 +1,166 @@
+//! The CLI entry point end to end on a simulator log written to CSV: terminal run, JSON keys,
+//! HTML report (opened in headless Chromium when it is installed).
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use tagk_diagnose::cli::{DiagnoseArgs, run_diagnose};
+use tagk_sim::EffectKind;
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tagk-diagnose-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write_drag_log(dir: &Path) -> PathBuf {
+    let log = common::sim_log(Some(EffectKind::QuadraticDrag), 3);
+    let path = dir.join("drag.csv");
+    let f = std::fs::File::create(&path).unwrap();
+    log.write_csv(std::io::BufWriter::new(f)).unwrap();
+    path
+}
+
+#[test]
+fn json_has_the_documented_keys_before_and_after() {
+    let dir = tmpdir("json");
+    let log = write_drag_log(&dir);
+    let mut args = DiagnoseArgs::new(&log);
+    args.with = vec!["quadratic-drag".into()];
+    args.json = Some(dir.join("out.json"));
+    args.online = true;
+    args.quiet = true;
+    run_diagnose(&args).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
+    // Final model (after adding quadratic drag): adequate.
+    assert!(v["recommended"].is_null(), "{}", v["recommended"]);
+    for part in [&v, &v["before"], &v["after"]] {
+        let ch = part["channels"].as_array().unwrap();
+        assert_eq!(ch.len(), 6);
+        for c in ch {
+            assert!(c["name"].is_string());
+            assert!(c["rms"].is_number());
+            assert!(c.get("fit_percent").is_some());
+        }
+        for r in part["ranking"].as_array().unwrap() {
+            assert!(r["effect"].is_string());
+            assert!(r["reduction"].is_number());
+        }
+    }
+    assert_eq!(v["before"]["recommended"], "quadratic-drag");
+    assert_eq!(v["with"][0], "quadratic-drag");
+    let change = v["change"].as_array().unwrap();
+    assert!(change[0]["rms_after"].as_f64().unwrap() < change[0]["rms_before"].as_f64().unwrap());
+    assert!(v["online"]["updates"].as_u64().unwrap() > 10);
+}
+
+#[test]
+fn bad_log_reports_line_and_column() {
+    let dir = tmpdir("bad");
+    let path = dir.join("bad.csv");
+    std::fs::write(&path, "t,px\n0,0\n").unwrap();
+    let err = run_diagnose(&DiagnoseArgs::new(&path)).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("line 1") && msg.contains("py"), "{msg}");
+}
+
+#[test]
+fn unknown_effect_is_a_typed_error() {
+    let dir = tmpdir("unknown");
+    let log = write_drag_log(&dir);
+    let mut args = DiagnoseArgs::new(&log);
+    args.with = vec!["anti-gravity".into()];
+    args.quiet = true;
+    assert!(matches!(
+        run_diagnose(&args),
+        Err(tagk_diagnose::DiagnoseError::UnknownEffect(_))
+    ));
+}
+
+/// Writes the HTML report and opens it in headless Chromium (`apt-get install -y chromium`).
+/// Skips with a message when Chromium is not installed.
+#[test]
+fn html_report_renders_in_headless_chromium() {
+    let dir = tmpdir("html");
+    let log = write_drag_log(&dir);
+    let mut args = DiagnoseArgs::new(&log);
+    args.with = vec!["quadratic-drag".into()];
+    args.report = Some(dir.join("report"));
+    args.quiet = true;
+    run_diagnose(&args).unwrap();
+    let file = dir.join("report").join("index.html");
+    let html = std::fs::read_to_string(&file).unwrap();
+    assert!(html.contains("<svg") && html.contains("class=\"failure\"") || html.contains("<svg"));
+    assert!(html.contains("id=\"before-after\""));
+    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+    else {
+        eprintln!(
+            "SKIPPED: chromium not installed (apt-get install -y chromium); the HTML was written but not rendered"
+        );
+        return;
+    };
+    let profile = dir.join("profile");
+    let out = Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--no-first-run",
+            &format!("--user-data-dir={}", profile.display()),
+            "--dump-dom",
+            &format!("file://{}", file.display()),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dom = String::from_utf8_lossy(&out.stdout);
+    // The browser parsed the document: its DOM carries our title, the SVG plots and the table.
+    assert!(dom.contains("id=\"title\""), "no title in the rendered DOM");
+    assert!(
+        dom.matches("<svg").count() >= 12,
+        "too few SVG plots rendered"
+    );
+    assert!(dom.contains("before-after"));
+    let shot = dir.join("shot.png");
+    let out = Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--no-first-run",
+            &format!("--user-data-dir={}", profile.display()),
+            "--window-size=1400,2000",
+            &format!("--screenshot={}", shot.display()),
+            &format!("file://{}", file.display()),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let png = std::fs::read(&shot).unwrap();
+    assert!(
+        png.len() > 10_000 && png.starts_with(b"\x89PNG"),
+        "screenshot too small"
+    );
+}

@@ -1,0 +1,525 @@
+//! Physics, measurement, configuration and driver tests of tagk-sim.
+
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use tagk_dynamics::{InertialParams, QuadrotorModel, rigid_body_regressor};
+use tagk_sim::effects::{GroundEffect, LinearDrag};
+use tagk_sim::metrics::{UpdateTimes, group_errors, is_success, parameter_error};
+use tagk_sim::sim::{prioritise_attitude, tracking_weights};
+use tagk_sim::trajectory::{PEAK_RATE, PEAK_SPEED, ReferenceSample};
+use tagk_sim::*;
+
+fn payload_body() -> InertialParams {
+    QuadrotorModel::crazyflie_2_1()
+        .params
+        .with_point_mass(0.014, Vector3::new(0.008, -0.004, 0.002))
+}
+
+/// Energy `½ m |v_c|² + ½ ωᵀ I_C ω + m g z_c` and world angular momentum about the centre of
+/// mass `R I_C ω`, computed from the state directly (not through the simulator's dynamics).
+fn invariants(p: &InertialParams, s: &PlantState) -> (f64, Vector3<f64>) {
+    let c = p.com();
+    let r = s.attitude.to_rotation_matrix();
+    let v_c = s.velocity + r * s.body_rate.cross(&c);
+    let z_c = (s.position + r * c).z;
+    let ic = p.inertia_com();
+    let e = 0.5 * p.mass() * v_c.norm_squared()
+        + 0.5 * s.body_rate.dot(&(ic * s.body_rate))
+        + p.mass() * 9.81 * z_c;
+    (e, r * (ic * s.body_rate))
+}
+
+#[test]
+fn free_flight_conserves_energy_and_angular_momentum() {
+    let params = payload_body();
+    let state = PlantState {
+        position: Vector3::new(0.1, -0.2, 1.0),
+        velocity: Vector3::new(0.3, 0.1, 2.0),
+        attitude: UnitQuaternion::from_euler_angles(0.3, -0.2, 1.0),
+        body_rate: Vector3::new(3.0, -2.0, 5.0),
+        rotor_speeds: [0.0; 4],
+    };
+    let mut plant = Plant::new(
+        QuadrotorModel::crazyflie_2_1(),
+        params,
+        PlantEffects::none(),
+        state,
+    )
+    .unwrap();
+    let (e0, l0) = invariants(&params, plant.state());
+    for _ in 0..1000 {
+        plant.step(&[0.0; 4], 1e-3);
+    }
+    let (e1, l1) = invariants(&params, plant.state());
+    // Kinetic energy scale ~ ½ m v² ≈ 0.07 J; RK4 at 1 ms over 1 s keeps ~1e-10.
+    assert!((e1 - e0).abs() < 1e-9, "energy drift {}", e1 - e0);
+    assert!(
+        (l1 - l0).norm() < 1e-10 * l0.norm().max(1e-9) + 1e-13,
+        "L drift {}",
+        (l1 - l0).norm()
+    );
+    // The body really tumbled: the attitude moved far from its start.
+    assert!(plant.state().attitude.angle_to(&state.attitude) > 0.5);
+}
+
+#[test]
+fn hover_holds_with_true_parameters() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let params = payload_body();
+    let target = Vector3::new(0.0, 0.0, 1.0);
+    let mut plant = Plant::new(
+        model,
+        params,
+        PlantEffects::none(),
+        PlantState::at_rest(target + Vector3::new(0.01, -0.01, 0.01)),
+    )
+    .unwrap();
+    let controller = Controller::new(&model, &params, tracking_weights(), 0.02).unwrap();
+    let reference = ReferenceSample {
+        position: target,
+        velocity: Vector3::zeros(),
+        acceleration: Vector3::zeros(),
+    };
+    for _ in 0..250 {
+        let s = plant.state();
+        let measured = tagk_control::QuadrotorState {
+            position: s.position,
+            velocity: s.velocity,
+            attitude: s.attitude,
+            body_rate: s.body_rate,
+        };
+        let cmd = controller.rotor_speeds(&measured, &reference);
+        for _ in 0..10 {
+            plant.step(&cmd, 0.002);
+        }
+    }
+    let err = (plant.state().position - target).norm();
+    assert!(err < 1e-3, "hover error {err} m");
+    assert!(plant.state().velocity.norm() < 1e-3);
+}
+
+#[test]
+fn ideal_measured_wrench_equals_regressor_times_true_parameters() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let params = payload_body();
+    let state = PlantState {
+        position: Vector3::new(0.0, 0.0, 1.0),
+        velocity: Vector3::new(0.2, -0.1, 0.05),
+        attitude: UnitQuaternion::from_euler_angles(0.1, 0.05, -0.3),
+        body_rate: Vector3::new(0.7, -1.1, 0.4),
+        rotor_speeds: [0.0; 4],
+    };
+    let plant = Plant::new(model, params, PlantEffects::none(), state).unwrap();
+    let cmd = [1100.0, 1250.0, 1180.0, 1020.0];
+    let acc = plant.accelerations(&cmd);
+    let y = rigid_body_regressor(&acc.proper, &state.body_rate, &acc.angular);
+    let b = model.wrench_from_rotor_speeds(&cmd).to_array();
+    let yt = y * nalgebra::SVector::<f64, 10>::from_column_slice(params.as_slice());
+    for i in 0..6 {
+        let scale: f64 = if i < 3 { 1.0 } else { 1e-3 };
+        assert!(
+            (yt[i] - b[i]).abs() < 1e-14 * scale.max(b[i].abs()),
+            "row {i}: {} vs {}",
+            yt[i],
+            b[i]
+        );
+    }
+}
+
+#[test]
+fn logged_frames_satisfy_the_regressor_in_closed_loop() {
+    let cfg = SimConfig {
+        duration: 8.0,
+        seed: 3,
+        adaptation: Adaptation::Oracle,
+        record_log: true,
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    assert_eq!(out.log.len(), 400);
+    let nominal = cfg.vehicle.params;
+    let mut worst: f64 = 0.0;
+    for s in &out.log {
+        let truth = out
+            .events
+            .iter()
+            .rev()
+            .find(|e| e.time < s.t)
+            .map_or(nominal, |e| InertialParams::from_array(e.params));
+        let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            s.attitude[0],
+            s.attitude[1],
+            s.attitude[2],
+            s.attitude[3],
+        ));
+        let a = q.inverse_transform_vector(
+            &(Vector3::from(s.accel_world) - tagk_dynamics::GRAVITY_WORLD),
+        );
+        let y = rigid_body_regressor(&a, &Vector3::from(s.body_rate), &Vector3::from(s.omega_dot));
+        let yt = y * nalgebra::SVector::<f64, 10>::from_column_slice(truth.as_slice());
+        // Force rows against the thrust, torque rows against the gravity torque scale.
+        for i in 0..6 {
+            let scale: f64 = if i < 3 { 0.3 } else { 3e-4 };
+            worst = worst.max((yt[i] - s.wrench[i]).abs() / scale);
+        }
+    }
+    // Only the midpoint sampling and the differenced gyro separate b from Y θ.
+    assert!(worst < 1e-3, "worst relative residual {worst}");
+}
+
+#[test]
+fn payload_attach_changes_theta_as_computed_by_hand() {
+    let payload = Payload {
+        mass: 0.014,
+        offset: [0.008, -0.004, 0.002],
+        shape: PayloadShape::PointMass,
+        attach_time: 1.0,
+        remove_time: Some(2.0),
+    };
+    let cfg = SimConfig {
+        duration: 3.0,
+        payload: PayloadSchedule::Fixed(vec![payload]),
+        adaptation: Adaptation::Oracle,
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    assert_eq!(out.events.len(), 2);
+    // Hand computation: m' = m + m_p, h' = m_p c, I' = I + m_p (|c|² 1 − c cᵀ).
+    let expected = [
+        0.035 + 0.014,
+        0.014 * 0.008,
+        0.014 * -0.004,
+        0.014 * 0.002,
+        1.66e-5 + 0.014 * (0.004f64.powi(2) + 0.002f64.powi(2)),
+        0.83e-6 - 0.014 * (0.008 * -0.004),
+        1.66e-5 + 0.014 * (0.008f64.powi(2) + 0.002f64.powi(2)),
+        0.72e-6 - 0.014 * (0.008 * 0.002),
+        1.8e-6 - 0.014 * (-0.004 * 0.002),
+        2.93e-5 + 0.014 * (0.008f64.powi(2) + 0.004f64.powi(2)),
+    ];
+    for (got, want) in out.events[0].params.iter().zip(&expected) {
+        assert!((got - want).abs() < 1e-15, "{got} vs {want}");
+    }
+    assert!(out.events[0].attach && !out.events[1].attach);
+    assert!((out.events[0].time - 1.0).abs() < 1e-12);
+    for (got, want) in out.events[1]
+        .params
+        .iter()
+        .zip(cfg.vehicle.params.as_slice())
+    {
+        assert!((got - want).abs() < 1e-15);
+    }
+}
+
+#[test]
+fn bad_configurations_are_rejected_with_typed_errors() {
+    let mut cfg = SimConfig::default();
+    cfg.vehicle.params = InertialParams::from_array([
+        -0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.0, 1.66e-5, 0.0, 0.0, 2.93e-5,
+    ]);
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::NonPositiveMass { .. })
+    ));
+
+    let cfg = SimConfig {
+        duration: 0.0,
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::InvalidDuration { .. })
+    ));
+
+    let heavy = Payload {
+        mass: 0.03,
+        offset: [0.0, 0.0, 0.0],
+        shape: PayloadShape::PointMass,
+        attach_time: 1.0,
+        remove_time: None,
+    };
+    let cfg = SimConfig {
+        payload: PayloadSchedule::Fixed(vec![heavy]),
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::PayloadBeyondThrust { .. })
+    ));
+
+    let negative = Payload {
+        mass: -0.01,
+        ..heavy
+    };
+    let cfg = SimConfig {
+        payload: PayloadSchedule::Fixed(vec![negative]),
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::NonPositiveMass { .. })
+    ));
+
+    let cfg = SimConfig {
+        physics_dt: 0.005,
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::InvalidParameter { .. })
+    ));
+
+    let mut cfg = SimConfig::default();
+    cfg.effects.motor_lag = Some(MotorLag {
+        time_constant: -1.0,
+    });
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::InvalidParameter { .. })
+    ));
+}
+
+#[test]
+fn trajectories_respect_the_peak_speed_and_rate() {
+    use rand_chacha::rand_core::SeedableRng;
+    for kind in TrajectoryKind::ALL {
+        for seed in 0..5 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let t = Trajectory::random(kind, 20.0, None, &mut rng).unwrap();
+            assert!(t.rate > 0.1 && t.rate <= PEAK_RATE);
+            let mut peak: f64 = 0.0;
+            for i in 0..=2000 {
+                peak = peak.max(t.sample(i as f64 * 0.01).velocity.norm());
+            }
+            assert!(peak <= PEAK_SPEED, "{kind:?} peak {peak}");
+            assert!(peak > 0.2, "{kind:?} too slow: {peak}");
+            // Starts from rest.
+            assert!(t.sample(0.0).velocity.norm() < 1e-3);
+        }
+    }
+}
+
+#[test]
+fn effects_follow_their_formulas() {
+    let g = GroundEffect::crazyflie();
+    assert!((g.thrust_ratio(g.rotor_radius) - 16.0 / 15.0).abs() < 1e-12);
+    assert!((g.thrust_ratio(1.0) - 1.0).abs() < 1e-4);
+    let fx = PlantEffects::only(EffectKind::LinearDrag);
+    let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
+    // World velocity +x is body −y after a 90° yaw.
+    let f = fx.extra_force(&Vector3::new(1.0, 0.0, 0.0), &q, 4000.0);
+    let k = LinearDrag::crazyflie().coefficients;
+    assert!((f - Vector3::new(0.0, k[1] * 4000.0, 0.0)).norm() < 1e-15);
+    let te = PlantEffects::only(EffectKind::ThrustError);
+    assert!((te.thrust_multiplier(1.0) - 0.9).abs() < 1e-15);
+    for kind in EffectKind::ALL {
+        let e = PlantEffects::only(kind);
+        assert!(!e.is_ideal());
+        e.validate().unwrap();
+        // Each effect changes a flight relative to the ideal plant.
+        let cfg = |effects| SimConfig {
+            duration: 2.0,
+            altitude: Some(0.05),
+            payload: PayloadSchedule::None,
+            adaptation: Adaptation::Nominal,
+            effects,
+            record_log: true,
+            ..SimConfig::default()
+        };
+        let a = simulate(&cfg(PlantEffects::none())).unwrap();
+        let b = simulate(&cfg(e)).unwrap();
+        assert_ne!(
+            a.log.last().unwrap().position,
+            b.log.last().unwrap().position,
+            "{kind:?}"
+        );
+    }
+}
+
+#[test]
+fn attitude_priority_keeps_torque_differences() {
+    let out = prioritise_attitude([0.15, 0.12, 0.10, 0.13], 0.14);
+    let d = |u: [f64; 4]| [u[0] - u[1], u[1] - u[2], u[2] - u[3]];
+    let (a, b) = (d(out), d([0.15, 0.12, 0.10, 0.13]));
+    for i in 0..3 {
+        assert!((a[i] - b[i]).abs() < 1e-15);
+    }
+    assert!((out[0] - 0.14).abs() < 1e-15);
+    // Infeasible spread: clipped.
+    let out = prioritise_attitude([0.2, -0.1, 0.0, 0.0], 0.14);
+    assert!(out.iter().all(|t| (0.0..=0.14).contains(t)));
+}
+
+#[test]
+fn metrics_match_direct_computation() {
+    let truth = payload_body();
+    let mut est = truth.to_array();
+    est[0] += 0.0035;
+    est[1] += 3e-5;
+    est[2] -= 4e-5;
+    est[4] *= 1.1;
+    let pe = parameter_error(&est, &truth);
+    let direct = (0.0035f64.powi(2)
+        + 3e-5f64.powi(2)
+        + 4e-5f64.powi(2)
+        + (0.1 * truth.as_slice()[4]).powi(2))
+    .sqrt();
+    assert!((pe - direct).abs() < 1e-15);
+    let g = group_errors(&est, &truth, 0.0325);
+    assert!((g.mass - 0.0035 / 0.049).abs() < 1e-12);
+    assert!((g.first_moment - 5e-5 / (0.049 * 0.0325)).abs() < 1e-9);
+    assert!(g.inertia > 0.0 && g.inertia < 0.1);
+    let errs = [0.01; 30];
+    assert!(is_success(&errs, &[5], false));
+    let mut bad = errs;
+    bad[15] = 0.06;
+    assert!(!is_success(&bad, &[5], false));
+    assert!(is_success(&bad, &[6], false));
+    let mut h = UpdateTimes::new();
+    let mut v: Vec<f64> = (1..=1000).map(|i| i as f64 * 0.37).collect();
+    for x in &v {
+        h.record(*x);
+    }
+    v.sort_by(f64::total_cmp);
+    assert!((h.median() / v[499] - 1.0).abs() < 0.011);
+    assert!((h.p95() / v[949] - 1.0).abs() < 0.011);
+}
+
+#[test]
+fn log_csv_has_the_conventions_header() {
+    let cfg = SimConfig {
+        duration: 0.5,
+        record_log: true,
+        payload: PayloadSchedule::None,
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    let mut buf = Vec::new();
+    write_log_csv(&out.log, &mut buf).unwrap();
+    let text = String::from_utf8(buf).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t,px,py,pz,vx,vy,vz,qw,qx,qy,qz,wx,wy,wz,fx,fy,fz,tx,ty,tz,ax,ay,az,dwx,dwy,dwz,w1,w2,w3,w4"
+    );
+    assert_eq!(lines.count(), 25);
+    let mut rev = out.log.clone();
+    rev.reverse();
+    assert!(matches!(
+        write_log_csv(&rev, Vec::new()),
+        Err(SimError::InvalidParameter { .. })
+    ));
+}
+
+#[test]
+fn sweep_is_identical_at_one_and_two_threads() {
+    let mut sweep = Sweep::new(
+        vec![
+            EstimatorSpec::new(EstimatorKind::TagK),
+            EstimatorSpec::new(EstimatorKind::KfHigh),
+        ],
+        3,
+        11,
+    );
+    sweep.noise_levels = vec![NoiseLevel::None, NoiseLevel::High];
+    sweep.base.duration = 7.0;
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| sweep.run())
+            .unwrap()
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.threads, 1);
+    assert_eq!(b.threads, 2);
+    assert_eq!(a.cells.len(), 4);
+    for (x, y) in a.cells.iter().zip(&b.cells) {
+        assert_eq!(x.trials, 3);
+        let same = |p: f64, q: f64| (p.is_nan() && q.is_nan()) || p == q;
+        assert!(same(x.position_error_cm, y.position_error_cm));
+        assert!(same(x.parameter_error, y.parameter_error));
+        assert!(same(x.t1_error, y.t1_error));
+        assert_eq!(x.success_pct, y.success_pct);
+        assert_eq!(x.aborted_pct, y.aborted_pct);
+        assert_eq!(x.position_errors.len(), y.position_errors.len());
+        for (p, q) in x.position_errors.iter().zip(&y.position_errors) {
+            assert!(same(*p, *q));
+        }
+    }
+    let table = a.table();
+    assert!(table.contains("TAG-K") && table.contains("KF-high"));
+    assert!(Sweep::new(vec![], 3, 0).run().is_err());
+}
+
+#[test]
+fn figures_render_with_the_embedded_font() {
+    let dir = std::env::temp_dir().join(format!("tagk-sim-plot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let chart = plot::LineChart {
+        title: "test".into(),
+        x_label: "x".into(),
+        y_label: "y".into(),
+        log_y: true,
+        series: vec![plot::Series {
+            label: "a".into(),
+            points: vec![(0.0, 1.0), (1.0, 10.0)],
+        }],
+        markers: vec![0.5],
+    };
+    plot::line_chart(&dir.join("c"), &chart).unwrap();
+    assert!(std::fs::metadata(dir.join("c.png")).unwrap().len() > 1000);
+    let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
+    assert!(svg.contains("test"));
+    std::fs::remove_dir_all(&dir).ok();
+    let _ = Matrix3::<f64>::identity();
+}
+
+#[test]
+fn simulate_command_writes_a_log_from_flags() {
+    use tagk_sim::clap::Parser;
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: cli::SimulateArgs,
+    }
+    let path = std::env::temp_dir().join(format!("tagk-sim-cli-{}.csv", std::process::id()));
+    let cli = Cli::try_parse_from([
+        "tagk",
+        "--trajectory",
+        "helix",
+        "--duration",
+        "2",
+        "--noise",
+        "low",
+        "--effect",
+        "linear-drag",
+        "--effect",
+        "motor-lag",
+        "--payload",
+        "fixed",
+        "--payload-mass",
+        "0.01",
+        "--payload-offset",
+        "0.005,0,0",
+        "--attach",
+        "1",
+        "--estimator",
+        "tagk",
+        "--output",
+        path.to_str().unwrap(),
+    ])
+    .unwrap();
+    let cfg = cli.args.config().unwrap();
+    assert!(cfg.effects.linear_drag.is_some() && cfg.effects.motor_lag.is_some());
+    assert!(cfg.effects.wind.is_none());
+    cli::run_simulate(&cli.args).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text.lines().count(), 101);
+    std::fs::remove_file(&path).ok();
+    let bad = Cli::try_parse_from(["tagk", "--duration", "0"]).unwrap();
+    assert!(matches!(
+        cli::run_simulate(&bad.args),
+        Err(SimError::InvalidDuration { .. })
+    ));
+}

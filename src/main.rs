@@ -1,0 +1,48 @@
+//! The `tagk` command: simulate flights and diagnose models against flight logs.
+//!
+//! ```text
+//! tagk simulate --help     write a realistic flight log (CONVENTIONS §6) from the simulator
+//! tagk diagnose LOG.csv    compare the rigid-body model with a log, find what is missing
+//! ```
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Online inertial-parameter estimation for robots: simulate flights and diagnose models.
+#[derive(Parser)]
+#[command(name = "tagk", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a Crazyflie flight (trajectory, payloads, plant effects, sensor noise) and write
+    /// it as a flight log.
+    Simulate(tagk::sim::cli::SimulateArgs),
+    /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
+    /// that are missing, and refit with the ones you add (`--with`).
+    Diagnose(tagk::diagnose::cli::DiagnoseArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result: Result<(), Box<dyn std::error::Error>> = match &cli.command {
+        Command::Simulate(args) => tagk::sim::cli::run_simulate(args).map_err(Into::into),
+        Command::Diagnose(args) => tagk::diagnose::cli::run_diagnose(args).map_err(Into::into),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("tagk: {err}");
+            let mut source = err.source();
+            while let Some(cause) = source {
+                eprintln!("  caused by: {cause}");
+                source = cause.source();
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
