@@ -44,8 +44,16 @@ fn bench(c: &mut Criterion) {
         let mut group = c.benchmark_group(format!("backend/n={n},m={M}"));
         for backend in [Backend::Loops, Backend::Faer] {
             let ests: Vec<(&str, Box<dyn OnlineEstimator<f64>>)> = vec![
-                ("RLS", Box::new(Rls::new(n, M, RlsConfig::LOW.with_backend(backend)).unwrap())),
-                ("KF", Box::new(KalmanFilter::new(n, M, KalmanConfig::LOW.with_backend(backend)).unwrap())),
+                (
+                    "RLS",
+                    Box::new(Rls::new(n, M, RlsConfig::LOW.with_backend(backend)).unwrap()),
+                ),
+                (
+                    "KF",
+                    Box::new(
+                        KalmanFilter::new(n, M, KalmanConfig::LOW.with_backend(backend)).unwrap(),
+                    ),
+                ),
             ];
             for (label, mut est) in ests {
                 let mut k = 0;

@@ -197,7 +197,10 @@ impl KalmanConfig {
 
     /// Checks every setting; called by the constructors.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(self.sigma_q >= 0.0 && self.sigma_q.is_finite() && (self.sigma_q * self.sigma_q).is_finite()) {
+        if !(self.sigma_q >= 0.0
+            && self.sigma_q.is_finite()
+            && (self.sigma_q * self.sigma_q).is_finite())
+        {
             return Err(ConfigError::InvalidParameter {
                 name: "sigma_q",
                 value: self.sigma_q,

@@ -66,7 +66,12 @@ impl KalmanFilter {
         Self::named(n, m_max, KalmanConfig::HIGH, "KF-high")
     }
 
-    fn named(n: usize, m_max: usize, config: KalmanConfig, name: &'static str) -> Result<Self, ConfigError> {
+    fn named(
+        n: usize,
+        m_max: usize,
+        config: KalmanConfig,
+        name: &'static str,
+    ) -> Result<Self, ConfigError> {
         if n == 0 {
             return Err(ConfigError::ZeroDimension);
         }
@@ -132,7 +137,8 @@ impl OnlineEstimator<f64> for KalmanFilter {
         for k in 0..n {
             st.p_next[k * n + k] += self.q;
         }
-        st.ws.update(a, m, self.r, 1.0, &st.p, self.q, &mut st.p_next)?;
+        st.ws
+            .update(a, m, self.r, 1.0, &st.p, self.q, &mut st.p_next)?;
         st.commit()?;
         Ok(UpdateInfo {
             rows: m,

@@ -114,7 +114,12 @@ impl Workspace {
     /// The window must already be validated (shape and finiteness, `m = b.len() ≤ m_max`).
     /// Errors: every row zero ([`EstimatorError::NoUsableRow`]); a residual that overflows
     /// ([`EstimatorError::Diverged`]).
-    pub(crate) fn residual(&mut self, a: &[f64], b: &[f64], theta: &[f64]) -> Result<f64, EstimatorError> {
+    pub(crate) fn residual(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        theta: &[f64],
+    ) -> Result<f64, EstimatorError> {
         let n = self.n;
         let n1 = n + 1;
         debug_assert!(b.len() <= self.m_max);
@@ -164,7 +169,11 @@ impl Workspace {
             // Δθ from the block update is kept (its error is bounded by the conditioning of S,
             // not by the cancellation in step 6); only P is recomputed.
             Ok(()) => {
-                if (0..n).any(|k| !(p[k * n + k] > CANCELLATION * (p_prev[k * n + k] + q))) {
+                let cancelled = (0..n).any(|k| {
+                    let pkk = p[k * n + k];
+                    pkk.is_nan() || pkk <= CANCELLATION * (p_prev[k * n + k] + q)
+                });
+                if cancelled {
                     self.information_form(a, m, d, p_prev, q, p, false)?;
                 }
             }
@@ -225,7 +234,13 @@ impl Workspace {
         Ok(())
     }
 
-    fn update_loops(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+    fn update_loops(
+        &mut self,
+        a: &[f64],
+        m: usize,
+        d: f64,
+        p: &mut [f64],
+    ) -> Result<(), EstimatorError> {
         let n = self.n;
         let n1 = n + 1;
         let ur = &mut self.ur[..m * n1];
@@ -287,19 +302,33 @@ impl Workspace {
         Ok(())
     }
 
-    fn update_faer(&mut self, a: &[f64], m: usize, d: f64, p: &mut [f64]) -> Result<(), EstimatorError> {
+    fn update_faer(
+        &mut self,
+        a: &[f64],
+        m: usize,
+        d: f64,
+        p: &mut [f64],
+    ) -> Result<(), EstimatorError> {
         let n = self.n;
         let n1 = n + 1;
         let av = MatRef::from_row_major_slice(&a[..m * n], m, n);
         // Row-major with row stride n+1, built as the transpose of a column-major view:
         // faer 0.24.4's `MatMut::from_row_major_slice_with_stride_mut` swaps the strides
         // (it builds a column-major view) and then writes out of bounds.
-        let mut urv = MatMut::from_column_major_slice_with_stride_mut(&mut self.ur[..m * n1], n1, m, n1)
-            .transpose_mut();
+        let mut urv =
+            MatMut::from_column_major_slice_with_stride_mut(&mut self.ur[..m * n1], n1, m, n1)
+                .transpose_mut();
         let mut pv = MatMut::from_row_major_slice_mut(p, n, n);
 
         // 1. U = A P.
-        faer::linalg::matmul::matmul(urv.rb_mut().subcols_mut(0, n), Accum::Replace, av, pv.rb(), 1.0, Par::Seq);
+        faer::linalg::matmul::matmul(
+            urv.rb_mut().subcols_mut(0, n),
+            Accum::Replace,
+            av,
+            pv.rb(),
+            1.0,
+            Par::Seq,
+        );
         // 2. S = U Aᵀ + d I, lower triangle.
         let mut sv = MatMut::from_row_major_slice_mut(&mut self.s[..m * m], m, m);
         tri::matmul(

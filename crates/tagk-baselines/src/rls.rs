@@ -47,7 +47,12 @@ impl Rls {
         Self::named(n, m_max, RlsConfig::HIGH, "RLS-high")
     }
 
-    fn named(n: usize, m_max: usize, config: RlsConfig, name: &'static str) -> Result<Self, ConfigError> {
+    fn named(
+        n: usize,
+        m_max: usize,
+        config: RlsConfig,
+        name: &'static str,
+    ) -> Result<Self, ConfigError> {
         if n == 0 {
             return Err(ConfigError::ZeroDimension);
         }
@@ -107,7 +112,8 @@ impl OnlineEstimator<f64> for Rls {
         let prior_residual_norm = st.ws.residual(a, b, &st.theta)?;
         let lambda = self.config.lambda;
         st.p_next.copy_from_slice(&st.p);
-        st.ws.update(a, m, lambda, 1.0 / lambda, &st.p, 0.0, &mut st.p_next)?;
+        st.ws
+            .update(a, m, lambda, 1.0 / lambda, &st.p, 0.0, &mut st.p_next)?;
         if let WindupGuard::MaxTrace(max_trace) = self.config.windup_guard {
             let tr = trace(&st.p_next, n);
             if tr > max_trace {

@@ -34,8 +34,16 @@ fn assert_refused(a: &[f64], b: &[f64], expected: EstimatorError) {
         // Bit-for-bit the same state.
         let after = f.snapshot();
         assert!(
-            before.0.iter().zip(&after.0).all(|(x, y)| x.to_bits() == y.to_bits())
-                && before.1.iter().zip(&after.1).all(|(x, y)| x.to_bits() == y.to_bits()),
+            before
+                .0
+                .iter()
+                .zip(&after.0)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+                && before
+                    .1
+                    .iter()
+                    .zip(&after.1)
+                    .all(|(x, y)| x.to_bits() == y.to_bits()),
             "{}: state changed after {expected:?}",
             f.name()
         );
@@ -43,7 +51,9 @@ fn assert_refused(a: &[f64], b: &[f64], expected: EstimatorError) {
 }
 
 fn good_window(m: usize) -> (Vec<f64>, Vec<f64>) {
-    let a: Vec<f64> = (0..m * N).map(|k| ((k * 7 % 5) as f64 - 2.0) * 0.3 + 0.1).collect();
+    let a: Vec<f64> = (0..m * N)
+        .map(|k| ((k * 7 % 5) as f64 - 2.0) * 0.3 + 0.1)
+        .collect();
     let b: Vec<f64> = (0..m).map(|i| i as f64 * 0.1 - 0.2).collect();
     (a, b)
 }
@@ -52,10 +62,18 @@ fn good_window(m: usize) -> (Vec<f64>, Vec<f64>) {
 fn nan_or_infinite_regressor() {
     let (mut a, b) = good_window(3);
     a[2 * N + 1] = f64::NAN;
-    assert_refused(&a, &b, EstimatorError::NonFiniteRegressor { row: 2, col: 1 });
+    assert_refused(
+        &a,
+        &b,
+        EstimatorError::NonFiniteRegressor { row: 2, col: 1 },
+    );
     a[2 * N + 1] = 0.0;
     a[N + 3] = f64::NEG_INFINITY;
-    assert_refused(&a, &b, EstimatorError::NonFiniteRegressor { row: 1, col: 3 });
+    assert_refused(
+        &a,
+        &b,
+        EstimatorError::NonFiniteRegressor { row: 1, col: 3 },
+    );
 }
 
 #[test]
@@ -127,14 +145,28 @@ fn failed_cholesky_is_a_numerical_failure_and_keeps_the_state() {
     // P₀ = 1e300·I is a valid prior; a window with entries 1e10 makes A P Aᵀ overflow, so the
     // innovation covariance cannot be factorised.
     for backend in BACKENDS {
-        let mut rls = Rls::new(2, 2, RlsConfig::default().with_p0(1e300).with_backend(backend)).unwrap();
-        let mut kf = KalmanFilter::new(2, 2, KalmanConfig::HIGH.with_p0(1e300).with_backend(backend)).unwrap();
+        let mut rls = Rls::new(
+            2,
+            2,
+            RlsConfig::default().with_p0(1e300).with_backend(backend),
+        )
+        .unwrap();
+        let mut kf = KalmanFilter::new(
+            2,
+            2,
+            KalmanConfig::HIGH.with_p0(1e300).with_backend(backend),
+        )
+        .unwrap();
         let filters: [&mut dyn Filter; 2] = [&mut rls, &mut kf];
         for f in filters {
             f.reset(&[0.5, -0.5]).unwrap();
             let before = f.snapshot();
             let got = f.update(&[1e10, 1e10], &[1.0]);
-            assert!(matches!(got, Err(EstimatorError::NumericalFailure(_))), "{}: {got:?}", f.name());
+            assert!(
+                matches!(got, Err(EstimatorError::NumericalFailure(_))),
+                "{}: {got:?}",
+                f.name()
+            );
             assert_eq!(f.snapshot(), before);
             // And the filter still works afterwards.
             f.update(&[1.0, 0.0], &[1.0]).unwrap();
@@ -195,28 +227,49 @@ fn invalid(name: &'static str) -> impl Fn(ConfigError) -> bool {
 
 #[test]
 fn configurations_are_validated() {
-    assert_eq!(Rls::new(0, 3, RlsConfig::LOW).err(), Some(ConfigError::ZeroDimension));
+    assert_eq!(
+        Rls::new(0, 3, RlsConfig::LOW).err(),
+        Some(ConfigError::ZeroDimension)
+    );
     assert_eq!(Rls::rls_low(3, 0).err(), Some(ConfigError::ZeroCapacity));
-    assert_eq!(KalmanFilter::kf_high(0, 3).err(), Some(ConfigError::ZeroDimension));
-    assert_eq!(KalmanFilter::kf_low(3, 0).err(), Some(ConfigError::ZeroCapacity));
+    assert_eq!(
+        KalmanFilter::kf_high(0, 3).err(),
+        Some(ConfigError::ZeroDimension)
+    );
+    assert_eq!(
+        KalmanFilter::kf_low(3, 0).err(),
+        Some(ConfigError::ZeroCapacity)
+    );
     for lambda in [0.0, -0.5, 1.0 + 1e-12, f64::NAN, f64::INFINITY] {
-        let e = Rls::new(3, 3, RlsConfig::LOW.with_lambda(lambda)).err().unwrap();
+        let e = Rls::new(3, 3, RlsConfig::LOW.with_lambda(lambda))
+            .err()
+            .unwrap();
         assert!(invalid("lambda")(e), "{lambda}: {e:?}");
     }
     for p0 in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        assert!(invalid("p0")(Rls::new(3, 3, RlsConfig::LOW.with_p0(p0)).err().unwrap()));
-        assert!(invalid("p0")(KalmanFilter::new(3, 3, KalmanConfig::LOW.with_p0(p0)).err().unwrap()));
+        assert!(invalid("p0")(
+            Rls::new(3, 3, RlsConfig::LOW.with_p0(p0)).err().unwrap()
+        ));
+        assert!(invalid("p0")(
+            KalmanFilter::new(3, 3, KalmanConfig::LOW.with_p0(p0))
+                .err()
+                .unwrap()
+        ));
     }
     for t in [0.0, -1.0, f64::NAN] {
         let cfg = RlsConfig::LOW.with_windup_guard(WindupGuard::MaxTrace(t));
         assert!(invalid("max_trace")(Rls::new(3, 3, cfg).err().unwrap()));
     }
     for q in [-1e-3, f64::NAN, f64::INFINITY, 1e200] {
-        let e = KalmanFilter::new(3, 3, KalmanConfig::LOW.with_sigma_q(q)).err().unwrap();
+        let e = KalmanFilter::new(3, 3, KalmanConfig::LOW.with_sigma_q(q))
+            .err()
+            .unwrap();
         assert!(invalid("sigma_q")(e), "{q}: {e:?}");
     }
     for r in [0.0, -1e-3, f64::NAN, f64::INFINITY, 1e200, 1e-200] {
-        let e = KalmanFilter::new(3, 3, KalmanConfig::LOW.with_sigma_r(r)).err().unwrap();
+        let e = KalmanFilter::new(3, 3, KalmanConfig::LOW.with_sigma_r(r))
+            .err()
+            .unwrap();
         assert!(invalid("sigma_r")(e), "{r}: {e:?}");
     }
     // The edges that are valid.

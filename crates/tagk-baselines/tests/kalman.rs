@@ -5,9 +5,7 @@
 mod common;
 
 use common::*;
-use tagk_baselines::{
-    Backend, KalmanConfig, KalmanFilter, OnlineEstimator, Rls, RlsConfig,
-};
+use tagk_baselines::{Backend, KalmanConfig, KalmanFilter, OnlineEstimator, Rls, RlsConfig};
 
 fn check_against_textbook(n: usize, m_max: usize, cfg: KalmanConfig, seed: u64, tol: f64) {
     let mut g = rng(seed);
@@ -64,8 +62,13 @@ fn paper_presets_match_the_better_conditioned_reference() {
                 for (k, w) in stream.iter().enumerate() {
                     let p_minus = kf.covariance().iter().fold(0.0f64, |a, v| a.max(v.abs()))
                         + cfg.sigma_q * cfg.sigma_q;
-                    let (theta, p) =
-                        best_conditioned_step(kf.estimate(), kf.covariance(), cfg.sigma_q, cfg.sigma_r, w);
+                    let (theta, p) = best_conditioned_step(
+                        kf.estimate(),
+                        kf.covariance(),
+                        cfg.sigma_q,
+                        cfg.sigma_r,
+                        w,
+                    );
                     kf.update(&w.a, &w.b).unwrap();
                     let ctx = format!("n={n} {cfg:?} window {k} (m = {})", w.rows());
                     let e = rel_err(kf.estimate(), &theta);
@@ -125,7 +128,10 @@ fn covariance_is_symmetric_positive_definite_and_predict_adds_q() {
             kf.update(&w.a, &w.b).unwrap();
             let p = nalgebra::DMatrix::from_row_slice(n, n, kf.covariance());
             assert_eq!(p, p.transpose(), "P must be exactly symmetric");
-            assert!(p.clone().cholesky().is_some(), "P must stay positive definite");
+            assert!(
+                p.clone().cholesky().is_some(),
+                "P must stay positive definite"
+            );
         }
         // An unexcited direction only gains σ_Q² per window: feed windows along e₀ and watch
         // the last coordinate's variance grow by exactly σ_Q² each time.
@@ -138,7 +144,10 @@ fn covariance_is_symmetric_positive_definite_and_predict_adds_q() {
             kf.update(&a, &[0.5]).unwrap();
             let var = kf.covariance()[n * n - 1];
             let expected = 1e3 + k as f64 * 0.01;
-            assert!((var - expected).abs() < 1e-9, "window {k}: {var} vs {expected}");
+            assert!(
+                (var - expected).abs() < 1e-9,
+                "window {k}: {var} vs {expected}"
+            );
         }
         assert!(before < 1.0);
     }
@@ -150,9 +159,24 @@ fn presets_have_the_paper_settings_and_names() {
     let high = KalmanFilter::kf_high(10, 30).unwrap();
     assert_eq!(low.name(), "KF-low");
     assert_eq!(high.name(), "KF-high");
-    assert_eq!(KalmanFilter::new(10, 30, KalmanConfig::default()).unwrap().name(), "KF");
-    assert_eq!((low.config().sigma_q, low.config().sigma_r, low.config().p0), (1e-3, 1e-5, 1e3));
-    assert_eq!((high.config().sigma_q, high.config().sigma_r, high.config().p0), (1e-1, 1e-3, 1e3));
+    assert_eq!(
+        KalmanFilter::new(10, 30, KalmanConfig::default())
+            .unwrap()
+            .name(),
+        "KF"
+    );
+    assert_eq!(
+        (low.config().sigma_q, low.config().sigma_r, low.config().p0),
+        (1e-3, 1e-5, 1e3)
+    );
+    assert_eq!(
+        (
+            high.config().sigma_q,
+            high.config().sigma_r,
+            high.config().p0
+        ),
+        (1e-1, 1e-3, 1e3)
+    );
     assert_eq!(low.backend(), Backend::Faer);
     assert_eq!(low.covariance_trace(), 1e4);
 }
@@ -172,8 +196,14 @@ fn singular_innovation_covariance_falls_back_to_information_form() {
         let p_minus = cfg.p0 + cfg.sigma_q * cfg.sigma_q;
         let p_post = 1.0 / (1.0 / p_minus + (a[0] * a[0] + a[1] * a[1]) / r);
         let theta = p_post * (a[0] * b[0] + a[1] * b[1]) / r;
-        assert!((kf.covariance()[0] / p_post - 1.0).abs() < 1e-12, "{backend:?}");
-        assert!((kf.estimate()[0] / theta - 1.0).abs() < 1e-12, "{backend:?}");
+        assert!(
+            (kf.covariance()[0] / p_post - 1.0).abs() < 1e-12,
+            "{backend:?}"
+        );
+        assert!(
+            (kf.estimate()[0] / theta - 1.0).abs() < 1e-12,
+            "{backend:?}"
+        );
     }
 }
 
@@ -189,7 +219,11 @@ fn cancelling_covariance_update_falls_back_to_information_form() {
         let r = cfg.sigma_r * cfg.sigma_r;
         let p_minus = cfg.p0 + cfg.sigma_q * cfg.sigma_q;
         let p_post = p_minus * r / (a * a * p_minus + r);
-        assert!((kf.covariance()[0] / p_post - 1.0).abs() < 1e-9, "{backend:?}: {:e}", kf.covariance()[0]);
+        assert!(
+            (kf.covariance()[0] / p_post - 1.0).abs() < 1e-9,
+            "{backend:?}: {:e}",
+            kf.covariance()[0]
+        );
         assert!((kf.estimate()[0] / (0.25 / a) - 1.0).abs() < 1e-12);
     }
 }

@@ -8,7 +8,11 @@ use proptest::prelude::*;
 use tagk_baselines::{KalmanConfig, KalmanFilter, Rls, RlsConfig, WindupGuard};
 
 /// Windows of `n` columns: each `(a, b)` with `1..=m_max` rows, entries in `[-scale, scale]`.
-fn arb_windows(n: usize, m_max: usize, scale: f64) -> impl Strategy<Value = Vec<(Vec<f64>, Vec<f64>)>> {
+fn arb_windows(
+    n: usize,
+    m_max: usize,
+    scale: f64,
+) -> impl Strategy<Value = Vec<(Vec<f64>, Vec<f64>)>> {
     prop::collection::vec(
         (1..=m_max).prop_flat_map(move |m| {
             (
@@ -35,12 +39,20 @@ fn make(kind: usize, backend: usize, n: usize, m_max: usize) -> Box<dyn Filter> 
             )
             .unwrap(),
         ),
-        3 => Box::new(KalmanFilter::new(n, m_max, KalmanConfig::LOW.with_backend(backend)).unwrap()),
-        _ => Box::new(KalmanFilter::new(n, m_max, KalmanConfig::HIGH.with_backend(backend)).unwrap()),
+        3 => {
+            Box::new(KalmanFilter::new(n, m_max, KalmanConfig::LOW.with_backend(backend)).unwrap())
+        }
+        _ => {
+            Box::new(KalmanFilter::new(n, m_max, KalmanConfig::HIGH.with_backend(backend)).unwrap())
+        }
     }
 }
 
-fn scenario() -> impl Strategy<Value = (usize, usize, usize, usize, Vec<(Vec<f64>, Vec<f64>)>)> {
+/// A stream of windows `(a, b)`.
+type Stream = Vec<(Vec<f64>, Vec<f64>)>;
+
+/// `(filter kind, backend, n, m_max, windows)`.
+fn scenario() -> impl Strategy<Value = (usize, usize, usize, usize, Stream)> {
     (0usize..5, 0usize..2, 1usize..=12, 1usize..=12).prop_flat_map(|(kind, backend, n, m_max)| {
         (
             Just(kind),

@@ -59,7 +59,9 @@ fn regressor(a: [f64; 3], w: [f64; 3], dw: [f64; 3]) -> Vec<f64> {
 
 /// Crazyflie parameters, plus an optional point payload of mass `mp` at `c` (body frame).
 fn theta(payload: Option<(f64, [f64; 3])>) -> [f64; 10] {
-    let mut t = [0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5];
+    let mut t = [
+        0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5,
+    ];
     if let Some((mp, c)) = payload {
         let c2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
         t[0] += mp;
@@ -94,11 +96,22 @@ fn flight(count: usize, attach: usize) -> (Vec<Window>, Vec<[f64; 10]>) {
                 0.3 * (0.7 * t).cos(),
                 9.81 + 0.2 * (2.1 * t).sin(),
             ];
-            let w = [0.5 * (0.9 * t).sin(), 0.4 * (1.1 * t).cos(), 0.3 * (0.5 * t).sin()];
-            let dw = [0.45 * (0.9 * t).cos(), -0.44 * (1.1 * t).sin(), 0.15 * (0.5 * t).cos()];
+            let w = [
+                0.5 * (0.9 * t).sin(),
+                0.4 * (1.1 * t).cos(),
+                0.3 * (0.5 * t).sin(),
+            ];
+            let dw = [
+                0.45 * (0.9 * t).cos(),
+                -0.44 * (1.1 * t).sin(),
+                0.15 * (0.5 * t).cos(),
+            ];
             a.extend(regressor(acc, w, dw));
         }
-        let b = a.chunks(10).map(|row| row.iter().zip(&th).map(|(x, p)| x * p).sum()).collect();
+        let b = a
+            .chunks(10)
+            .map(|row| row.iter().zip(&th).map(|(x, p)| x * p).sum())
+            .collect();
         stream.push(Window { a, b });
         truth.push(th);
     }
@@ -106,7 +119,11 @@ fn flight(count: usize, attach: usize) -> (Vec<Window>, Vec<[f64; 10]>) {
 }
 
 fn error(est: &[f64], truth: &[f64; 10]) -> f64 {
-    est.iter().zip(truth).map(|(e, t)| (e - t) * (e - t)).sum::<f64>().sqrt()
+    est.iter()
+        .zip(truth)
+        .map(|(e, t)| (e - t) * (e - t))
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[test]
@@ -122,13 +139,19 @@ fn presets_track_a_payload_change_without_numerical_failure() {
     let mut errors = vec![Vec::new(); ests.len()];
     for (w, th) in stream.iter().zip(&truth) {
         for (e, errs) in ests.iter_mut().zip(errors.iter_mut()) {
-            e.update(&w.a, &w.b).unwrap_or_else(|err| panic!("{}: {err}", e.name()));
+            e.update(&w.a, &w.b)
+                .unwrap_or_else(|err| panic!("{}: {err}", e.name()));
             errs.push(error(e.estimate(), th));
         }
     }
     // Before the payload every preset has converged (exact data).
     for (e, errs) in ests.iter().zip(&errors) {
-        assert!(errs[attach - 1] < 1e-5, "{}: {:e}", e.name(), errs[attach - 1]);
+        assert!(
+            errs[attach - 1] < 1e-5,
+            "{}: {:e}",
+            e.name(),
+            errs[attach - 1]
+        );
     }
     // The payload (14 g) moves θ by ~1.4e-2; the Kalman filters re-converge within the flight.
     // (RLS, whose implicit measurement variance is λ ≈ 1 N², is still ~1e-2 off after 40
@@ -157,6 +180,9 @@ fn kf_low_first_window_covariance_is_accurate() {
     for k in 0..10 {
         let got = kf.covariance()[k * 10 + k];
         let want = reference.p[(k, k)];
-        assert!(got > 0.0 && (got / want - 1.0).abs() < 1e-6, "P[{k}][{k}] = {got:e}, expected {want:e}");
+        assert!(
+            got > 0.0 && (got / want - 1.0).abs() < 1e-6,
+            "P[{k}][{k}] = {got:e}, expected {want:e}"
+        );
     }
 }

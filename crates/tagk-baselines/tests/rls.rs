@@ -24,10 +24,16 @@ fn check_against_batch(n: usize, m_max: usize, lambda: f64, backend: Backend, se
         if k % 6 == 5 || k + 1 == stream.len() {
             let (theta, cov) = weighted_batch_ls(n, &stream[..=k], lambda, p0, &theta0);
             let e = rel_err(rls.estimate(), &theta);
-            assert!(e < 1e-9, "n={n} λ={lambda} {backend:?} window {k}: θ error {e:e}");
+            assert!(
+                e < 1e-9,
+                "n={n} λ={lambda} {backend:?} window {k}: θ error {e:e}"
+            );
             // nalgebra is column-major; P is symmetric, so compare with the transpose's data.
             let c = rel_err(rls.covariance(), cov.transpose().as_slice());
-            assert!(c < 1e-9, "n={n} λ={lambda} {backend:?} window {k}: P error {c:e}");
+            assert!(
+                c < 1e-9,
+                "n={n} λ={lambda} {backend:?} window {k}: P error {c:e}"
+            );
         }
     }
 }
@@ -57,8 +63,14 @@ fn presets_have_the_paper_settings_and_names() {
     let low = Rls::rls_low(10, 30).unwrap();
     let high = Rls::rls_high(10, 30).unwrap();
     let custom = Rls::new(10, 30, RlsConfig::default()).unwrap();
-    assert_eq!((low.name(), low.config().lambda, low.config().p0), ("RLS-low", 0.99, 1e3));
-    assert_eq!((high.name(), high.config().lambda, high.config().p0), ("RLS-high", 0.96, 1e3));
+    assert_eq!(
+        (low.name(), low.config().lambda, low.config().p0),
+        ("RLS-low", 0.99, 1e3)
+    );
+    assert_eq!(
+        (high.name(), high.config().lambda, high.config().p0),
+        ("RLS-high", 0.96, 1e3)
+    );
     assert_eq!(custom.name(), "RLS");
     assert_eq!(low.config().windup_guard, WindupGuard::None);
     for est in [&low, &high] {
@@ -85,16 +97,15 @@ fn update_info_reports_the_prior_residual_over_nonzero_rows() {
             let mut b = w.b.clone();
             b.push(100.0);
             let prev = rls.estimate().to_vec();
-            let expected = w
-                .a
-                .chunks(n)
-                .zip(&w.b)
-                .map(|(row, bi)| {
-                    let r = bi - row.iter().zip(&prev).map(|(x, t)| x * t).sum::<f64>();
-                    r * r
-                })
-                .sum::<f64>()
-                .sqrt();
+            let expected =
+                w.a.chunks(n)
+                    .zip(&w.b)
+                    .map(|(row, bi)| {
+                        let r = bi - row.iter().zip(&prev).map(|(x, t)| x * t).sum::<f64>();
+                        r * r
+                    })
+                    .sum::<f64>()
+                    .sqrt();
             let info = rls.update(&a, &b).unwrap();
             assert_eq!(info.rows, 7);
             assert!((info.prior_residual_norm - expected).abs() <= 1e-12 * expected.max(1.0));
@@ -154,7 +165,10 @@ fn one_direction_windows(dir: &[f64], count: usize, theta: &[f64]) -> Vec<Window
     (0..count)
         .map(|k| {
             let scales = [1.0 + 0.1 * (k % 3) as f64, -0.5];
-            let a: Vec<f64> = scales.iter().flat_map(|s| dir.iter().map(move |d| s * d)).collect();
+            let a: Vec<f64> = scales
+                .iter()
+                .flat_map(|s| dir.iter().map(move |d| s * d))
+                .collect();
             let b = a
                 .chunks(n)
                 .map(|row| row.iter().zip(theta).map(|(x, t)| x * t).sum())
@@ -180,7 +194,11 @@ fn covariance_winds_up_under_poor_excitation() {
         assert!(traces[k] > traces[k - 1], "trace fell at window {k}");
     }
     let expected = 3.0 * 1e3 * 0.96f64.powi(-300);
-    assert!((traces[300] / expected - 1.0).abs() < 1e-6, "{} vs {expected}", traces[300]);
+    assert!(
+        (traces[300] / expected - 1.0).abs() < 1e-6,
+        "{} vs {expected}",
+        traces[300]
+    );
     assert!(traces[300] > 1e5 * traces[0]);
 
     // Without bound: with stronger forgetting P overflows, and the update is then refused
@@ -194,7 +212,10 @@ fn covariance_winds_up_under_poor_excitation() {
             Ok(_) => {}
             Err(e) => {
                 assert_eq!(e, EstimatorError::Diverged);
-                assert_eq!((fast.estimate().to_vec(), fast.covariance().to_vec()), before);
+                assert_eq!(
+                    (fast.estimate().to_vec(), fast.covariance().to_vec()),
+                    before
+                );
                 refused = Some(k);
                 break;
             }

@@ -34,10 +34,10 @@ pub struct DiagnoseArgs {
     /// (e.g. `vbat=vbat*fz@fz`); repeatable.
     #[arg(long = "custom", value_name = "SPEC")]
     pub custom: Vec<String>,
-    /// Known vehicle mass [kg] (fixes the mass; makes `thrust-gain` identifiable).
+    /// Known vehicle mass \[kg\] (fixes the mass; makes `thrust-gain` identifiable).
     #[arg(long, value_name = "KG")]
     pub mass: Option<f64>,
-    /// Airframe radius [m] beyond which a fitted centre of mass is flagged.
+    /// Airframe radius \[m\] beyond which a fitted centre of mass is flagged.
     #[arg(long, value_name = "M", default_value_t = 0.0325)]
     pub airframe_radius: f64,
     /// Do not print the terminal summary.

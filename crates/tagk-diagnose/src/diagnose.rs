@@ -23,7 +23,7 @@ pub struct DiagnoseOptions {
     /// Smallest held-out residual reduction (fraction of the channel-normalised held-out SSE)
     /// worth recommending (default 0.02).
     pub min_reduction: f64,
-    /// Radius of the airframe [m]: a fitted centre of mass significantly farther from the
+    /// Radius of the airframe \[m\]: a fitted centre of mass significantly farther from the
     /// origin is flagged as evidence of an unmodelled force (default: the Crazyflie's
     /// `L_arm` = 0.0325 m).
     pub airframe_radius: f64,
@@ -105,9 +105,9 @@ pub struct Whiteness {
 /// A time window where the residual is significantly large.
 #[derive(Debug, Clone, Serialize)]
 pub struct FailureWindow {
-    /// Start [s].
+    /// Start \[s\].
     pub t_start: f64,
-    /// End [s].
+    /// End \[s\].
     pub t_end: f64,
     /// Channels flagged.
     pub channels: Vec<String>,
@@ -140,7 +140,7 @@ pub struct Diagnosis {
     pub model: String,
     /// Samples.
     pub samples: usize,
-    /// Duration [s].
+    /// Duration \[s\].
     pub duration: f64,
     /// `true` if accelerations were derived by the Savitzky–Golay differentiator.
     pub derived_accelerations: bool,
@@ -148,7 +148,7 @@ pub struct Diagnosis {
     pub channels: Vec<ChannelFit>,
     /// Rigid-body parameter estimates (CONVENTIONS order) with standard errors.
     pub parameters: Vec<Parameter>,
-    /// Centre of mass `h / m` [m].
+    /// Centre of mass `h / m` \[m\].
     pub com: [f64; 3],
     /// Pseudo-inertia positive definite (Wensing et al.).
     pub physically_consistent: bool,
@@ -177,7 +177,7 @@ pub struct Diagnosis {
     /// The underlying fit (residual and prediction series, for plots).
     #[serde(skip)]
     pub fit: Fit,
-    /// Time stamps [s] (for plots).
+    /// Time stamps \[s\] (for plots).
     #[serde(skip)]
     pub t: Vec<f64>,
     /// Measured wrench (for plots).

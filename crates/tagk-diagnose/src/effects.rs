@@ -270,7 +270,7 @@ impl Effect for RotorDrag {
 /// of the log.
 #[derive(Debug, Clone)]
 pub struct MotorLag {
-    /// Time constants scanned [s].
+    /// Time constants scanned \[s\].
     pub grid: Vec<f64>,
 }
 
@@ -284,7 +284,7 @@ impl Default for MotorLag {
     }
 }
 
-/// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` [s]) to a command
+/// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` \[s\]) to a command
 /// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)` and sampled at
 /// its middle `t_k` (the convention of logs whose rows describe one control interval):
 /// with `Y_k` the state at the end of interval `k`,
@@ -489,7 +489,7 @@ impl Effect for MotorLag {
 /// (coefficient ≈ 1, plausible in `[0.8, 1.25]`); `d` scanned.
 #[derive(Debug, Clone)]
 pub struct TimeDelay {
-    /// Delays scanned [s] (positive: the actuator log is early).
+    /// Delays scanned \[s\] (positive: the actuator log is early).
     pub grid: Vec<f64>,
 }
 
@@ -591,9 +591,9 @@ impl Effect for TimeDelay {
 /// the body origin above the ground plane `z = 0` (clamped to `z ≥ R`).
 #[derive(Debug, Clone, Copy)]
 pub struct GroundEffect {
-    /// Rotor radius `R` [m] (Crazyflie: 0.0225 m).
+    /// Rotor radius `R` \[m\] (Crazyflie: 0.0225 m).
     pub rotor_radius: f64,
-    /// Heights below this are clamped [m] (avoids the singularity at `z = R/4`).
+    /// Heights below this are clamped \[m\] (avoids the singularity at `z = R/4`).
     pub min_height: f64,
 }
 

@@ -47,9 +47,9 @@ pub enum LogError {
     NonIncreasingTime {
         /// CSV line (1-based; the header is line 1).
         line: usize,
-        /// The time on this line [s].
+        /// The time on this line \[s\].
         t: f64,
-        /// The previous sample's time [s].
+        /// The previous sample's time \[s\].
         previous: f64,
     },
     /// The attitude quaternion's norm is far from one.

@@ -49,7 +49,7 @@ impl Model {
         self.with_ref(Arc::new(effect))
     }
 
-    /// Fixes the mass to a known value [kg] (weighed on a scale) instead of fitting it.
+    /// Fixes the mass to a known value \[kg\] (weighed on a scale) instead of fitting it.
     /// Needed to tell a thrust-gain error from a mass error: both scale the whole
     /// regression, so without a known mass a thrust-gain error is unidentifiable.
     pub fn with_known_mass(mut self, mass: f64) -> Self {
@@ -57,7 +57,7 @@ impl Model {
         self
     }
 
-    /// The known mass, if fixed [kg].
+    /// The known mass, if fixed \[kg\].
     pub fn known_mass(&self) -> Option<f64> {
         self.known_mass
     }
@@ -134,10 +134,10 @@ pub struct ChannelFit {
     pub name: String,
     /// Unit.
     pub unit: String,
-    /// MATLAB `compare` fit `100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖)` [%]; `null` for a constant
+    /// MATLAB `compare` fit `100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖)` \[%\]; `null` for a constant
     /// measurement (e.g. a quadrotor's `fx`, always 0), where it is undefined.
     pub fit_percent: Option<f64>,
-    /// Residual RMS [channel unit].
+    /// Residual RMS \[channel unit\].
     pub rms: f64,
 }
 

@@ -31,23 +31,23 @@ pub const OPTIONAL_COLUMNS: [&str; 10] = [
 /// diagnosis does it for you).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FlightLog {
-    /// Time [s], strictly increasing.
+    /// Time \[s\], strictly increasing.
     pub t: Vec<f64>,
-    /// World position of the body origin [m].
+    /// World position of the body origin \[m\].
     pub position: Vec<[f64; 3]>,
-    /// World velocity of the body origin [m/s].
+    /// World velocity of the body origin \[m/s\].
     pub velocity: Vec<[f64; 3]>,
     /// Attitude `(w, x, y, z)`, Hamilton, body → world (CONVENTIONS §2).
     pub attitude: Vec<[f64; 4]>,
-    /// Body angular velocity [rad/s].
+    /// Body angular velocity \[rad/s\].
     pub omega: Vec<[f64; 3]>,
     /// Actuator wrench `[fx, fy, fz, tx, ty, tz]`, body frame, about the origin [N, N m].
     pub wrench: Vec<[f64; 6]>,
-    /// World linear acceleration `p̈` [m/s²]; `None`: derived from the velocity.
+    /// World linear acceleration `p̈` \[m/s²\]; `None`: derived from the velocity.
     pub accel: Option<Vec<[f64; 3]>>,
-    /// Body angular acceleration [rad/s²]; `None`: derived from `omega`.
+    /// Body angular acceleration \[rad/s²\]; `None`: derived from `omega`.
     pub omega_dot: Option<Vec<[f64; 3]>>,
-    /// Rotor speeds `w1..w4` [rad/s], if logged.
+    /// Rotor speeds `w1..w4` \[rad/s\], if logged.
     pub rotor_speeds: Option<Vec<[f64; 4]>>,
     /// Any other columns, by name (kept and offered as signals for custom effects).
     pub extra: Vec<(String, Vec<f64>)>,
@@ -56,23 +56,23 @@ pub struct FlightLog {
 /// One sample, for [`FlightLog::push`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LogSample {
-    /// Time [s].
+    /// Time \[s\].
     pub t: f64,
-    /// World position [m].
+    /// World position \[m\].
     pub position: [f64; 3],
-    /// World velocity [m/s].
+    /// World velocity \[m/s\].
     pub velocity: [f64; 3],
     /// Attitude quaternion `(w, x, y, z)`.
     pub attitude: [f64; 4],
-    /// Body angular velocity [rad/s].
+    /// Body angular velocity \[rad/s\].
     pub omega: [f64; 3],
     /// Actuator wrench `[fx, fy, fz, tx, ty, tz]` [N, N m], body frame.
     pub wrench: [f64; 6],
-    /// World acceleration `p̈` [m/s²], if measured.
+    /// World acceleration `p̈` \[m/s²\], if measured.
     pub accel: Option<[f64; 3]>,
-    /// Body angular acceleration [rad/s²], if measured.
+    /// Body angular acceleration \[rad/s²\], if measured.
     pub omega_dot: Option<[f64; 3]>,
-    /// Rotor speeds [rad/s], if measured.
+    /// Rotor speeds \[rad/s\], if measured.
     pub rotor_speeds: Option<[f64; 4]>,
 }
 

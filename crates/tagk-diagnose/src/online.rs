@@ -23,7 +23,7 @@ pub struct OnlineSummary {
     pub batch_estimate: [f64; 10],
     /// `‖tail_average − batch‖ / ‖batch‖` (relative).
     pub distance_to_batch: f64,
-    /// Mass estimate after each update [kg] (for plots).
+    /// Mass estimate after each update \[kg\] (for plots).
     pub mass_history: Vec<f64>,
 }
 

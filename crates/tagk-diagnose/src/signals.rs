@@ -21,25 +21,25 @@ pub const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
 pub struct Signals {
-    /// Time [s].
+    /// Time \[s\].
     pub t: Vec<f64>,
     /// Rotation body → world.
     pub rotation: Vec<Matrix3<f64>>,
-    /// World position [m].
+    /// World position \[m\].
     pub position: Vec<Vector3<f64>>,
-    /// Body-frame velocity `Rᵀ v` [m/s], from the logged velocity smoothed by a
+    /// Body-frame velocity `Rᵀ v` \[m/s\], from the logged velocity smoothed by a
     /// Savitzky–Golay filter of half-width [`VELOCITY_SMOOTHING_HALF_WIDTH`] (velocity noise
     /// in a regressor column would bias drag coefficients towards zero).
     pub velocity_body: Vec<Vector3<f64>>,
-    /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame [m/s²].
+    /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame \[m/s²\].
     pub accel_proper: Vec<Vector3<f64>>,
-    /// Body angular velocity [rad/s].
+    /// Body angular velocity \[rad/s\].
     pub omega: Vec<Vector3<f64>>,
-    /// Body angular acceleration [rad/s²].
+    /// Body angular acceleration \[rad/s²\].
     pub omega_dot: Vec<Vector3<f64>>,
     /// Measured actuator wrench `[fx, fy, fz, tx, ty, tz]`.
     pub wrench: Vec<[f64; 6]>,
-    /// Rotor speeds [rad/s], if logged.
+    /// Rotor speeds \[rad/s\], if logged.
     pub rotor_speeds: Option<Vec<[f64; 4]>>,
     /// `true` if the accelerations were derived (Savitzky–Golay) rather than logged.
     pub derived_accel: bool,
@@ -114,7 +114,7 @@ impl Signals {
         self.t.is_empty()
     }
 
-    /// Mean sampling period [s].
+    /// Mean sampling period \[s\].
     pub fn mean_dt(&self) -> f64 {
         let n = self.len();
         if n < 2 {

@@ -77,8 +77,10 @@ impl Default for QuadraticDrag {
 /// First-order motor lag: each rotor speed follows its command with
 /// `ω̇ᵢ = (ω_cmd,i − ωᵢ) / τ_m` (brushless or brushed DC motor with propeller load, the usual
 /// first-order model; e.g. Förster 2015 models the Crazyflie motor/propeller response as
-/// first order). The default `τ_m = 0.05 s` lies in the 20–150 ms range reported for
-/// Crazyflie-class coreless motors.
+/// first order). The default `τ_m = 0.02 s` is at the fast end of the tens-of-milliseconds
+/// range of Crazyflie-class coreless motors. The simulator's tracking LQR is designed without
+/// lag: with `τ_m = 0.05 s` it loses stability within a second (a diagnosis tool should find
+/// the lag before that happens).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MotorLag {
     /// Time constant `τ_m` [s].
@@ -86,10 +88,10 @@ pub struct MotorLag {
 }
 
 impl MotorLag {
-    /// `τ_m = 0.05 s`.
+    /// `τ_m = 0.02 s`.
     pub fn crazyflie() -> Self {
         Self {
-            time_constant: 0.05,
+            time_constant: 0.02,
         }
     }
 }

@@ -504,8 +504,6 @@ fn simulate_command_writes_a_log_from_flags() {
         "0.005,0,0",
         "--attach",
         "1",
-        "--estimator",
-        "tagk",
         "--output",
         path.to_str().unwrap(),
     ])

@@ -33,10 +33,14 @@ pub fn all_filters(n: usize, m_max: usize) -> Vec<Box<dyn Filter>> {
             RlsConfig::HIGH,
             RlsConfig::HIGH.with_windup_guard(WindupGuard::MaxTrace(10.0)),
         ] {
-            out.push(Box::new(Rls::new(n, m_max, cfg.with_backend(backend)).unwrap()));
+            out.push(Box::new(
+                Rls::new(n, m_max, cfg.with_backend(backend)).unwrap(),
+            ));
         }
         for cfg in [KalmanConfig::LOW, KalmanConfig::HIGH] {
-            out.push(Box::new(KalmanFilter::new(n, m_max, cfg.with_backend(backend)).unwrap()));
+            out.push(Box::new(
+                KalmanFilter::new(n, m_max, cfg.with_backend(backend)).unwrap(),
+            ));
         }
     }
     out

@@ -45,7 +45,11 @@ pub fn windows(
 ) -> Vec<Window> {
     (0..count)
         .map(|_| {
-            let m = if fixed_rows { m_max } else { rng.random_range(1..=m_max) };
+            let m = if fixed_rows {
+                m_max
+            } else {
+                rng.random_range(1..=m_max)
+            };
             let a = random_vec(rng, m * n, 1.0);
             let b = a
                 .chunks(n)
@@ -81,7 +85,10 @@ pub fn weighted_batch_ls(
         h += a.transpose() * &a * weight;
         g += a.transpose() * b * weight;
     }
-    let chol = h.clone().cholesky().expect("the normal matrix is positive definite");
+    let chol = h
+        .clone()
+        .cholesky()
+        .expect("the normal matrix is positive definite");
     let theta = chol.solve(&g);
     (theta.as_slice().to_vec(), chol.inverse())
 }
@@ -158,14 +165,21 @@ pub fn best_conditioned_step(
 /// `max |x − y|`.
 pub fn max_abs_diff(x: &[f64], y: &[f64]) -> f64 {
     assert_eq!(x.len(), y.len());
-    x.iter().zip(y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+    x.iter()
+        .zip(y)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
 }
 
 /// `max |x − y| / max(1, max |y|)`.
 pub fn rel_err(x: &[f64], y: &[f64]) -> f64 {
     assert_eq!(x.len(), y.len());
     let scale = y.iter().fold(1.0f64, |s, v| s.max(v.abs()));
-    x.iter().zip(y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max) / scale
+    x.iter()
+        .zip(y)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+        / scale
 }
 
 /// The two concrete backends.
@@ -210,7 +224,9 @@ impl InformationKf {
         let p_pred = &self.p + DMatrix::identity(n, n) * self.q;
         let info = p_pred.cholesky().expect("P⁻ positive definite").inverse()
             + h.transpose() * &h / self.r;
-        let chol = info.cholesky().expect("information matrix positive definite");
+        let chol = info
+            .cholesky()
+            .expect("information matrix positive definite");
         let innovation = z - &h * &self.theta;
         self.theta = &self.theta + chol.solve(&(h.transpose() * innovation / self.r));
         self.p = chol.inverse();
