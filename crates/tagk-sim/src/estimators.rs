@@ -95,6 +95,12 @@ pub struct EstimatorSpec {
     /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(3k)` (the force rows' share of accelerometer noise,
     /// `k` frames; see [`noise_floor`]). `0` (the default) never stops early.
     pub noise_tolerance: f64,
+    /// Feed only the actuated rows (`f_z`, `τ`) of each frame: the lateral force rows, whose
+    /// measurement is identically zero for a quadrotor (`b_x = b_y = 0`) and whose regressor
+    /// `[a_x, (S(ω̇) + S(ω)²)_x, 0]` is nearly zero in smooth flight, are zeroed (estimators
+    /// skip zero rows). Kaczmarz projects onto each chosen row exactly, so these weak rows turn
+    /// accelerometer noise into first-moment errors with gain `m / ‖ω̇‖`; see the README.
+    pub actuated_rows_only: bool,
 }
 
 /// Expected norm of the residual `b − A θ` at the true `θ` caused by accelerometer noise of
@@ -125,7 +131,14 @@ impl EstimatorSpec {
             early_tagk: false,
             scaled: false,
             noise_tolerance: 0.0,
+            actuated_rows_only: false,
         }
+    }
+
+    /// Feeds only the actuated rows ([`EstimatorSpec::actuated_rows_only`]).
+    pub fn with_actuated_rows_only(mut self) -> Self {
+        self.actuated_rows_only = true;
+        self
     }
 
     /// Sets the noise-aware stopping multiple ([`EstimatorSpec::noise_tolerance`]).
@@ -161,11 +174,18 @@ impl EstimatorSpec {
         {
             s.push_str(&format!(" (t_b={:.2}T)", self.burn_in));
         }
+        let mut options = Vec::new();
         if self.scaled {
-            s.push_str(" (scaled)");
+            options.push("scaled".to_string());
         }
         if self.noise_tolerance > 0.0 && self.kind.is_kaczmarz() {
-            s.push_str(&format!(" (tol {}σ)", self.noise_tolerance));
+            options.push(format!("tol {}σ", self.noise_tolerance));
+        }
+        if self.actuated_rows_only {
+            options.push("fz+τ rows".to_string());
+        }
+        if !options.is_empty() {
+            s.push_str(&format!(" ({})", options.join(", ")));
         }
         if self.early_tagk {
             s.push_str(" +TAG-K");

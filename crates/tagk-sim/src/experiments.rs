@@ -55,12 +55,18 @@ impl CommonArgs {
     }
 }
 
-/// The TAG-K variant this crate recommends: column-equilibrated windows and noise-aware
-/// stopping at 3σ (see the README's study).
+/// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware
+/// stopping at 3σ and only the actuated rows (see the README's study).
 pub fn tagk_tuned() -> EstimatorSpec {
-    EstimatorSpec::new(EstimatorKind::TagK)
+    tuned(EstimatorKind::TagK)
+}
+
+/// [`tagk_tuned`]'s options applied to any estimator kind.
+pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
+    EstimatorSpec::new(kind)
         .with_scaling()
         .with_noise_tolerance(3.0)
+        .with_actuated_rows_only()
 }
 
 /// Table II's estimators: the paper's five, plus [`tagk_tuned`].
@@ -435,11 +441,7 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
     let dir = c.out_dir("kaczmarz_ablation")?;
     let form = |k: EstimatorKind| {
         let s = EstimatorSpec::new(k);
-        if args.paper_form {
-            s
-        } else {
-            s.with_scaling().with_noise_tolerance(3.0)
-        }
+        if args.paper_form { s } else { tuned(k) }
     };
     let mut estimators: Vec<EstimatorSpec> =
         EstimatorKind::KACZMARZ.iter().map(|k| form(*k)).collect();

@@ -98,7 +98,9 @@ fn bounds(series: &[Series], log_y: bool) -> (f64, f64, f64, f64) {
         x1 = x0 + 1.0;
     }
     if log_y {
-        (x0, x1, y0 / 1.5, y1 * 1.5)
+        // At most six decades: exact values (an estimate equal to the prior) would
+        // otherwise squash every curve against the top.
+        (x0, x1, (y0 / 1.5).max(y1 * 1e-6), y1 * 1.5)
     } else {
         let pad = 0.05 * (y1 - y0).max(1e-12);
         (x0, x1, (y0 - pad).min(0.0_f64.max(y0 - pad)), y1 + pad)
@@ -144,6 +146,7 @@ where
                     .iter()
                     .copied()
                     .filter(|(x, y)| x.is_finite() && y.is_finite() && (!chart.log_y || *y > 0.0))
+                    .map(|(x, y)| (x, y.clamp(y0, y1)))
                     .collect();
                 ctx.draw_series(LineSeries::new(pts, c.stroke_width(2)))
                     .map_err(perr)?

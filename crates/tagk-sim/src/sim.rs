@@ -698,6 +698,8 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
         }
         _ => [1.0; 10],
     };
+    let drop_lateral =
+        matches!(&config.adaptation, Adaptation::Estimator(spec) if spec.actuated_rows_only);
     let prior: Vec<f64> = nominal
         .as_slice()
         .iter()
@@ -852,6 +854,15 @@ pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
         for row in a_buf[..rows * N_PARAMS].chunks_exact_mut(N_PARAMS) {
             for (x, d) in row.iter_mut().zip(&scales) {
                 *x *= d;
+            }
+        }
+        if drop_lateral {
+            // Rows 0 and 1 of every frame: the lateral forces, whose measurement is always 0.
+            for r in 0..rows {
+                if r % 6 < 2 {
+                    a_buf[r * N_PARAMS..(r + 1) * N_PARAMS].fill(0.0);
+                    b_buf[r] = 0.0;
+                }
             }
         }
         let (a, b) = (&a_buf[..rows * N_PARAMS], &b_buf[..rows]);

@@ -521,3 +521,26 @@ fn simulate_command_writes_a_log_from_flags() {
         Err(SimError::InvalidDuration { .. })
     ));
 }
+
+#[test]
+fn tuned_tagk_identifies_the_payload_in_closed_loop() {
+    let cfg = SimConfig {
+        seed: 5,
+        adaptation: Adaptation::Estimator(experiments::tagk_tuned()),
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    assert!(out.metrics.success && !out.metrics.aborted);
+    assert_eq!(out.events.len(), 2);
+    // Just before the removal the estimate carries the payload's mass to within 2 %.
+    let before_removal = out
+        .updates
+        .iter()
+        .rev()
+        .find(|u| u.time < out.events[1].time)
+        .unwrap();
+    let m_true = before_removal.truth[0];
+    assert!(m_true > 0.035 * 1.29);
+    assert!((before_removal.estimate[0] - m_true).abs() < 0.02 * m_true);
+    assert!(out.updates.iter().filter(|u| u.accepted).count() > 40);
+}
