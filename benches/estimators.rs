@@ -11,8 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use tagk::baselines::{KalmanFilter, Rls};
 use tagk::core::{
-    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK,
-    TailAveragedKaczmarz,
+    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
 };
 
 const M: usize = 30;

@@ -16,8 +16,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use tagk::baselines::{KalmanFilter, Rls};
 use tagk::core::{
-    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK,
-    TailAveragedKaczmarz,
+    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
 };
 use tagk::dynamics::nalgebra::Vector3;
 use tagk::dynamics::{InertialParams, QuadrotorModel, write_rigid_body_regressor};
@@ -37,7 +36,10 @@ fn arg(name: &str, default: u64) -> u64 {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1))
-        .map(|v| v.parse().unwrap_or_else(|_| panic!("{name} takes a whole number")))
+        .map(|v| {
+            v.parse()
+                .unwrap_or_else(|_| panic!("{name} takes a whole number"))
+        })
         .unwrap_or(default)
 }
 
@@ -57,7 +59,11 @@ fn main() {
     let (sigma_f, sigma_t) = (5e-4, 5e-6); // N, N m: a good force/torque sensor
     let mut stream = Vec::with_capacity(windows);
     for w in 0..windows {
-        let truth: InertialParams = if (attach..drop).contains(&w) { loaded } else { nominal };
+        let truth: InertialParams = if (attach..drop).contains(&w) {
+            loaded
+        } else {
+            nominal
+        };
         let mut a = vec![0.0; ROWS * N];
         let mut b = vec![0.0; ROWS];
         for f in 0..FRAMES {
@@ -95,10 +101,19 @@ fn main() {
         payload_at.y * 1e3,
         payload_at.z * 1e3,
     );
-    println!("Errors are ‖θ̂ − θ‖₂ in SI units (dominated by the mass, kg); times are per update.\n");
+    println!(
+        "Errors are ‖θ̂ − θ‖₂ in SI units (dominated by the mass, kg); times are per update.\n"
+    );
     println!(
         "{:<9} {:>11} {:>12} {:>12} {:>12} {:>12} {:>10} {:>10}",
-        "estimator", "mean error", "before pick", "(t+1) pick", "(t+1) drop", "final", "median µs", "p95 µs"
+        "estimator",
+        "mean error",
+        "before pick",
+        "(t+1) pick",
+        "(t+1) drop",
+        "final",
+        "median µs",
+        "p95 µs"
     );
     for est in &mut estimators {
         est.reset(nominal.as_slice()).expect("10 finite values");
