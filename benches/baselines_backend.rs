@@ -7,31 +7,17 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use rand_chacha::ChaCha8Rng;
-use rand_chacha::rand_core::SeedableRng;
 use tagk::baselines::{Backend, KalmanConfig, KalmanFilter, Rls, RlsConfig};
 use tagk::core::OnlineEstimator;
+use tagk::mcu::SyntheticWindows;
 
 const M: usize = 30;
 const STREAM: usize = 64;
 
+/// The Table III stream of the microcontroller harness (`θ, A ~ U[−1, 1]`,
+/// `b = Aθ + 10⁻³·U[−1, 1]`), so host and firmware time the same windows.
 fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
-    use rand::RngExt;
-    let mut rng = ChaCha8Rng::seed_from_u64(2024 + n as u64);
-    let theta: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
-    (0..STREAM)
-        .map(|_| {
-            let a: Vec<f64> = (0..M * n).map(|_| rng.random_range(-1.0..1.0)).collect();
-            let b = a
-                .chunks(n)
-                .map(|row| {
-                    row.iter().zip(&theta).map(|(x, t)| x * t).sum::<f64>()
-                        + 1e-3 * rng.random_range(-1.0..1.0)
-                })
-                .collect();
-            (a, b)
-        })
-        .collect()
+    SyntheticWindows::for_table(n, M).take_windows(STREAM)
 }
 
 fn bench(c: &mut Criterion) {

@@ -192,6 +192,24 @@ impl SyntheticWindows {
         }
     }
 
+    /// The next `count` windows as owned `(A, b)` pairs (`A` row-major `m × n`): the workload of
+    /// the host benchmarks and of the `dimension_sweep` experiment, so that they time the same
+    /// windows as the microcontroller harness.
+    #[cfg(feature = "std")]
+    pub fn take_windows(
+        &mut self,
+        count: usize,
+    ) -> std::vec::Vec<(std::vec::Vec<f64>, std::vec::Vec<f64>)> {
+        (0..count)
+            .map(|_| {
+                let mut a = std::vec![0.0; self.m * self.n];
+                let mut b = std::vec![0.0; self.m];
+                self.next_window(&mut a, &mut b);
+                (a, b)
+            })
+            .collect()
+    }
+
     /// Draws the next window into `a` (`m n` values, row-major) and `b` (`m` values).
     /// Extra entries are left alone; shorter slices receive a prefix of the window.
     pub fn next_window<T: Real>(&mut self, a: &mut [T], b: &mut [T]) {

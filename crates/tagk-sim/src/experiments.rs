@@ -562,26 +562,6 @@ pub struct TimingRow {
     pub p95_us: f64,
 }
 
-/// Synthetic windows as in the root `estimators` bench: `θ, A ~ U[−1, 1]`, `b = Aθ + 1e-3·U[−1, 1]`.
-fn synthetic_windows(n: usize, m: usize, count: usize, seed: u64) -> Vec<(Vec<f64>, Vec<f64>)> {
-    use rand::RngExt;
-    let mut rng = crate::sim::sub_rng(seed, n as u64);
-    let theta: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
-    (0..count)
-        .map(|_| {
-            let a: Vec<f64> = (0..m * n).map(|_| rng.random_range(-1.0..1.0)).collect();
-            let b = a
-                .chunks(n)
-                .map(|row| {
-                    row.iter().zip(&theta).map(|(x, t)| x * t).sum::<f64>()
-                        + 1e-3 * rng.random_range(-1.0..1.0)
-                })
-                .collect();
-            (a, b)
-        })
-        .collect()
-}
-
 fn build_n(
     kind: EstimatorKind,
     n: usize,
@@ -622,7 +602,7 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
     ];
     let mut rows = Vec::new();
     for n in [40, 60, 80, 100, 120] {
-        let stream = synthetic_windows(n, m, 64, args.seed);
+        let stream = tagk_mcu::SyntheticWindows::for_table(n, m).take_windows(64);
         for kind in kinds {
             let mut est = build_n(kind, n, m)?;
             let mut times = crate::metrics::UpdateTimes::new();
