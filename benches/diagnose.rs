@@ -6,9 +6,10 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use tagk::diagnose::{DiagnoseOptions, FlightLog, LogSample, Model, Signals, diagnose};
+use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, diagnose};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
+    write_log_csv,
 };
 
 fn ten_minute_log() -> FlightLog {
@@ -25,21 +26,10 @@ fn ten_minute_log() -> FlightLog {
         ..SimConfig::default()
     };
     let out = simulate(&config).expect("simulation runs");
-    let mut log = FlightLog::new();
-    for s in &out.log {
-        log.push(&LogSample {
-            t: s.t,
-            position: s.position,
-            velocity: s.velocity,
-            attitude: s.attitude,
-            omega: s.body_rate,
-            wrench: s.wrench,
-            accel: Some(s.accel_world),
-            omega_dot: Some(s.omega_dot),
-            rotor_speeds: Some(s.rotor_speeds),
-        });
-    }
-    log
+    // Through the CONVENTIONS §6 log format, as a user's own data would arrive.
+    let mut csv = Vec::new();
+    write_log_csv(&out.log, &mut csv).expect("in-memory log");
+    FlightLog::from_csv_reader(csv.as_slice()).expect("a valid log")
 }
 
 fn bench(c: &mut Criterion) {

@@ -11,10 +11,11 @@
 
 use tagk::diagnose::report::{diagnosis_table, report_table};
 use tagk::diagnose::{
-    DiagnoseOptions, FlightLog, LogSample, Model, Signals, builtin_by_name, diagnose, run_loop,
+    DiagnoseOptions, FlightLog, Model, Signals, builtin_by_name, diagnose, run_loop,
 };
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
+    write_log_csv,
 };
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -33,20 +34,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..SimConfig::default()
     };
     let flight = simulate(&config)?;
-    let mut log = FlightLog::new();
-    for s in &flight.log {
-        log.push(&LogSample {
-            t: s.t,
-            position: s.position,
-            velocity: s.velocity,
-            attitude: s.attitude,
-            omega: s.body_rate,
-            wrench: s.wrench,
-            accel: Some(s.accel_world),
-            omega_dot: Some(s.omega_dot),
-            rotor_speeds: Some(s.rotor_speeds),
-        });
-    }
+    // The simulator hands its samples over as a user's data would arrive: a CONVENTIONS §6 log.
+    let mut csv = Vec::new();
+    write_log_csv(&flight.log, &mut csv)?;
+    let log = FlightLog::from_csv_reader(csv.as_slice())?;
     println!(
         "simulated {} samples with a hidden effect (which one? let the tool tell)\n",
         log.len()
@@ -73,7 +64,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(dir) = out_dir {
         let dir = std::path::PathBuf::from(dir);
         std::fs::create_dir_all(&dir)?;
-        log.write_csv(std::fs::File::create(dir.join("flight.csv"))?)?;
+        std::fs::write(dir.join("flight.csv"), &csv)?;
         std::fs::write(dir.join("diagnosis.json"), report.to_json()?)?;
         let html = tagk::diagnose::html::write_report(&report, &dir.join("report"))?;
         println!(
