@@ -14,9 +14,7 @@
 //! ```
 
 use tagk::diagnose::report::{diagnosis_table, report_table};
-use tagk::diagnose::{
-    DiagnoseOptions, FlightLog, Model, Signals, builtin_by_name, diagnose, run_loop,
-};
+use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
 use tagk::sim::clap::{self, Parser};
 use tagk::sim::experiments::{CommonArgs, NoiseSweepArgs, run_noise_sweep};
 use tagk::sim::{
@@ -77,18 +75,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let signals = Signals::from_log(&log)?;
     let opts = DiagnoseOptions::default();
-    let first = diagnose(&Model::rigid_body(), &signals, &opts)?;
-    println!("{}", diagnosis_table(&first));
-    let Some(missing) = first.recommended.clone() else {
+    let report = add_recommended(&signals, &Model::rigid_body(), &opts)?;
+    println!("{}", diagnosis_table(&report.before));
+    let Some(missing) = report.with.first().cloned() else {
         println!("the model is adequate: nothing to add");
         return Ok(());
     };
-    let report = run_loop(
-        &signals,
-        &Model::rigid_body(),
-        &[builtin_by_name(&missing)?],
-        &opts,
-    )?;
     println!("{}", report_table(&report));
     let html = tagk::diagnose::html::write_report(&report, &args.out.join("report"))?;
     println!(

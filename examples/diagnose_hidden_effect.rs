@@ -10,9 +10,7 @@
 //! it also writes the CSV log, the JSON and the HTML report there).
 
 use tagk::diagnose::report::{diagnosis_table, report_table};
-use tagk::diagnose::{
-    DiagnoseOptions, FlightLog, Model, Signals, builtin_by_name, diagnose, run_loop,
-};
+use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
     write_log_csv,
@@ -43,23 +41,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         log.len()
     );
 
-    // 2 + 3. Compare, where it fails, what is missing.
+    // 2 + 3. Compare, where it fails, what is missing; 4. add the recommended effect and watch
+    // the error fall (the ranking is recomputed for the new model).
     let signals = Signals::from_log(&log)?;
     let opts = DiagnoseOptions::default();
-    let first = diagnose(&Model::rigid_body(), &signals, &opts)?;
-    println!("{}", diagnosis_table(&first));
-
-    // 4. Add it and watch the error fall (the ranking is recomputed for the new model).
-    let Some(missing) = first.recommended.clone() else {
+    let report = add_recommended(&signals, &Model::rigid_body(), &opts)?;
+    println!("{}", diagnosis_table(&report.before));
+    if report.after.is_none() {
         println!("the model is adequate: nothing to add");
         return Ok(());
-    };
-    let report = run_loop(
-        &signals,
-        &Model::rigid_body(),
-        &[builtin_by_name(&missing)?],
-        &opts,
-    )?;
+    }
     println!("{}", report_table(&report));
     if let Some(dir) = out_dir {
         let dir = std::path::PathBuf::from(dir);

@@ -25,7 +25,7 @@ pub use effects::{
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, fit_model};
 pub use log::{FlightLog, LogSample};
-pub use report::{Report, run_loop};
+pub use report::{Report, add_recommended, run_loop};
 pub use signals::Signals;
 
 #[cfg(test)]

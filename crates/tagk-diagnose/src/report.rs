@@ -107,6 +107,36 @@ pub fn run_loop(
     opts: &DiagnoseOptions,
 ) -> Result<Report, DiagnoseError> {
     let before = diagnose(base, s, opts)?;
+    loop_from(before, s, base, with, opts)
+}
+
+/// The whole loop in one call: diagnose `base`; if an effect is recommended, add it and
+/// diagnose again (the ranking is recomputed for the new model, so a second missing effect
+/// shows up in `report.recommended`). `report.after` is `None` when `base` was adequate.
+///
+/// # Errors
+/// As [`diagnose`].
+pub fn add_recommended(
+    s: &Signals,
+    base: &Model,
+    opts: &DiagnoseOptions,
+) -> Result<Report, DiagnoseError> {
+    let before = diagnose(base, s, opts)?;
+    let with = match &before.recommended {
+        Some(name) => vec![crate::effects::builtin_by_name(name)?],
+        None => Vec::new(),
+    };
+    loop_from(before, s, base, &with, opts)
+}
+
+/// [`run_loop`] from an existing diagnosis of `base`.
+fn loop_from(
+    before: Diagnosis,
+    s: &Signals,
+    base: &Model,
+    with: &[EffectRef],
+    opts: &DiagnoseOptions,
+) -> Result<Report, DiagnoseError> {
     let (after, change) = if with.is_empty() {
         (None, None)
     } else {

@@ -190,3 +190,22 @@ fn clean_logs_with_known_mass_raise_no_false_alarm() {
     }
     assert!(alarms.len() <= 1, "false alarms: {alarms:?}");
 }
+
+/// `add_recommended` runs the whole loop in one call: on a log with hidden quadratic drag it
+/// adds exactly the recommended effect and the residual falls; on a clean log it adds nothing.
+#[test]
+fn add_recommended_adds_the_recommendation_and_only_it() {
+    let opts = DiagnoseOptions::default();
+    let s = Signals::from_log(&common::sim_log(Some(EffectKind::QuadraticDrag), 7)).unwrap();
+    let first = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
+    let report = tagk_diagnose::add_recommended(&s, &Model::rigid_body(), &opts).unwrap();
+    let recommended = first.recommended.expect("the hidden drag is found");
+    assert_eq!(report.with, vec![recommended]);
+    let after = report.after.as_ref().expect("an effect was added");
+    let rms = |d: &tagk_diagnose::Diagnosis| d.channels.iter().map(|c| c.rms).sum::<f64>();
+    assert!(rms(after) < 0.5 * rms(&report.before));
+
+    let clean = Signals::from_log(&common::sim_log(None, 7)).unwrap();
+    let report = tagk_diagnose::add_recommended(&clean, &Model::rigid_body(), &opts).unwrap();
+    assert!(report.with.is_empty() && report.after.is_none());
+}
