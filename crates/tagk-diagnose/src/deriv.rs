@@ -23,44 +23,10 @@ pub fn savitzky_golay_derivative(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
     if n < 3 {
         return out;
     }
-    let h = h.max(1);
-    for i in 0..n {
-        let lo = i.saturating_sub(h);
-        let hi = (i + h).min(n - 1);
-        // Ensure at least 3 points.
-        let (lo, hi) = if hi - lo < 2 {
-            if lo == 0 {
-                (0, 2.min(n - 1))
-            } else {
-                (n - 3, n - 1)
-            }
-        } else {
-            (lo, hi)
-        };
-        // Scale time for conditioning.
-        let scale = (t[hi] - t[lo]).max(f64::MIN_POSITIVE);
-        let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut y0, mut y1, mut y2) = (0.0, 0.0, 0.0);
-        for k in lo..=hi {
-            let s = (t[k] - t[i]) / scale;
-            let s_2 = s * s;
-            s0 += 1.0;
-            s1 += s;
-            s2 += s_2;
-            s3 += s_2 * s;
-            s4 += s_2 * s_2;
-            y0 += x[k];
-            y1 += x[k] * s;
-            y2 += x[k] * s_2;
+    for (i, o) in out.iter_mut().enumerate() {
+        if let Some((_, slope)) = local_quadratic(&t[..n], &x[..n], h, i) {
+            *o = slope;
         }
-        // Normal equations [[s0 s1 s2][s1 s2 s3][s2 s3 s4]] c = y; Cramer's rule for c1.
-        let m = nalgebra::Matrix3::new(s0, s1, s2, s1, s2, s3, s2, s3, s4);
-        let det = m.determinant();
-        if det.abs() < 1e-300 {
-            continue;
-        }
-        let m1 = nalgebra::Matrix3::new(s0, y0, s2, s1, y1, s3, s2, y2, s4);
-        out[i] = m1.determinant() / det / scale;
     }
     out
 }
@@ -74,43 +40,56 @@ pub fn savitzky_golay_smooth(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
     if n < 3 {
         return out;
     }
-    let h = h.max(1);
     for (i, o) in out.iter_mut().enumerate() {
-        let lo = i.saturating_sub(h);
-        let hi = (i + h).min(n - 1);
-        let (lo, hi) = if hi - lo < 2 {
-            if lo == 0 {
-                (0, 2.min(n - 1))
-            } else {
-                (n - 3, n - 1)
-            }
-        } else {
-            (lo, hi)
-        };
-        let scale = (t[hi] - t[lo]).max(f64::MIN_POSITIVE);
-        let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut y0, mut y1, mut y2) = (0.0, 0.0, 0.0);
-        for k in lo..=hi {
-            let s = (t[k] - t[i]) / scale;
-            let s_2 = s * s;
-            s0 += 1.0;
-            s1 += s;
-            s2 += s_2;
-            s3 += s_2 * s;
-            s4 += s_2 * s_2;
-            y0 += x[k];
-            y1 += x[k] * s;
-            y2 += x[k] * s_2;
+        if let Some((value, _)) = local_quadratic(&t[..n], &x[..n], h, i) {
+            *o = value;
         }
-        let m = nalgebra::Matrix3::new(s0, s1, s2, s1, s2, s3, s2, s3, s4);
-        let det = m.determinant();
-        if det.abs() < 1e-300 {
-            continue;
-        }
-        let m0 = nalgebra::Matrix3::new(y0, s1, s2, y1, s2, s3, y2, s3, s4);
-        *o = m0.determinant() / det;
     }
     out
+}
+
+/// The least-squares quadratic `c₀ + c₁ s + c₂ s²`, `s = t − tᵢ`, through the samples within
+/// `h` of sample `i` (at least 3: the window shifts inward at the ends of the log), returned as
+/// `(c₀, c₁)`: the smoothed value and the derivative at `tᵢ`. `None` if the window is
+/// degenerate. Needs `t.len() == x.len() ≥ 3`.
+fn local_quadratic(t: &[f64], x: &[f64], h: usize, i: usize) -> Option<(f64, f64)> {
+    let n = t.len();
+    let h = h.max(1);
+    let lo = i.saturating_sub(h);
+    let hi = (i + h).min(n - 1);
+    let (lo, hi) = if hi - lo < 2 {
+        if lo == 0 {
+            (0, 2.min(n - 1))
+        } else {
+            (n - 3, n - 1)
+        }
+    } else {
+        (lo, hi)
+    };
+    // Scaled time for conditioning.
+    let scale = (t[hi] - t[lo]).max(f64::MIN_POSITIVE);
+    let (mut s0, mut s1, mut s2, mut s3, mut s4) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut y0, mut y1, mut y2) = (0.0, 0.0, 0.0);
+    for k in lo..=hi {
+        let s = (t[k] - t[i]) / scale;
+        let s_2 = s * s;
+        s0 += 1.0;
+        s1 += s;
+        s2 += s_2;
+        s3 += s_2 * s;
+        s4 += s_2 * s_2;
+        y0 += x[k];
+        y1 += x[k] * s;
+        y2 += x[k] * s_2;
+    }
+    // Normal equations [[s0 s1 s2][s1 s2 s3][s2 s3 s4]] c = y, by Cramer's rule.
+    let det = nalgebra::Matrix3::new(s0, s1, s2, s1, s2, s3, s2, s3, s4).determinant();
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let c0 = nalgebra::Matrix3::new(y0, s1, s2, y1, s2, s3, y2, s3, s4).determinant() / det;
+    let c1 = nalgebra::Matrix3::new(s0, y0, s2, s1, y1, s3, s2, y2, s4).determinant() / det;
+    Some((c0, c1 / scale))
 }
 
 /// Applies [`savitzky_golay_derivative`] to each component of a 3-vector signal.

@@ -79,6 +79,57 @@ pub fn table_ii_estimators() -> Vec<EstimatorSpec> {
     v
 }
 
+/// Payload attach and removal times of the error-over-time experiments [s].
+const EVENTS: [f64; 2] = [5.0, 13.0];
+
+/// A sweep at one noise level with the payload attached and removed at [`EVENTS`] and the
+/// mean parameter-error curve captured (Fig. 3 and Fig. 4b).
+fn error_curve_sweep(estimators: Vec<EstimatorSpec>, c: &CommonArgs, noise: NoiseLevel) -> Sweep {
+    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(100), c.seed);
+    sweep.noise_levels = vec![noise];
+    sweep.base.payload = PayloadSchedule::ProtocolAt {
+        attach: EVENTS[0],
+        remove: EVENTS[1],
+    };
+    sweep.capture = Capture {
+        traces: 0,
+        error_curve: true,
+    };
+    sweep.progress = !c.quiet;
+    sweep
+}
+
+/// Plots the mean parameter error over time of `cells` (control step `dt` [s]) with the
+/// payload events marked, as `parameter_error_time.{png,svg}` in `dir`.
+fn parameter_error_chart<'a>(
+    dir: &Path,
+    title: String,
+    cells: impl Iterator<Item = &'a crate::CellSummary>,
+    dt: f64,
+) -> Result<(), SimError> {
+    line_chart(
+        &dir.join("parameter_error_time"),
+        &LineChart {
+            title,
+            x_label: "time [s]".into(),
+            y_label: "|theta_hat - theta|".into(),
+            log_y: true,
+            series: cells
+                .map(|c| Series {
+                    label: c.label.clone(),
+                    points: c
+                        .error_curve
+                        .iter()
+                        .enumerate()
+                        .map(|(i, e)| (i as f64 * dt, *e))
+                        .collect(),
+                })
+                .collect(),
+            markers: EVENTS.to_vec(),
+        },
+    )
+}
+
 /// Arguments of `noise_sweep` (Table II).
 #[derive(Debug, Clone, clap::Parser)]
 #[command(about = "Table II: every estimator x 4 noise levels, closed-loop Monte Carlo")]
@@ -248,8 +299,8 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
             noise: args.noise,
             adaptation: Adaptation::Estimator(*spec),
             payload: PayloadSchedule::ProtocolAt {
-                attach: 5.0,
-                remove: 13.0,
+                attach: EVENTS[0],
+                remove: EVENTS[1],
             },
             record_trace: true,
             ..SimConfig::default()
@@ -303,47 +354,19 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
         &paths,
     )?;
     // (b), (c) Averaged over trials.
-    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(100), c.seed);
-    sweep.noise_levels = vec![args.noise];
+    let mut sweep = error_curve_sweep(estimators, c, args.noise);
     sweep.trajectory = Some(TrajectoryKind::Figure8);
-    sweep.base.payload = PayloadSchedule::ProtocolAt {
-        attach: 5.0,
-        remove: 13.0,
-    };
-    sweep.capture = Capture {
-        traces: 0,
-        error_curve: true,
-    };
-    sweep.progress = !c.quiet;
     let result = c.run_sweep(&sweep)?;
     print!("{}", result.table());
     write_common(&result, &dir)?;
-    let dt = sweep.base.control_dt;
-    line_chart(
-        &dir.join("parameter_error_time"),
-        &LineChart {
-            title: format!(
-                "Parameter error over time (mean of {} trials)",
-                result.trials
-            ),
-            x_label: "time [s]".into(),
-            y_label: "|theta_hat - theta|".into(),
-            log_y: true,
-            series: result
-                .cells
-                .iter()
-                .map(|c| Series {
-                    label: c.label.clone(),
-                    points: c
-                        .error_curve
-                        .iter()
-                        .enumerate()
-                        .map(|(i, e)| (i as f64 * dt, *e))
-                        .collect(),
-                })
-                .collect(),
-            markers: vec![5.0, 13.0],
-        },
+    parameter_error_chart(
+        &dir,
+        format!(
+            "Parameter error over time (mean of {} trials)",
+            result.trials
+        ),
+        result.cells.iter(),
+        sweep.base.control_dt,
     )?;
     line_chart(
         &dir.join("position_error_cdf"),
@@ -448,47 +471,18 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
     for b in [0.0, 0.25, 0.75, 0.9] {
         estimators.push(form(EstimatorKind::TagK).with_burn_in(b));
     }
-    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(100), c.seed);
-    sweep.noise_levels = vec![args.noise];
-    sweep.base.payload = PayloadSchedule::ProtocolAt {
-        attach: 5.0,
-        remove: 13.0,
-    };
-    sweep.capture = Capture {
-        traces: 0,
-        error_curve: true,
-    };
-    sweep.progress = !c.quiet;
+    let sweep = error_curve_sweep(estimators, c, args.noise);
     let result = c.run_sweep(&sweep)?;
     print!("{}", result.table());
     write_common(&result, &dir)?;
-    let dt = sweep.base.control_dt;
-    line_chart(
-        &dir.join("parameter_error_time"),
-        &LineChart {
-            title: format!(
-                "Kaczmarz variants across payload events ({} trials)",
-                result.trials
-            ),
-            x_label: "time [s]".into(),
-            y_label: "|theta_hat - theta|".into(),
-            log_y: true,
-            series: result
-                .cells
-                .iter()
-                .take(4)
-                .map(|c| Series {
-                    label: c.label.clone(),
-                    points: c
-                        .error_curve
-                        .iter()
-                        .enumerate()
-                        .map(|(i, e)| (i as f64 * dt, *e))
-                        .collect(),
-                })
-                .collect(),
-            markers: vec![5.0, 13.0],
-        },
+    parameter_error_chart(
+        &dir,
+        format!(
+            "Kaczmarz variants across payload events ({} trials)",
+            result.trials
+        ),
+        result.cells.iter().take(4),
+        sweep.base.control_dt,
     )?;
     let burn: Vec<(f64, &crate::CellSummary)> = result
         .cells
