@@ -4,21 +4,12 @@
 //! Same synthetic windows as the `estimators` bench (entries U[−1, 1], consistent plus 1e-3
 //! noise, fixed seed), `m = 30`. The figures decide `tagk_baselines::Backend::Auto`.
 
-use std::hint::black_box;
+mod common;
 
+use common::{M, bench_updates, windows};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use tagk::baselines::{Backend, KalmanConfig, KalmanFilter, Rls, RlsConfig};
 use tagk::core::OnlineEstimator;
-use tagk::mcu::SyntheticWindows;
-
-const M: usize = 30;
-const STREAM: usize = 64;
-
-/// The Table III stream of the microcontroller harness (`θ, A ~ U[−1, 1]`,
-/// `b = Aθ + 10⁻³·U[−1, 1]`), so host and firmware time the same windows.
-fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
-    SyntheticWindows::for_table(n, M).take_windows(STREAM)
-}
 
 fn bench(c: &mut Criterion) {
     let sizes: Vec<usize> = std::env::var("TAGK_BACKEND_SIZES")
@@ -42,14 +33,12 @@ fn bench(c: &mut Criterion) {
                 ),
             ];
             for (label, mut est) in ests {
-                let mut k = 0;
-                group.bench_function(BenchmarkId::new(label, format!("{backend:?}")), |bench| {
-                    bench.iter(|| {
-                        let (a, b) = &stream[k % STREAM];
-                        k += 1;
-                        black_box(est.update(black_box(a), black_box(b)).unwrap());
-                    })
-                });
+                bench_updates(
+                    &mut group,
+                    BenchmarkId::new(label, format!("{backend:?}")),
+                    est.as_mut(),
+                    &stream,
+                );
             }
         }
         group.finish();

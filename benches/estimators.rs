@@ -4,23 +4,14 @@
 //! paper's Table III sweep. Each iteration feeds the next window of a pre-generated stream of
 //! consistent-plus-noise windows, so warm starts behave as in use.
 
-use std::hint::black_box;
+mod common;
 
+use common::{M, bench_updates, windows};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use tagk::baselines::{KalmanFilter, Rls};
 use tagk::core::{
     GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
 };
-use tagk::mcu::SyntheticWindows;
-
-const M: usize = 30;
-const STREAM: usize = 64;
-
-/// The Table III stream of the microcontroller harness (`θ, A ~ U[−1, 1]`,
-/// `b = Aθ + 10⁻³·U[−1, 1]`), so host and firmware time the same windows.
-fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
-    SyntheticWindows::for_table(n, M).take_windows(STREAM)
-}
 
 fn estimators(n: usize) -> Vec<Box<dyn OnlineEstimator<f64>>> {
     let cfg = KaczmarzConfig::default().with_seed(1);
@@ -42,14 +33,12 @@ fn bench(c: &mut Criterion) {
         let mut group = c.benchmark_group(format!("update/n={n},m={M}"));
         for mut est in estimators(n) {
             let name = est.name().to_string();
-            let mut k = 0;
-            group.bench_function(BenchmarkId::from_parameter(&name), |bench| {
-                bench.iter(|| {
-                    let (a, b) = &stream[k % STREAM];
-                    k += 1;
-                    black_box(est.update(black_box(a), black_box(b)).unwrap());
-                })
-            });
+            bench_updates(
+                &mut group,
+                BenchmarkId::from_parameter(&name),
+                est.as_mut(),
+                &stream,
+            );
         }
         group.finish();
     }

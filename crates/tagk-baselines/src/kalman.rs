@@ -72,12 +72,7 @@ impl KalmanFilter {
         config: KalmanConfig,
         name: &'static str,
     ) -> Result<Self, ConfigError> {
-        if n == 0 {
-            return Err(ConfigError::ZeroDimension);
-        }
-        if m_max == 0 {
-            return Err(ConfigError::ZeroCapacity);
-        }
+        tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
         Ok(Self {
             config,

@@ -53,12 +53,7 @@ impl Rls {
         config: RlsConfig,
         name: &'static str,
     ) -> Result<Self, ConfigError> {
-        if n == 0 {
-            return Err(ConfigError::ZeroDimension);
-        }
-        if m_max == 0 {
-            return Err(ConfigError::ZeroCapacity);
-        }
+        tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
         Ok(Self {
             config,

@@ -1,6 +1,6 @@
 //! The trait every online estimator in tagk implements, and the window checks they share.
 
-use crate::{EstimatorError, Real};
+use crate::{ConfigError, EstimatorError, Real};
 
 /// What one successful update did, for logging and progress observers.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -84,6 +84,18 @@ impl<T: Real, E: OnlineEstimator<T> + ?Sized> OnlineEstimator<T> for alloc::boxe
     fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
         (**self).reset(estimate)
     }
+}
+
+/// Checks the sizes every estimator is built with: a parameter dimension `n ≥ 1` and a window
+/// capacity `m_max ≥ 1`.
+pub fn check_dimensions(n: usize, m_max: usize) -> Result<(), ConfigError> {
+    if n == 0 {
+        return Err(ConfigError::ZeroDimension);
+    }
+    if m_max == 0 {
+        return Err(ConfigError::ZeroCapacity);
+    }
+    Ok(())
 }
 
 /// Checks a window's shape against an estimator of dimension `n` and capacity `capacity`,

@@ -247,12 +247,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         config: KaczmarzConfig,
         mut buf: S,
     ) -> Result<Self, ConfigError> {
-        if n == 0 {
-            return Err(ConfigError::ZeroDimension);
-        }
-        if m_max == 0 {
-            return Err(ConfigError::ZeroCapacity);
-        }
+        crate::check_dimensions(n, m_max)?;
         config.validate()?;
         let needed = kaczmarz_buffer_len(n, m_max);
         let found = buf.as_ref().len();

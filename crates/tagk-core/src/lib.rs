@@ -14,8 +14,8 @@ mod real;
 
 pub use error::{ConfigError, EstimatorError};
 pub use estimator::{
-    OnlineEstimator, UpdateInfo, check_window_finite, check_window_shape, validate_estimate,
-    validate_window,
+    OnlineEstimator, UpdateInfo, check_dimensions, check_window_finite, check_window_shape,
+    validate_estimate, validate_window,
 };
 pub use kaczmarz::{
     BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,

@@ -199,12 +199,7 @@ struct Parts<'a, T> {
 
 impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
     fn new(n: usize, m_max: usize, consts: Constants<T>, buf: S) -> Result<Self, ConfigError> {
-        if n == 0 {
-            return Err(ConfigError::ZeroDimension);
-        }
-        if m_max == 0 {
-            return Err(ConfigError::ZeroCapacity);
-        }
+        tagk_core::check_dimensions(n, m_max)?;
         let needed = covariance_buffer_len(n, m_max);
         let found = buf.as_ref().len();
         if found < needed {
