@@ -43,14 +43,13 @@
 use core::marker::PhantomData;
 
 use rand_chacha::ChaCha8Rng;
-use rand_core::{Rng, SeedableRng};
+use rand_core::SeedableRng;
 
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
+use crate::greedy::{self, Kernels, Portable, Schedule, Window};
 use crate::linalg::{axpy, dot, norm2_and_dot, padded};
-#[cfg(not(target_arch = "x86_64"))]
-use crate::linalg::{gram_rows, residual_rows};
-#[cfg(target_arch = "x86_64")]
-use crate::linalg::{gram_transposed, residual_transposed, transpose_padded};
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+use crate::x86::Avx2;
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
 
 /// How many projections an update performs.
@@ -178,7 +177,7 @@ impl KaczmarzConfig {
 }
 
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
-/// needs: `2n + 6p + p² + p/4` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
+/// needs: `2n + 7p + p²` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
 /// holds the Gram matrix), plus `n·p` on x86-64 for a transposed copy of the window.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
@@ -190,7 +189,7 @@ pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     } else {
         0
     };
-    2 * n + 6 * p + p * p + p / 4 + transposed
+    2 * n + 7 * p + p * p + transposed
 }
 
 /// Storage for an estimator's buffers: anything that derefs to a mutable slice.
@@ -232,7 +231,7 @@ struct Parts<'a, T> {
     scratch: &'a mut [T],
     gram: &'a mut [T],
     transposed: &'a mut [T],
-    block_sums: &'a mut [T],
+    prefix: &'a mut [T],
 }
 
 impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
@@ -287,7 +286,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (coef_avg, rest) = rest.split_at_mut(m);
         let (scratch, rest) = rest.split_at_mut(m);
         let (gram, rest) = rest.split_at_mut(m * m);
-        let (block_sums, rest) = rest.split_at_mut(m / 4);
+        let (prefix, rest) = rest.split_at_mut(m);
         let transposed = if cfg!(target_arch = "x86_64") {
             &mut rest[..n * m]
         } else {
@@ -304,29 +303,21 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             scratch,
             gram,
             transposed,
-            block_sums,
+            prefix,
         }
     }
 
-    /// A uniform draw in `[0, 1)` with 53 random bits.
-    #[inline]
-    fn uniform(rng: &mut ChaCha8Rng) -> T {
-        T::cast((rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64))
-    }
-
-    /// [`Self::run`] compiled for AVX2: the same operations in the same order (separate
-    /// multiplies and adds, never fused), so results are bit-identical to the portable path.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
+    /// [`Self::run`] compiled for AVX2 with the AVX2 kernels: the same operations in the same
+    /// order (separate multiplies and adds, never fused), so results are bit-identical to the
+    /// portable path.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
-    unsafe fn run_avx2(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
-        self.run(a, b)
+    fn run_avx2(&mut self, k: Avx2, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+        self.run(k, a, b)
     }
 
     #[inline(always)]
-    fn run(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+    fn run<K: Kernels<T>>(&mut self, k: K, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
         let n = self.n;
         let m = check_window_shape(n, self.m_max, a, b)?;
         let (t_total, t_b) = self.config.schedule(m);
@@ -336,27 +327,15 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let mut rng = self.rng.clone();
         let p = self.parts();
 
-        // Setup: row norms and the prior residual r = b − A x₀.
+        let pm = padded(m);
+
+        // Setup: row norms and the prior residual r = b − A x₀ (zero-padded to `pm` entries).
         if GREEDY {
             // The greedy variants need nearly every Gram entry anyway (they visit most rows of
-            // a window), so the full matrix is built at once with a register-tiled kernel; its
-            // diagonal holds the squared row norms. Two tilings of the same sums, chosen for
-            // the target: an 8-wide tile over a transposed copy of A where SIMD units are wide
-            // (x86-64), a 2 × 4 tile on the rows where registers are few (a Cortex-M7 FPU has
-            // sixteen). Both give the same bits.
-            #[cfg(target_arch = "x86_64")]
-            {
-                transpose_padded(a, n, m, p.transposed);
-                gram_transposed(p.transposed, n, m, p.gram);
-                residual_transposed(p.transposed, n, m, p.estimate, b, p.resid);
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            {
-                gram_rows(a, n, m, p.gram);
-                residual_rows(a, n, m, p.estimate, b, p.resid);
-            }
+            // a window), so the full matrix is built at once; its diagonal holds the norms.
+            k.gram_and_residual(a, b, p.estimate, n, m, p.transposed, p.gram, p.resid);
             for i in 0..m {
-                p.norm2[i] = p.gram[i * m + i];
+                p.norm2[i] = p.gram[i * pm + i];
             }
         } else {
             for i in 0..m {
@@ -365,25 +344,27 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                 p.resid[i] = b[i] - ax;
             }
         }
+        // One pass over the padded window: reciprocal norms, zero rows and padding made inert,
+        // coefficients cleared.
         let mut fro2 = T::zero();
-        let mut rnorm2 = T::zero();
-        for i in 0..m {
-            let nn = p.norm2[i];
-            let r = p.resid[i];
+        for i in 0..pm {
+            let (nn, r) = if i < m {
+                (p.norm2[i], p.resid[i])
+            } else {
+                (T::zero(), T::zero())
+            };
             if !(nn.is_finite() && r.is_finite()) {
                 check_window_finite(n, a, b)?;
                 // Finite entries whose squares overflow.
                 return Err(EstimatorError::NonFiniteRegressor { row: i, col: 0 });
             }
-            if nn > T::zero() {
-                p.inv_norm2[i] = T::one() / nn;
-                p.resid[i] = r;
+            // A zero row carries no information: never chosen, never divided by.
+            let usable = nn > T::zero();
+            p.norm2[i] = nn;
+            p.inv_norm2[i] = if usable { T::one() / nn } else { T::zero() };
+            p.resid[i] = if usable { r } else { T::zero() };
+            if usable {
                 fro2 += nn;
-                rnorm2 += r * r;
-            } else {
-                // A zero row carries no information: never chosen, never divided by.
-                p.inv_norm2[i] = T::zero();
-                p.resid[i] = T::zero();
             }
             p.coef[i] = T::zero();
             p.coef_avg[i] = T::zero();
@@ -391,58 +372,34 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         if fro2 <= T::zero() {
             return Err(EstimatorError::NoUsableRow);
         }
+        let (rnorm2, max_ratio) = greedy::residual_stats(&p.resid[..pm], &p.inv_norm2[..pm]);
         if !fro2.is_finite() || !rnorm2.is_finite() {
             return Err(EstimatorError::Diverged);
         }
         let prior_residual_norm = rnorm2.sqrt().as_f64();
 
-        // Weight of a step taken at iteration s (1-based) in the tail average of x_{t_b+1..T}.
-        let tail_len = T::cast((t_total - t_b) as f64);
-        let weight = |s: usize| -> T {
-            let first = if s > t_b { s } else { t_b + 1 };
-            T::cast((t_total - first + 1) as f64) / tail_len
+        let schedule = Schedule {
+            t_total,
+            t_b,
+            tol2,
+            half_inv_fro2: T::cast(0.5) * (T::one() / fro2),
         };
 
         let mut iterations = 0;
         let mut converged = rnorm2 <= tol2;
         if GREEDY {
-            let inv_fro2 = T::one() / fro2;
-            let half = T::cast(0.5);
-            let mut max_ratio = residual_stats(&p.resid[..m], &p.inv_norm2[..m]).1;
-            while !converged && iterations < t_total {
-                iterations += 1;
-                // Bai & Wu: candidates satisfy r_j² ≥ ε‖r‖²‖a_j‖² with
-                // ε‖r‖² = ½ (max_j r_j²/‖a_j‖² + ‖r‖²/‖A‖_F²): no division needed.
-                let threshold = half * (max_ratio + rnorm2 * inv_fro2);
-                let total = candidate_weights(
-                    &p.resid[..m],
-                    &p.norm2[..m],
-                    threshold,
-                    &mut p.scratch[..m],
-                    &mut p.block_sums[..m.div_ceil(4)],
-                );
-                let i = if total > T::zero() {
-                    let target = Self::uniform(&mut rng) * total;
-                    sample_blocks(&p.scratch[..m], &p.block_sums[..m.div_ceil(4)], target)
-                } else {
-                    // Round-off emptied the candidate set; the largest ratio always qualifies.
-                    argmax_ratio(&p.resid[..m], &p.inv_norm2[..m])
-                };
-                let alpha = p.resid[i] * p.inv_norm2[i];
-                p.coef[i] += alpha;
-                if AVERAGE {
-                    p.coef_avg[i] += alpha * weight(iterations);
-                }
-                // r ← r − α A a_i = r − α G e_i; the projection zeroes r_i exactly.
-                (rnorm2, max_ratio) = project_residual(
-                    &mut p.resid[..m],
-                    &p.gram[i * m..(i + 1) * m],
-                    &p.inv_norm2[..m],
-                    alpha,
-                    i,
-                );
-                converged = rnorm2 <= tol2;
-            }
+            let window = Window {
+                p: pm,
+                resid: &mut *p.resid,
+                inv_norm2: &*p.inv_norm2,
+                gram: &*p.gram,
+                coef: &mut *p.coef,
+                coef_avg: &mut *p.coef_avg,
+                weights: &mut *p.scratch,
+                prefix: &mut *p.prefix,
+            };
+            (iterations, converged) =
+                k.iterate::<AVERAGE>(window, rnorm2, max_ratio, schedule, &mut rng);
         } else {
             // Cumulative row norms for sampling i ∝ ‖a_i‖².
             let mut cum = T::zero();
@@ -454,7 +411,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             let check_every = m;
             while !converged && iterations < t_total {
                 if iterations > 0 && tol > T::zero() && iterations % check_every == 0 {
-                    rnorm2 = T::zero();
+                    let mut rnorm2 = T::zero();
                     for i in 0..m {
                         if p.norm2[i] > T::zero() {
                             let r = b[i] - dot(&a[i * n..(i + 1) * n], p.work);
@@ -467,14 +424,14 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                     }
                 }
                 iterations += 1;
-                let target = Self::uniform(&mut rng) * cum;
+                let target = T::cast(greedy::uniform(&mut rng)) * cum;
                 let i = sample_cumulative(&p.scratch[..m], p.norm2, target);
                 let row = &a[i * n..(i + 1) * n];
                 let alpha = (b[i] - dot(row, p.work)) * p.inv_norm2[i];
                 axpy(alpha, row, p.work);
                 p.coef[i] += alpha;
                 if AVERAGE {
-                    p.coef_avg[i] += alpha * weight(iterations);
+                    p.coef_avg[i] += alpha * schedule.weight(iterations);
                 }
             }
         }
@@ -501,127 +458,6 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             converged,
         })
     }
-}
-
-/// `(Σ r_j², max_j r_j²/‖a_j‖²)` with four partial sums (`1/‖a_j‖²` precomputed, zero for
-/// zero rows).
-#[inline(always)]
-fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
-    let len = r.len();
-    let inv_norm2 = &inv_norm2[..len];
-    let full = len - len % 4;
-    let mut sum = [T::zero(); 4];
-    let mut best = [T::zero(); 4];
-    let mut j = 0;
-    while j < full {
-        for l in 0..4 {
-            let r2 = r[j + l] * r[j + l];
-            sum[l] += r2;
-            let v = r2 * inv_norm2[j + l];
-            best[l] = if v > best[l] { v } else { best[l] };
-        }
-        j += 4;
-    }
-    let mut s = (sum[0] + sum[2]) + (sum[1] + sum[3]);
-    let mut m = best[0].max(best[1]).max(best[2].max(best[3]));
-    for j in full..len {
-        let r2 = r[j] * r[j];
-        s += r2;
-        m = m.max(r2 * inv_norm2[j]);
-    }
-    (s, m)
-}
-
-/// `r ← r − α g` with `r_i` set to exactly zero, returning the new
-/// `(Σ r_j², max_j r_j²/‖a_j‖²)` from the same pass.
-#[inline(always)]
-fn project_residual<T: Real>(r: &mut [T], g: &[T], inv_norm2: &[T], alpha: T, i: usize) -> (T, T) {
-    let g = &g[..r.len()];
-    for j in 0..r.len() {
-        r[j] -= alpha * g[j];
-    }
-    r[i] = T::zero();
-    residual_stats(r, inv_norm2)
-}
-
-/// Candidate weights `w_j = r_j²` where `r_j² ≥ threshold·‖a_j‖²`, else 0, into `w`; sums of
-/// each block of four into `block_sums`; returns the total (the sum of the block sums, in order).
-#[inline(always)]
-fn candidate_weights<T: Real>(
-    r: &[T],
-    norm2: &[T],
-    threshold: T,
-    w: &mut [T],
-    block_sums: &mut [T],
-) -> T {
-    let len = w.len();
-    let (r, norm2) = (&r[..len], &norm2[..len]);
-    for j in 0..len {
-        let r2 = r[j] * r[j];
-        w[j] = if r2 >= threshold * norm2[j] {
-            r2
-        } else {
-            T::zero()
-        };
-    }
-    let mut total = T::zero();
-    for (b, bs) in block_sums.iter_mut().enumerate() {
-        let end = (4 * b + 4).min(len);
-        let mut s = T::zero();
-        for v in &w[4 * b..end] {
-            s += *v;
-        }
-        *bs = s;
-        total += s;
-    }
-    total
-}
-
-/// Draws index `j` with probability `w_j / Σ w`: finds the block whose running sum passes
-/// `target`, then the entry inside it. Only entries of positive weight can be returned.
-#[inline(always)]
-fn sample_blocks<T: Real>(w: &[T], block_sums: &[T], target: T) -> usize {
-    let mut acc = T::zero();
-    let last_block = block_sums.len() - 1;
-    let mut b = 0;
-    while b < last_block && acc + block_sums[b] <= target {
-        acc += block_sums[b];
-        b += 1;
-    }
-    // Inside the block: the first entry whose running sum passes the target; if round-off
-    // keeps every running sum at or below it, the last entry of positive weight.
-    let start = 4 * b;
-    let end = (start + 4).min(w.len());
-    let mut chosen = None;
-    for (j, &wj) in w.iter().enumerate().take(end).skip(start) {
-        if wj > T::zero() {
-            chosen = Some(j);
-            acc += wj;
-            if acc > target {
-                break;
-            }
-        }
-    }
-    match chosen {
-        Some(j) => j,
-        // An empty last block cannot be reached unless round-off pushed the target past every
-        // block: take the last entry of positive weight anywhere.
-        None => w.iter().rposition(|v| *v > T::zero()).unwrap_or(0),
-    }
-}
-
-/// The index of the largest `r_j²/‖a_j‖²` (the first, on ties).
-fn argmax_ratio<T: Real>(r: &[T], inv_norm2: &[T]) -> usize {
-    let mut best = T::zero();
-    let mut arg = 0;
-    for (j, (p, q)) in r.iter().zip(inv_norm2).enumerate() {
-        let v = *p * *p * *q;
-        if v > best {
-            best = v;
-            arg = j;
-        }
-    }
-    arg
 }
 
 /// Index `i` with `cum[i-1] ≤ target < cum[i]` among rows of positive weight.
@@ -662,11 +498,11 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> OnlineEsti
 
     fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 support was detected at run time just above.
-            return unsafe { self.run_avx2(a, b) };
+        if let Some(k) = Avx2::detect() {
+            // SAFETY: `k` proves that the CPU supports AVX2.
+            return unsafe { self.run_avx2(k, a, b) };
         }
-        self.run(a, b)
+        self.run(Portable, a, b)
     }
 
     fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
@@ -691,5 +527,86 @@ impl<T: Real, const GREEDY: bool, const AVERAGE: bool>
             config,
             alloc::vec![T::zero(); kaczmarz_buffer_len(n, m_max)],
         )
+    }
+}
+
+#[cfg(all(test, feature = "std", target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::greedy::Portable;
+    use crate::x86::Avx2;
+    use rand_core::Rng;
+    use std::vec;
+    use std::vec::Vec;
+
+    fn value(rng: &mut ChaCha8Rng) -> f64 {
+        greedy::uniform(rng) * 2.0 - 1.0
+    }
+
+    /// The AVX2 kernels must reproduce the portable ones bit for bit (the portable ones are
+    /// what a microcontroller runs), over window sizes that change between calls, zero rows,
+    /// tolerances and iteration counts beyond one pass.
+    #[test]
+    fn avx2_and_portable_kernels_give_the_same_bits() {
+        let Some(detected) = Avx2::detect() else {
+            std::eprintln!("no AVX2 on this CPU: nothing to compare");
+            return;
+        };
+        for k in [detected, detected.without_avx512()] {
+            compare_with_portable(k);
+        }
+    }
+
+    fn compare_with_portable(k: Avx2) {
+        let mut data = ChaCha8Rng::seed_from_u64(7);
+        for (n, m_max) in [(1, 1), (3, 5), (10, 30), (13, 9), (40, 17), (120, 30), (7, 64)] {
+            for (iterations, tolerance) in [
+                (Iterations::OnePass, 0.0),
+                (Iterations::Fixed(3 * m_max), 0.0),
+                (Iterations::OnePass, 0.05),
+            ] {
+                let cfg = KaczmarzConfig::default()
+                    .with_seed(data.next_u64())
+                    .with_iterations(iterations)
+                    .with_tolerance(tolerance);
+                let mut portable = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let mut avx2 = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let mut grk_portable = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let mut grk_avx2 = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let theta: Vec<f64> = (0..n).map(|_| value(&mut data)).collect();
+                for w in 0..10 {
+                    let m = 1 + (w * 7 + 3) % m_max;
+                    let mut a: Vec<f64> = (0..m * n).map(|_| value(&mut data)).collect();
+                    if w % 3 == 1 && m > 1 {
+                        a[..n].fill(0.0); // a zero row
+                    }
+                    let b: Vec<f64> = (0..m)
+                        .map(|i| {
+                            let ax: f64 = (0..n).map(|c| a[i * n + c] * theta[c]).sum();
+                            ax + 1e-2 * value(&mut data)
+                        })
+                        .collect();
+                    let want = portable.run(Portable, &a, &b).unwrap();
+                    // SAFETY: `k` proves AVX2 support.
+                    let got = unsafe { avx2.run_avx2(k, &a, &b) }.unwrap();
+                    assert_eq!(want, got, "n={n} m={m} window {w}");
+                    let same = |x: &[f64], y: &[f64]| {
+                        x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+                    };
+                    assert!(
+                        same(portable.estimate(), avx2.estimate()),
+                        "TAG-K n={n} m={m} window {w}"
+                    );
+                    grk_portable.run(Portable, &a, &b).unwrap();
+                    // SAFETY: as above.
+                    unsafe { grk_avx2.run_avx2(k, &a, &b) }.unwrap();
+                    assert!(
+                        same(grk_portable.estimate(), grk_avx2.estimate()),
+                        "GRK n={n} m={m} window {w}"
+                    );
+                }
+                assert_ne!(portable.estimate(), vec![0.0; n].as_slice());
+            }
+        }
     }
 }

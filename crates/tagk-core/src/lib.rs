@@ -8,9 +8,12 @@ extern crate std;
 
 mod error;
 mod estimator;
+mod greedy;
 pub mod kaczmarz;
 pub mod linalg;
 mod real;
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+mod x86;
 
 pub use error::{ConfigError, EstimatorError};
 pub use estimator::{

@@ -189,8 +189,9 @@ pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
     }
 }
 
-/// The Gram matrix `G = A Aᵀ` (full, symmetric, `m × m` row-major into `gram`) from the
-/// transposed, padded regressor `at` of [`transpose_padded`].
+/// The Gram matrix `G = A Aᵀ` from the transposed, padded regressor `at` of
+/// [`transpose_padded`], written full and symmetric into `gram` as a `p × p` row-major matrix
+/// with `p = padded(m)` (zero outside the leading `m × m` block).
 ///
 /// A 4 × 8 register-blocked outer-product kernel over the upper-triangle blocks: each step
 /// loads an 8-vector, broadcasts four scalars and performs 32 multiply-adds into eight
@@ -198,58 +199,32 @@ pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
 /// summed in order of `k`; `G_ij` and `G_ji` are the same value.
 #[inline(always)]
 pub fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
-    let stride = padded(m);
+    let p = padded(m);
+    let (at, gram) = (&at[..n * p], &mut gram[..p * p]);
     let mut bi = 0;
-    while bi < m {
+    while bi < p {
         // 4 × 8 blocks from the 8-aligned column block containing row `bi` onwards: the upper
         // triangle plus a few entries below it, which agree bit for bit with their mirror
         // images (the products commute and the sums run in the same order).
         let mut bj = bi - bi % 8;
-        while bj < m {
+        while bj < p {
             let mut acc = [[T::zero(); 8]; 4];
-            for k in 0..n {
-                let row = &at[k * stride..(k + 1) * stride];
+            for row in at.chunks_exact(p) {
                 let u = [row[bi], row[bi + 1], row[bi + 2], row[bi + 3]];
-                let v = [
-                    row[bj],
-                    row[bj + 1],
-                    row[bj + 2],
-                    row[bj + 3],
-                    row[bj + 4],
-                    row[bj + 5],
-                    row[bj + 6],
-                    row[bj + 7],
-                ];
-                for p in 0..4 {
+                let v: [T; 8] = core::array::from_fn(|q| row[bj + q]);
+                for s in 0..4 {
                     for q in 0..8 {
-                        acc[p][q] = u[p].mul_add_fast(v[q], acc[p][q]);
+                        acc[s][q] = u[s].mul_add_fast(v[q], acc[s][q]);
                     }
                 }
             }
-            if bi + 4 <= m && bj + 8 <= m {
-                // Interior block: contiguous row segments and their mirror images.
-                for (p, acc_p) in acc.iter().enumerate() {
-                    gram[(bi + p) * m + bj..(bi + p) * m + bj + 8].copy_from_slice(acc_p);
-                }
-                for q in 0..8 {
-                    gram[(bj + q) * m + bi..(bj + q) * m + bi + 4]
-                        .copy_from_slice(&[acc[0][q], acc[1][q], acc[2][q], acc[3][q]]);
-                }
-            } else {
-                for (p, acc_p) in acc.iter().enumerate() {
-                    let i = bi + p;
-                    if i >= m {
-                        break;
-                    }
-                    for (q, &g) in acc_p.iter().enumerate() {
-                        let j = bj + q;
-                        if j >= m {
-                            break;
-                        }
-                        gram[i * m + j] = g;
-                        gram[j * m + i] = g;
-                    }
-                }
+            // Row segments and their mirror images.
+            for (q, acc_q) in acc.iter().enumerate() {
+                gram[(bi + q) * p + bj..(bi + q) * p + bj + 8].copy_from_slice(acc_q);
+            }
+            for l in 0..8 {
+                gram[(bj + l) * p + bi..(bj + l) * p + bi + 4]
+                    .copy_from_slice(&[acc[0][l], acc[1][l], acc[2][l], acc[3][l]]);
             }
             bj += 8;
         }
@@ -257,100 +232,81 @@ pub fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
     }
 }
 
-/// `out[j] = b_j − Σ_k a_jk x_k` for `j < padded(m)` from the transposed, padded regressor
-/// (`out` needs `padded(m)` entries; padding entries receive `0 − 0`). Summed in order of `k`.
-#[inline(always)]
-pub fn residual_transposed<T: Real>(at: &[T], n: usize, m: usize, x: &[T], b: &[T], out: &mut [T]) {
-    let stride = padded(m);
-    let out = &mut out[..stride];
-    out.fill(T::zero());
-    for (k, &xk) in x[..n].iter().enumerate() {
-        axpy(xk, &at[k * stride..(k + 1) * stride], out);
-    }
-    let b = &b[..m];
-    for j in 0..m {
-        out[j] = b[j] - out[j];
-    }
-}
-
-/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix (full, symmetric, `m × m`
-/// row-major into `gram`), directly from the rows: 2 × 4 register tiles (eight accumulators,
-/// which fit the sixteen double registers of a Cortex-M7 FPU without spilling).
+/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, directly from the rows, written
+/// full and symmetric into `gram` as a `p × p` row-major matrix with `p = padded(m)` (zero
+/// outside the leading `m × m` block): 2 × 4 register tiles (eight accumulators, which fit the
+/// sixteen double registers of a Cortex-M7 FPU without spilling).
 ///
 /// Every entry is `Σ_k a_ik a_jk` accumulated in order of `k`, exactly as in
 /// [`gram_transposed`]: the two kernels return the same bits, so a microcontroller and a host
 /// agree to the last bit.
 pub fn gram_rows<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
+    let p = padded(m);
     // Row pairs; for each, column blocks of four from its diagonal on, edges in smaller tiles.
     let mut bi = 0;
     while bi < m {
         let mut bj = bi;
         while bj < m {
             match (m - bi >= 2, (m - bj).min(4)) {
-                (true, 4) => gram_tile::<T, 2, 4>(a, n, m, bi, bj, gram),
-                (true, 3) => gram_tile::<T, 2, 3>(a, n, m, bi, bj, gram),
-                (true, 2) => gram_tile::<T, 2, 2>(a, n, m, bi, bj, gram),
-                (true, _) => gram_tile::<T, 2, 1>(a, n, m, bi, bj, gram),
-                (false, 4) => gram_tile::<T, 1, 4>(a, n, m, bi, bj, gram),
-                (false, 3) => gram_tile::<T, 1, 3>(a, n, m, bi, bj, gram),
-                (false, 2) => gram_tile::<T, 1, 2>(a, n, m, bi, bj, gram),
-                (false, _) => gram_tile::<T, 1, 1>(a, n, m, bi, bj, gram),
+                (true, 4) => gram_tile::<T, 2, 4>(a, n, p, bi, bj, gram),
+                (true, 3) => gram_tile::<T, 2, 3>(a, n, p, bi, bj, gram),
+                (true, 2) => gram_tile::<T, 2, 2>(a, n, p, bi, bj, gram),
+                (true, _) => gram_tile::<T, 2, 1>(a, n, p, bi, bj, gram),
+                (false, 4) => gram_tile::<T, 1, 4>(a, n, p, bi, bj, gram),
+                (false, 3) => gram_tile::<T, 1, 3>(a, n, p, bi, bj, gram),
+                (false, 2) => gram_tile::<T, 1, 2>(a, n, p, bi, bj, gram),
+                (false, _) => gram_tile::<T, 1, 1>(a, n, p, bi, bj, gram),
             }
             bj += 4;
         }
         bi += 2;
     }
+    // Zero padding: the last columns of the leading rows, then the last rows.
+    for i in 0..m {
+        gram[i * p + m..(i + 1) * p].fill(T::zero());
+    }
+    gram[m * p..p * p].fill(T::zero());
 }
 
 /// One `P × Q` tile of [`gram_rows`]: rows `bi..bi+P` against rows `bj..bj+Q`, written to
-/// both triangles.
+/// both triangles of a Gram matrix with row stride `p`.
 #[inline(always)]
 fn gram_tile<T: Real, const P: usize, const Q: usize>(
     a: &[T],
     n: usize,
-    m: usize,
+    p: usize,
     bi: usize,
     bj: usize,
     gram: &mut [T],
 ) {
-    let u: [&[T]; P] = core::array::from_fn(|p| &a[(bi + p) * n..(bi + p + 1) * n]);
+    let u: [&[T]; P] = core::array::from_fn(|s| &a[(bi + s) * n..(bi + s + 1) * n]);
     let v: [&[T]; Q] = core::array::from_fn(|q| &a[(bj + q) * n..(bj + q + 1) * n]);
     let mut acc = [[T::zero(); Q]; P];
     for k in 0..n {
         let y: [T; Q] = core::array::from_fn(|q| v[q][k]);
-        for p in 0..P {
-            let x = u[p][k];
+        for s in 0..P {
+            let x = u[s][k];
             for q in 0..Q {
-                acc[p][q] = x.mul_add_fast(y[q], acc[p][q]);
+                acc[s][q] = x.mul_add_fast(y[q], acc[s][q]);
             }
         }
     }
-    for (p, acc_p) in acc.iter().enumerate() {
-        for (q, &g) in acc_p.iter().enumerate() {
-            gram[(bi + p) * m + bj + q] = g;
-            gram[(bj + q) * m + bi + p] = g;
+    for (s, acc_s) in acc.iter().enumerate() {
+        for (q, &g) in acc_s.iter().enumerate() {
+            gram[(bi + s) * p + bj + q] = g;
+            gram[(bj + q) * p + bi + s] = g;
         }
     }
 }
 
-/// `out[j] = b_j − Σ_k a_jk x_k` for the `m` rows of a row-major `m × n` matrix, each sum
-/// accumulated in order of `k` (the same bits as [`residual_transposed`]).
+/// `out[j] = b_j − a_jᵀx` for the `m` rows of a row-major `m × n` matrix, each product
+/// summed as [`dot`] does; `out` needs `padded(m)` entries, and the padding ones are set to
+/// zero.
 pub fn residual_rows<T: Real>(a: &[T], n: usize, m: usize, x: &[T], b: &[T], out: &mut [T]) {
     for j in 0..m {
-        out[j] = b[j] - dot_in_order(&a[j * n..(j + 1) * n], x);
+        out[j] = b[j] - dot(&a[j * n..(j + 1) * n], x);
     }
-}
-
-/// `Σ_k x_k y_k` accumulated strictly in order of `k` (one running sum).
-#[inline(always)]
-fn dot_in_order<T: Real>(x: &[T], y: &[T]) -> T {
-    let len = x.len().min(y.len());
-    let (x, y) = (&x[..len], &y[..len]);
-    let mut sum = T::zero();
-    for k in 0..len {
-        sum = x[k].mul_add_fast(y[k], sum);
-    }
-    sum
+    out[m..padded(m)].fill(T::zero());
 }
 
 /// `y ← y + α x`.
@@ -421,7 +377,7 @@ mod tests {
     }
 
     #[test]
-    fn transposed_gram_and_residual_match_naive_sums() {
+    fn gram_and_residual_match_naive_sums() {
         for (m, n) in [(1, 1), (3, 2), (7, 11), (8, 4), (30, 10)] {
             let a: [f64; 300] = core::array::from_fn(|i| ((i * 7 % 13) as f64 - 6.0) * 0.31);
             let a = &a[..m * n];
@@ -429,10 +385,11 @@ mod tests {
             let b: [f64; 30] = core::array::from_fn(|i| (i as f64 * 0.7).sin());
             let mut at = [0.0; 11 * 32];
             transpose_padded(a, n, m, &mut at);
-            let mut g = [0.0; 900];
+            let mut g = [f64::NAN; 1024];
             gram_transposed(&at, n, m, &mut g);
+            let p = padded(m);
             let mut r = [0.0; 32];
-            residual_transposed(&at, n, m, &x[..n], &b[..m], &mut r);
+            residual_rows(a, n, m, &x[..n], &b[..m], &mut r);
             for i in 0..m {
                 let ai = &a[i * n..(i + 1) * n];
                 let ax: f64 = ai.iter().zip(&x).map(|(p, q)| p * q).sum();
@@ -440,8 +397,15 @@ mod tests {
                 for j in 0..m {
                     let aj = &a[j * n..(j + 1) * n];
                     let naive: f64 = ai.iter().zip(aj).map(|(p, q)| p * q).sum();
-                    assert!((g[i * m + j] - naive).abs() < 1e-12, "{m}x{n} G[{i}][{j}]");
-                    assert_eq!(g[i * m + j].to_bits(), g[j * m + i].to_bits());
+                    assert!((g[i * p + j] - naive).abs() < 1e-12, "{m}x{n} G[{i}][{j}]");
+                    assert_eq!(g[i * p + j].to_bits(), g[j * p + i].to_bits());
+                }
+            }
+            for i in 0..p {
+                for j in 0..p {
+                    if i >= m || j >= m {
+                        assert_eq!(g[i * p + j], 0.0, "{m}x{n} padding G[{i}][{j}]");
+                    }
                 }
             }
         }
@@ -453,21 +417,15 @@ mod tests {
             let a: Vec<f64> = (0..m * n)
                 .map(|i| ((i * 7919 % 997) as f64 / 498.5) - 1.0)
                 .collect();
-            let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
-            let b: Vec<f64> = (0..m).map(|i| (i as f64).cos()).collect();
             let mut at = vec![0.0; n * padded(m)];
             transpose_padded(&a, n, m, &mut at);
-            let (mut g1, mut g2) = (vec![0.0; m * m], vec![0.0; m * m]);
+            let p = padded(m);
+            // Stale values in the buffers, as left by a larger window.
+            let (mut g1, mut g2) = (vec![7.0; p * p], vec![7.0; p * p]);
             gram_transposed(&at, n, m, &mut g1);
             gram_rows(&a, n, m, &mut g2);
-            let (mut r1, mut r2) = (vec![0.0; padded(m)], vec![0.0; m]);
-            residual_transposed(&at, n, m, &x, &b, &mut r1);
-            residual_rows(&a, n, m, &x, &b, &mut r2);
-            for k in 0..m * m {
+            for k in 0..p * p {
                 assert_eq!(g1[k].to_bits(), g2[k].to_bits(), "{m}x{n} G entry {k}");
-            }
-            for j in 0..m {
-                assert_eq!(r1[j].to_bits(), r2[j].to_bits(), "{m}x{n} r[{j}]");
             }
         }
     }

@@ -1,0 +1,354 @@
+//! The greedy iterations of GRK and TAG-K on one window, behind a small kernel interface
+//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones for
+//! `f64` on x86-64 (in `x86.rs`).
+//!
+//! Every floating-point operation happens in an order fixed here, and every implementation
+//! follows it, so a microcontroller, a host without AVX2 and a host with AVX-512 compute the
+//! same bits. The order is chosen for short dependency chains on 8-lane SIMD units:
+//!
+//! - Vectors of the window (residual `r`, row norms, coefficients) are padded with zeros to
+//!   `p = padded(m)` entries, a multiple of 8, handled as chunks of 8 lanes; the Gram matrix is
+//!   `p × p` with row stride `p` (rows `≥ m` unspecified, zero in columns `≥ m`).
+//! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j`, combined as
+//!   `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
+//! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
+//!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
+//! - Prefix sums `P` of `w`: inside each chunk three steps `x_l ← x_l + x_{l−d}` for
+//!   `d = 1, 2, 4` (lanes `l ≥ d`, from the values before the step), then the last prefix of
+//!   the previous chunk added to every lane. The total is the last prefix.
+//! - With `target = u · total`, `u ∈ [0, 1)`, the row drawn is the first `j` with `w_j > 0`
+//!   and `P_j > target`; on round-off, the last `j` with `w_j > 0`; if every weight is zero,
+//!   the first `j` of largest ratio.
+//! - `α = r_i · (1/‖a_i‖²)`; `r ← r − α g_i` is a multiply then a subtraction (never fused),
+//!   then `r_i ← 0` exactly.
+
+use rand_chacha::ChaCha8Rng;
+use rand_core::Rng;
+
+use crate::Real;
+
+/// Lanes per chunk of the window vectors.
+pub(crate) const LANES: usize = 8;
+
+/// One window's state for the greedy iterations. Every vector has `p` entries (a multiple of
+/// 8), zero from `m` on; `gram` is `p × p` with row stride `p`.
+pub(crate) struct Window<'a, T> {
+    /// Padded row count.
+    pub p: usize,
+    /// Residual `r = b − A x` of the current iterate.
+    pub resid: &'a mut [T],
+    /// `1/‖a_j‖²`, zero for zero rows.
+    pub inv_norm2: &'a [T],
+    /// The Gram matrix `A Aᵀ`.
+    pub gram: &'a [T],
+    /// Coefficients `c` of the iterate `x = x₀ + Aᵀc`.
+    pub coef: &'a mut [T],
+    /// Coefficients `c̄` of the tail average `x̄ = x₀ + Aᵀc̄`.
+    pub coef_avg: &'a mut [T],
+    /// Scratch: candidate weights (`p` entries).
+    pub weights: &'a mut [T],
+    /// Scratch: their prefix sums (`p` entries).
+    pub prefix: &'a mut [T],
+}
+
+/// The iteration schedule of one window.
+#[derive(Clone, Copy)]
+pub(crate) struct Schedule<T> {
+    /// Iterations `T`.
+    pub t_total: usize,
+    /// Burn-in `t_b < T`.
+    pub t_b: usize,
+    /// Squared residual tolerance.
+    pub tol2: T,
+    /// `½/‖A‖_F²`.
+    pub half_inv_fro2: T,
+}
+
+impl<T: Real> Schedule<T> {
+    /// Weight of a step taken at iteration `s` (1-based) in the average of `x_{t_b+1..T}`:
+    /// the step is part of every iterate from `max(s, t_b + 1)` on.
+    #[inline(always)]
+    pub fn weight(&self, s: usize) -> T {
+        let first = if s > self.t_b { s } else { self.t_b + 1 };
+        T::cast((self.t_total - first + 1) as f64) / T::cast((self.t_total - self.t_b) as f64)
+    }
+
+    /// Bai & Wu's threshold `θ = M · ½ + S · (½/‖A‖_F²)`.
+    #[inline(always)]
+    pub fn threshold(&self, rnorm2: T, max_ratio: T) -> T {
+        max_ratio * T::cast(0.5) + rnorm2 * self.half_inv_fro2
+    }
+}
+
+/// A uniform draw in `[0, 1)` with 53 random bits.
+#[inline(always)]
+pub(crate) fn uniform(rng: &mut ChaCha8Rng) -> f64 {
+    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// The uniform draws of one window, taken from the generator in batches (so a SIMD loop does
+/// not call out per iteration) and handed out one per iteration that needs one. The generator
+/// ends exactly where one-at-a-time draws would have left it.
+pub(crate) struct Draws<'a> {
+    rng: &'a mut ChaCha8Rng,
+    buf: [f64; DRAW_BATCH],
+    next: usize,
+    len: usize,
+    /// Draws the window can still need after this batch.
+    left: usize,
+    /// Generator position (in 32-bit words) before this batch.
+    start: u128,
+}
+
+/// Draws taken from the generator at a time.
+const DRAW_BATCH: usize = 32;
+
+impl<'a> Draws<'a> {
+    /// At most `most` draws will be asked for.
+    #[inline(always)]
+    pub fn new(rng: &'a mut ChaCha8Rng, most: usize) -> Self {
+        Self {
+            start: 0,
+            rng,
+            buf: [0.0; DRAW_BATCH],
+            next: 0,
+            len: 0,
+            left: most,
+        }
+    }
+
+    /// The next draw.
+    #[inline(always)]
+    pub fn next(&mut self) -> f64 {
+        if self.next == self.len {
+            self.refill();
+        }
+        self.next += 1;
+        self.buf[self.next - 1]
+    }
+
+    #[inline(never)]
+    fn refill(&mut self) {
+        self.len = self.left.clamp(1, DRAW_BATCH);
+        self.left -= self.len.min(self.left);
+        self.start = self.rng.get_word_pos();
+        for u in &mut self.buf[..self.len] {
+            *u = uniform(self.rng);
+        }
+        self.next = 0;
+    }
+
+    /// Returns the unused draws of the batch to the generator (each draw is two words).
+    #[inline(always)]
+    pub fn finish(self) {
+        if self.next < self.len {
+            self.rng.set_word_pos(self.start + 2 * self.next as u128);
+        }
+    }
+}
+
+/// The per-window kernels. Implementations must follow the arithmetic order in the module
+/// documentation to the last bit.
+pub(crate) trait Kernels<T: Real>: Copy {
+    /// `G = A Aᵀ` (`p × p`, stride `p`; rows `< m` exact and zero in columns `≥ m`, rows
+    /// `≥ m` unspecified), each entry summed in order of the column index `k`, and
+    /// `r = b − A x` (`p` entries, zero from `m` on), each product summed as
+    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries.
+    #[allow(clippy::too_many_arguments)]
+    fn gram_and_residual(
+        self,
+        a: &[T],
+        b: &[T],
+        x: &[T],
+        n: usize,
+        m: usize,
+        at: &mut [T],
+        gram: &mut [T],
+        resid: &mut [T],
+    );
+
+    /// The greedy iterations (GRK's selection; with `AVERAGE`, TAG-K's tail-average
+    /// coefficients too) from a residual with statistics `(rnorm2, max_ratio)`.
+    /// Returns `(iterations, converged)`.
+    fn iterate<const AVERAGE: bool>(
+        self,
+        w: Window<'_, T>,
+        rnorm2: T,
+        max_ratio: T,
+        s: Schedule<T>,
+        rng: &mut ChaCha8Rng,
+    ) -> (usize, bool);
+}
+
+/// The reference kernels: plain loops in the documented order (LLVM vectorises some of them).
+#[derive(Clone, Copy)]
+pub(crate) struct Portable;
+
+impl<T: Real> Kernels<T> for Portable {
+    #[inline(always)]
+    fn gram_and_residual(
+        self,
+        a: &[T],
+        b: &[T],
+        x: &[T],
+        n: usize,
+        m: usize,
+        at: &mut [T],
+        gram: &mut [T],
+        resid: &mut [T],
+    ) {
+        // Two tilings of the same sums, chosen for the target: an 8-wide tile over a
+        // transposed copy of A where SIMD units are wide (x86-64), a 2 × 4 tile on the rows
+        // where registers are few (a Cortex-M7 FPU has sixteen).
+        #[cfg(target_arch = "x86_64")]
+        {
+            crate::linalg::transpose_padded(a, n, m, at);
+            crate::linalg::gram_transposed(at, n, m, gram);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = at;
+            crate::linalg::gram_rows(a, n, m, gram);
+        }
+        crate::linalg::residual_rows(a, n, m, x, b, resid);
+    }
+
+    #[inline(always)]
+    fn iterate<const AVERAGE: bool>(
+        self,
+        w: Window<'_, T>,
+        rnorm2: T,
+        max_ratio: T,
+        s: Schedule<T>,
+        rng: &mut ChaCha8Rng,
+    ) -> (usize, bool) {
+        iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng)
+    }
+}
+
+/// `(Σ_j r_j², max_j r_j²/‖a_j‖²)` over `p` entries (a multiple of 8), in the documented order.
+#[inline(always)]
+pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
+    let mut sum = [T::zero(); LANES];
+    let mut best = T::zero();
+    for (rc, ic) in r.chunks_exact(LANES).zip(inv_norm2.chunks_exact(LANES)) {
+        for l in 0..LANES {
+            let r2 = rc[l] * rc[l];
+            sum[l] += r2;
+            let v = r2 * ic[l];
+            best = if v > best { v } else { best };
+        }
+    }
+    let t: [T; 4] = core::array::from_fn(|l| sum[l] + sum[l + 4]);
+    ((t[0] + t[2]) + (t[1] + t[3]), best)
+}
+
+/// Candidate weights into `w` and their prefix sums into `prefix` (documented order);
+/// returns the total.
+#[inline(always)]
+fn candidates<T: Real>(
+    r: &[T],
+    inv_norm2: &[T],
+    threshold: T,
+    w: &mut [T],
+    prefix: &mut [T],
+) -> T {
+    let p = w.len();
+    let (r, inv_norm2, prefix) = (&r[..p], &inv_norm2[..p], &mut prefix[..p]);
+    for j in 0..p {
+        let r2 = r[j] * r[j];
+        w[j] = if r2 * inv_norm2[j] >= threshold {
+            r2
+        } else {
+            T::zero()
+        };
+    }
+    let mut carry = T::zero();
+    for (wc, pc) in w.chunks_exact(LANES).zip(prefix.chunks_exact_mut(LANES)) {
+        let mut x: [T; LANES] = core::array::from_fn(|l| wc[l]);
+        for d in [1, 2, 4] {
+            let old = x;
+            for l in d..LANES {
+                x[l] = old[l] + old[l - d];
+            }
+        }
+        for l in 0..LANES {
+            pc[l] = x[l] + carry;
+        }
+        carry = pc[LANES - 1];
+    }
+    carry
+}
+
+/// The row drawn for `target` (documented order), `None` if every weight is zero.
+#[inline(always)]
+fn draw_row<T: Real>(w: &[T], prefix: &[T], target: T) -> Option<usize> {
+    w.iter()
+        .zip(prefix)
+        .position(|(&wj, &pj)| wj > T::zero() && pj > target)
+        .or_else(|| w.iter().rposition(|v| *v > T::zero()))
+}
+
+/// The index of the largest `r_j²/‖a_j‖²` (the first, on ties; 0 if all are zero).
+pub(crate) fn argmax_ratio<T: Real>(r: &[T], inv_norm2: &[T]) -> usize {
+    let mut best = T::zero();
+    let mut arg = 0;
+    for (j, (p, q)) in r.iter().zip(inv_norm2).enumerate() {
+        let v = *p * *p * *q;
+        if v > best {
+            best = v;
+            arg = j;
+        }
+    }
+    arg
+}
+
+/// The portable greedy loop (see [`Kernels::iterate`]).
+#[inline(always)]
+pub(crate) fn iterate_portable<T: Real, const AVERAGE: bool>(
+    w: Window<'_, T>,
+    mut rnorm2: T,
+    mut max_ratio: T,
+    s: Schedule<T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    let p = w.p;
+    let (r, inv_norm2) = (&mut w.resid[..p], &w.inv_norm2[..p]);
+    let mut draws = Draws::new(rng, s.t_total);
+    let mut iterations = 0;
+    let mut converged = rnorm2 <= s.tol2;
+    while !converged && iterations < s.t_total {
+        iterations += 1;
+        let threshold = s.threshold(rnorm2, max_ratio);
+        let total = candidates(
+            r,
+            inv_norm2,
+            threshold,
+            &mut w.weights[..p],
+            &mut w.prefix[..p],
+        );
+        let chosen = if total > T::zero() {
+            let target = T::cast(draws.next()) * total;
+            draw_row(&w.weights[..p], &w.prefix[..p], target)
+        } else {
+            None
+        };
+        // Round-off emptied the candidate set: the largest ratio always qualifies.
+        let i = chosen.unwrap_or_else(|| argmax_ratio(r, inv_norm2));
+        let alpha = r[i] * inv_norm2[i];
+        w.coef[i] += alpha;
+        if AVERAGE {
+            w.coef_avg[i] += alpha * s.weight(iterations);
+        }
+        // r ← r − α A a_i = r − α G e_i; the projection zeroes r_i exactly.
+        let g = &w.gram[i * p..(i + 1) * p];
+        for j in 0..p {
+            r[j] -= alpha * g[j];
+        }
+        r[i] = T::zero();
+        (rnorm2, max_ratio) = residual_stats(r, inv_norm2);
+        converged = rnorm2 <= s.tol2;
+    }
+    draws.finish();
+    (iterations, converged)
+}

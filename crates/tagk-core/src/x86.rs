@@ -1,0 +1,607 @@
+//! AVX2 kernels of the greedy iterations for `f64` on x86-64 (detected at run time).
+//!
+//! They perform the operations of the portable kernels ([`crate::greedy::Portable`]) in the
+//! same order — separate multiplies and adds, never fused — so estimates are bit-identical
+//! with and without AVX2 and to a microcontroller's; only the instructions differ (explicit
+//! 4-wide vectors, a register-blocked Gram tile that the compiler would otherwise spill, and a
+//! branch-free candidate pass). Other scalar types fall back to the portable kernels.
+
+use core::any::TypeId;
+use core::arch::x86_64::*;
+
+use crate::Real;
+use rand_chacha::ChaCha8Rng;
+
+use crate::greedy::{
+    Draws, Kernels, LANES, Portable, Schedule, Window, argmax_ratio, iterate_portable,
+};
+use crate::linalg::padded;
+
+/// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
+#[derive(Clone, Copy)]
+pub(crate) struct Avx2 {
+    /// The CPU also supports AVX-512F: the Gram matrix is built with 8 × 8 tiles.
+    avx512f: bool,
+}
+
+impl Avx2 {
+    /// `Some` if this CPU supports AVX2 (cached by the standard library after the first call).
+    #[inline]
+    pub(crate) fn detect() -> Option<Self> {
+        std::is_x86_feature_detected!("avx2").then(|| Self {
+            avx512f: std::is_x86_feature_detected!("avx512f"),
+        })
+    }
+
+    /// The same kernels without the AVX-512F Gram tile (to test both on one machine).
+    #[cfg(test)]
+    pub(crate) fn without_avx512(self) -> Self {
+        Self { avx512f: false }
+    }
+}
+
+#[inline(always)]
+fn is_f64<T: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<f64>()
+}
+
+/// `s` as `&[f64]` when `T` is `f64`.
+#[inline(always)]
+fn f64s<T: 'static>(s: &[T]) -> &[f64] {
+    debug_assert!(is_f64::<T>());
+    // SAFETY: callers check `T == f64` first, so this is the identity cast.
+    unsafe { core::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+}
+
+/// `s` as `&mut [f64]` when `T` is `f64`.
+#[inline(always)]
+fn f64s_mut<T: 'static>(s: &mut [T]) -> &mut [f64] {
+    debug_assert!(is_f64::<T>());
+    // SAFETY: callers check `T == f64` first, so this is the identity cast.
+    unsafe { core::slice::from_raw_parts_mut(s.as_mut_ptr().cast(), s.len()) }
+}
+
+impl<T: Real> Kernels<T> for Avx2 {
+    #[inline(always)]
+    fn gram_and_residual(
+        self,
+        a: &[T],
+        b: &[T],
+        x: &[T],
+        n: usize,
+        m: usize,
+        at: &mut [T],
+        gram: &mut [T],
+        resid: &mut [T],
+    ) {
+        if !is_f64::<T>() {
+            return Portable.gram_and_residual(a, b, x, n, m, at, gram, resid);
+        }
+        // SAFETY: `self` proves AVX2 support, and AVX-512F where it says so.
+        unsafe {
+            gram_and_residual_f64(
+                self.avx512f,
+                f64s(a),
+                f64s(b),
+                f64s(x),
+                n,
+                m,
+                f64s_mut(at),
+                f64s_mut(gram),
+                f64s_mut(resid),
+            )
+        }
+    }
+
+    #[inline(always)]
+    fn iterate<const AVERAGE: bool>(
+        self,
+        w: Window<'_, T>,
+        rnorm2: T,
+        max_ratio: T,
+        s: Schedule<T>,
+        rng: &mut ChaCha8Rng,
+    ) -> (usize, bool) {
+        if !(is_f64::<T>() && self.avx512f && w.p <= LANES * MAX_CHUNKS) {
+            return iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng);
+        }
+        let w64 = Window {
+            p: w.p,
+            resid: f64s_mut(w.resid),
+            inv_norm2: f64s(w.inv_norm2),
+            gram: f64s(w.gram),
+            coef: f64s_mut(w.coef),
+            coef_avg: f64s_mut(w.coef_avg),
+            weights: f64s_mut(w.weights),
+            prefix: f64s_mut(w.prefix),
+        };
+        let s64 = Schedule {
+            t_total: s.t_total,
+            t_b: s.t_b,
+            tol2: s.tol2.as_f64(),
+            half_inv_fro2: s.half_inv_fro2.as_f64(),
+        };
+        let (rnorm2, max_ratio) = (rnorm2.as_f64(), max_ratio.as_f64());
+        // SAFETY: `self.avx512f` says the CPU supports AVX-512F.
+        unsafe {
+            match w.p / LANES {
+                1 => iterate_avx512::<1, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+                2 => iterate_avx512::<2, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+                3 => iterate_avx512::<3, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+                _ => iterate_avx512::<4, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+            }
+        }
+    }
+}
+
+/// Rows per panel: the Gram matrix is built one block column of eight rows at a time.
+const PANEL: usize = 8;
+
+/// `G = A Aᵀ` (`p × p`) and `r = b − A x` for `f64`, in the order of the portable kernels
+/// (every Gram entry summed in order of `k`). The Gram matrix is built GEMM-style: for each
+/// block of eight rows `J`, the rows are packed transposed into `panel` (`n × 8`, small
+/// enough to stay in L1), then every tile `G[I, J]` with `I ≤ J`, whose other factor is broadcast
+/// straight from the rows of `A`. Tiles are 8 × 8 with AVX-512F (eight `zmm` accumulators)
+/// or 4 × 8 with AVX2 (eight `ymm` accumulators); `G[J, I]` is written as the transposed tile.
+///
+/// # Safety
+/// The CPU must support AVX2, and AVX-512F if `avx512f`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn gram_and_residual_f64(
+    avx512f: bool,
+    a: &[f64],
+    b: &[f64],
+    x: &[f64],
+    n: usize,
+    m: usize,
+    panel: &mut [f64],
+    gram: &mut [f64],
+    resid: &mut [f64],
+) {
+    let p = padded(m);
+    assert!(
+        a.len() >= m * n
+            && b.len() >= m
+            && x.len() >= n
+            && panel.len() >= n * PANEL
+            && gram.len() >= p * p
+            && resid.len() >= p
+    );
+    let mut bj = 0;
+    while bj < p {
+        // SAFETY: the slices were checked above; the CPU features are the caller's promise.
+        unsafe {
+            pack_panel_f64(a, b, x, n, m, bj, panel, resid);
+            if avx512f {
+                gram_panel_avx512(a, n, m, p, bj, panel, gram);
+            } else {
+                gram_panel_avx2(a, n, m, p, bj, panel, gram);
+            }
+        }
+        bj += PANEL;
+    }
+    // Rows `≥ m` of G hold products of stand-in rows (see `row_ptr`), which the contract
+    // leaves unspecified; columns `≥ m` of the other rows are exact zeros, as the panels are
+    // zero there, and mirror images only ever come from rows below `m`.
+}
+
+/// A pointer to row `i` of `A`, or to row `m − 1` for a padding row (`i ≥ m`), whose products
+/// land only in rows `≥ m` of `G`.
+#[inline(always)]
+fn row_ptr(a: &[f64], n: usize, m: usize, i: usize) -> *const f64 {
+    a[i.min(m - 1) * n..].as_ptr()
+}
+
+/// `panel[k·8 + l] = a[(bj + l)·n + k]`: rows `bj..bj+8` of `A` transposed, zero for rows
+/// `≥ m`, through 4 × 4 blocks in registers where four rows exist; from the same loads, the
+/// residuals `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four
+/// interleaved partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order).
+///
+/// # Safety
+/// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n`, `panel` `8n` and `resid`
+/// `bj + 8` entries.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn pack_panel_f64(
+    a: &[f64],
+    b: &[f64],
+    x: &[f64],
+    n: usize,
+    m: usize,
+    bj: usize,
+    panel: &mut [f64],
+    resid: &mut [f64],
+) {
+    let n4 = n - n % 4;
+    let (dst, xp) = (panel.as_mut_ptr(), x.as_ptr());
+    for half in 0..2 {
+        let j = bj + 4 * half;
+        if j + 4 <= m {
+            let src = a[j * n..].as_ptr();
+            // SAFETY: reads rows j..j+4 < m at columns < n and x below n; writes panel rows
+            // < n.
+            unsafe {
+                let mut acc = [_mm256_setzero_pd(); 4];
+                let mut k = 0;
+                while k < n4 {
+                    let rows: [__m256d; 4] =
+                        core::array::from_fn(|r| _mm256_loadu_pd(src.add(r * n + k)));
+                    let xv = _mm256_loadu_pd(xp.add(k));
+                    for (acc_r, row) in acc.iter_mut().zip(&rows) {
+                        *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
+                    }
+                    for (q, col) in transpose4(rows).iter().enumerate() {
+                        _mm256_storeu_pd(dst.add((k + q) * PANEL + 4 * half), *col);
+                    }
+                    k += 4;
+                }
+                for k in n4..n {
+                    for r in 0..4 {
+                        *dst.add(k * PANEL + 4 * half + r) = *src.add(r * n + k);
+                    }
+                }
+                for (r, acc_r) in acc.iter().enumerate() {
+                    let u = _mm_add_pd(
+                        _mm256_castpd256_pd128(*acc_r),
+                        _mm256_extractf128_pd::<1>(*acc_r),
+                    );
+                    let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
+                    for kk in n4..n {
+                        sum += *src.add(r * n + kk) * x[kk];
+                    }
+                    resid[j + r] = b[j + r] - sum;
+                }
+            }
+        } else {
+            for r in 0..4 {
+                if j + r < m {
+                    let row = &a[(j + r) * n..(j + r + 1) * n];
+                    resid[j + r] = b[j + r] - crate::linalg::dot(row, x);
+                }
+                for k in 0..n {
+                    panel[k * PANEL + 4 * half + r] = if j + r < m { a[(j + r) * n + k] } else { 0.0 };
+                }
+            }
+        }
+    }
+}
+
+/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 8 × 8 AVX-512F tiles.
+///
+/// # Safety
+/// The CPU must support AVX-512F; slices as in [`gram_and_residual_f64`].
+#[target_feature(enable = "avx512f")]
+unsafe fn gram_panel_avx512(
+    a: &[f64],
+    n: usize,
+    m: usize,
+    p: usize,
+    bj: usize,
+    panel: &[f64],
+    gram: &mut [f64],
+) {
+    let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
+    let mut bi = 0;
+    while bi <= bj {
+        let rows: [*const f64; 8] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
+        // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
+        // columns < p of `gram` (bi + 8 ≤ p, bj + 8 ≤ p).
+        unsafe {
+            let mut c = [_mm512_setzero_pd(); 8];
+            for k in 0..n {
+                let vk = _mm512_loadu_pd(v.add(k * PANEL));
+                for (s, cs) in c.iter_mut().enumerate() {
+                    let u = _mm512_set1_pd(*rows[s].add(k));
+                    *cs = _mm512_add_pd(_mm512_mul_pd(u, vk), *cs);
+                }
+            }
+            for (s, cs) in c.iter().enumerate() {
+                _mm512_storeu_pd(g.add((bi + s) * p + bj), *cs);
+            }
+            if bi != bj {
+                for (l, tl) in transpose8(c).iter().enumerate() {
+                    _mm512_storeu_pd(g.add((bj + l) * p + bi), *tl);
+                }
+            }
+        }
+        bi += PANEL;
+    }
+}
+
+/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles.
+///
+/// # Safety
+/// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
+#[target_feature(enable = "avx2")]
+unsafe fn gram_panel_avx2(
+    a: &[f64],
+    n: usize,
+    m: usize,
+    p: usize,
+    bj: usize,
+    panel: &[f64],
+    gram: &mut [f64],
+) {
+    let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
+    let mut bi = 0;
+    while bi < bj + PANEL {
+        let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
+        // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
+        // columns < p of `gram` (bi + 4 ≤ p, bj + 8 ≤ p).
+        unsafe {
+            let mut c = [_mm256_setzero_pd(); 8];
+            for k in 0..n {
+                let v0 = _mm256_loadu_pd(v.add(k * PANEL));
+                let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
+                for s in 0..4 {
+                    let u = _mm256_set1_pd(*rows[s].add(k));
+                    c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
+                    c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
+                }
+            }
+            for s in 0..4 {
+                _mm256_storeu_pd(g.add((bi + s) * p + bj), c[2 * s]);
+                _mm256_storeu_pd(g.add((bi + s) * p + bj + 4), c[2 * s + 1]);
+            }
+            // Off the diagonal block, the mirror image: rows bj..bj+8, columns bi..bi+4
+            // (inside it, the two tiles of the block already cover every entry).
+            if bi < bj {
+                for h in 0..2 {
+                    let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
+                    for (l, tl) in t.iter().enumerate() {
+                        _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
+                    }
+                }
+            }
+        }
+        bi += 4;
+    }
+}
+
+/// The transpose of an 8 × 8 block held as eight row vectors.
+#[target_feature(enable = "avx512f")]
+fn transpose8(r: [__m512d; 8]) -> [__m512d; 8] {
+    // Pairs of rows interleaved, then 128-bit lanes of four rows, then 256-bit halves.
+    let t: [__m512d; 8] = core::array::from_fn(|q| {
+        let (a, b) = (r[2 * (q / 2)], r[2 * (q / 2) + 1]);
+        if q % 2 == 0 {
+            _mm512_unpacklo_pd(a, b) // a0 b0 a2 b2 a4 b4 a6 b6
+        } else {
+            _mm512_unpackhi_pd(a, b) // a1 b1 a3 b3 a5 b5 a7 b7
+        }
+    });
+    // Then 128-bit lanes: u[0] = (r0,r1 | r2,r3) pairs of columns 0, 2, 4, 6 in lanes of
+    // t[0] and t[2]; the last step joins rows 0-3 with rows 4-7.
+    let u: [__m512d; 8] = [
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(t[0], t[2]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(t[1], t[3]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(t[0], t[2]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(t[1], t[3]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(t[4], t[6]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(t[5], t[7]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(t[4], t[6]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(t[5], t[7]),
+    ];
+    [
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(u[0], u[4]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(u[1], u[5]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(u[2], u[6]),
+        _mm512_shuffle_f64x2::<0b10_00_10_00>(u[3], u[7]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(u[0], u[4]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(u[1], u[5]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(u[2], u[6]),
+        _mm512_shuffle_f64x2::<0b11_01_11_01>(u[3], u[7]),
+    ]
+}
+
+/// The transpose of a 4 × 4 block held as four row vectors.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transpose4(r: [__m256d; 4]) -> [__m256d; 4] {
+    let lo01 = _mm256_unpacklo_pd(r[0], r[1]); // r00 r10 r02 r12
+    let hi01 = _mm256_unpackhi_pd(r[0], r[1]); // r01 r11 r03 r13
+    let lo23 = _mm256_unpacklo_pd(r[2], r[3]); // r20 r30 r22 r32
+    let hi23 = _mm256_unpackhi_pd(r[2], r[3]); // r21 r31 r23 r33
+    [
+        _mm256_permute2f128_pd(lo01, lo23, 0x20),
+        _mm256_permute2f128_pd(hi01, hi23, 0x20),
+        _mm256_permute2f128_pd(lo01, lo23, 0x31),
+        _mm256_permute2f128_pd(hi01, hi23, 0x31),
+    ]
+}
+
+/// The greedy loop of [`crate::greedy::iterate_portable`] for `f64` with the window held in
+/// AVX-512 registers (`p = 8C ≤ 32`): residual, squares, ratios, weights and prefix sums stay
+/// in `C` registers each across the iterations, so an iteration is one dependency chain of
+/// vector operations with a single memory read (the Gram row) and no branch on the data
+/// except the choice itself. Same operations, same order, same bits as the portable loop.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[target_feature(enable = "avx512f")]
+unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
+    w: Window<'_, f64>,
+    mut rnorm2: f64,
+    max_ratio: f64,
+    s: Schedule<f64>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    let p = LANES * C;
+    assert!(
+        C <= MAX_CHUNKS
+            && w.p == p
+            && w.resid.len() >= p
+            && w.inv_norm2.len() >= p
+            && w.gram.len() >= p * p
+            && w.coef.len() >= p
+            && w.coef_avg.len() >= p
+    );
+    let (rp, ip, gp) = (w.resid.as_mut_ptr(), w.inv_norm2.as_ptr(), w.gram.as_ptr());
+    let last = _mm512_set1_epi64(LANES as i64 - 1);
+    let zero = _mm512_setzero_pd();
+    // Held in registers across iterations: r, r²/‖a‖² and 1/‖a‖² (r² is recomputed where
+    // needed, which is off the critical path and keeps the loop free of spills).
+    // SAFETY: every pointer access is below p entries of its slice (checked above).
+    let mut r: [__m512d; C] = core::array::from_fn(|c| unsafe { _mm512_loadu_pd(rp.add(LANES * c)) });
+    // SAFETY: as above.
+    let inv: [__m512d; C] = core::array::from_fn(|c| unsafe { _mm512_loadu_pd(ip.add(LANES * c)) });
+    let mut ratio: [__m512d; C] =
+        core::array::from_fn(|c| _mm512_mul_pd(_mm512_mul_pd(r[c], r[c]), inv[c]));
+    // α_j = r_j/‖a_j‖² of the current residual, read back once the row is known.
+    let mut alphas = [0.0f64; LANES * MAX_CHUNKS];
+    for c in 0..C {
+        // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
+        unsafe { _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(r[c], inv[c])) };
+    }
+
+    let mut sum_v = _mm512_set1_pd(rnorm2);
+    let mut max_v = _mm512_set1_pd(max_ratio);
+    let mut draws = Draws::new(rng, s.t_total);
+    let mut iterations = 0;
+    let mut converged = rnorm2 <= s.tol2;
+    while !converged && iterations < s.t_total {
+        iterations += 1;
+        // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
+        let threshold = _mm512_add_pd(
+            _mm512_mul_pd(max_v, _mm512_set1_pd(0.5)),
+            _mm512_mul_pd(sum_v, _mm512_set1_pd(s.half_inv_fro2)),
+        );
+        // Weights and their prefix sums, chunk by chunk, carrying the last prefix.
+        let weights: [__m512d; C] = core::array::from_fn(|c| {
+            let candidate = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(ratio[c], threshold);
+            _mm512_maskz_mul_pd(candidate, r[c], r[c])
+        });
+        let mut prefix: [__m512d; C] = core::array::from_fn(|c| scan8(weights[c]));
+        // Chunk totals broadcast off the chain; the carries are then a chain of adds only
+        // (the same sums as adding the previous chunk's last prefix).
+        let totals: [__m512d; C] = core::array::from_fn(|c| _mm512_permutexvar_pd(last, prefix[c]));
+        let mut carry = totals[0];
+        for c in 1..C {
+            prefix[c] = _mm512_add_pd(prefix[c], carry);
+            carry = _mm512_add_pd(carry, totals[c]);
+        }
+        let total = carry;
+        let mut chosen = None;
+        if _mm512_cvtsd_f64(total) > 0.0 {
+            let target = _mm512_mul_pd(_mm512_set1_pd(draws.next()), total);
+            let (mut hit, mut positive) = (0u64, 0u64);
+            for c in 0..C {
+                let pos = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(weights[c], zero);
+                let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix[c], target);
+                hit |= u64::from(pos & past) << (LANES * c);
+                positive |= u64::from(pos) << (LANES * c);
+            }
+            chosen = if hit != 0 {
+                Some(hit.trailing_zeros() as usize)
+            } else if positive != 0 {
+                Some(63 - positive.leading_zeros() as usize)
+            } else {
+                None
+            };
+        }
+        let i = chosen.unwrap_or_else(|| {
+            let mut inv_norm2 = [0.0f64; LANES * MAX_CHUNKS];
+            let mut resid = [0.0f64; LANES * MAX_CHUNKS];
+            for c in 0..C {
+                // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
+                unsafe {
+                    _mm512_storeu_pd(inv_norm2.as_mut_ptr().add(LANES * c), inv[c]);
+                    _mm512_storeu_pd(resid.as_mut_ptr().add(LANES * c), r[c]);
+                }
+            }
+            argmax_ratio(&resid[..p], &inv_norm2[..p])
+        });
+        let alpha = alphas[i];
+        w.coef[i] += alpha;
+        if AVERAGE {
+            w.coef_avg[i] += alpha * s.weight(iterations);
+        }
+        // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual.
+        let a = _mm512_set1_pd(alpha);
+        let row = 1u64 << i;
+        // SAFETY: row i < p of the p × p Gram matrix.
+        let g = unsafe { gp.add(i * p) };
+        let mut sum = zero;
+        let mut best = zero;
+        for c in 0..C {
+            // SAFETY: columns below p of row i.
+            let gc = unsafe { _mm512_loadu_pd(g.add(LANES * c)) };
+            let v = _mm512_sub_pd(r[c], _mm512_mul_pd(a, gc));
+            let v = _mm512_mask_mov_pd(v, (row >> (LANES * c)) as u8, zero);
+            r[c] = v;
+            let r2 = _mm512_mul_pd(v, v);
+            ratio[c] = _mm512_mul_pd(r2, inv[c]);
+            // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
+            unsafe { _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(v, inv[c])) };
+            sum = _mm512_add_pd(sum, r2);
+            // MAXPD returns its second operand if either is NaN: keep `best`, as the
+            // portable `if v > best` does.
+            best = _mm512_max_pd(ratio[c], best);
+        }
+        // Butterflies leave the total in every lane: s_l + s_{l+4}, then (t₀ + t₂) and
+        // (t₁ + t₃), then their sum, as the portable loop adds them.
+        sum_v = _mm512_add_pd(sum, _mm512_shuffle_f64x2::<0b01_00_11_10>(sum, sum));
+        sum_v = _mm512_add_pd(sum_v, _mm512_shuffle_f64x2::<0b10_11_00_01>(sum_v, sum_v));
+        sum_v = _mm512_add_pd(sum_v, _mm512_permute_pd::<0b0101_0101>(sum_v));
+        max_v = _mm512_max_pd(best, _mm512_shuffle_f64x2::<0b01_00_11_10>(best, best));
+        max_v = _mm512_max_pd(max_v, _mm512_shuffle_f64x2::<0b10_11_00_01>(max_v, max_v));
+        max_v = _mm512_max_pd(max_v, _mm512_permute_pd::<0b0101_0101>(max_v));
+        rnorm2 = _mm512_cvtsd_f64(sum_v);
+        converged = rnorm2 <= s.tol2;
+    }
+    draws.finish();
+    for (c, rc) in r.iter().enumerate() {
+        // SAFETY: below p entries of the residual.
+        unsafe { _mm512_storeu_pd(rp.add(LANES * c), *rc) };
+    }
+    (iterations, converged)
+}
+
+/// Chunks a window may have for [`iterate_avx512`] (`p ≤ 32`, windows of up to 32 rows).
+const MAX_CHUNKS: usize = 4;
+
+/// The in-chunk prefix sums of the documented order: `x_l ← x_l + x_{l−d}` for `d = 1, 2, 4`.
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn scan8(x: __m512d) -> __m512d {
+    let zero = _mm512_setzero_si512();
+    let shift = |x: __m512d, by: usize| -> __m512d {
+        let xi = _mm512_castpd_si512(x);
+        // Lanes moved up by `by`, zeros shifted in.
+        _mm512_castsi512_pd(match by {
+            1 => _mm512_alignr_epi64::<7>(xi, zero),
+            2 => _mm512_alignr_epi64::<6>(xi, zero),
+            _ => _mm512_alignr_epi64::<4>(xi, zero),
+        })
+    };
+    let x = _mm512_add_pd(x, shift(x, 1));
+    let x = _mm512_add_pd(x, shift(x, 2));
+    _mm512_add_pd(x, shift(x, 4))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transposes_are_transposes() {
+        if !std::is_x86_feature_detected!("avx512f") {
+            return;
+        }
+        let rows: [__m512d; 8] = core::array::from_fn(|r| {
+            let v: [f64; 8] = core::array::from_fn(|c| (10 * r + c) as f64);
+            // SAFETY: reads eight f64 from an array of eight.
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        });
+        // SAFETY: AVX-512F detected above.
+        let t = unsafe { transpose8(rows) };
+        for (c, tc) in t.iter().enumerate() {
+            let mut out = [0.0; 8];
+            // SAFETY: writes eight f64 into an array of eight.
+            unsafe { _mm512_storeu_pd(out.as_mut_ptr(), *tc) };
+            let want: [f64; 8] = core::array::from_fn(|r| (10 * r + c) as f64);
+            assert_eq!(out, want, "column {c}");
+        }
+    }
+}
