@@ -13,12 +13,15 @@
 //!   `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
 //! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
 //!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
-//! - Prefix sums `P` of `w`: inside each chunk three steps `x_l ← x_l + x_{l−d}` for
-//!   `d = 1, 2, 4` (lanes `l ≥ d`, from the values before the step), then the last prefix of
-//!   the previous chunk added to every lane. The total is the last prefix.
-//! - With `target = u · total`, `u ∈ [0, 1)`, the row drawn is the first `j` with `w_j > 0`
-//!   and `P_j > target`; on round-off, the last `j` with `w_j > 0`; if every weight is zero,
-//!   the first `j` of largest ratio.
+//! - Rows are sampled in lane-major order (lane `l = j mod 8` first, then chunk
+//!   `c = j div 8`), which needs no shuffles down the chunks: running sums
+//!   `V_{c,l} = V_{c−1,l} + w_{8c+l}` (`V_{0,l} = w_l`); the lane totals `T_l = V_{last,l}`
+//!   scanned across lanes in three steps `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4` (lanes `l ≥ d`,
+//!   from the values before the step); running sums `P_{c,l} = x_{l−1} + V_{c,l}` (`l ≥ 1`;
+//!   `P_{c,0} = V_{c,0}`); total `x_7`.
+//! - With `target = u · total`, `u ∈ [0, 1)`, the row drawn is the first in that order with
+//!   `w_j > 0` and `P_j > target`; on round-off, the last in that order with `w_j > 0`; if
+//!   every weight is zero, the first `j` of largest ratio.
 //! - `α = r_i · (1/‖a_i‖²)`; `r ← r − α g_i` is a multiply then a subtraction (never fused),
 //!   then `r_i ← 0` exactly.
 
@@ -243,8 +246,8 @@ pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
     ((t[0] + t[2]) + (t[1] + t[3]), best)
 }
 
-/// Candidate weights into `w` and their prefix sums into `prefix` (documented order);
-/// returns the total.
+/// Candidate weights into `w` and their running sums in the sampling order into `prefix`
+/// (documented order); returns the total.
 #[inline(always)]
 fn candidates<T: Real>(
     r: &[T],
@@ -263,30 +266,45 @@ fn candidates<T: Real>(
             T::zero()
         };
     }
-    let mut carry = T::zero();
-    for (wc, pc) in w.chunks_exact(LANES).zip(prefix.chunks_exact_mut(LANES)) {
-        let mut x: [T; LANES] = core::array::from_fn(|l| wc[l]);
-        for d in [1, 2, 4] {
-            let old = x;
-            for l in d..LANES {
-                x[l] = old[l] + old[l - d];
-            }
-        }
+    // Down the chunks, lane by lane: V_{c,l} = V_{c−1,l} + w_{8c+l}.
+    prefix[..LANES].copy_from_slice(&w[..LANES]);
+    for c in 1..p / LANES {
         for l in 0..LANES {
-            pc[l] = x[l] + carry;
+            prefix[LANES * c + l] = prefix[LANES * (c - 1) + l] + w[LANES * c + l];
         }
-        carry = pc[LANES - 1];
     }
-    carry
+    // Across the lanes: the in-chunk scan of the lane totals, shifted by one lane.
+    let mut x: [T; LANES] = core::array::from_fn(|l| prefix[p - LANES + l]);
+    for d in [1, 2, 4] {
+        let old = x;
+        for l in d..LANES {
+            x[l] = old[l] + old[l - d];
+        }
+    }
+    for c in 0..p / LANES {
+        for l in 1..LANES {
+            prefix[LANES * c + l] = x[l - 1] + prefix[LANES * c + l];
+        }
+    }
+    x[LANES - 1]
 }
 
-/// The row drawn for `target` (documented order), `None` if every weight is zero.
+/// The row drawn for `target` (documented order: lanes, then chunks), `None` if every
+/// weight is zero.
 #[inline(always)]
 fn draw_row<T: Real>(w: &[T], prefix: &[T], target: T) -> Option<usize> {
-    w.iter()
-        .zip(prefix)
-        .position(|(&wj, &pj)| wj > T::zero() && pj > target)
-        .or_else(|| w.iter().rposition(|v| *v > T::zero()))
+    let chunks = w.len() / LANES;
+    let order = (0..LANES).flat_map(|l| (0..chunks).map(move |c| LANES * c + l));
+    let mut last_positive = None;
+    for j in order {
+        if w[j] > T::zero() {
+            if prefix[j] > target {
+                return Some(j);
+            }
+            last_positive = Some(j);
+        }
+    }
+    last_positive
 }
 
 /// The index of the largest `r_j²/‖a_j‖²` (the first, on ties; 0 if all are zero).

@@ -118,11 +118,14 @@ fn reference(
                 .collect();
             let total: f64 = w.iter().sum();
             let target = uniform(rng) * total;
+            // The kernel's sampling order: lane-major over chunks of eight rows
+            // (rows 0, 8, 16, …, then 1, 9, 17, …).
+            let order = (0..8).flat_map(|l| (0..m.div_ceil(8)).map(move |c| 8 * c + l));
             let mut acc = 0.0;
             let mut pick = m - 1;
-            for (k, wk) in w.iter().enumerate() {
-                acc += wk;
-                if acc > target && *wk > 0.0 {
+            for k in order.filter(|&k| k < m) {
+                acc += w[k];
+                if acc > target && w[k] > 0.0 {
                     pick = k;
                     break;
                 }
