@@ -274,9 +274,9 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         self.buf
     }
 
-    fn parts(&mut self) -> Parts<'_, T> {
-        let (n, m) = (self.n, padded(self.m_max));
-        let rest = self.buf.as_mut();
+    fn parts(buf: &mut S, n: usize, m_max: usize) -> Parts<'_, T> {
+        let m = padded(m_max);
+        let rest = buf.as_mut();
         let (estimate, rest) = rest.split_at_mut(n);
         let (work, rest) = rest.split_at_mut(n);
         let (norm2, rest) = rest.split_at_mut(m);
@@ -323,9 +323,11 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (t_total, t_b) = self.config.schedule(m);
         let tol = T::cast(self.config.tolerance);
         let tol2 = tol * tol;
-        // Work on a copy of the generator: it is committed only if the update succeeds.
-        let mut rng = self.rng.clone();
-        let p = self.parts();
+        // The generator's position, restored if the update fails after drawing (cheaper than
+        // working on a copy of its state).
+        let rng_start = self.rng.get_word_pos();
+        let rng = &mut self.rng;
+        let p = Self::parts(&mut self.buf, n, self.m_max);
 
         let pm = padded(m);
 
@@ -399,7 +401,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                 prefix: &mut *p.prefix,
             };
             (iterations, converged) =
-                k.iterate::<AVERAGE>(window, rnorm2, max_ratio, schedule, &mut rng);
+                k.iterate::<AVERAGE>(window, rnorm2, max_ratio, schedule, rng);
         } else {
             // Cumulative row norms for sampling i ∝ ‖a_i‖².
             let mut cum = T::zero();
@@ -424,7 +426,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                     }
                 }
                 iterations += 1;
-                let target = T::cast(greedy::uniform(&mut rng)) * cum;
+                let target = T::cast(greedy::uniform(rng)) * cum;
                 let i = sample_cumulative(&p.scratch[..m], p.norm2, target);
                 let row = &a[i * n..(i + 1) * n];
                 let alpha = (b[i] - dot(row, p.work)) * p.inv_norm2[i];
@@ -447,10 +449,10 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             }
         }
         if p.work.iter().any(|v| !v.is_finite()) {
+            rng.set_word_pos(rng_start);
             return Err(EstimatorError::Diverged);
         }
         p.estimate.copy_from_slice(p.work);
-        self.rng = rng;
         Ok(UpdateInfo {
             rows: m,
             iterations,

@@ -285,7 +285,7 @@ unsafe fn gram_panel_avx512(
 ) {
     let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
     let mut bi = 0;
-    while bi <= bj {
+    while bi < bj {
         let rows: [*const f64; 8] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
         // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
         // columns < p of `gram` (bi + 8 ≤ p, bj + 8 ≤ p).
@@ -301,13 +301,41 @@ unsafe fn gram_panel_avx512(
             for (s, cs) in c.iter().enumerate() {
                 _mm512_storeu_pd(g.add((bi + s) * p + bj), *cs);
             }
-            if bi != bj {
-                for (l, tl) in transpose8(c).iter().enumerate() {
-                    _mm512_storeu_pd(g.add((bj + l) * p + bi), *tl);
-                }
+            for (l, tl) in transpose8(c).iter().enumerate() {
+                _mm512_storeu_pd(g.add((bj + l) * p + bi), *tl);
             }
         }
         bi += PANEL;
+    }
+    // The diagonal block: its upper four rows in full, its lower four only right of the
+    // diagonal's 4 × 4 split; the lower-left quarter is the upper-right one transposed.
+    let rows: [*const f64; 8] = core::array::from_fn(|s| row_ptr(a, n, m, bj + s));
+    // SAFETY: as above, with bi = bj.
+    unsafe {
+        let mut upper = [_mm512_setzero_pd(); 4];
+        let mut lower = [_mm256_setzero_pd(); 4];
+        for k in 0..n {
+            let vk = _mm512_loadu_pd(v.add(k * PANEL));
+            let vr = _mm256_loadu_pd(v.add(k * PANEL + 4));
+            for (s, cs) in upper.iter_mut().enumerate() {
+                let u = _mm512_set1_pd(*rows[s].add(k));
+                *cs = _mm512_add_pd(_mm512_mul_pd(u, vk), *cs);
+            }
+            for (s, cs) in lower.iter_mut().enumerate() {
+                let u = _mm256_set1_pd(*rows[4 + s].add(k));
+                *cs = _mm256_add_pd(_mm256_mul_pd(u, vr), *cs);
+            }
+        }
+        for (s, cs) in upper.iter().enumerate() {
+            _mm512_storeu_pd(g.add((bj + s) * p + bj), *cs);
+        }
+        for (s, cs) in lower.iter().enumerate() {
+            _mm256_storeu_pd(g.add((bj + 4 + s) * p + bj + 4), *cs);
+        }
+        let right: [__m256d; 4] = core::array::from_fn(|s| _mm512_extractf64x4_pd::<1>(upper[s]));
+        for (l, tl) in transpose4(right).iter().enumerate() {
+            _mm256_storeu_pd(g.add((bj + 4 + l) * p + bj), *tl);
+        }
     }
 }
 
