@@ -177,8 +177,9 @@ impl KaczmarzConfig {
 }
 
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
-/// needs: `2n + 7p + p²` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
-/// holds the Gram matrix), plus `n·p` on x86-64 for a transposed copy of the window.
+/// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
+/// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
+/// `n·p` on x86-64 for a transposed copy of the window.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
@@ -189,8 +190,12 @@ pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     } else {
         0
     };
-    2 * n + 7 * p + p * p + transposed
+    2 * n + 7 * p + p * p + ALIGN_SLACK + transposed
 }
+
+/// Scalars skipped at most to start the per-update work area on a 64-byte boundary (a cache
+/// line, and the width of an AVX-512 register): 16 `f32` or 8 `f64`.
+const ALIGN_SLACK: usize = 16;
 
 /// Storage for an estimator's buffers: anything that derefs to a mutable slice.
 pub trait Storage<T>: AsRef<[T]> + AsMut<[T]> {}
@@ -274,24 +279,29 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         self.buf
     }
 
+    /// The buffer's views. The estimate, the only state kept between updates, comes first
+    /// (so a storage that moves keeps it); the work area after it starts on a 64-byte
+    /// boundary wherever the storage is, with the `p`-sized arrays first so that every one
+    /// of them, and the Gram rows, are aligned too.
     fn parts(buf: &mut S, n: usize, m_max: usize) -> Parts<'_, T> {
         let m = padded(m_max);
-        let rest = buf.as_mut();
-        let (estimate, rest) = rest.split_at_mut(n);
-        let (work, rest) = rest.split_at_mut(n);
+        let (estimate, rest) = buf.as_mut().split_at_mut(n);
+        let skip = rest.as_ptr().align_offset(64).min(ALIGN_SLACK);
+        let rest = &mut rest[skip..];
+        let (gram, rest) = rest.split_at_mut(m * m);
         let (norm2, rest) = rest.split_at_mut(m);
         let (inv_norm2, rest) = rest.split_at_mut(m);
         let (resid, rest) = rest.split_at_mut(m);
         let (coef, rest) = rest.split_at_mut(m);
         let (coef_avg, rest) = rest.split_at_mut(m);
         let (scratch, rest) = rest.split_at_mut(m);
-        let (gram, rest) = rest.split_at_mut(m * m);
         let (prefix, rest) = rest.split_at_mut(m);
-        let transposed = if cfg!(target_arch = "x86_64") {
-            &mut rest[..n * m]
+        let (transposed, rest) = if cfg!(target_arch = "x86_64") {
+            rest.split_at_mut(n * m)
         } else {
-            &mut rest[..0]
+            rest.split_at_mut(0)
         };
+        let work = &mut rest[..n];
         Parts {
             estimate,
             work,
