@@ -9,8 +9,9 @@
 //! - Vectors of the window (residual `r`, row norms, coefficients) are padded with zeros to
 //!   `p = padded(m)` entries, a multiple of 8, handled as chunks of 8 lanes; the Gram matrix is
 //!   `p × p` with row stride `p` (rows `≥ m` unspecified, zero in columns `≥ m`).
-//! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j`, combined as
-//!   `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
+//! - `S = Σ_j r_j²` runs over sixteen partial sums (lane `j mod 8` of the even chunks and of
+//!   the odd chunks), each in order of `j`, combined as `s_l = e_l + o_l`, `t_l = s_l + s_{l+4}`,
+//!   then `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
 //! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
 //!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
 //! - Rows are sampled in lane-major order (lane `l = j mod 8` first, then chunk
@@ -86,7 +87,13 @@ impl<T: Real> Schedule<T> {
 /// A uniform draw in `[0, 1)` with 53 random bits.
 #[inline(always)]
 pub(crate) fn uniform(rng: &mut ChaCha8Rng) -> f64 {
-    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    unit(rng.next_u64())
+}
+
+/// The top 53 bits of a random word as a uniform number in `[0, 1)`.
+#[inline(always)]
+fn unit(word: u64) -> f64 {
+    (word >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
 /// The uniform draws of one window, taken from the generator in batches (so a SIMD loop does
@@ -135,8 +142,13 @@ impl<'a> Draws<'a> {
         self.len = self.left.clamp(1, DRAW_BATCH);
         self.left -= self.len.min(self.left);
         self.start = self.rng.get_word_pos();
-        for u in &mut self.buf[..self.len] {
-            *u = uniform(self.rng);
+        // One bulk copy out of the generator's buffer: the same words, in the same order, as
+        // `len` calls of `next_u64` (low word first).
+        let mut bytes = [0u8; 8 * DRAW_BATCH];
+        self.rng.fill_bytes(&mut bytes[..8 * self.len]);
+        for (u, b) in self.buf[..self.len].iter_mut().zip(bytes.chunks_exact(8)) {
+            let word = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+            *u = unit(word);
         }
         self.next = 0;
     }
@@ -232,16 +244,19 @@ impl<T: Real> Kernels<T> for Portable {
 /// `(Σ_j r_j², max_j r_j²/‖a_j‖²)` over `p` entries (a multiple of 8), in the documented order.
 #[inline(always)]
 pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
-    let mut sum = [T::zero(); LANES];
+    // Even and odd chunks apart (two independent chains), then together.
+    let mut sums = [[T::zero(); LANES]; 2];
     let mut best = T::zero();
-    for (rc, ic) in r.chunks_exact(LANES).zip(inv_norm2.chunks_exact(LANES)) {
+    let chunks = r.chunks_exact(LANES).zip(inv_norm2.chunks_exact(LANES));
+    for (c, (rc, ic)) in chunks.enumerate() {
         for l in 0..LANES {
             let r2 = rc[l] * rc[l];
-            sum[l] += r2;
+            sums[c % 2][l] += r2;
             let v = r2 * ic[l];
             best = if v > best { v } else { best };
         }
     }
+    let sum: [T; LANES] = core::array::from_fn(|l| sums[0][l] + sums[1][l]);
     let t: [T; 4] = core::array::from_fn(|l| sum[l] + sum[l + 4]);
     ((t[0] + t[2]) + (t[1] + t[3]), best)
 }

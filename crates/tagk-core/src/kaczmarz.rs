@@ -47,7 +47,7 @@ use rand_core::SeedableRng;
 
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
 use crate::greedy::{self, Kernels, Portable, Schedule, Window};
-use crate::linalg::{axpy, dot, norm2_and_dot, padded};
+use crate::linalg::{add_combination, axpy, dot, norm2_and_dot, padded};
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 use crate::x86::Avx2;
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
@@ -356,7 +356,21 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                 p.resid[i] = b[i] - ax;
             }
         }
-        // One pass over the padded window: reciprocal norms, zero rows and padding made inert,
+        // Every norm and prior residual finite (a branch-free pass, then the error path)?
+        let finite = p.norm2[..m]
+            .iter()
+            .zip(&p.resid[..m])
+            .fold(true, |ok, (nn, r)| ok & nn.is_finite() & r.is_finite());
+        if !finite {
+            check_window_finite(n, a, b)?;
+            // Finite entries whose squares overflow: name the first such row.
+            let row = (0..m)
+                .find(|&i| !(p.norm2[i].is_finite() && p.resid[i].is_finite()))
+                .unwrap_or(0);
+            return Err(EstimatorError::NonFiniteRegressor { row, col: 0 });
+        }
+        // One branch-free pass over the padded window: reciprocal norms, zero rows and padding
+        // made inert (a zero row carries no information: never chosen, never divided by),
         // coefficients cleared.
         let mut fro2 = T::zero();
         for i in 0..pm {
@@ -365,19 +379,12 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             } else {
                 (T::zero(), T::zero())
             };
-            if !(nn.is_finite() && r.is_finite()) {
-                check_window_finite(n, a, b)?;
-                // Finite entries whose squares overflow.
-                return Err(EstimatorError::NonFiniteRegressor { row: i, col: 0 });
-            }
-            // A zero row carries no information: never chosen, never divided by.
             let usable = nn > T::zero();
+            let inv = T::one() / nn;
             p.norm2[i] = nn;
-            p.inv_norm2[i] = if usable { T::one() / nn } else { T::zero() };
+            p.inv_norm2[i] = if usable { inv } else { T::zero() };
             p.resid[i] = if usable { r } else { T::zero() };
-            if usable {
-                fro2 += nn;
-            }
+            fro2 += if usable { nn } else { T::zero() };
             p.coef[i] = T::zero();
             p.coef_avg[i] = T::zero();
         }
@@ -452,11 +459,9 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         if GREEDY || AVERAGE {
             let coef: &[T] = if AVERAGE { p.coef_avg } else { p.coef };
             p.work.copy_from_slice(p.estimate);
-            for i in 0..m {
-                if coef[i] != T::zero() {
-                    axpy(coef[i], &a[i * n..(i + 1) * n], p.work);
-                }
-            }
+            // Every row, used or not (a zero coefficient adds an exact zero), without a
+            // data-dependent branch.
+            add_combination(p.work, a, coef, n, m);
         }
         if p.work.iter().any(|v| !v.is_finite()) {
             rng.set_word_pos(rng_start);

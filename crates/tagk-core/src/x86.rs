@@ -518,20 +518,21 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
         if _mm512_cvtsd_f64(total) > 0.0 {
             let target = _mm512_mul_pd(_mm512_set1_pd(draws.next()), total);
             // Bits in lane-major order (bit 4l + c for row 8c + l).
-            let (mut hit, mut positive) = (0u32, 0u32);
+            let mut hit = 0u32;
             for c in 0..C {
                 let prefix = _mm512_add_pd(before, down[c]);
                 let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix, target);
                 hit |= _pdep_u32(u32::from(candidate[c] & past), LANE_MAJOR << c);
-                positive |= _pdep_u32(u32::from(candidate[c]), LANE_MAJOR << c);
             }
             let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
             chosen = if hit != 0 {
                 Some(row(hit.trailing_zeros()))
-            } else if positive != 0 {
-                Some(row(31 - positive.leading_zeros()))
             } else {
-                None
+                // Round-off: the last candidate in lane-major order.
+                let positive = (0..C).fold(0u32, |acc, c| {
+                    acc | _pdep_u32(u32::from(candidate[c]), LANE_MAJOR << c)
+                });
+                (positive != 0).then(|| row(31 - positive.leading_zeros()))
             };
         }
         let i = chosen.unwrap_or_else(|| {
@@ -556,7 +557,8 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
         let row = 1u64 << i;
         // SAFETY: row i < p of the p × p Gram matrix.
         let g = unsafe { gp.add(i * p) };
-        let mut sum = zero;
+        // Squares summed over the even and the odd chunks apart, then together.
+        let mut squares = [zero; MAX_CHUNKS];
         let mut best = zero;
         for c in 0..C {
             // SAFETY: columns below p of row i.
@@ -568,11 +570,22 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             ratio[c] = _mm512_mul_pd(r2, inv[c]);
             // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
             unsafe { _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(v, inv[c])) };
-            sum = _mm512_add_pd(sum, r2);
+            squares[c] = r2;
             // MAXPD returns its second operand if either is NaN: keep `best`, as the
             // portable `if v > best` does.
             best = _mm512_max_pd(ratio[c], best);
         }
+        // 0 + x = x for the squares (never −0), so the first sum of each parity is the square.
+        let mut even = squares[0];
+        let mut odd = if C > 1 { squares[1] } else { zero };
+        for c in 2..C {
+            if c % 2 == 0 {
+                even = _mm512_add_pd(even, squares[c]);
+            } else {
+                odd = _mm512_add_pd(odd, squares[c]);
+            }
+        }
+        let sum = _mm512_add_pd(even, odd);
         // Butterflies leave the total in every lane: s_l + s_{l+4}, then (t₀ + t₂) and
         // (t₁ + t₃), then their sum, as the portable loop adds them.
         sum_v = _mm512_add_pd(sum, _mm512_shuffle_f64x2::<0b01_00_11_10>(sum, sum));
