@@ -9,9 +9,9 @@
 //! - Vectors of the window (residual `r`, row norms, coefficients) are padded with zeros to
 //!   `p = padded(m)` entries, a multiple of 8, handled as chunks of 8 lanes; the Gram matrix is
 //!   `p × p` with row stride `p` (rows `≥ m` unspecified, zero in columns `≥ m`).
-//! - `S = Σ_j r_j²` runs over sixteen partial sums (lane `j mod 8` of the even chunks and of
-//!   the odd chunks), each in order of `j`, combined as `s_l = e_l + o_l`, `t_l = s_l + s_{l+4}`,
-//!   then `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
+//! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j` (eight
+//!   accumulators fit a Cortex-M7's registers), combined as `t_l = s_l + s_{l+4}`, then
+//!   `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
 //! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
 //!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
 //! - Rows are sampled in lane-major order (lane `l = j mod 8` first, then chunk
@@ -244,19 +244,16 @@ impl<T: Real> Kernels<T> for Portable {
 /// `(Σ_j r_j², max_j r_j²/‖a_j‖²)` over `p` entries (a multiple of 8), in the documented order.
 #[inline(always)]
 pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
-    // Even and odd chunks apart (two independent chains), then together.
-    let mut sums = [[T::zero(); LANES]; 2];
+    let mut sum = [T::zero(); LANES];
     let mut best = T::zero();
-    let chunks = r.chunks_exact(LANES).zip(inv_norm2.chunks_exact(LANES));
-    for (c, (rc, ic)) in chunks.enumerate() {
+    for (rc, ic) in r.chunks_exact(LANES).zip(inv_norm2.chunks_exact(LANES)) {
         for l in 0..LANES {
             let r2 = rc[l] * rc[l];
-            sums[c % 2][l] += r2;
+            sum[l] += r2;
             let v = r2 * ic[l];
             best = if v > best { v } else { best };
         }
     }
-    let sum: [T; LANES] = core::array::from_fn(|l| sums[0][l] + sums[1][l]);
     let t: [T; 4] = core::array::from_fn(|l| sum[l] + sum[l + 4]);
     ((t[0] + t[2]) + (t[1] + t[3]), best)
 }
@@ -309,14 +306,16 @@ fn candidates<T: Real>(
 #[inline(always)]
 fn draw_row<T: Real>(w: &[T], prefix: &[T], target: T) -> Option<usize> {
     let chunks = w.len() / LANES;
-    let order = (0..LANES).flat_map(|l| (0..chunks).map(move |c| LANES * c + l));
     let mut last_positive = None;
-    for j in order {
-        if w[j] > T::zero() {
-            if prefix[j] > target {
-                return Some(j);
+    for l in 0..LANES {
+        for c in 0..chunks {
+            let j = LANES * c + l;
+            if w[j] > T::zero() {
+                if prefix[j] > target {
+                    return Some(j);
+                }
+                last_positive = Some(j);
             }
-            last_positive = Some(j);
         }
     }
     last_positive

@@ -27,15 +27,30 @@
 //! and the tail average only needs averaged coefficients `c̄` (O(1) per iteration).
 //! - Setup, all variants: one pass over `A` for `‖a_i‖²` and `r = b − A x₀`: `2mn` flops.
 //! - Greedy variants: the residual is updated incrementally, `r ← r − α G e_i`, through the
-//!   Gram matrix `G = A Aᵀ`, built once per window from its upper triangle with register-tiled
-//!   kernels (`m(m+1)/2` dot products of length `n`, i.e. `m²n` flops), plus `O(m)` branch-free
-//!   work per iteration for selection and the residual update. No residual is ever recomputed
-//!   from `A`. (Computing Gram columns lazily, only for the rows chosen, was measured and
+//!   Gram matrix `G = A Aᵀ`, built once per window with register-tiled kernels (`m(m+1)/2`
+//!   dot products of length `n`, i.e. `m²n` flops), plus `O(m)` branch-free work per
+//!   iteration for selection and the residual update. No residual is ever recomputed from
+//!   `A`. (Computing Gram columns lazily, only for the rows chosen, was measured and
 //!   rejected: greedy selection visits about half of the rows at `n = 10` and 80 % at
 //!   `n = 120` in a window of 30, and one-at-a-time dot products are latency-bound.)
 //! - Randomised variants: `2n` flops per iteration (a dot product and an update of `x`), the
 //!   row drawn by binary search over cumulative row norms.
 //! - Finish: `x̄ = x₀ + Aᵀc̄` (or `x₀ + Aᵀc`): `2mn` flops.
+//!
+//! Measured on a 2-core AMD EPYC (Zen 4) VM, `f64`, `m = 30` (`cargo bench --bench
+//! estimators`): about 1.9 µs per TAG-K update at `n = 10` and 5.4 µs at `n = 120`, of which
+//! the 30 greedy iterations take about 1.1 µs and, at `n = 120`, the Gram matrix about 2.5 µs.
+//!
+//! # Kernels and bit-identical results
+//! The greedy variants run on one of three kernel sets, chosen at run time, which perform the
+//! same floating-point operations in the same order (the order is fixed in the `greedy` module
+//! and documented there; multiplies and adds are never fused), so the same seed gives the
+//! same bits on every machine:
+//! - portable loops (any target, any scalar; what a Cortex-M7 runs);
+//! - `f64` on x86-64 with AVX2 (`std` feature): the Gram matrix built GEMM-style from packed
+//!   panels of 8 rows with 4 × 8 register tiles;
+//! - `f64` on x86-64 with AVX-512F and BMI2: 8 × 8 Gram tiles, and for windows of up to 32
+//!   rows the greedy loop with the window held in `zmm` registers across iterations.
 //!
 //! The update never allocates: every buffer is laid out at construction in storage the
 //! caller chooses (a `Vec`, an array, or a `&mut [T]` in static memory on a microcontroller).
@@ -459,8 +474,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         if GREEDY || AVERAGE {
             let coef: &[T] = if AVERAGE { p.coef_avg } else { p.coef };
             p.work.copy_from_slice(p.estimate);
-            // Every row, used or not (a zero coefficient adds an exact zero), without a
-            // data-dependent branch.
+            // The rows used (nonzero coefficient), row by row, accumulated in registers.
             add_combination(p.work, a, coef, n, m);
         }
         if p.work.iter().any(|v| !v.is_finite()) {

@@ -557,7 +557,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
         let row = 1u64 << i;
         // SAFETY: row i < p of the p × p Gram matrix.
         let g = unsafe { gp.add(i * p) };
-        // Squares summed over the even and the odd chunks apart, then together.
         let mut squares = [zero; MAX_CHUNKS];
         let mut best = zero;
         for c in 0..C {
@@ -575,17 +574,12 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             // portable `if v > best` does.
             best = _mm512_max_pd(ratio[c], best);
         }
-        // 0 + x = x for the squares (never −0), so the first sum of each parity is the square.
-        let mut even = squares[0];
-        let mut odd = if C > 1 { squares[1] } else { zero };
-        for c in 2..C {
-            if c % 2 == 0 {
-                even = _mm512_add_pd(even, squares[c]);
-            } else {
-                odd = _mm512_add_pd(odd, squares[c]);
-            }
+        // Chunk by chunk into the eight lane sums (0 + x = x for the first: squares are
+        // never −0).
+        let mut sum = squares[0];
+        for sq in &squares[1..C] {
+            sum = _mm512_add_pd(sum, *sq);
         }
-        let sum = _mm512_add_pd(even, odd);
         // Butterflies leave the total in every lane: s_l + s_{l+4}, then (t₀ + t₂) and
         // (t₁ + t₃), then their sum, as the portable loop adds them.
         sum_v = _mm512_add_pd(sum, _mm512_shuffle_f64x2::<0b01_00_11_10>(sum, sum));
