@@ -175,10 +175,12 @@ unsafe fn gram_and_residual_f64(
         // SAFETY: the slices were checked above; the CPU features are the caller's promise.
         unsafe {
             pack_panel_f64(a, b, x, n, m, bj, panel, resid);
+            // The next panel's rows, fetched into cache while this panel's tiles compute.
+            let next = &a[((bj + PANEL) * n).min(m * n)..((bj + 2 * PANEL) * n).min(m * n)];
             if avx512f {
-                gram_panel_avx512(a, n, m, p, bj, panel, gram);
+                gram_panel_avx512(a, n, m, p, bj, panel, next, gram);
             } else {
-                gram_panel_avx2(a, n, m, p, bj, panel, gram);
+                gram_panel_avx2(a, n, m, p, bj, panel, next, gram);
             }
         }
         bj += PANEL;
@@ -186,6 +188,22 @@ unsafe fn gram_and_residual_f64(
     // Rows `≥ m` of G hold products of stand-in rows (see `row_ptr`), which the contract
     // leaves unspecified; columns `≥ m` of the other rows are exact zeros, as the panels are
     // zero there, and mirror images only ever come from rows below `m`.
+}
+
+/// Prefetches `data` into L1 (one hint per 64-byte line) before a panel's tiles compute, for
+/// rows long enough (`n ≥ 32`) that a window may not be in cache: the hints are cheap next to
+/// the loads they save when the window comes from L3 or memory.
+#[inline(always)]
+fn prefetch_spread(data: &[f64], n: usize) {
+    if n < 32 {
+        return;
+    }
+    let mut k = 0;
+    while k < data.len() {
+        // SAFETY: a prefetch hint never faults; the address is inside `data`.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(data.as_ptr().add(k).cast()) };
+        k += 8;
+    }
 }
 
 /// A pointer to row `i` of `A`, or to row `m − 1` for a padding row (`i ≥ m`), whose products
@@ -219,51 +237,50 @@ unsafe fn pack_panel_f64(
     let (dst, xp) = (panel.as_mut_ptr(), x.as_ptr());
     for half in 0..2 {
         let j = bj + 4 * half;
-        if j + 4 <= m {
-            let src = a[j * n..].as_ptr();
-            // SAFETY: reads rows j..j+4 < m at columns < n and x below n; writes panel rows
-            // < n.
-            unsafe {
-                let mut acc = [_mm256_setzero_pd(); 4];
-                let mut k = 0;
-                while k < n4 {
-                    let rows: [__m256d; 4] =
-                        core::array::from_fn(|r| _mm256_loadu_pd(src.add(r * n + k)));
-                    let xv = _mm256_loadu_pd(xp.add(k));
-                    for (acc_r, row) in acc.iter_mut().zip(&rows) {
-                        *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
-                    }
-                    for (q, col) in transpose4(rows).iter().enumerate() {
-                        _mm256_storeu_pd(dst.add((k + q) * PANEL + 4 * half), *col);
-                    }
-                    k += 4;
+        // Rows past m are zero; their pointers stand in for loads that are not made.
+        let valid: [bool; 4] = core::array::from_fn(|r| j + r < m);
+        let src: [*const f64; 4] = core::array::from_fn(|r| row_ptr(a, n, m, j + r));
+        let full = j + 4 <= m;
+        // SAFETY: reads rows < m at columns < n and x below n; writes panel rows < n.
+        unsafe {
+            let mut acc = [_mm256_setzero_pd(); 4];
+            let mut k = 0;
+            while k < n4 {
+                let rows: [__m256d; 4] = if full {
+                    core::array::from_fn(|r| _mm256_loadu_pd(src[r].add(k)))
+                } else {
+                    core::array::from_fn(|r| {
+                        if valid[r] {
+                            _mm256_loadu_pd(src[r].add(k))
+                        } else {
+                            _mm256_setzero_pd()
+                        }
+                    })
+                };
+                let xv = _mm256_loadu_pd(xp.add(k));
+                for (acc_r, row) in acc.iter_mut().zip(&rows) {
+                    *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
                 }
-                for k in n4..n {
-                    for r in 0..4 {
-                        *dst.add(k * PANEL + 4 * half + r) = *src.add(r * n + k);
-                    }
+                for (q, col) in transpose4(rows).iter().enumerate() {
+                    _mm256_storeu_pd(dst.add((k + q) * PANEL + 4 * half), *col);
                 }
-                for (r, acc_r) in acc.iter().enumerate() {
-                    let u = _mm_add_pd(
-                        _mm256_castpd256_pd128(*acc_r),
-                        _mm256_extractf128_pd::<1>(*acc_r),
-                    );
-                    let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-                    for kk in n4..n {
-                        sum += *src.add(r * n + kk) * x[kk];
-                    }
-                    resid[j + r] = b[j + r] - sum;
+                k += 4;
+            }
+            for k in n4..n {
+                for r in 0..4 {
+                    *dst.add(k * PANEL + 4 * half + r) = if valid[r] { *src[r].add(k) } else { 0.0 };
                 }
             }
-        } else {
-            for r in 0..4 {
-                if j + r < m {
-                    let row = &a[(j + r) * n..(j + r + 1) * n];
-                    resid[j + r] = b[j + r] - crate::linalg::dot(row, x);
+            for (r, acc_r) in acc.iter().enumerate().filter(|(r, _)| valid[*r]) {
+                let u = _mm_add_pd(
+                    _mm256_castpd256_pd128(*acc_r),
+                    _mm256_extractf128_pd::<1>(*acc_r),
+                );
+                let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
+                for kk in n4..n {
+                    sum += *src[r].add(kk) * x[kk];
                 }
-                for k in 0..n {
-                    panel[k * PANEL + 4 * half + r] = if j + r < m { a[(j + r) * n + k] } else { 0.0 };
-                }
+                resid[j + r] = b[j + r] - sum;
             }
         }
     }
@@ -274,6 +291,7 @@ unsafe fn pack_panel_f64(
 /// # Safety
 /// The CPU must support AVX-512F; slices as in [`gram_and_residual_f64`].
 #[target_feature(enable = "avx512f")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn gram_panel_avx512(
     a: &[f64],
     n: usize,
@@ -281,8 +299,10 @@ unsafe fn gram_panel_avx512(
     p: usize,
     bj: usize,
     panel: &[f64],
+    next: &[f64],
     gram: &mut [f64],
 ) {
+    prefetch_spread(next, n);
     let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
     let mut bi = 0;
     while bi < bj {
@@ -344,6 +364,7 @@ unsafe fn gram_panel_avx512(
 /// # Safety
 /// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
 #[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn gram_panel_avx2(
     a: &[f64],
     n: usize,
@@ -351,8 +372,10 @@ unsafe fn gram_panel_avx2(
     p: usize,
     bj: usize,
     panel: &[f64],
+    next: &[f64],
     gram: &mut [f64],
 ) {
+    prefetch_spread(next, n);
     let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
     let mut bi = 0;
     while bi < bj + PANEL {
