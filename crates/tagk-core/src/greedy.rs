@@ -137,6 +137,14 @@ impl<'a> Draws<'a> {
         self.buf[self.next - 1]
     }
 
+    /// Takes the first batch now (for a SIMD loop that should not call out once started).
+    #[inline(always)]
+    pub fn fill_ahead(&mut self) {
+        if self.next == self.len && self.left > 0 {
+            self.refill();
+        }
+    }
+
     #[inline(never)]
     fn refill(&mut self) {
         self.len = self.left.clamp(1, DRAW_BATCH);
@@ -261,13 +269,7 @@ pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
 /// Candidate weights into `w` and their running sums in the sampling order into `prefix`
 /// (documented order); returns the total.
 #[inline(always)]
-fn candidates<T: Real>(
-    r: &[T],
-    inv_norm2: &[T],
-    threshold: T,
-    w: &mut [T],
-    prefix: &mut [T],
-) -> T {
+fn candidates<T: Real>(r: &[T], inv_norm2: &[T], threshold: T, w: &mut [T], prefix: &mut [T]) -> T {
     let p = w.len();
     let (r, inv_norm2, prefix) = (&r[..p], &inv_norm2[..p], &mut prefix[..p]);
     for j in 0..p {

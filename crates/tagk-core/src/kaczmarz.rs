@@ -590,7 +590,15 @@ mod tests {
 
     fn compare_with_portable(k: Avx2) {
         let mut data = ChaCha8Rng::seed_from_u64(7);
-        for (n, m_max) in [(1, 1), (3, 5), (10, 30), (13, 9), (40, 17), (120, 30), (7, 64)] {
+        for (n, m_max) in [
+            (1, 1),
+            (3, 5),
+            (10, 30),
+            (13, 9),
+            (40, 17),
+            (120, 30),
+            (7, 64),
+        ] {
             for (iterations, tolerance) in [
                 (Iterations::OnePass, 0.0),
                 (Iterations::Fixed(3 * m_max), 0.0),

@@ -344,10 +344,9 @@ fn combination_block<T: Real, const B: usize>(
 ) {
     let mut acc: [T; B] = core::array::from_fn(|l| x[k + l]);
     for (chunk, cs) in coef.chunks(64).enumerate() {
-        let mut used = cs
-            .iter()
-            .enumerate()
-            .fold(0u64, |bits, (q, &c)| bits | (u64::from(c != T::zero()) << q));
+        let mut used = cs.iter().enumerate().fold(0u64, |bits, (q, &c)| {
+            bits | (u64::from(c != T::zero()) << q)
+        });
         while used != 0 {
             let i = 64 * chunk + used.trailing_zeros() as usize;
             used &= used - 1;
@@ -484,7 +483,9 @@ mod tests {
     #[test]
     fn add_combination_matches_axpy_over_the_used_rows_bit_for_bit() {
         for (m, n) in [(1, 1), (3, 8), (30, 10), (7, 19), (30, 120), (130, 9)] {
-            let a: Vec<f64> = (0..m * n).map(|i| ((i * 7919 % 997) as f64 / 498.5) - 1.0).collect();
+            let a: Vec<f64> = (0..m * n)
+                .map(|i| ((i * 7919 % 997) as f64 / 498.5) - 1.0)
+                .collect();
             let c: Vec<f64> = (0..m).map(|i| (i as f64 * 0.7).sin()).collect();
             let x0: Vec<f64> = (0..n).map(|k| (k as f64).cos()).collect();
             let mut c = c;

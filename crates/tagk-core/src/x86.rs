@@ -268,7 +268,8 @@ unsafe fn pack_panel_f64(
             }
             for k in n4..n {
                 for r in 0..4 {
-                    *dst.add(k * PANEL + 4 * half + r) = if valid[r] { *src[r].add(k) } else { 0.0 };
+                    *dst.add(k * PANEL + 4 * half + r) =
+                        if valid[r] { *src[r].add(k) } else { 0.0 };
                 }
             }
             for (r, acc_r) in acc.iter().enumerate().filter(|(r, _)| valid[*r]) {
@@ -277,8 +278,8 @@ unsafe fn pack_panel_f64(
                     _mm256_extractf128_pd::<1>(*acc_r),
                 );
                 let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-                for kk in n4..n {
-                    sum += *src[r].add(kk) * x[kk];
+                for (kk, &xk) in x.iter().enumerate().take(n).skip(n4) {
+                    sum += *src[r].add(kk) * xk;
                 }
                 resid[j + r] = b[j + r] - sum;
             }
@@ -497,7 +498,8 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     // Held in registers across iterations: r, r²/‖a‖² and 1/‖a‖² (r² is recomputed where
     // needed, which is off the critical path and keeps the loop free of spills).
     // SAFETY: every pointer access is below p entries of its slice (checked above).
-    let mut r: [__m512d; C] = core::array::from_fn(|c| unsafe { _mm512_loadu_pd(rp.add(LANES * c)) });
+    let mut r: [__m512d; C] =
+        core::array::from_fn(|c| unsafe { _mm512_loadu_pd(rp.add(LANES * c)) });
     // SAFETY: as above.
     let inv: [__m512d; C] = core::array::from_fn(|c| unsafe { _mm512_loadu_pd(ip.add(LANES * c)) });
     let mut ratio: [__m512d; C] =
@@ -506,7 +508,12 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     let mut alphas = [0.0f64; LANES * MAX_CHUNKS];
     for c in 0..C {
         // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
-        unsafe { _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(r[c], inv[c])) };
+        unsafe {
+            _mm512_storeu_pd(
+                alphas.as_mut_ptr().add(LANES * c),
+                _mm512_mul_pd(r[c], inv[c]),
+            )
+        };
     }
 
     let mut sum_v = _mm512_set1_pd(rnorm2);
@@ -514,6 +521,9 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     let mut draws = Draws::new(rng, s.t_total);
     let mut iterations = 0;
     let mut converged = rnorm2 <= s.tol2;
+    if !converged {
+        draws.fill_ahead();
+    }
     while !converged && iterations < s.t_total {
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
@@ -591,7 +601,9 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             let r2 = _mm512_mul_pd(v, v);
             ratio[c] = _mm512_mul_pd(r2, inv[c]);
             // SAFETY: LANES · (c + 1) ≤ LANES · MAX_CHUNKS.
-            unsafe { _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(v, inv[c])) };
+            unsafe {
+                _mm512_storeu_pd(alphas.as_mut_ptr().add(LANES * c), _mm512_mul_pd(v, inv[c]))
+            };
             squares[c] = r2;
             // MAXPD returns its second operand if either is NaN: keep `best`, as the
             // portable `if v > best` does.

@@ -473,10 +473,10 @@ pub fn fit_model(
         Option<LsSolution>,
     )> = None;
     for pass in 0..passes {
-        if pass > 0 {
-            if let Some((_, _, res, _)) = &last {
-                w = weights_from_residual(res);
-            }
+        if pass > 0
+            && let Some((_, _, res, _)) = &last
+        {
+            w = weights_from_residual(res);
         }
         // Scan the nonlinear parameters, one coordinate at a time.
         for (k, e) in model.effects().iter().enumerate() {
