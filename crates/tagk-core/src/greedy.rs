@@ -138,6 +138,7 @@ impl<'a> Draws<'a> {
     }
 
     /// Takes the first batch now (for a SIMD loop that should not call out once started).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[inline(always)]
     pub fn fill_ahead(&mut self) {
         if self.next == self.len && self.left > 0 {
