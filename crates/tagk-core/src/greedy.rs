@@ -84,16 +84,18 @@ impl<T: Real> Schedule<T> {
     }
 }
 
-/// A uniform draw in `[0, 1)` with 53 random bits.
+/// A uniform draw in `[0, 1)` from one 32-bit word of the generator (a resolution of
+/// `2⁻³²` of the total weight, far below anything a window of rows can tell apart, at half
+/// the generator's work of a 53-bit draw).
 #[inline(always)]
 pub(crate) fn uniform(rng: &mut ChaCha8Rng) -> f64 {
-    unit(rng.next_u64())
+    unit(rng.next_u32())
 }
 
-/// The top 53 bits of a random word as a uniform number in `[0, 1)`.
+/// A random word as a uniform number in `[0, 1)`.
 #[inline(always)]
-fn unit(word: u64) -> f64 {
-    (word >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+fn unit(word: u32) -> f64 {
+    f64::from(word) * (1.0 / (1u64 << 32) as f64)
 }
 
 /// The uniform draws of one window, taken from the generator in batches (so a SIMD loop does
@@ -152,21 +154,20 @@ impl<'a> Draws<'a> {
         self.left -= self.len.min(self.left);
         self.start = self.rng.get_word_pos();
         // One bulk copy out of the generator's buffer: the same words, in the same order, as
-        // `len` calls of `next_u64` (low word first).
-        let mut bytes = [0u8; 8 * DRAW_BATCH];
-        self.rng.fill_bytes(&mut bytes[..8 * self.len]);
-        for (u, b) in self.buf[..self.len].iter_mut().zip(bytes.chunks_exact(8)) {
-            let word = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
-            *u = unit(word);
+        // `len` calls of `next_u32`.
+        let mut bytes = [0u8; 4 * DRAW_BATCH];
+        self.rng.fill_bytes(&mut bytes[..4 * self.len]);
+        for (u, b) in self.buf[..self.len].iter_mut().zip(bytes.chunks_exact(4)) {
+            *u = unit(u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
         }
         self.next = 0;
     }
 
-    /// Returns the unused draws of the batch to the generator (each draw is two words).
+    /// Returns the unused draws of the batch to the generator (each draw is one word).
     #[inline(always)]
     pub fn finish(self) {
         if self.next < self.len {
-            self.rng.set_word_pos(self.start + 2 * self.next as u128);
+            self.rng.set_word_pos(self.start + self.next as u128);
         }
     }
 }
@@ -265,6 +266,19 @@ pub(crate) fn residual_stats<T: Real>(r: &[T], inv_norm2: &[T]) -> (T, T) {
     }
     let t: [T; 4] = core::array::from_fn(|l| sum[l] + sum[l + 4]);
     ((t[0] + t[2]) + (t[1] + t[3]), best)
+}
+
+/// `Σ_j v_j` over `p` entries (a multiple of 8) in the order of [`residual_stats`]' sum.
+#[inline(always)]
+pub(crate) fn lane_sum<T: Real>(v: &[T]) -> T {
+    let mut sum = [T::zero(); LANES];
+    for c in v.chunks_exact(LANES) {
+        for l in 0..LANES {
+            sum[l] += c[l];
+        }
+    }
+    let t: [T; 4] = core::array::from_fn(|l| sum[l] + sum[l + 4]);
+    (t[0] + t[2]) + (t[1] + t[3])
 }
 
 /// Candidate weights into `w` and their running sums in the sampling order into `prefix`

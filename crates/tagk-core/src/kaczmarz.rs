@@ -384,25 +384,22 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                 .unwrap_or(0);
             return Err(EstimatorError::NonFiniteRegressor { row, col: 0 });
         }
-        // One branch-free pass over the padded window: reciprocal norms, zero rows and padding
-        // made inert (a zero row carries no information: never chosen, never divided by),
-        // coefficients cleared.
-        let mut fro2 = T::zero();
+        // Branch-free, vectorisable passes over the padded window: reciprocal norms, zero rows
+        // and padding made inert (a zero row carries no information: never chosen, never
+        // divided by), coefficients cleared, ‖A‖_F² in eight lane sums (norms are never
+        // negative, so unusable rows add exact zeros).
+        p.norm2[m..pm].fill(T::zero());
+        p.resid[m..pm].fill(T::zero());
         for i in 0..pm {
-            let (nn, r) = if i < m {
-                (p.norm2[i], p.resid[i])
-            } else {
-                (T::zero(), T::zero())
-            };
+            let nn = p.norm2[i];
             let usable = nn > T::zero();
             let inv = T::one() / nn;
-            p.norm2[i] = nn;
             p.inv_norm2[i] = if usable { inv } else { T::zero() };
-            p.resid[i] = if usable { r } else { T::zero() };
-            fro2 += if usable { nn } else { T::zero() };
+            p.resid[i] = if usable { p.resid[i] } else { T::zero() };
             p.coef[i] = T::zero();
             p.coef_avg[i] = T::zero();
         }
+        let fro2 = greedy::lane_sum(&p.norm2[..pm]);
         if fro2 <= T::zero() {
             return Err(EstimatorError::NoUsableRow);
         }

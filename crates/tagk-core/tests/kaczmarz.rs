@@ -13,6 +13,11 @@ fn uniform(rng: &mut ChaCha8Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
+/// The kernel's draws: one 32-bit word each.
+fn draw(rng: &mut ChaCha8Rng) -> f64 {
+    f64::from(rng.next_u32()) * (1.0 / (1u64 << 32) as f64)
+}
+
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     // Box–Muller.
     let u1 = uniform(rng).max(1e-300);
@@ -117,7 +122,7 @@ fn reference(
                 })
                 .collect();
             let total: f64 = w.iter().sum();
-            let target = uniform(rng) * total;
+            let target = draw(rng) * total;
             // The kernel's sampling order: lane-major over chunks of eight rows
             // (rows 0, 8, 16, …, then 1, 9, 17, …).
             let order = (0..8).flat_map(|l| (0..m.div_ceil(8)).map(move |c| 8 * c + l));
@@ -132,7 +137,7 @@ fn reference(
             }
             pick
         } else {
-            let target = uniform(rng) * fro2;
+            let target = draw(rng) * fro2;
             let mut acc = 0.0;
             let mut pick = m - 1;
             for (k, nk) in norms.iter().enumerate() {
