@@ -139,15 +139,6 @@ impl<'a> Draws<'a> {
         self.buf[self.next - 1]
     }
 
-    /// Takes the first batch now (for a SIMD loop that should not call out once started).
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[inline(always)]
-    pub fn fill_ahead(&mut self) {
-        if self.next == self.len && self.left > 0 {
-            self.refill();
-        }
-    }
-
     #[inline(never)]
     fn refill(&mut self) {
         self.len = self.left.clamp(1, DRAW_BATCH);

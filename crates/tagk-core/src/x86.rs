@@ -521,9 +521,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     let mut draws = Draws::new(rng, s.t_total);
     let mut iterations = 0;
     let mut converged = rnorm2 <= s.tol2;
-    if !converged {
-        draws.fill_ahead();
-    }
     while !converged && iterations < s.t_total {
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
