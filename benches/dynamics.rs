@@ -15,10 +15,7 @@ use tagk::dynamics::{
 };
 
 fn robot(name: &str, locked: &[&str]) -> SerialChain {
-    let path = format!(
-        "{}/crates/tagk-dynamics/robots/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    );
+    let path = format!("{}/tagk-dynamics/robots/{name}", env!("CARGO_MANIFEST_DIR"));
     let opts = UrdfOptions {
         locked_joints: locked.iter().map(|s| s.to_string()).collect(),
     };

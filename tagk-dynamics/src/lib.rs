@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod chain;
+pub mod effect;
 mod error;
 mod inertial;
 pub mod math;
@@ -13,6 +14,7 @@ mod window;
 pub use nalgebra;
 
 pub use chain::{Body, ChainWorkspace, JointKind, Pose, SerialChain};
+pub use effect::{EffectKind, UnknownEffect};
 pub use error::DynamicsError;
 pub use inertial::{GateViolation, InertialParams, SafetyGate};
 pub use quadrotor::QuadrotorModel;

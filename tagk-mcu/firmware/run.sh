@@ -48,7 +48,7 @@ rm -rf "$OUT"; mkdir -p "$OUT"
 # --- 3. The instruction-counting plugin ------------------------------------------------------
 MEASURE=${TAGK_MCU_MEASURE:-}
 if [[ -z $MEASURE ]]; then
-  ROOT=$(git -C "$FW" rev-parse --show-toplevel 2>/dev/null || (cd "$FW/../../.." && pwd))
+  ROOT=$(git -C "$FW" rev-parse --show-toplevel 2>/dev/null || (cd "$FW/../.." && pwd))
   MEASURE=$ROOT/../shared/tools/cortex-m7/measure.sh
 fi
 QEMU=(qemu-system-arm -cpu cortex-m7 -machine mps2-an500 -nographic

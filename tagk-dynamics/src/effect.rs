@@ -1,0 +1,179 @@
+//! The vocabulary of physical effects: one name per effect that a rigid-body model of a
+//! multirotor leaves out, shared by the simulator (which can put an effect into its plant) and
+//! the diagnosis (which can fit it to a flight log). `tagk simulate --effect NAME` and
+//! `tagk diagnose --with NAME` accept the same names.
+//!
+//! Forces are in the body frame \[N\], torques about the body origin \[N m\], velocities
+//! relative to the air in the body frame \[m/s\], rotor speeds `ωᵢ` \[rad/s\].
+
+use core::fmt;
+use core::str::FromStr;
+
+/// A physical effect missing from the rigid-body model.
+///
+/// The canonical name ([`EffectKind::name`]) is kebab-case; [`EffectKind::from_name`] also
+/// accepts the older spellings listed by [`EffectKind::aliases`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[non_exhaustive]
+pub enum EffectKind {
+    /// Linear drag on the air-relative velocity, `f = −D v` (diagonal `D` \[N s/m\]).
+    LinearDrag,
+    /// Quadratic (bluff-body) drag, `fᵢ = −cᵢ |vᵢ| vᵢ` \[N s²/m²\].
+    QuadraticDrag,
+    /// Rotor drag (blade flapping and induced drag), proportional to the sum of rotor speeds:
+    /// `f = −K (Σ ωᵢ) v` \[kg/rad\].
+    RotorDrag,
+    /// First-order lag between the commanded and the produced thrust, time constant `τ` \[s\].
+    MotorLag,
+    /// A pure time delay between the wrench stream and the motion stream \[s\].
+    TimeDelay,
+    /// Thrust increase near the ground (Cheeseman–Bennett), as a function of height \[m\].
+    GroundEffect,
+    /// A constant body-frame force \[N\] and torque \[N m\] not produced by the rotors.
+    BodyBias,
+    /// A constant wind, acting through drag on the air-relative velocity \[m/s\].
+    Wind,
+    /// A relative error `ε` of the thrust (and reaction-torque) coefficient: the rotors make
+    /// `(1 + ε)` times the modelled wrench (dimensionless).
+    ThrustGain,
+}
+
+impl EffectKind {
+    /// Every effect, in a fixed order (the order of help texts and reports).
+    pub const ALL: [EffectKind; 9] = [
+        EffectKind::LinearDrag,
+        EffectKind::QuadraticDrag,
+        EffectKind::RotorDrag,
+        EffectKind::MotorLag,
+        EffectKind::TimeDelay,
+        EffectKind::GroundEffect,
+        EffectKind::BodyBias,
+        EffectKind::Wind,
+        EffectKind::ThrustGain,
+    ];
+
+    /// The canonical kebab-case name, e.g. `"rotor-drag"`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            EffectKind::LinearDrag => "linear-drag",
+            EffectKind::QuadraticDrag => "quadratic-drag",
+            EffectKind::RotorDrag => "rotor-drag",
+            EffectKind::MotorLag => "motor-lag",
+            EffectKind::TimeDelay => "time-delay",
+            EffectKind::GroundEffect => "ground-effect",
+            EffectKind::BodyBias => "body-bias",
+            EffectKind::Wind => "wind",
+            EffectKind::ThrustGain => "thrust-gain",
+        }
+    }
+
+    /// Other accepted spellings of the name (older command-line names).
+    pub const fn aliases(self) -> &'static [&'static str] {
+        match self {
+            EffectKind::BodyBias => &["bias", "wrench-bias", "force-bias"],
+            EffectKind::ThrustGain => &["thrust-error", "thrust-coefficient"],
+            EffectKind::TimeDelay => &["delay"],
+            _ => &[],
+        }
+    }
+
+    /// One line for help texts: what the effect is, in words a flight-dynamics engineer uses.
+    pub const fn summary(self) -> &'static str {
+        match self {
+            EffectKind::LinearDrag => "drag linear in the air-relative velocity, f = -D v",
+            EffectKind::QuadraticDrag => "bluff-body drag, f_i = -c_i |v_i| v_i",
+            EffectKind::RotorDrag => "rotor drag (blade flapping), f = -K (sum of rotor speeds) v",
+            EffectKind::MotorLag => "first-order lag between commanded and produced thrust",
+            EffectKind::TimeDelay => "time delay between the wrench and the motion streams",
+            EffectKind::GroundEffect => "thrust increase close to the ground",
+            EffectKind::BodyBias => "constant body-frame force and torque",
+            EffectKind::Wind => "constant wind acting through drag on the air-relative velocity",
+            EffectKind::ThrustGain => "relative error of the thrust coefficient",
+        }
+    }
+
+    /// The effect with this canonical name or alias (ASCII case-insensitive, `_` read as `-`).
+    pub fn from_name(name: &str) -> Option<EffectKind> {
+        let wanted = name.trim();
+        let same = |candidate: &str| {
+            candidate.len() == wanted.len()
+                && candidate.bytes().zip(wanted.bytes()).all(|(c, w)| {
+                    let w = if w == b'_' { b'-' } else { w };
+                    c.eq_ignore_ascii_case(&w)
+                })
+        };
+        EffectKind::ALL
+            .into_iter()
+            .find(|k| same(k.name()) || k.aliases().iter().any(|a| same(a)))
+    }
+}
+
+impl fmt::Display for EffectKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The error of parsing an unknown effect name; its message lists the known names.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown effect `{name}` (known: {known})", known = known_names())]
+pub struct UnknownEffect {
+    /// The name that was given.
+    pub name: String,
+}
+
+fn known_names() -> String {
+    EffectKind::ALL.map(EffectKind::name).join(", ")
+}
+
+impl FromStr for EffectKind {
+    type Err = UnknownEffect;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        EffectKind::from_name(s).ok_or_else(|| UnknownEffect {
+            name: s.to_string(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_name_and_alias_parses_back_to_its_effect() {
+        for kind in EffectKind::ALL {
+            assert_eq!(EffectKind::from_name(kind.name()), Some(kind));
+            assert_eq!(kind.to_string().parse::<EffectKind>(), Ok(kind));
+            for alias in kind.aliases() {
+                assert_eq!(EffectKind::from_name(alias), Some(kind), "{alias}");
+            }
+        }
+        assert_eq!(
+            EffectKind::from_name("Rotor_Drag"),
+            Some(EffectKind::RotorDrag)
+        );
+    }
+
+    #[test]
+    fn names_and_aliases_are_unique() {
+        let mut all: Vec<&str> = EffectKind::ALL
+            .iter()
+            .flat_map(|k| core::iter::once(k.name()).chain(k.aliases().iter().copied()))
+            .collect();
+        let count = all.len();
+        all.sort_unstable();
+        all.dedup();
+        assert_eq!(all.len(), count);
+    }
+
+    #[test]
+    fn an_unknown_name_lists_the_known_ones() {
+        let err = "drag".parse::<EffectKind>().unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("unknown effect `drag`"), "{text}");
+        for kind in EffectKind::ALL {
+            assert!(text.contains(kind.name()), "{text}");
+        }
+    }
+}
