@@ -2,7 +2,7 @@
 
 use tagk_control::ControlError;
 use tagk_core::{ConfigError, EstimatorError};
-use tagk_dynamics::DynamicsError;
+use tagk_dynamics::{DynamicsError, EffectKind, LogError};
 
 /// Everything that can go wrong when configuring or running a simulation.
 #[derive(Debug, thiserror::Error)]
@@ -44,6 +44,15 @@ pub enum SimError {
         /// What is allowed.
         reason: &'static str,
     },
+    /// An effect of the vocabulary that the simulator's plant cannot produce.
+    #[error(
+        "the simulator cannot produce the effect `{effect}` (it can: {supported})",
+        supported = crate::PlantEffects::supported().map(EffectKind::name).collect::<Vec<_>>().join(", ")
+    )]
+    UnsupportedEffect {
+        /// The effect asked for.
+        effect: EffectKind,
+    },
     /// A configuration string that names nothing known (CLI).
     #[error("unknown {what} `{value}` (expected one of: {expected})")]
     Unknown {
@@ -69,6 +78,9 @@ pub enum SimError {
     /// File output failed.
     #[error("I/O: {0}")]
     Io(#[from] std::io::Error),
+    /// A flight log could not be written.
+    #[error("flight log: {0}")]
+    Log(#[from] LogError),
     /// CSV output failed.
     #[error("CSV: {0}")]
     Csv(#[from] csv::Error),

@@ -13,7 +13,7 @@ use crate::SimError;
 pub const N_PARAMS: usize = 10;
 
 /// An estimator algorithm with the TAG-K paper's settings (CONVENTIONS §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum EstimatorKind {
     /// RLS, forgetting factor 0.99, `P₀ = 10³·I`.
     RlsLow,
@@ -24,7 +24,6 @@ pub enum EstimatorKind {
     /// Random-walk Kalman filter, `σ_Q = 1e-1`, `σ_R = 1e-3`.
     KfHigh,
     /// Tail-averaged greedy Kaczmarz, `T = m`.
-    #[value(name = "tagk")]
     TagK,
     /// Greedy Kaczmarz (no averaging).
     Grk,
@@ -62,6 +61,33 @@ impl EstimatorKind {
             EstimatorKind::Grk => "GRK",
             EstimatorKind::Tark => "TARK",
             EstimatorKind::Rk => "RK",
+        }
+    }
+
+    /// Every estimator, in declaration order.
+    pub const ALL: [EstimatorKind; 8] = [
+        EstimatorKind::RlsLow,
+        EstimatorKind::RlsHigh,
+        EstimatorKind::KfLow,
+        EstimatorKind::KfHigh,
+        EstimatorKind::TagK,
+        EstimatorKind::Grk,
+        EstimatorKind::Tark,
+        EstimatorKind::Rk,
+    ];
+
+    /// Command-line name (`rls-low`, `rls-high`, `kf-low`, `kf-high`, `tagk`, `grk`, `tark`,
+    /// `rk`), parsed back by `FromStr`.
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            EstimatorKind::RlsLow => "rls-low",
+            EstimatorKind::RlsHigh => "rls-high",
+            EstimatorKind::KfLow => "kf-low",
+            EstimatorKind::KfHigh => "kf-high",
+            EstimatorKind::TagK => "tagk",
+            EstimatorKind::Grk => "grk",
+            EstimatorKind::Tark => "tark",
+            EstimatorKind::Rk => "rk",
         }
     }
 
@@ -236,4 +262,20 @@ pub fn build_kind(
         EstimatorKind::Tark => Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
         EstimatorKind::Rk => Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
     })
+}
+
+impl std::str::FromStr for EstimatorKind {
+    type Err = SimError;
+
+    /// Parses [`EstimatorKind::cli_name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        EstimatorKind::ALL
+            .into_iter()
+            .find(|k| k.cli_name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "estimator",
+                value: s.to_string(),
+                expected: "rls-low, rls-high, kf-low, kf-high, tagk, grk, tark, rk",
+            })
+    }
 }

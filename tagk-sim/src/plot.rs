@@ -55,7 +55,7 @@ fn axis_label(v: f64, log: bool) -> String {
 
 /// One named polyline.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Series {
+pub struct ChartSeries {
     /// Legend label.
     pub label: String,
     /// Points `(x, y)`; non-finite points are skipped.
@@ -73,13 +73,13 @@ pub struct LineChart {
     pub y_label: String,
     /// Logarithmic y axis.
     pub log_y: bool,
-    /// Series.
-    pub series: Vec<Series>,
+    /// ChartSeries.
+    pub series: Vec<ChartSeries>,
     /// Vertical marker lines at these x values (e.g. payload events).
     pub markers: Vec<f64>,
 }
 
-fn bounds(series: &[Series], log_y: bool) -> (f64, f64, f64, f64) {
+fn bounds(series: &[ChartSeries], log_y: bool) -> (f64, f64, f64, f64) {
     let pts = series
         .iter()
         .flat_map(|s| s.points.iter())

@@ -25,7 +25,7 @@ pub const PEAK_RATE: f64 = 0.5;
 pub const RAMP_TIME: f64 = 1.5;
 
 /// The shape of a reference path.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum TrajectoryKind {
     /// Lemniscate of Gerono: `(a sin s, (b/2) sin 2s, 0)`.
     Figure8,
@@ -49,6 +49,15 @@ impl TrajectoryKind {
         TrajectoryKind::Ellipse,
     ];
 
+    /// Command-line name (`figure8`, `circle`, `spiral`, `helix`, `ellipse`), parsed back by
+    /// `FromStr`.
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            TrajectoryKind::Figure8 => "figure8",
+            other => other.name(),
+        }
+    }
+
     /// Display name.
     pub fn name(self) -> &'static str {
         match self {
@@ -58,6 +67,22 @@ impl TrajectoryKind {
             TrajectoryKind::Helix => "helix",
             TrajectoryKind::Ellipse => "ellipse",
         }
+    }
+}
+
+impl std::str::FromStr for TrajectoryKind {
+    type Err = SimError;
+
+    /// Parses [`TrajectoryKind::cli_name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        TrajectoryKind::ALL
+            .into_iter()
+            .find(|k| k.cli_name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "trajectory",
+                value: s.to_string(),
+                expected: "figure8, circle, spiral, helix, ellipse",
+            })
     }
 }
 
