@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use crate::SimError;
 use crate::estimators::{EstimatorKind, EstimatorSpec};
+pub use crate::estimators::{table_ii_estimators, tagk_tuned, tuned};
 use crate::monte_carlo::{ErrorCurves, Sweep, SweepObserver, SweepResult};
 use crate::plot::{ChartSeries, LineChart, Path3, cdf, line_chart, path_chart_3d};
 use crate::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, TrialMetrics, simulate};
@@ -71,30 +72,6 @@ impl ExperimentOptions {
             None => sweep.run_with(observer),
         }
     }
-}
-
-/// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware
-/// stopping at 3σ and only the actuated rows (see the README's study).
-pub fn tagk_tuned() -> EstimatorSpec {
-    tuned(EstimatorKind::TagK)
-}
-
-/// [`tagk_tuned`]'s options applied to any estimator kind.
-pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
-    EstimatorSpec::new(kind)
-        .with_scaling()
-        .with_noise_tolerance(3.0)
-        .with_actuated_rows_only()
-}
-
-/// Table II's estimators: the paper's five, plus [`tagk_tuned`].
-pub fn table_ii_estimators() -> Vec<EstimatorSpec> {
-    let mut v: Vec<EstimatorSpec> = EstimatorKind::TABLE_II
-        .iter()
-        .map(|k| EstimatorSpec::new(*k))
-        .collect();
-    v.push(tagk_tuned());
-    v
 }
 
 /// Payload attach and removal times of the error-over-time experiments [s].

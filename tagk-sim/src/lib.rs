@@ -2,11 +2,13 @@
 
 mod error;
 pub mod estimators;
+#[cfg(feature = "plot")]
 pub mod experiments;
 pub mod metrics;
 pub mod monte_carlo;
 pub mod plant;
 pub mod plant_effects;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod sim;
 pub mod trajectory;

@@ -307,8 +307,7 @@ impl Sweep {
     /// Runs the sweep on the current rayon thread pool, reporting to `observer`.
     ///
     /// # Errors
-    /// The first configuration error of any trial ([`SimConfig::validate`]); `trials == 0`
-    /// or no estimator/noise level is an [`SimError::InvalidParameter`].
+    /// An invalid sweep ([`Sweep::validate`]) or the first configuration error of any trial.
     pub fn run_with<O: SweepObserver + ?Sized>(
         &self,
         observer: &mut O,
@@ -318,10 +317,12 @@ impl Sweep {
         result
     }
 
-    fn run_observed<O: SweepObserver + ?Sized>(
-        &self,
-        observer: &mut O,
-    ) -> Result<SweepResult, SimError> {
+    /// Checks the sweep without flying: a non-empty grid and a valid template flight.
+    ///
+    /// # Errors
+    /// `trials == 0` or no estimator/noise level is an [`SimError::InvalidParameter`]; the
+    /// template's problems as [`SimConfig::validate`].
+    pub fn validate(&self) -> Result<(), SimError> {
         if self.trials == 0 || self.estimators.is_empty() || self.noise_levels.is_empty() {
             return Err(SimError::InvalidParameter {
                 name: "sweep size (trials, estimators, noise levels)",
@@ -329,7 +330,14 @@ impl Sweep {
                 reason: "must all be non-empty",
             });
         }
-        self.base.validate()?;
+        self.base.validate()
+    }
+
+    fn run_observed<O: SweepObserver + ?Sized>(
+        &self,
+        observer: &mut O,
+    ) -> Result<SweepResult, SimError> {
+        self.validate()?;
         let start = std::time::Instant::now();
         let n_est = self.estimators.len();
         let n_cells = self.noise_levels.len() * n_est;

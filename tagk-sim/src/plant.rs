@@ -267,7 +267,7 @@ impl Plant {
 ///
 /// # Errors
 /// [`SimError::NonPositiveMass`], [`SimError::Dynamics`].
-pub fn validate_params(params: &InertialParams) -> Result<(), SimError> {
+pub(crate) fn validate_params(params: &InertialParams) -> Result<(), SimError> {
     let m = params.mass();
     if !(m > 0.0 && m.is_finite()) {
         return Err(SimError::NonPositiveMass {

@@ -1,6 +1,6 @@
 //! Physics, measurement, configuration and driver tests of tagk-sim.
 
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use tagk_dynamics::{InertialParams, QuadrotorModel, rigid_body_regressor};
 use tagk_sim::metrics::{UpdateTimes, group_errors, is_success, parameter_error};
 use tagk_sim::plant_effects::{GroundEffect, LinearDrag, MotorLag, RotorDrag};
@@ -547,6 +547,7 @@ fn observers_see_every_trial_in_trial_order_at_any_thread_count() {
     assert!((c1.curve(0)[0] - mean0).abs() <= 1e-15 * mean0.abs());
 }
 
+#[cfg(feature = "plot")]
 #[test]
 fn figures_render_with_the_embedded_font() {
     let dir = std::env::temp_dir().join(format!("tagk-sim-plot-{}", std::process::id()));
@@ -567,14 +568,13 @@ fn figures_render_with_the_embedded_font() {
     let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
     assert!(svg.contains("test"));
     std::fs::remove_dir_all(&dir).ok();
-    let _ = Matrix3::<f64>::identity();
 }
 
 #[test]
 fn tuned_tagk_identifies_the_payload_in_closed_loop() {
     let cfg = SimConfig {
         seed: 5,
-        adaptation: Adaptation::Estimator(experiments::tagk_tuned()),
+        adaptation: Adaptation::Estimator(estimators::tagk_tuned()),
         ..SimConfig::default()
     };
     let out = simulate(&cfg).unwrap();

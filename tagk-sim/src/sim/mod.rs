@@ -421,7 +421,7 @@ impl<'a> Flight<'a> {
         stage
             .window
             .push(&frame.accel, &frame.omega, &frame.omega_dot, wrench)?;
-        if (k + 1) % self.config.estimator_period != 0 || !stage.window.is_full() {
+        if !(k + 1).is_multiple_of(self.config.estimator_period) || !stage.window.is_full() {
             return Ok(());
         }
         let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
