@@ -59,7 +59,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub remove: Option<f64>,
     /// Plant effects to switch on at their Crazyflie defaults (repeatable; the names of the
-    /// effect vocabulary shared with `tagk diagnose --with`; `time-delay` is not simulated).
+    /// effect vocabulary shared with `tagk diagnose --with`).
     #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
     /// Online estimator feeding the controller (omit: the controller keeps the nominal

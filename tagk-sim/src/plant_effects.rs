@@ -19,7 +19,7 @@
 //! | `body-bias` | [`BodyBias`] | `body_bias` |
 //! | `wind` | [`Wind`] | `wind` |
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
-//! | `time-delay` | — (the simulator cannot produce it: [`SimError::UnsupportedEffect`]) | — |
+//! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //!
 //! The effects act on the **plant only**. The measured wrench `b` the estimator sees is
 //! always computed from the commanded rotor speeds with the nominal `k_f`, `k_m` through the
@@ -273,6 +273,34 @@ impl Default for BodyBias {
     }
 }
 
+/// Time delay (the vocabulary's `time-delay`) between the wrench stream and the motion
+/// stream of the flight log: the logged wrench and rotor speeds at time `t` are the ones
+/// commanded at `t − delay` (commands are held over each control interval), while the
+/// motion columns are those of `t`. It models two log streams stamped with misaligned clocks;
+/// the vehicle itself (plant, controller, onboard estimator) is not affected.
+///
+/// Default: one period of the simulator's 50 Hz control loop, 0.02 s — the smallest
+/// misalignment a logger sampling at the control rate produces (a chosen magnitude, not a
+/// measured Crazyflie value).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TimeDelay {
+    /// Delay of the wrench stream behind the motion stream [s] (`≥ 0`).
+    pub delay: f64,
+}
+
+impl TimeDelay {
+    /// One 50 Hz control period, 0.02 s.
+    pub fn crazyflie() -> Self {
+        Self { delay: 0.02 }
+    }
+}
+
+impl Default for TimeDelay {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
 /// Which plant effects are on (all off by default: the paper's ideal plant).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct PlantEffects {
@@ -292,6 +320,8 @@ pub struct PlantEffects {
     pub thrust_gain: Option<ThrustGain>,
     /// Constant body force/torque bias.
     pub body_bias: Option<BodyBias>,
+    /// Delay of the logged wrench behind the logged motion (the log only).
+    pub time_delay: Option<TimeDelay>,
 }
 
 impl PlantEffects {
@@ -300,8 +330,8 @@ impl PlantEffects {
         Self::default()
     }
 
-    /// The effects of the vocabulary the plant can produce (every [`EffectKind`] but
-    /// `time-delay`), in the vocabulary's order.
+    /// The effects of the vocabulary the simulator can produce (today every [`EffectKind`]),
+    /// in the vocabulary's order.
     pub fn supported() -> impl Iterator<Item = EffectKind> {
         EffectKind::ALL
             .into_iter()
@@ -319,8 +349,8 @@ impl PlantEffects {
     /// This set with `kind` switched on at its Crazyflie default magnitude.
     ///
     /// # Errors
-    /// [`SimError::UnsupportedEffect`] for an effect the plant cannot produce
-    /// (`time-delay`).
+    /// [`SimError::UnsupportedEffect`] for an effect of the vocabulary the simulator cannot
+    /// produce (none today; the vocabulary may grow first).
     pub fn with(mut self, kind: EffectKind) -> Result<Self, SimError> {
         match kind {
             EffectKind::LinearDrag => self.linear_drag = Some(LinearDrag::crazyflie()),
@@ -331,6 +361,7 @@ impl PlantEffects {
             EffectKind::Wind => self.wind = Some(Wind::crazyflie()),
             EffectKind::ThrustGain => self.thrust_gain = Some(ThrustGain::crazyflie()),
             EffectKind::BodyBias => self.body_bias = Some(BodyBias::crazyflie()),
+            EffectKind::TimeDelay => self.time_delay = Some(TimeDelay::crazyflie()),
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -400,6 +431,15 @@ impl PlantEffects {
             finite("body_bias.force", &b.force)?;
             finite("body_bias.torque", &b.torque)?;
         }
+        if let Some(d) = &self.time_delay
+            && !(d.delay >= 0.0 && d.delay.is_finite())
+        {
+            return Err(SimError::InvalidParameter {
+                name: "time_delay.delay",
+                value: d.delay,
+                reason: "must be non-negative and finite",
+            });
+        }
         Ok(())
     }
 
@@ -466,18 +506,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_effect_but_the_time_delay_has_a_plant_model() {
+    fn every_effect_of_the_vocabulary_has_a_simulator_model() {
         for kind in EffectKind::ALL {
-            let one = PlantEffects::only(kind);
-            if kind == EffectKind::TimeDelay {
-                let err = one.unwrap_err();
-                assert!(err.to_string().contains("time-delay"), "{err}");
-            } else {
-                let e = one.unwrap();
-                assert!(!e.is_ideal() && e.validate().is_ok(), "{kind}");
-            }
+            let e = PlantEffects::only(kind).unwrap();
+            assert!(!e.is_ideal() && e.validate().is_ok(), "{kind}");
         }
-        assert_eq!(PlantEffects::supported().count(), EffectKind::ALL.len() - 1);
+        assert_eq!(PlantEffects::supported().count(), EffectKind::ALL.len());
+        let bad = PlantEffects {
+            time_delay: Some(TimeDelay { delay: -0.01 }),
+            ..PlantEffects::none()
+        };
+        assert!(bad.validate().is_err());
     }
 
     #[test]

@@ -320,12 +320,6 @@ fn effects_follow_their_formulas() {
     assert!((f - Vector3::new(0.0, d[1], 0.0)).norm() < 1e-15);
     let te = PlantEffects::only(EffectKind::ThrustGain).unwrap();
     assert!((te.thrust_multiplier(1.0) - 0.9).abs() < 1e-15);
-    assert!(matches!(
-        PlantEffects::only(EffectKind::TimeDelay),
-        Err(SimError::UnsupportedEffect {
-            effect: EffectKind::TimeDelay
-        })
-    ));
     for kind in PlantEffects::supported() {
         let e = PlantEffects::only(kind).unwrap();
         assert!(!e.is_ideal());
@@ -342,12 +336,42 @@ fn effects_follow_their_formulas() {
         };
         let a = simulate(&cfg(PlantEffects::none())).unwrap();
         let b = simulate(&cfg(e)).unwrap();
-        assert_ne!(
-            a.log.position.last().unwrap(),
-            b.log.position.last().unwrap(),
-            "{kind:?}"
-        );
+        if kind == EffectKind::TimeDelay {
+            // The same flight; the logged wrench stream lags the motion by one 20 ms step.
+            assert_eq!(a.log.position, b.log.position);
+            assert_eq!(b.log.wrench[0], a.log.wrench[0]);
+            assert_eq!(&b.log.wrench[1..], &a.log.wrench[..a.log.len() - 1]);
+            let (ra, rb) = (a.log.rotor_speeds.unwrap(), b.log.rotor_speeds.unwrap());
+            assert_eq!(&rb[1..], &ra[..ra.len() - 1]);
+        } else {
+            assert_ne!(
+                a.log.position.last().unwrap(),
+                b.log.position.last().unwrap(),
+                "{kind:?}"
+            );
+        }
     }
+    // Commands are held over each 20 ms interval and samples sit at the midpoints: a 15 ms
+    // delay reaches back into the previous interval.
+    let half = PlantEffects {
+        time_delay: Some(tagk_sim::plant_effects::TimeDelay { delay: 0.015 }),
+        ..PlantEffects::none()
+    };
+    let cfg = SimConfig {
+        duration: 1.0,
+        payload: PayloadSchedule::None,
+        adaptation: Adaptation::Nominal,
+        effects: half,
+        record_log: true,
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    let ideal = simulate(&SimConfig {
+        effects: PlantEffects::none(),
+        ..cfg
+    })
+    .unwrap();
+    assert_eq!(out.log.wrench[5], ideal.log.wrench[4]);
 }
 
 #[test]

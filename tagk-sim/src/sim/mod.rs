@@ -81,6 +81,9 @@ struct Flight<'a> {
     events: Vec<EventRecord>,
     updates: Vec<UpdateRecord>,
     log: FlightLog,
+    /// Rotor speeds and wrench commanded at every control step so far (kept only for a log
+    /// with a `time-delay` effect, whose wrench stream lags the motion).
+    commands: Vec<([f64; 4], [f64; 6])>,
     trace: Vec<TraceSample>,
     tracking: Vec<f64>,
     first_after_event: Vec<(Vec<f64>, InertialParams)>,
@@ -266,6 +269,7 @@ impl<'a> Flight<'a> {
             events: Vec::new(),
             updates: Vec::new(),
             log: FlightLog::new(),
+            commands: Vec::new(),
             trace: Vec::new(),
             tracking: Vec::with_capacity(steps + 1),
             first_after_event: Vec::new(),
@@ -304,7 +308,7 @@ impl<'a> Flight<'a> {
             dt,
         );
         if self.config.record_log {
-            self.log_sample(t + 0.5 * dt, &mid_state, &frame, &wrench_cmd, cmd);
+            self.log_sample(k, &mid_state, &frame, &wrench_cmd, cmd);
         }
         self.update_estimator(k, t, &frame, &wrench_cmd)?;
         Ok(ControlFlow::Continue(()))
@@ -381,24 +385,36 @@ impl<'a> Flight<'a> {
         mid.unwrap_or_else(|| (*self.plant.state(), self.plant.accelerations(cmd)))
     }
 
-    /// Appends the log sample of the interval whose midpoint is `t` [s].
+    /// Appends the log sample of control interval `k` (stamped at its midpoint); with a
+    /// `time-delay` effect, the wrench and rotor speeds are those commanded `delay` earlier.
     fn log_sample(
         &mut self,
-        t: f64,
+        k: usize,
         mid: &PlantState,
         frame: &Frame,
         wrench: &Wrench,
         rotor_speeds: [f64; 4],
     ) {
+        let dt = self.config.control_dt;
+        let (rotor_speeds, wrench) = match self.config.effects.time_delay {
+            None => (rotor_speeds, wrench.to_array()),
+            Some(d) => {
+                self.commands.push((rotor_speeds, wrench.to_array()));
+                // The command held at `t_mid − delay` is that of interval
+                // `floor(k + ½ − delay/dt)` (the first one before the flight began).
+                let j = (k as f64 + 0.5 - d.delay / dt).floor().max(0.0) as usize;
+                self.commands[j.min(k)]
+            }
+        };
         let q = mid.attitude;
         let velocity = self.sensors.logged_velocity(mid.velocity);
         self.log.push(&LogSample {
-            t,
+            t: k as f64 * dt + 0.5 * dt,
             position: mid.position.into(),
             velocity: velocity.into(),
             attitude: [q.w, q.i, q.j, q.k],
             omega: frame.omega.into(),
-            wrench: wrench.to_array(),
+            wrench,
             accel: Some((q * frame.accel + GRAVITY_WORLD).into()),
             omega_dot: Some(frame.omega_dot.into()),
             rotor_speeds: Some(rotor_speeds),
