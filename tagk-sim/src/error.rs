@@ -8,20 +8,20 @@ use tagk_dynamics::{DynamicsError, EffectKind, LogError};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimError {
-    /// A mass that is not strictly positive (vehicle or payload) [kg].
+    /// A mass that is not strictly positive (vehicle or payload) \[kg\].
     #[error("{what} mass must be positive and finite, got {mass} kg")]
     NonPositiveMass {
         /// Which body.
         what: &'static str,
-        /// The offending mass [kg].
+        /// The offending mass \[kg\].
         mass: f64,
     },
-    /// A duration or time step that is not strictly positive and finite [s].
+    /// A duration or time step that is not strictly positive and finite \[s\].
     #[error("{what} must be positive and finite, got {value} s")]
     InvalidDuration {
         /// Which duration.
         what: &'static str,
-        /// The offending value [s].
+        /// The offending value \[s\].
         value: f64,
     },
     /// The vehicle with its payload cannot hover: a rotor would need more than its limit.
@@ -29,9 +29,9 @@ pub enum SimError {
         "payload needs {required:.4} N on one rotor to hover, above the {available:.4} N limit"
     )]
     PayloadBeyondThrust {
-        /// Largest hover trim thrust of one rotor with the payload [N].
+        /// Largest hover trim thrust of one rotor with the payload \[N\].
         required: f64,
-        /// Largest thrust of one rotor [N].
+        /// Largest thrust of one rotor \[N\].
         available: f64,
     },
     /// Any other out-of-range or non-finite configuration value.

@@ -131,13 +131,13 @@ pub struct EstimatorSpec {
 
 /// Expected norm of the residual `b − A θ` at the true `θ` caused by accelerometer noise of
 /// standard deviation `sigma_accel` [m/s²] on a window of `frames` frames of a body of mass
-/// `mass` [kg]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` [N].
+/// `mass` \[kg\]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` \[N\].
 pub(crate) fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
     mass * sigma_accel * ((3 * frames) as f64).sqrt()
 }
 
 /// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal`
-/// (CONVENTIONS order) and arm length `arm` [m]: typical magnitudes of each parameter, so
+/// (CONVENTIONS order) and arm length `arm` \[m\]: typical magnitudes of each parameter, so
 /// that every column of `A D` has the units of the measurement.
 pub(crate) fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
     let m = nominal[0];

@@ -74,7 +74,7 @@ impl ExperimentOptions {
     }
 }
 
-/// Payload attach and removal times of the error-over-time experiments [s].
+/// Payload attach and removal times of the error-over-time experiments \[s\].
 const EVENTS: [f64; 2] = [5.0, 13.0];
 
 /// A sweep at one noise level with the payload attached and removed at [`EVENTS`] (Fig. 3
@@ -94,7 +94,7 @@ fn error_curve_sweep(
 }
 
 /// Plots the mean parameter error over time of the first `cells` cells of `result` (curves
-/// from `curves`, control step `dt` [s]) with the payload events marked, as
+/// from `curves`, control step `dt` \[s\]) with the payload events marked, as
 /// `parameter_error_time.{png,svg}` in `dir`.
 fn parameter_error_chart(
     dir: &Path,
@@ -504,9 +504,9 @@ pub struct TimingRow {
     pub n: usize,
     /// Window rows.
     pub m: usize,
-    /// Median update time [µs].
+    /// Median update time \[µs\].
     pub median_us: f64,
-    /// 95th percentile [µs].
+    /// 95th percentile \[µs\].
     pub p95_us: f64,
 }
 

@@ -227,7 +227,7 @@ pub struct CellSummary {
     pub label: String,
     /// Trials flown.
     pub trials: usize,
-    /// Mean position error over the trials that did not abort [cm].
+    /// Mean position error over the trials that did not abort \[cm\].
     pub position_error_cm: f64,
     /// Mean parameter error `‖θ̂ − θ‖₂` over trials (each the mean over its updates).
     pub parameter_error: f64,
@@ -245,11 +245,11 @@ pub struct CellSummary {
     pub success_after_update_pct: f64,
     /// Abort rate [%].
     pub aborted_pct: f64,
-    /// Median estimator update time [µs].
+    /// Median estimator update time \[µs\].
     pub update_median_us: f64,
-    /// 95th-percentile estimator update time [µs].
+    /// 95th-percentile estimator update time \[µs\].
     pub update_p95_us: f64,
-    /// Per-trial position errors [cm] (in trial order; NaN for aborted trials), for CDFs.
+    /// Per-trial position errors \[cm\] (in trial order; NaN for aborted trials), for CDFs.
     pub position_errors: Vec<f64>,
 }
 
@@ -288,7 +288,7 @@ pub struct SweepResult {
     pub trials: usize,
     /// Base seed.
     pub seed: u64,
-    /// Wall-clock time of the sweep [s].
+    /// Wall-clock time of the sweep \[s\].
     pub elapsed_s: f64,
     /// Rayon threads used.
     pub threads: usize,

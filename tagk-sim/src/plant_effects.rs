@@ -108,7 +108,7 @@ impl Default for LinearDrag {
 /// drag below 1 m/s — as Faessler et al. (2018) observe for quadrotors at low speed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct QuadraticDrag {
-    /// `C_d A` per body axis [m²].
+    /// `C_d A` per body axis \[m²\].
     pub cd_area: [f64; 3],
     /// Air density `ρ` [kg/m³].
     pub air_density: f64,
@@ -139,7 +139,7 @@ impl Default for QuadraticDrag {
 /// the lag before that happens).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MotorLag {
-    /// Time constant `τ_m` [s].
+    /// Time constant `τ_m` \[s\].
     pub time_constant: f64,
 }
 
@@ -168,7 +168,7 @@ impl Default for MotorLag {
 /// ([`crate::SimConfig::altitude`]) to see it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GroundEffect {
-    /// Rotor radius `R` [m].
+    /// Rotor radius `R` \[m\].
     pub rotor_radius: f64,
 }
 
@@ -180,7 +180,7 @@ impl GroundEffect {
         }
     }
 
-    /// Thrust multiplier at height `z` [m].
+    /// Thrust multiplier at height `z` \[m\].
     pub fn thrust_ratio(&self, z: f64) -> f64 {
         let z = z.max(self.rotor_radius);
         let r = self.rotor_radius / (4.0 * z);
@@ -245,13 +245,13 @@ impl Default for ThrustGain {
     }
 }
 
-/// Body bias (the vocabulary's `body-bias`): a constant body-frame force [N] and torque about
+/// Body bias (the vocabulary's `body-bias`): a constant body-frame force \[N\] and torque about
 /// the origin [N m] not produced by the commanded rotors (an unmodelled cable, a bent arm or
 /// unbalanced propeller). Default: 2 mN along body x and 3·10⁻⁵ N m about body x (about a
 /// 1 % thrust imbalance of one rotor at hover times its lever `L_arm`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BodyBias {
-    /// Force, body frame [N].
+    /// Force, body frame \[N\].
     pub force: [f64; 3],
     /// Torque about the body origin, body frame [N m].
     pub torque: [f64; 3],
@@ -284,7 +284,7 @@ impl Default for BodyBias {
 /// measured Crazyflie value).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TimeDelay {
-    /// Delay of the wrench stream behind the motion stream [s] (`≥ 0`).
+    /// Delay of the wrench stream behind the motion stream \[s\] (`≥ 0`).
     pub delay: f64,
 }
 
@@ -443,7 +443,7 @@ impl PlantEffects {
         Ok(())
     }
 
-    /// Multiplier on every rotor's thrust and reaction torque at height `z` [m]
+    /// Multiplier on every rotor's thrust and reaction torque at height `z` \[m\]
     /// (thrust gain times ground effect; 1 for the ideal plant).
     pub fn thrust_multiplier(&self, z: f64) -> f64 {
         let mut k = 1.0;
@@ -456,7 +456,7 @@ impl PlantEffects {
         k
     }
 
-    /// Aerodynamic force on the body origin, body frame [N], at world velocity `velocity`
+    /// Aerodynamic force on the body origin, body frame \[N\], at world velocity `velocity`
     /// [m/s], attitude `attitude` and actual rotor-speed sum `rotor_speed_sum` [rad/s], plus
     /// the constant bias force.
     pub fn extra_force(

@@ -208,7 +208,7 @@ pub fn cdf(values: &[f64]) -> Vec<(f64, f64)> {
 pub struct Path3 {
     /// Legend label.
     pub label: String,
-    /// Points `(x, y, z)` [m].
+    /// Points `(x, y, z)` \[m\].
     pub points: Vec<(f64, f64, f64)>,
     /// Points to mark with a cross (aborts, payload events).
     pub marks: Vec<(f64, f64, f64)>,

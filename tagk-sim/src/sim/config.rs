@@ -91,9 +91,9 @@ impl FromStr for NoiseLevel {
 pub enum PayloadShape {
     /// A point mass.
     PointMass,
-    /// An axis-aligned solid box with edge lengths `size` [m], centred at the offset.
+    /// An axis-aligned solid box with edge lengths `size` \[m\], centred at the offset.
     Box {
-        /// Edge lengths along body x, y, z [m].
+        /// Edge lengths along body x, y, z \[m\].
         size: [f64; 3],
     },
 }
@@ -101,15 +101,15 @@ pub enum PayloadShape {
 /// A payload attached at `attach_time` and (optionally) removed at `remove_time`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Payload {
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass: f64,
-    /// Position of its centre of mass in the body frame [m].
+    /// Position of its centre of mass in the body frame \[m\].
     pub offset: [f64; 3],
     /// Shape.
     pub shape: PayloadShape,
-    /// Attach time [s].
+    /// Attach time \[s\].
     pub attach_time: f64,
-    /// Removal time [s] (`None`: carried to the end).
+    /// Removal time \[s\] (`None`: carried to the end).
     pub remove_time: Option<f64>,
 }
 
@@ -155,11 +155,11 @@ pub enum PayloadSchedule {
     #[default]
     Protocol,
     /// One random payload as in [`Protocol`](Self::Protocol) but attached and removed at these
-    /// fixed times [s] (aligns the events across trials for averaged time curves).
+    /// fixed times \[s\] (aligns the events across trials for averaged time curves).
     ProtocolAt {
-        /// Attach time [s].
+        /// Attach time \[s\].
         attach: f64,
-        /// Removal time [s].
+        /// Removal time \[s\].
         remove: f64,
     },
     /// These payloads.
@@ -207,7 +207,7 @@ pub fn tracking_weights() -> LqrWeights {
 pub struct SimConfig {
     /// Reference path shape (size, centre and phase are drawn from the seed).
     pub trajectory: TrajectoryKind,
-    /// Flight duration [s].
+    /// Flight duration \[s\].
     pub duration: f64,
     /// Seed of every random choice of the flight.
     pub seed: u64,
@@ -221,11 +221,11 @@ pub struct SimConfig {
     pub effects: PlantEffects,
     /// Controller parameters: nominal, oracle, or estimated.
     pub adaptation: Adaptation,
-    /// Height of the path centre [m] (`None`: random in `[0.8, 1.5]`).
+    /// Height of the path centre \[m\] (`None`: random in `[0.8, 1.5]`).
     pub altitude: Option<f64>,
-    /// RK4 physics step [s] (must divide the control period; ≤ 2 ms).
+    /// RK4 physics step \[s\] (must divide the control period; ≤ 2 ms).
     pub physics_dt: f64,
-    /// Control period [s] (50 Hz).
+    /// Control period \[s\] (50 Hz).
     pub control_dt: f64,
     /// Control steps between estimator updates (20 → 2.5 Hz).
     pub estimator_period: usize,

@@ -25,7 +25,7 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// Designs for `params` at period `dt` [s] (Riccati doubling for the first design, warm
+    /// Designs for `params` at period `dt` \[s\] (Riccati doubling for the first design, warm
     /// started Riccati iteration for every redesign, stopping at a relative change of
     /// [`REDESIGN_TOLERANCE`]).
     ///
@@ -95,7 +95,7 @@ impl Controller {
     }
 }
 
-/// Saturation with attitude priority: when some rotor thrust leaves `[0, hi]` [N], all four
+/// Saturation with attitude priority: when some rotor thrust leaves `[0, hi]` \[N\], all four
 /// are shifted by the same amount (changing only the collective thrust, not the torques)
 /// as far as that brings them inside; whatever still exceeds is clipped per rotor. Clipping
 /// each rotor independently instead would turn a collective demand beyond the limits into

@@ -68,7 +68,7 @@ struct EstimatorStage {
 /// The state of a flight in progress.
 struct Flight<'a> {
     config: &'a SimConfig,
-    /// Physics substeps per control step and their length [s].
+    /// Physics substeps per control step and their length \[s\].
     substeps: usize,
     substep: f64,
     trajectory: Trajectory,
@@ -138,7 +138,7 @@ fn draw_payloads(config: &SimConfig, setup: &mut ChaCha8Rng) -> Result<Vec<Paylo
     })
 }
 
-/// Attach and removal events of `payloads` on the control-step grid of period `dt` [s], in
+/// Attach and removal events of `payloads` on the control-step grid of period `dt` \[s\], in
 /// step order.
 fn schedule_events(payloads: &[Payload], dt: f64) -> Vec<ScheduledEvent> {
     let mut schedule: Vec<ScheduledEvent> = Vec::new();
@@ -314,7 +314,7 @@ impl<'a> Flight<'a> {
         Ok(ControlFlow::Continue(()))
     }
 
-    /// Applies the payload events due at the start of step `k` (time `t` [s]); the oracle
+    /// Applies the payload events due at the start of step `k` (time `t` \[s\]); the oracle
     /// redesigns its controller at once.
     fn apply_payload_events(&mut self, k: usize, t: f64) -> Result<(), SimError> {
         while self.next_event < self.schedule.len() && self.schedule[self.next_event].step <= k {

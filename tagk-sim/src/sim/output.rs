@@ -10,7 +10,7 @@ use crate::trajectory::Trajectory;
 /// A payload change as it happened.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EventRecord {
-    /// Time [s] (quantised to the control step).
+    /// Time \[s\] (quantised to the control step).
     pub time: f64,
     /// Control step index.
     pub step: usize,
@@ -23,7 +23,7 @@ pub struct EventRecord {
 /// One estimator update.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct UpdateRecord {
-    /// Time [s].
+    /// Time \[s\].
     pub time: f64,
     /// The estimator's output `θ̂`.
     pub estimate: [f64; 10],
@@ -31,18 +31,18 @@ pub struct UpdateRecord {
     pub truth: [f64; 10],
     /// Whether the safety gate (and the controller redesign) accepted it.
     pub accepted: bool,
-    /// Wall-clock time of the estimator update alone [µs].
+    /// Wall-clock time of the estimator update alone \[µs\].
     pub micros: f64,
 }
 
 /// Per-control-step trace for figures.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TraceSample {
-    /// Time [s].
+    /// Time \[s\].
     pub t: f64,
-    /// True position [m].
+    /// True position \[m\].
     pub position: [f64; 3],
-    /// Reference position [m].
+    /// Reference position \[m\].
     pub reference: [f64; 3],
     /// `‖θ̂ − θ‖₂` of the latest estimator output (of the controller's parameters without
     /// an estimator).
@@ -52,9 +52,9 @@ pub struct TraceSample {
 /// Metrics of one flight (definitions in [`crate::metrics`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrialMetrics {
-    /// Position error [cm].
+    /// Position error \[cm\].
     pub position_error_cm: f64,
-    /// Largest tracking error [cm].
+    /// Largest tracking error \[cm\].
     pub max_tracking_error_cm: f64,
     /// Mean parameter error `‖θ̂ − θ‖₂` over the estimator's updates (NaN without updates).
     pub parameter_error: f64,
@@ -97,6 +97,6 @@ pub struct SimOutput {
     pub log: FlightLog,
     /// Trace (empty unless [`SimConfig::record_trace`](crate::SimConfig::record_trace)).
     pub trace: Vec<TraceSample>,
-    /// Tracking error per control step [m].
+    /// Tracking error per control step \[m\].
     pub tracking_errors: Vec<f64>,
 }

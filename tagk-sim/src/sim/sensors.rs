@@ -92,7 +92,7 @@ impl Sensors {
         }
     }
 
-    /// The estimator frame of an interval of length `dt` [s] that ended with the body rate
+    /// The estimator frame of an interval of length `dt` \[s\] that ended with the body rate
     /// `end_rate`, from the true midpoint body rate and proper acceleration. Draws the gyro
     /// reading at the end, the accelerometer noise, then the midpoint gyro noise; the end
     /// reading becomes the next interval's first.
