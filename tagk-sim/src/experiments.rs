@@ -165,9 +165,49 @@ fn cdf_series(result: &SweepResult, noise: NoiseLevel) -> Vec<ChartSeries> {
         .collect()
 }
 
-fn write_common(result: &SweepResult, dir: &Path) -> Result<(), SimError> {
+/// One cell of `results.json`: the cell's summary and its mean error curve (empty when the
+/// experiment did not record one).
+#[derive(Serialize)]
+struct CellJson<'a> {
+    #[serde(flatten)]
+    cell: &'a crate::CellSummary,
+    error_curve: Vec<f64>,
+}
+
+/// `results.json`: the sweep's results with the error curves of `curves` in their cells.
+#[derive(Serialize)]
+struct ResultJson<'a> {
+    cells: Vec<CellJson<'a>>,
+    trials: usize,
+    seed: u64,
+    elapsed_s: f64,
+    threads: usize,
+}
+
+/// Writes `table.csv`, `results.json` (with the error curves, if any) and `table.md`.
+fn write_common(
+    result: &SweepResult,
+    curves: Option<&ErrorCurves>,
+    dir: &Path,
+) -> Result<(), SimError> {
     result.write_csv(&dir.join("table.csv"))?;
-    result.write_json(&dir.join("results.json"))?;
+    let json = ResultJson {
+        cells: result
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(i, cell)| CellJson {
+                cell,
+                error_curve: curves.map_or_else(Vec::new, |c| c.curve(i)),
+            })
+            .collect(),
+        trials: result.trials,
+        seed: result.seed,
+        elapsed_s: result.elapsed_s,
+        threads: result.threads,
+    };
+    let f = std::io::BufWriter::new(std::fs::File::create(dir.join("results.json"))?);
+    serde_json::to_writer_pretty(f, &json)?;
     std::fs::write(dir.join("table.md"), result.markdown())?;
     Ok(())
 }
@@ -190,7 +230,7 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     }
     let sweep = Sweep::new(estimators, c.trials.unwrap_or(500), c.seed);
     let result = c.run_sweep(&sweep, observer)?;
-    write_common(&result, &dir)?;
+    write_common(&result, None, &dir)?;
     let x = "noise level (0 none, 1 low, 2 medium, 3 high)";
     for (name, title, ylab, log, f) in [
         (
@@ -335,7 +375,7 @@ pub fn run_single_trial<O: SweepObserver + ?Sized>(
     sweep.trajectory = Some(TrajectoryKind::Figure8);
     let mut curves = ErrorCurves::new();
     let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
-    write_common(&result, &dir)?;
+    write_common(&result, Some(&curves), &dir)?;
     parameter_error_chart(
         &dir,
         format!(
@@ -392,7 +432,7 @@ pub fn run_early_adaptation<O: SweepObserver + ?Sized>(
     let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(200), c.seed);
     sweep.noise_levels = vec![noise];
     let result = c.run_sweep(&sweep, observer)?;
-    write_common(&result, &dir)?;
+    write_common(&result, None, &dir)?;
     line_chart(
         &dir.join("position_error_cdf"),
         &LineChart {
@@ -442,7 +482,7 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
     let sweep = error_curve_sweep(estimators, c, noise);
     let mut curves = ErrorCurves::new();
     let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
-    write_common(&result, &dir)?;
+    write_common(&result, Some(&curves), &dir)?;
     parameter_error_chart(
         &dir,
         format!(
