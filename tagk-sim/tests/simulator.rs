@@ -234,6 +234,27 @@ fn bad_configurations_are_rejected_with_typed_errors() {
         Err(SimError::InvalidDuration { .. })
     ));
 
+    let mut cfg = SimConfig {
+        altitude: Some(f64::NAN),
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        cfg.validate(),
+        Err(SimError::InvalidParameter {
+            name: "altitude",
+            ..
+        })
+    ));
+    cfg.altitude = None;
+    cfg.gate.max_com_offset = 0.0;
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::InvalidParameter {
+            name: "gate.max_com_offset",
+            ..
+        })
+    ));
+
     let heavy = Payload {
         mass: 0.03,
         offset: [0.0, 0.0, 0.0],

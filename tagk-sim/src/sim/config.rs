@@ -280,8 +280,9 @@ fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
 }
 
 impl SimConfig {
-    /// Checks the configuration without flying: durations and steps, the vehicle, the
-    /// effects, fixed payloads (positive mass, and hover feasible within the rotor limits).
+    /// Checks the configuration without flying: durations and steps, noise, altitude, the
+    /// safety gate's thresholds, the vehicle, the effects, fixed payloads (positive mass, and
+    /// hover feasible within the rotor limits) and the estimator's burn-in.
     ///
     /// # Errors
     /// The first problem found, as a typed [`SimError`].
@@ -317,6 +318,30 @@ impl SimConfig {
                 value: self.gyro_noise,
                 reason: "must be non-negative and finite",
             });
+        }
+        if let Some(z) = self.altitude
+            && !z.is_finite()
+        {
+            return Err(SimError::InvalidParameter {
+                name: "altitude",
+                value: z,
+                reason: "must be finite",
+            });
+        }
+        for (name, value) in [
+            ("gate.max_com_offset", self.gate.max_com_offset),
+            (
+                "gate.max_inertia_eigenvalue",
+                self.gate.max_inertia_eigenvalue,
+            ),
+        ] {
+            if !(value > 0.0 && value.is_finite()) {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be positive and finite",
+                });
+            }
         }
         validate_params(&self.vehicle.params)?;
         self.effects.validate()?;
