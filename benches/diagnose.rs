@@ -1,7 +1,7 @@
 //! Diagnosis of a 10-minute flight log at 100 Hz (60 000 rows) against every built-in
 //! candidate effect (target ≤ 2 s): log validation and signal derivation, the weighted QR fit,
 //! whiteness/failure windows/regimes, and the blocked-CV ranking with the 1-D scans.
-//! The log comes from the simulator (seed 11, linear drag hidden, medium noise).
+//! The log comes from the simulator (seed 11, rotor drag hidden, medium noise).
 
 use std::hint::black_box;
 
@@ -9,7 +9,6 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, diagnose};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
-    write_log_csv,
 };
 
 fn ten_minute_log() -> FlightLog {
@@ -18,7 +17,7 @@ fn ten_minute_log() -> FlightLog {
         seed: 11,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::LinearDrag),
+        effects: PlantEffects::only(EffectKind::RotorDrag).expect("a plant effect"),
         adaptation: Adaptation::Nominal,
         control_dt: 0.01,
         record_log: true,
@@ -28,7 +27,7 @@ fn ten_minute_log() -> FlightLog {
     let out = simulate(&config).expect("simulation runs");
     // Through the CONVENTIONS §6 log format, as a user's own data would arrive.
     let mut csv = Vec::new();
-    write_log_csv(&out.log, &mut csv).expect("in-memory log");
+    out.log.write_csv(&mut csv).expect("in-memory log");
     FlightLog::from_csv_reader(csv.as_slice()).expect("a valid log")
 }
 

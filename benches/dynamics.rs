@@ -10,16 +10,16 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use tagk::dynamics::nalgebra::Vector3;
 use tagk::dynamics::{
-    QuadrotorModel, SerialChain, UrdfOptions, WindowBuilder, newton_euler, rigid_body_regressor,
+    KinematicTree, QuadrotorModel, UrdfOptions, WindowBuilder, newton_euler, rigid_body_regressor,
     write_rigid_body_regressor,
 };
 
-fn robot(name: &str, locked: &[&str]) -> SerialChain {
+fn robot(name: &str, locked: &[&str]) -> KinematicTree {
     let path = format!("{}/tagk-dynamics/robots/{name}", env!("CARGO_MANIFEST_DIR"));
     let opts = UrdfOptions {
         locked_joints: locked.iter().map(|s| s.to_string()).collect(),
     };
-    SerialChain::from_urdf_file_with(path, &opts).expect("shipped URDF loads")
+    KinematicTree::from_urdf_file_with(path, &opts).expect("shipped URDF loads")
 }
 
 fn rigid_body(c: &mut Criterion) {

@@ -6,7 +6,7 @@
 //!    accepted estimate: a small Monte Carlo run of the paper's Table II at all four noise
 //!    levels (`examples/noise_sweep.rs` runs the full 500 trials per cell).
 //! 2. **Model diagnosis.** A flight with a physical effect hidden in the plant is logged in the
-//!    CONVENTIONS §6 CSV format; the diagnosis tool compares the rigid-body model with it, says
+//!    flight-log CSV format; the diagnosis tool compares the rigid-body model with it, says
 //!    where it fails and which effect is missing, adds it and shows the error fall.
 //!
 //! ```text
@@ -15,11 +15,12 @@
 
 use tagk::diagnose::report::{diagnosis_table, report_table};
 use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
-use tagk::sim::clap::{self, Parser};
-use tagk::sim::experiments::{CommonArgs, NoiseSweepArgs, run_noise_sweep};
+mod common;
+
+use clap::Parser;
+use tagk::sim::experiments::{ExperimentOptions, run_noise_sweep};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
-    write_log_csv,
 };
 
 /// Options of the demo.
@@ -41,16 +42,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "== 1. Closed-loop payload flights: {} trials per cell ==\n",
         args.trials
     );
-    run_noise_sweep(&NoiseSweepArgs {
-        common: CommonArgs {
-            trials: Some(args.trials),
-            seed: 2025,
-            out: Some(args.out.join("flights")),
-            threads: None,
-            quiet: false,
-        },
-        paper_only: false,
-    })?;
+    let options = ExperimentOptions {
+        trials: Some(args.trials),
+        seed: 2025,
+        out: Some(args.out.join("flights")),
+        threads: None,
+    };
+    let flights = run_noise_sweep(&options, false, &mut common::Progress::new(true))?;
+    let r = &flights.result;
+    println!(
+        "Table II: {} trials per cell, {} cells, {:.1} s on {} threads",
+        r.trials,
+        r.cells.len(),
+        r.elapsed_s,
+        r.threads
+    );
+    common::print_table(&flights);
+    common::print_results_dir(&flights);
 
     println!("\n== 2. Model diagnosis on a flight with a hidden effect ==\n");
     let flight = simulate(&SimConfig {
@@ -58,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         seed: 42,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::QuadraticDrag),
+        effects: PlantEffects::only(EffectKind::QuadraticDrag)?,
         adaptation: Adaptation::Nominal,
         record_log: true,
         stop_on_abort: false,
@@ -66,7 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     })?;
     // The simulator and the diagnosis tool meet where a user's own data would: a flight log.
     let log_path = args.out.join("flight.csv");
-    write_log_csv(&flight.log, std::fs::File::create(&log_path)?)?;
+    flight.log.write_csv_path(&log_path)?;
     let log = FlightLog::from_csv_path(&log_path)?;
     println!(
         "logged {} samples to {} (the hidden effect is for the tool to find)\n",

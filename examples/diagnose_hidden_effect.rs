@@ -13,7 +13,6 @@ use tagk::diagnose::report::{diagnosis_table, report_table};
 use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
-    write_log_csv,
 };
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -25,7 +24,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         seed: 42,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::QuadraticDrag),
+        effects: PlantEffects::only(EffectKind::QuadraticDrag)?,
         adaptation: Adaptation::Nominal,
         record_log: true,
         stop_on_abort: false,
@@ -34,7 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let flight = simulate(&config)?;
     // The simulator hands its samples over as a user's data would arrive: a CONVENTIONS §6 log.
     let mut csv = Vec::new();
-    write_log_csv(&flight.log, &mut csv)?;
+    flight.log.write_csv(&mut csv)?;
     let log = FlightLog::from_csv_reader(csv.as_slice())?;
     println!(
         "simulated {} samples with a hidden effect (which one? let the tool tell)\n",

@@ -19,6 +19,7 @@ use tagk::core::{
     GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
 };
 use tagk::dynamics::nalgebra::Vector3;
+use tagk::dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
 use tagk::dynamics::{InertialParams, QuadrotorModel, write_rigid_body_regressor};
 
 const FRAMES: usize = 5;
@@ -51,7 +52,11 @@ fn main() {
     let vehicle = QuadrotorModel::crazyflie_2_1();
     let nominal = vehicle.params;
     let payload_mass = 0.4 * nominal.mass();
-    let payload_at = Vector3::new(0.25 * 0.0325, -0.25 * 0.0325, -0.01);
+    let payload_at = Vector3::new(
+        0.25 * CRAZYFLIE_ARM_OFFSET,
+        -0.25 * CRAZYFLIE_ARM_OFFSET,
+        -0.01,
+    );
     let loaded = nominal.with_point_mass(payload_mass, payload_at);
 
     // The stream every estimator sees: windows of 5 frames of hover-like excitation.

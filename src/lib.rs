@@ -7,3 +7,5 @@ pub use tagk_diagnose as diagnose;
 pub use tagk_dynamics as dynamics;
 pub use tagk_mcu as mcu;
 pub use tagk_sim as sim;
+
+pub mod cli;

@@ -1,7 +1,7 @@
 //! The `tagk` command: simulate flights and diagnose models against flight logs.
 //!
 //! ```text
-//! tagk simulate --help     write a realistic flight log (CONVENTIONS §6) from the simulator
+//! tagk simulate --help     write a realistic flight log (CSV) from the simulator
 //! tagk diagnose LOG.csv    compare the rigid-body model with a log, find what is missing
 //! ```
 
@@ -21,7 +21,7 @@ struct Cli {
 enum Command {
     /// Simulate a Crazyflie flight (trajectory, payloads, plant effects, sensor noise) and write
     /// it as a flight log.
-    Simulate(tagk::sim::cli::SimulateArgs),
+    Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (`--with`).
     Diagnose(tagk::diagnose::cli::DiagnoseArgs),
@@ -30,7 +30,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<(), Box<dyn std::error::Error>> = match &cli.command {
-        Command::Simulate(args) => tagk::sim::cli::run_simulate(args).map_err(Into::into),
+        Command::Simulate(args) => tagk::cli::simulate::run_simulate(args)
+            .map(|summary| println!("{summary}"))
+            .map_err(Into::into),
         Command::Diagnose(args) => tagk::diagnose::cli::run_diagnose(args).map_err(Into::into),
     };
     match result {

@@ -38,7 +38,7 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "KG")]
     pub mass: Option<f64>,
     /// Airframe radius \[m\] beyond which a fitted centre of mass is flagged.
-    #[arg(long, value_name = "M", default_value_t = 0.0325)]
+    #[arg(long, value_name = "M", default_value_t = tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET)]
     pub airframe_radius: f64,
     /// Do not print the terminal summary.
     #[arg(long)]
@@ -56,7 +56,7 @@ impl DiagnoseArgs {
             online: false,
             custom: Vec::new(),
             mass: None,
-            airframe_radius: 0.0325,
+            airframe_radius: tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET,
             quiet: false,
         }
     }

@@ -16,7 +16,7 @@ const SEEDS: [u64; 3] = [7, 8, 9];
 fn model_for(kind: EffectKind) -> Model {
     // A thrust-gain error scales the whole regression like a mass error: it is identifiable
     // only with the vehicle weighed (the nominal 35 g).
-    if kind == EffectKind::ThrustError {
+    if kind == EffectKind::ThrustGain {
         Model::rigid_body().with_known_mass(0.035)
     } else {
         Model::rigid_body()
@@ -50,7 +50,7 @@ fn check_seed(kind: EffectKind, seed: u64) {
     let expected = common::expected_name(kind);
     // The simulator's "linear drag" is rotor drag K·Σω·v_b: with Σω near hover it is
     // indistinguishable from a constant linear drag, so either name is the right answer.
-    let ok_names: Vec<&str> = if kind == EffectKind::LinearDrag {
+    let ok_names: Vec<&str> = if kind == EffectKind::RotorDrag {
         vec!["rotor-drag", "linear-drag"]
     } else {
         vec![expected]
@@ -87,7 +87,7 @@ fn check_seed(kind: EffectKind, seed: u64) {
 
 #[test]
 fn hidden_linear_drag_is_found_and_removed() {
-    check_one(EffectKind::LinearDrag);
+    check_one(EffectKind::RotorDrag);
 }
 
 #[test]
@@ -107,12 +107,12 @@ fn hidden_ground_effect_is_found_and_removed() {
 
 #[test]
 fn hidden_thrust_error_is_found_and_removed() {
-    check_one(EffectKind::ThrustError);
+    check_one(EffectKind::ThrustGain);
 }
 
 #[test]
 fn hidden_wrench_bias_is_found_and_removed() {
-    check_one(EffectKind::Bias);
+    check_one(EffectKind::BodyBias);
 }
 
 /// The simulator's wind acts through the drag on the air-relative velocity, so a wind log

@@ -36,7 +36,7 @@ impl SafetyGate {
     /// The paper's thresholds for the Crazyflie: `L_arm = 0.0325 m`, `α = 1e-4 kg m²`.
     pub fn crazyflie() -> Self {
         Self {
-            max_com_offset: 0.0325,
+            max_com_offset: crate::quadrotor::CRAZYFLIE_ARM_OFFSET,
             max_inertia_eigenvalue: 1e-4,
         }
     }

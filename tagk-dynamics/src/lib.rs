@@ -1,26 +1,28 @@
 #![doc = include_str!("../README.md")]
 
-pub mod chain;
 pub mod effect;
 mod error;
 mod inertial;
+pub mod log;
 pub mod math;
 pub mod quadrotor;
 mod rigid_body;
+pub mod tree;
 pub mod urdf;
 mod window;
 
 /// The nalgebra version this crate's API uses (re-exported so callers match it).
 pub use nalgebra;
 
-pub use chain::{Body, ChainWorkspace, JointKind, Pose, SerialChain};
 pub use effect::{EffectKind, UnknownEffect};
 pub use error::DynamicsError;
 pub use inertial::{GateViolation, InertialParams, SafetyGate};
+pub use log::{FlightLog, LogError, LogSample};
 pub use quadrotor::QuadrotorModel;
 pub use rigid_body::{
     GRAVITY_WORLD, RigidBodyRegressor, Wrench, forward_dynamics, newton_euler, proper_acceleration,
     rigid_body_regressor, try_forward_dynamics, write_rigid_body_regressor,
 };
+pub use tree::{Body, JointKind, KinematicTree, Pose, TreeWorkspace};
 pub use urdf::UrdfOptions;
 pub use window::{A_FRAME_LEN, B_FRAME_LEN, WindowBuilder};

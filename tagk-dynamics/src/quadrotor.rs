@@ -12,6 +12,25 @@ use nalgebra::{Matrix4, Vector3, Vector4};
 
 use crate::{InertialParams, Wrench};
 
+/// Crazyflie 2.1: offset of each motor axis from the body origin along body x and along body
+/// y, the paper's `L_arm` \[m\] (motors at `(±L_arm, ±L_arm, 0)`). Also the safety gate's
+/// largest centre-of-mass offset and the scale of first-moment errors.
+pub const CRAZYFLIE_ARM_OFFSET: f64 = 0.0325;
+/// Crazyflie 2.1: distance from the body origin to each motor axis, `√2 · L_arm` rounded
+/// \[m\].
+pub const CRAZYFLIE_MOTOR_DISTANCE: f64 = 0.046;
+/// Crazyflie 2.1: mass without payload \[kg\].
+pub const CRAZYFLIE_MASS: f64 = 0.035;
+/// Crazyflie 2.1: inertia about the centre of mass (at the origin), the upper triangle
+/// `[I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]` \[kg m²\].
+pub const CRAZYFLIE_INERTIA: [f64; 6] = [1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5];
+/// Crazyflie 2.1: thrust coefficient `k_f` in `T = k_f ω²` \[N/(rad/s)²\].
+pub const CRAZYFLIE_K_F: f64 = 2.3e-8;
+/// Crazyflie 2.1: reaction-torque coefficient `k_m` in `Q = k_m ω²` \[N m/(rad/s)²\].
+pub const CRAZYFLIE_K_M: f64 = 7.8e-10;
+/// Crazyflie 2.1: largest rotor speed \[rad/s\].
+pub const CRAZYFLIE_MAX_ROTOR_SPEED: f64 = 2500.0;
+
 /// Rigid-body and actuator parameters of a quadrotor with rotors thrusting along body `+z`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -34,16 +53,27 @@ pub struct QuadrotorModel {
 }
 
 impl QuadrotorModel {
-    /// The nominal Crazyflie 2.1 of CONVENTIONS §4: 0.035 kg, centre of mass at the origin,
-    /// the tabulated inertia, X configuration with motors at `(±0.0325, ±0.0325, 0)` m
-    /// (0.046 m from the centre), `k_f = 2.3e-8`, `k_m = 7.8e-10`, `ω_max = 2500 rad/s`.
+    /// The nominal Crazyflie 2.1 (the `CRAZYFLIE_*` constants of this module): 0.035 kg,
+    /// centre of mass at the origin, the tabulated inertia, X configuration with motors at
+    /// `(±0.0325, ±0.0325, 0)` m (0.046 m from the centre), `k_f = 2.3e-8`, `k_m = 7.8e-10`,
+    /// `ω_max = 2500 rad/s`.
     pub fn crazyflie_2_1() -> Self {
-        let d = 0.0325;
+        let d = CRAZYFLIE_ARM_OFFSET;
+        let [ixx, ixy, iyy, ixz, iyz, izz] = CRAZYFLIE_INERTIA;
         Self {
             params: InertialParams::from_array([
-                0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5,
+                CRAZYFLIE_MASS,
+                0.0,
+                0.0,
+                0.0,
+                ixx,
+                ixy,
+                iyy,
+                ixz,
+                iyz,
+                izz,
             ]),
-            arm: 0.046,
+            arm: CRAZYFLIE_MOTOR_DISTANCE,
             rotor_positions: [
                 Vector3::new(d, -d, 0.0),
                 Vector3::new(-d, -d, 0.0),
@@ -51,9 +81,9 @@ impl QuadrotorModel {
                 Vector3::new(d, d, 0.0),
             ],
             spin_directions: [1.0, -1.0, 1.0, -1.0],
-            k_f: 2.3e-8,
-            k_m: 7.8e-10,
-            max_rotor_speed: 2500.0,
+            k_f: CRAZYFLIE_K_F,
+            k_m: CRAZYFLIE_K_M,
+            max_rotor_speed: CRAZYFLIE_MAX_ROTOR_SPEED,
         }
     }
 

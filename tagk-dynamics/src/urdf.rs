@@ -1,4 +1,4 @@
-//! Loading a [`SerialChain`] from URDF (through `urdf-rs`).
+//! Loading a [`KinematicTree`] from URDF (through `urdf-rs`).
 //!
 //! Supported joints: revolute, continuous, prismatic (one coordinate each) and fixed (the
 //! child link is welded to its parent and their inertials are merged). Joint origins
@@ -18,8 +18,8 @@ use std::path::Path;
 use nalgebra::{Matrix3, Vector3};
 use urdf_rs::JointType;
 
-use crate::chain::{Body, JointKind, LinkPlacement, Pose, SerialChain};
 use crate::math::rotation_from_rpy;
+use crate::tree::{Body, JointKind, KinematicTree, LinkPlacement, Pose};
 use crate::{DynamicsError, InertialParams};
 
 /// Options for loading a URDF.
@@ -97,7 +97,7 @@ fn joint_type_name(t: &JointType) -> &'static str {
     }
 }
 
-impl SerialChain {
+impl KinematicTree {
     /// Parses URDF text (see the [`urdf`](crate::urdf) module for what is supported).
     ///
     /// # Errors
@@ -146,7 +146,7 @@ impl SerialChain {
     }
 }
 
-fn build(robot: &urdf_rs::Robot, options: &UrdfOptions) -> Result<SerialChain, DynamicsError> {
+fn build(robot: &urdf_rs::Robot, options: &UrdfOptions) -> Result<KinematicTree, DynamicsError> {
     if robot.links.is_empty() {
         return Err(DynamicsError::UrdfNoLinks);
     }
@@ -368,7 +368,7 @@ fn build(robot: &urdf_rs::Robot, options: &UrdfOptions) -> Result<SerialChain, D
             link: bodies[b].link.clone(),
         });
     }
-    Ok(SerialChain::from_parts(
+    Ok(KinematicTree::from_parts(
         robot.name.clone(),
         robot.links[root].name.clone(),
         bodies,

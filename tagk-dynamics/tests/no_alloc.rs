@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::Vector3;
 use tagk_dynamics::{
-    QuadrotorModel, SerialChain, WindowBuilder, newton_euler, rigid_body_regressor,
+    KinematicTree, QuadrotorModel, WindowBuilder, newton_euler, rigid_body_regressor,
     write_rigid_body_regressor,
 };
 
@@ -66,7 +66,7 @@ fn hot_paths_do_not_allocate() {
     assert_eq!(n, 0, "rigid body / window allocated {n} times");
 
     let path = format!("{}/robots/panda.urdf", env!("CARGO_MANIFEST_DIR"));
-    let chain = SerialChain::from_urdf_file(path).unwrap();
+    let chain = KinematicTree::from_urdf_file(path).unwrap();
     let dof = chain.dof();
     let params = chain.params();
     let mut ws = chain.workspace();

@@ -1,6 +1,6 @@
 //! Bad URDFs give typed errors that name the link or joint at fault.
 
-use tagk_dynamics::{DynamicsError, SerialChain, UrdfOptions};
+use tagk_dynamics::{DynamicsError, KinematicTree, UrdfOptions};
 
 const GOOD_INERTIAL: &str = r#"<inertial><mass value="1.0"/>
     <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>"#;
@@ -21,13 +21,13 @@ fn robot(parts: &[String]) -> String {
 }
 
 fn err(urdf: &str) -> DynamicsError {
-    SerialChain::from_urdf_str(urdf).expect_err("URDF should be rejected")
+    KinematicTree::from_urdf_str(urdf).expect_err("URDF should be rejected")
 }
 
 #[test]
 fn well_formed_reference_loads() {
     let ok = robot(&[link("base"), link("a"), joint("j", "revolute", "base", "a")]);
-    assert_eq!(SerialChain::from_urdf_str(&ok).unwrap().dof(), 1);
+    assert_eq!(KinematicTree::from_urdf_str(&ok).unwrap().dof(), 1);
 }
 
 #[test]
@@ -48,7 +48,7 @@ fn missing_inertial() {
         joint("j", "revolute", "base", "arm"),
         joint("weld", "fixed", "arm", "tool"),
     ]);
-    assert!(SerialChain::from_urdf_str(&tool).is_ok());
+    assert!(KinematicTree::from_urdf_str(&tool).is_ok());
     // …and a massless moving link whose welded child has mass is fine too.
     let carried = robot(&[
         link("base"),
@@ -57,7 +57,7 @@ fn missing_inertial() {
         joint("j", "revolute", "base", "arm"),
         joint("weld", "fixed", "arm", "load"),
     ]);
-    assert!(SerialChain::from_urdf_str(&carried).is_ok());
+    assert!(KinematicTree::from_urdf_str(&carried).is_ok());
 }
 
 #[test]
@@ -246,7 +246,7 @@ fn structural_errors() {
     ));
     let ok = robot(&[link("base"), link("a"), joint("j", "revolute", "base", "a")]);
     assert_eq!(
-        SerialChain::from_urdf_str_with(
+        KinematicTree::from_urdf_str_with(
             &ok,
             &UrdfOptions {
                 locked_joints: vec!["nope".into()]
@@ -258,7 +258,7 @@ fn structural_errors() {
         }
     );
     assert!(matches!(
-        SerialChain::from_urdf_file("/nonexistent/robot.urdf"),
+        KinematicTree::from_urdf_file("/nonexistent/robot.urdf"),
         Err(DynamicsError::UrdfParse { .. })
     ));
 }

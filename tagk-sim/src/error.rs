@@ -2,26 +2,26 @@
 
 use tagk_control::ControlError;
 use tagk_core::{ConfigError, EstimatorError};
-use tagk_dynamics::DynamicsError;
+use tagk_dynamics::{DynamicsError, EffectKind, LogError};
 
 /// Everything that can go wrong when configuring or running a simulation.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimError {
-    /// A mass that is not strictly positive (vehicle or payload) [kg].
+    /// A mass that is not strictly positive (vehicle or payload) \[kg\].
     #[error("{what} mass must be positive and finite, got {mass} kg")]
     NonPositiveMass {
         /// Which body.
         what: &'static str,
-        /// The offending mass [kg].
+        /// The offending mass \[kg\].
         mass: f64,
     },
-    /// A duration or time step that is not strictly positive and finite [s].
+    /// A duration or time step that is not strictly positive and finite \[s\].
     #[error("{what} must be positive and finite, got {value} s")]
     InvalidDuration {
         /// Which duration.
         what: &'static str,
-        /// The offending value [s].
+        /// The offending value \[s\].
         value: f64,
     },
     /// The vehicle with its payload cannot hover: a rotor would need more than its limit.
@@ -29,9 +29,9 @@ pub enum SimError {
         "payload needs {required:.4} N on one rotor to hover, above the {available:.4} N limit"
     )]
     PayloadBeyondThrust {
-        /// Largest hover trim thrust of one rotor with the payload [N].
+        /// Largest hover trim thrust of one rotor with the payload \[N\].
         required: f64,
-        /// Largest thrust of one rotor [N].
+        /// Largest thrust of one rotor \[N\].
         available: f64,
     },
     /// Any other out-of-range or non-finite configuration value.
@@ -43,6 +43,15 @@ pub enum SimError {
         value: f64,
         /// What is allowed.
         reason: &'static str,
+    },
+    /// An effect of the vocabulary that the simulator's plant cannot produce.
+    #[error(
+        "the simulator cannot produce the effect `{effect}` (it can: {supported})",
+        supported = crate::PlantEffects::supported().map(EffectKind::name).collect::<Vec<_>>().join(", ")
+    )]
+    UnsupportedEffect {
+        /// The effect asked for.
+        effect: EffectKind,
     },
     /// A configuration string that names nothing known (CLI).
     #[error("unknown {what} `{value}` (expected one of: {expected})")]
@@ -69,6 +78,9 @@ pub enum SimError {
     /// File output failed.
     #[error("I/O: {0}")]
     Io(#[from] std::io::Error),
+    /// A flight log could not be written.
+    #[error("flight log: {0}")]
+    Log(#[from] LogError),
     /// CSV output failed.
     #[error("CSV: {0}")]
     Csv(#[from] csv::Error),

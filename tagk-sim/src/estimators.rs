@@ -10,10 +10,10 @@ use tagk_core::{
 use crate::SimError;
 
 /// Parameter dimension of one rigid body.
-pub const N_PARAMS: usize = 10;
+pub(crate) const N_PARAMS: usize = 10;
 
 /// An estimator algorithm with the TAG-K paper's settings (CONVENTIONS §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum EstimatorKind {
     /// RLS, forgetting factor 0.99, `P₀ = 10³·I`.
     RlsLow,
@@ -24,7 +24,6 @@ pub enum EstimatorKind {
     /// Random-walk Kalman filter, `σ_Q = 1e-1`, `σ_R = 1e-3`.
     KfHigh,
     /// Tail-averaged greedy Kaczmarz, `T = m`.
-    #[value(name = "tagk")]
     TagK,
     /// Greedy Kaczmarz (no averaging).
     Grk,
@@ -65,6 +64,33 @@ impl EstimatorKind {
         }
     }
 
+    /// Every estimator, in declaration order.
+    pub const ALL: [EstimatorKind; 8] = [
+        EstimatorKind::RlsLow,
+        EstimatorKind::RlsHigh,
+        EstimatorKind::KfLow,
+        EstimatorKind::KfHigh,
+        EstimatorKind::TagK,
+        EstimatorKind::Grk,
+        EstimatorKind::Tark,
+        EstimatorKind::Rk,
+    ];
+
+    /// Command-line name (`rls-low`, `rls-high`, `kf-low`, `kf-high`, `tagk`, `grk`, `tark`,
+    /// `rk`), parsed back by `FromStr`.
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            EstimatorKind::RlsLow => "rls-low",
+            EstimatorKind::RlsHigh => "rls-high",
+            EstimatorKind::KfLow => "kf-low",
+            EstimatorKind::KfHigh => "kf-high",
+            EstimatorKind::TagK => "tagk",
+            EstimatorKind::Grk => "grk",
+            EstimatorKind::Tark => "tark",
+            EstimatorKind::Rk => "rk",
+        }
+    }
+
     /// `true` for the Kaczmarz family (which uses a burn-in and a seed).
     pub fn is_kaczmarz(self) -> bool {
         matches!(
@@ -87,13 +113,13 @@ pub struct EstimatorSpec {
     pub early_tagk: bool,
     /// Column equilibration: the estimator sees the window `A D` and estimates `D⁻¹θ`, with
     /// `D = diag(m₀, m₀L, m₀L, m₀L, ī, …, ī)` from the nominal mass `m₀`, `L = L_arm` and
-    /// `ī = tr(I₀)/3` (see [`column_scales`]). The paper's estimators work in SI units
+    /// `ī = tr(I₀)/3` (see `column_scales`). The paper's estimators work in SI units
     /// (`false`).
     pub scaled: bool,
     /// Noise-aware stopping of the Kaczmarz variants, as a multiple `κ` of the expected
     /// noise floor of the window's residual: iterations stop once
     /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(3k)` (the force rows' share of accelerometer noise,
-    /// `k` frames; see [`noise_floor`]). `0` (the default) never stops early.
+    /// `k` frames; see `noise_floor`). `0` (the default) never stops early.
     pub noise_tolerance: f64,
     /// Feed only the actuated rows (`f_z`, `τ`) of each frame: the lateral force rows, whose
     /// measurement is identically zero for a quadrotor (`b_x = b_y = 0`) and whose regressor
@@ -105,15 +131,15 @@ pub struct EstimatorSpec {
 
 /// Expected norm of the residual `b − A θ` at the true `θ` caused by accelerometer noise of
 /// standard deviation `sigma_accel` [m/s²] on a window of `frames` frames of a body of mass
-/// `mass` [kg]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` [N].
-pub fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
+/// `mass` \[kg\]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` \[N\].
+pub(crate) fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
     mass * sigma_accel * ((3 * frames) as f64).sqrt()
 }
 
 /// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal`
-/// (CONVENTIONS order) and arm length `arm` [m]: typical magnitudes of each parameter, so
+/// (CONVENTIONS order) and arm length `arm` \[m\]: typical magnitudes of each parameter, so
 /// that every column of `A D` has the units of the measurement.
-pub fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
+pub(crate) fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
     let m = nominal[0];
     let i = (nominal[4] + nominal[6] + nominal[9]) / 3.0;
     [m, m * arm, m * arm, m * arm, i, i, i, i, i, i]
@@ -214,7 +240,7 @@ impl EstimatorSpec {
 ///
 /// # Errors
 /// As [`EstimatorSpec::build`].
-pub fn build_kind(
+pub(crate) fn build_kind(
     kind: EstimatorKind,
     burn_in: f64,
     m_max: usize,
@@ -236,4 +262,44 @@ pub fn build_kind(
         EstimatorKind::Tark => Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
         EstimatorKind::Rk => Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
     })
+}
+
+impl std::str::FromStr for EstimatorKind {
+    type Err = SimError;
+
+    /// Parses [`EstimatorKind::cli_name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        EstimatorKind::ALL
+            .into_iter()
+            .find(|k| k.cli_name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "estimator",
+                value: s.to_string(),
+                expected: "rls-low, rls-high, kf-low, kf-high, tagk, grk, tark, rk",
+            })
+    }
+}
+
+/// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware
+/// stopping at 3σ and only the actuated rows (see the README's study).
+pub fn tagk_tuned() -> EstimatorSpec {
+    tuned(EstimatorKind::TagK)
+}
+
+/// [`tagk_tuned`]'s options applied to any estimator kind.
+pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
+    EstimatorSpec::new(kind)
+        .with_scaling()
+        .with_noise_tolerance(3.0)
+        .with_actuated_rows_only()
+}
+
+/// Table II's estimators: the paper's five, plus [`tagk_tuned`].
+pub fn table_ii_estimators() -> Vec<EstimatorSpec> {
+    let mut v: Vec<EstimatorSpec> = EstimatorKind::TABLE_II
+        .iter()
+        .map(|k| EstimatorSpec::new(*k))
+        .collect();
+    v.push(tagk_tuned());
+    v
 }

@@ -1,6 +1,7 @@
-//! The experiments behind the root `examples/` (each example only parses its arguments and
-//! calls the `run_*` function here): configuration, the Monte Carlo sweep, printed table,
-//! CSV/JSON results and PNG/SVG figures in an output folder.
+//! The experiments behind the root `examples/`: configuration, the Monte Carlo sweep, CSV/JSON
+//! results and PNG/SVG figures in an output folder. Each `run_*` function returns its results
+//! and prints nothing; the examples parse their arguments, attach their observers (a
+//! progress bar) and print the results.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -9,32 +10,46 @@ use serde::Serialize;
 
 use crate::SimError;
 use crate::estimators::{EstimatorKind, EstimatorSpec};
-use crate::monte_carlo::{Capture, Sweep, SweepResult};
-use crate::plot::{LineChart, Path3, Series, cdf, line_chart, path_chart_3d};
-use crate::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, simulate};
+pub use crate::estimators::{table_ii_estimators, tagk_tuned, tuned};
+use crate::monte_carlo::{ErrorCurves, Sweep, SweepObserver, SweepResult};
+use crate::plot::{ChartSeries, LineChart, Path3, cdf, line_chart, path_chart_3d};
+use crate::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, TrialMetrics, simulate};
 use crate::trajectory::TrajectoryKind;
 
 /// Options every experiment takes.
-#[derive(Debug, Clone, clap::Args)]
-pub struct CommonArgs {
-    /// Trials per (noise level, estimator) cell (each experiment has its own default).
-    #[arg(long)]
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExperimentOptions {
+    /// Trials per (noise level, estimator) cell (`None`: each experiment's own default).
     pub trials: Option<usize>,
-    /// Base seed.
-    #[arg(long, default_value_t = 2025)]
+    /// Base seed (default 2025).
     pub seed: u64,
-    /// Output folder (default `out/<experiment>/`).
-    #[arg(long)]
+    /// Output folder (`None`: `out/<experiment>/`).
     pub out: Option<PathBuf>,
-    /// Rayon threads (default: all cores).
-    #[arg(long)]
+    /// Rayon threads (`None`: all cores).
     pub threads: Option<usize>,
-    /// Hide the progress bar.
-    #[arg(long)]
-    pub quiet: bool,
 }
 
-impl CommonArgs {
+impl Default for ExperimentOptions {
+    fn default() -> Self {
+        Self {
+            trials: None,
+            seed: 2025,
+            out: None,
+            threads: None,
+        }
+    }
+}
+
+/// What a sweep experiment produced: its results and the folder its files went to.
+#[derive(Debug, Clone)]
+pub struct ExperimentReport {
+    /// The sweep's results.
+    pub result: SweepResult,
+    /// The output folder.
+    pub dir: PathBuf,
+}
+
+impl ExperimentOptions {
     fn out_dir(&self, name: &str) -> Result<PathBuf, SimError> {
         let dir = self
             .out
@@ -44,67 +59,49 @@ impl CommonArgs {
         Ok(dir)
     }
 
-    fn run_sweep(&self, sweep: &Sweep) -> Result<SweepResult, SimError> {
+    fn run_sweep<O: SweepObserver + ?Sized>(
+        &self,
+        sweep: &Sweep,
+        observer: &mut O,
+    ) -> Result<SweepResult, SimError> {
         match self.threads {
             Some(n) => rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()?
-                .install(|| sweep.run()),
-            None => sweep.run(),
+                .install(|| sweep.run_with(observer)),
+            None => sweep.run_with(observer),
         }
     }
 }
 
-/// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware
-/// stopping at 3σ and only the actuated rows (see the README's study).
-pub fn tagk_tuned() -> EstimatorSpec {
-    tuned(EstimatorKind::TagK)
-}
-
-/// [`tagk_tuned`]'s options applied to any estimator kind.
-pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
-    EstimatorSpec::new(kind)
-        .with_scaling()
-        .with_noise_tolerance(3.0)
-        .with_actuated_rows_only()
-}
-
-/// Table II's estimators: the paper's five, plus [`tagk_tuned`].
-pub fn table_ii_estimators() -> Vec<EstimatorSpec> {
-    let mut v: Vec<EstimatorSpec> = EstimatorKind::TABLE_II
-        .iter()
-        .map(|k| EstimatorSpec::new(*k))
-        .collect();
-    v.push(tagk_tuned());
-    v
-}
-
-/// Payload attach and removal times of the error-over-time experiments [s].
+/// Payload attach and removal times of the error-over-time experiments \[s\].
 const EVENTS: [f64; 2] = [5.0, 13.0];
 
-/// A sweep at one noise level with the payload attached and removed at [`EVENTS`] and the
-/// mean parameter-error curve captured (Fig. 3 and Fig. 4b).
-fn error_curve_sweep(estimators: Vec<EstimatorSpec>, c: &CommonArgs, noise: NoiseLevel) -> Sweep {
+/// A sweep at one noise level with the payload attached and removed at [`EVENTS`] (Fig. 3
+/// and Fig. 4b; run it with an [`ErrorCurves`] observer).
+fn error_curve_sweep(
+    estimators: Vec<EstimatorSpec>,
+    c: &ExperimentOptions,
+    noise: NoiseLevel,
+) -> Sweep {
     let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(100), c.seed);
     sweep.noise_levels = vec![noise];
     sweep.base.payload = PayloadSchedule::ProtocolAt {
         attach: EVENTS[0],
         remove: EVENTS[1],
     };
-    sweep.capture = Capture {
-        traces: 0,
-        error_curve: true,
-    };
-    sweep.progress = !c.quiet;
     sweep
 }
 
-/// Plots the mean parameter error over time of `cells` (control step `dt` [s]) with the
-/// payload events marked, as `parameter_error_time.{png,svg}` in `dir`.
-fn parameter_error_chart<'a>(
+/// Plots the mean parameter error over time of the first `cells` cells of `result` (curves
+/// from `curves`, control step `dt` \[s\]) with the payload events marked, as
+/// `parameter_error_time.{png,svg}` in `dir`.
+fn parameter_error_chart(
     dir: &Path,
     title: String,
-    cells: impl Iterator<Item = &'a crate::CellSummary>,
+    result: &SweepResult,
+    curves: &ErrorCurves,
+    cells: usize,
     dt: f64,
 ) -> Result<(), SimError> {
     line_chart(
@@ -114,11 +111,15 @@ fn parameter_error_chart<'a>(
             x_label: "time [s]".into(),
             y_label: "|theta_hat - theta|".into(),
             log_y: true,
-            series: cells
-                .map(|c| Series {
+            series: result
+                .cells
+                .iter()
+                .take(cells)
+                .enumerate()
+                .map(|(i, c)| ChartSeries {
                     label: c.label.clone(),
-                    points: c
-                        .error_curve
+                    points: curves
+                        .curve(i)
                         .iter()
                         .enumerate()
                         .map(|(i, e)| (i as f64 * dt, *e))
@@ -130,20 +131,7 @@ fn parameter_error_chart<'a>(
     )
 }
 
-/// Arguments of `noise_sweep` (Table II).
-#[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Table II: every estimator x 4 noise levels, closed-loop Monte Carlo")]
-pub struct NoiseSweepArgs {
-    /// Common options (default 500 trials per cell).
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Only the paper's five estimators (4 × 5 × 500 = 10 000 trials by default), without the
-    /// tuned TAG-K row.
-    #[arg(long)]
-    pub paper_only: bool,
-}
-
-fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec<Series> {
+fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec<ChartSeries> {
     let mut labels: Vec<String> = Vec::new();
     for c in &result.cells {
         if !labels.contains(&c.label) {
@@ -152,7 +140,7 @@ fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec
     }
     labels
         .iter()
-        .map(|l| Series {
+        .map(|l| ChartSeries {
             label: l.clone(),
             points: result
                 .cells
@@ -165,49 +153,84 @@ fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec
         .collect()
 }
 
-fn cdf_series(result: &SweepResult, noise: NoiseLevel) -> Vec<Series> {
+fn cdf_series(result: &SweepResult, noise: NoiseLevel) -> Vec<ChartSeries> {
     result
         .cells
         .iter()
         .filter(|c| c.noise == noise)
-        .map(|c| Series {
+        .map(|c| ChartSeries {
             label: c.label.clone(),
             points: cdf(&c.position_errors),
         })
         .collect()
 }
 
-fn write_common(result: &SweepResult, dir: &Path) -> Result<(), SimError> {
+/// One cell of `results.json`: the cell's summary and its mean error curve (empty when the
+/// experiment did not record one).
+#[derive(Serialize)]
+struct CellJson<'a> {
+    #[serde(flatten)]
+    cell: &'a crate::CellSummary,
+    error_curve: Vec<f64>,
+}
+
+/// `results.json`: the sweep's results with the error curves of `curves` in their cells.
+#[derive(Serialize)]
+struct ResultJson<'a> {
+    cells: Vec<CellJson<'a>>,
+    trials: usize,
+    seed: u64,
+    elapsed_s: f64,
+    threads: usize,
+}
+
+/// Writes `table.csv`, `results.json` (with the error curves, if any) and `table.md`.
+fn write_common(
+    result: &SweepResult,
+    curves: Option<&ErrorCurves>,
+    dir: &Path,
+) -> Result<(), SimError> {
     result.write_csv(&dir.join("table.csv"))?;
-    result.write_json(&dir.join("results.json"))?;
+    let json = ResultJson {
+        cells: result
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(i, cell)| CellJson {
+                cell,
+                error_curve: curves.map_or_else(Vec::new, |c| c.curve(i)),
+            })
+            .collect(),
+        trials: result.trials,
+        seed: result.seed,
+        elapsed_s: result.elapsed_s,
+        threads: result.threads,
+    };
+    let f = std::io::BufWriter::new(std::fs::File::create(dir.join("results.json"))?);
+    serde_json::to_writer_pretty(f, &json)?;
     std::fs::write(dir.join("table.md"), result.markdown())?;
     Ok(())
 }
 
-/// Runs Table II: prints the table and writes `table.csv`, `table.md`, `results.json` and
-/// figures (metric vs noise level, position-error CDFs) to the output folder.
+/// Runs Table II (default 500 trials per cell; `paper_only`: the paper's five estimators,
+/// without the tuned TAG-K row) and writes `table.csv`, `table.md`, `results.json` and figures
+/// (metric vs noise level, position-error CDFs) to the output folder.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.
-pub fn run_noise_sweep(args: &NoiseSweepArgs) -> Result<SweepResult, SimError> {
-    let c = &args.common;
+pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
+    c: &ExperimentOptions,
+    paper_only: bool,
+    observer: &mut O,
+) -> Result<ExperimentReport, SimError> {
     let dir = c.out_dir("noise_sweep")?;
     let mut estimators = table_ii_estimators();
-    if args.paper_only {
+    if paper_only {
         estimators.pop();
     }
-    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(500), c.seed);
-    sweep.progress = !c.quiet;
-    let result = c.run_sweep(&sweep)?;
-    println!(
-        "Table II: {} trials per cell, {} cells, {:.1} s on {} threads",
-        result.trials,
-        result.cells.len(),
-        result.elapsed_s,
-        result.threads
-    );
-    print!("{}", result.table());
-    write_common(&result, &dir)?;
+    let sweep = Sweep::new(estimators, c.trials.unwrap_or(500), c.seed);
+    let result = c.run_sweep(&sweep, observer)?;
+    write_common(&result, None, &dir)?;
     let x = "noise level (0 none, 1 low, 2 medium, 3 high)";
     for (name, title, ylab, log, f) in [
         (
@@ -263,40 +286,40 @@ pub fn run_noise_sweep(args: &NoiseSweepArgs) -> Result<SweepResult, SimError> {
             },
         )?;
     }
-    println!("results in {}", dir.display());
-    Ok(result)
+    Ok(ExperimentReport { result, dir })
 }
 
-/// Arguments of `single_trial` (Fig. 3).
-#[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Fig. 3: one figure-8 trial per estimator, error over time, position CDF")]
-pub struct SingleTrialArgs {
-    /// Common options (default 100 trials for the averaged curves and CDFs).
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Noise level.
-    #[arg(long, value_enum, default_value_t = NoiseLevel::None)]
-    pub noise: NoiseLevel,
+/// What [`run_single_trial`] produced.
+#[derive(Debug, Clone)]
+pub struct SingleTrialReport {
+    /// (a) The one figure-8 trial of every estimator: its label and metrics.
+    pub trials: Vec<(String, TrialMetrics)>,
+    /// (b), (c) The sweep averaged over trials, and the output folder.
+    pub sweep: ExperimentReport,
 }
 
-/// Runs Fig. 3: (a) the 3-D path of every estimator on one figure-8 trial with payload
-/// events (and aborts) marked, (b) the parameter error over time averaged over trials
-/// (events at 5 s and 13 s), (c) the CDF of position error.
+/// Runs Fig. 3 at `noise`: (a) the 3-D path of every estimator on one figure-8 trial with
+/// payload events (and aborts) marked, (b) the parameter error over time averaged over trials
+/// (default 100; events at 5 s and 13 s), (c) the CDF of position error.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.
-pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError> {
-    let c = &args.common;
+pub fn run_single_trial<O: SweepObserver + ?Sized>(
+    c: &ExperimentOptions,
+    noise: NoiseLevel,
+    observer: &mut O,
+) -> Result<SingleTrialReport, SimError> {
     let dir = c.out_dir("single_trial")?;
     let estimators = table_ii_estimators();
     // (a) One trial, every estimator.
+    let mut trials = Vec::new();
     let mut paths = Vec::new();
     let mut reference = None;
     for spec in &estimators {
         let cfg = SimConfig {
             seed: c.seed,
             trajectory: TrajectoryKind::Figure8,
-            noise: args.noise,
+            noise,
             adaptation: Adaptation::Estimator(*spec),
             payload: PayloadSchedule::ProtocolAt {
                 attach: EVENTS[0],
@@ -321,13 +344,7 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
         {
             marks.push(*p);
         }
-        println!(
-            "{:<26} position error {:.3} cm, success {}, aborted {}",
-            spec.label(),
-            out.metrics.position_error_cm,
-            out.metrics.success,
-            out.metrics.aborted
-        );
+        trials.push((spec.label(), out.metrics.clone()));
         if reference.is_none() {
             reference = Some(Path3 {
                 label: "reference".into(),
@@ -354,18 +371,20 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
         &paths,
     )?;
     // (b), (c) Averaged over trials.
-    let mut sweep = error_curve_sweep(estimators, c, args.noise);
+    let mut sweep = error_curve_sweep(estimators, c, noise);
     sweep.trajectory = Some(TrajectoryKind::Figure8);
-    let result = c.run_sweep(&sweep)?;
-    print!("{}", result.table());
-    write_common(&result, &dir)?;
+    let mut curves = ErrorCurves::new();
+    let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
+    write_common(&result, Some(&curves), &dir)?;
     parameter_error_chart(
         &dir,
         format!(
             "Parameter error over time (mean of {} trials)",
             result.trials
         ),
-        result.cells.iter(),
+        &result,
+        &curves,
+        result.cells.len(),
         sweep.base.control_dt,
     )?;
     line_chart(
@@ -375,33 +394,26 @@ pub fn run_single_trial(args: &SingleTrialArgs) -> Result<SweepResult, SimError>
             x_label: "mean position error of a trial [cm]".into(),
             y_label: "fraction of trials (aborted excluded)".into(),
             log_y: false,
-            series: cdf_series(&result, args.noise),
+            series: cdf_series(&result, noise),
             markers: vec![],
         },
     )?;
-    println!("results in {}", dir.display());
-    Ok(result)
+    Ok(SingleTrialReport {
+        trials,
+        sweep: ExperimentReport { result, dir },
+    })
 }
 
-/// Arguments of `early_adaptation` (Fig. 4a).
-#[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Fig. 4a: baselines with their first post-event estimate replaced by TAG-K's")]
-pub struct EarlyAdaptationArgs {
-    /// Common options (default 200 trials per cell).
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Noise level.
-    #[arg(long, value_enum, default_value_t = NoiseLevel::None)]
-    pub noise: NoiseLevel,
-}
-
-/// Runs Fig. 4a: every baseline alone and with early TAG-K adaptation; position-error CDFs
-/// before and after, and the table.
+/// Runs Fig. 4a at `noise`: every baseline alone and with early TAG-K adaptation (default 200
+/// trials per cell); position-error CDFs before and after, and the table.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.
-pub fn run_early_adaptation(args: &EarlyAdaptationArgs) -> Result<SweepResult, SimError> {
-    let c = &args.common;
+pub fn run_early_adaptation<O: SweepObserver + ?Sized>(
+    c: &ExperimentOptions,
+    noise: NoiseLevel,
+    observer: &mut O,
+) -> Result<ExperimentReport, SimError> {
     let dir = c.out_dir("early_adaptation")?;
     let tuned = tagk_tuned();
     let mut estimators = Vec::new();
@@ -418,11 +430,9 @@ pub fn run_early_adaptation(args: &EarlyAdaptationArgs) -> Result<SweepResult, S
         estimators.push(early);
     }
     let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(200), c.seed);
-    sweep.noise_levels = vec![args.noise];
-    sweep.progress = !c.quiet;
-    let result = c.run_sweep(&sweep)?;
-    print!("{}", result.table());
-    write_common(&result, &dir)?;
+    sweep.noise_levels = vec![noise];
+    let result = c.run_sweep(&sweep, observer)?;
+    write_common(&result, None, &dir)?;
     line_chart(
         &dir.join("position_error_cdf"),
         &LineChart {
@@ -430,58 +440,58 @@ pub fn run_early_adaptation(args: &EarlyAdaptationArgs) -> Result<SweepResult, S
             x_label: "mean position error of a trial [cm]".into(),
             y_label: "fraction of trials (aborted excluded)".into(),
             log_y: false,
-            series: cdf_series(&result, args.noise),
+            series: cdf_series(&result, noise),
             markers: vec![],
         },
     )?;
-    println!("results in {}", dir.display());
-    Ok(result)
+    Ok(ExperimentReport { result, dir })
 }
 
-/// Arguments of `kaczmarz_ablation` (Fig. 4b and the burn-in sweep).
-#[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Fig. 4b: RK, TARK, GRK, TAG-K across payload events; TAG-K burn-in sweep")]
-pub struct KaczmarzAblationArgs {
-    /// Common options (default 100 trials per cell).
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Noise level.
-    #[arg(long, value_enum, default_value_t = NoiseLevel::Medium)]
-    pub noise: NoiseLevel,
-    /// Run the Kaczmarz variants in the paper's form (SI units, no stopping tolerance)
-    /// instead of the tuned form.
-    #[arg(long)]
-    pub paper_form: bool,
+/// What [`run_kaczmarz_ablation`] produced.
+#[derive(Debug, Clone)]
+pub struct KaczmarzAblationReport {
+    /// The TAG-K burn-in sweep: `(t_b / T, cell)` by increasing burn-in.
+    pub burn_in: Vec<(f64, crate::CellSummary)>,
+    /// The sweep and the output folder.
+    pub sweep: ExperimentReport,
 }
 
-/// Runs Fig. 4b (parameter error over time of RK, TARK, GRK, TAG-K, events at 5 s and 13 s)
-/// and the TAG-K burn-in sweep `t_b/T ∈ {0, 0.25, 0.5, 0.75, 0.9}`.
+/// Runs Fig. 4b at `noise` (parameter error over time of RK, TARK, GRK, TAG-K, events at 5 s
+/// and 13 s, default 100 trials per cell) and the TAG-K burn-in sweep
+/// `t_b/T ∈ {0, 0.25, 0.5, 0.75, 0.9}`; `paper_form` runs the Kaczmarz variants in the
+/// paper's form (SI units, no stopping tolerance) instead of the tuned form.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.
-pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult, SimError> {
-    let c = &args.common;
+pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
+    c: &ExperimentOptions,
+    noise: NoiseLevel,
+    paper_form: bool,
+    observer: &mut O,
+) -> Result<KaczmarzAblationReport, SimError> {
     let dir = c.out_dir("kaczmarz_ablation")?;
     let form = |k: EstimatorKind| {
         let s = EstimatorSpec::new(k);
-        if args.paper_form { s } else { tuned(k) }
+        if paper_form { s } else { tuned(k) }
     };
     let mut estimators: Vec<EstimatorSpec> =
         EstimatorKind::KACZMARZ.iter().map(|k| form(*k)).collect();
     for b in [0.0, 0.25, 0.75, 0.9] {
         estimators.push(form(EstimatorKind::TagK).with_burn_in(b));
     }
-    let sweep = error_curve_sweep(estimators, c, args.noise);
-    let result = c.run_sweep(&sweep)?;
-    print!("{}", result.table());
-    write_common(&result, &dir)?;
+    let sweep = error_curve_sweep(estimators, c, noise);
+    let mut curves = ErrorCurves::new();
+    let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
+    write_common(&result, Some(&curves), &dir)?;
     parameter_error_chart(
         &dir,
         format!(
             "Kaczmarz variants across payload events ({} trials)",
             result.trials
         ),
-        result.cells.iter().take(4),
+        &result,
+        &curves,
+        4,
         sweep.base.control_dt,
     )?;
     let burn: Vec<(f64, &crate::CellSummary)> = result
@@ -492,13 +502,6 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
         .collect();
     let mut burn_sorted = burn.clone();
     burn_sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-    println!("burn-in sweep (TAG-K):");
-    for (b, c) in &burn_sorted {
-        println!(
-            "  t_b = {:.2} T: position {:.3} cm, parameter error {:.3e}, (t+1) {:.3e}, success {:.1} %",
-            b, c.position_error_cm, c.parameter_error, c.t1_error, c.success_pct
-        );
-    }
     line_chart(
         &dir.join("burn_in_sweep"),
         &LineChart {
@@ -507,14 +510,14 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
             y_label: "mean parameter error".into(),
             log_y: true,
             series: vec![
-                Series {
+                ChartSeries {
                     label: "parameter error".into(),
                     points: burn_sorted
                         .iter()
                         .map(|(b, c)| (*b, c.parameter_error))
                         .collect(),
                 },
-                Series {
+                ChartSeries {
                     label: "(t+1) error".into(),
                     points: burn_sorted.iter().map(|(b, c)| (*b, c.t1_error)).collect(),
                 },
@@ -522,23 +525,14 @@ pub fn run_kaczmarz_ablation(args: &KaczmarzAblationArgs) -> Result<SweepResult,
             markers: vec![],
         },
     )?;
-    println!("results in {}", dir.display());
-    Ok(result)
-}
-
-/// Arguments of `dimension_sweep` (Table III).
-#[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Table III: per-update time for n in 40..120, m = 30, synthetic windows")]
-pub struct DimensionSweepArgs {
-    /// Output folder (default `out/dimension_sweep/`).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Updates timed per (estimator, n).
-    #[arg(long, default_value_t = 2000)]
-    pub updates: usize,
-    /// Seed of the synthetic windows.
-    #[arg(long, default_value_t = 2024)]
-    pub seed: u64,
+    let burn_in = burn_sorted
+        .into_iter()
+        .map(|(b, c)| (b, c.clone()))
+        .collect();
+    Ok(KaczmarzAblationReport {
+        burn_in,
+        sweep: ExperimentReport { result, dir },
+    })
 }
 
 /// One row of Table III.
@@ -550,9 +544,9 @@ pub struct TimingRow {
     pub n: usize,
     /// Window rows.
     pub m: usize,
-    /// Median update time [µs].
+    /// Median update time \[µs\].
     pub median_us: f64,
-    /// 95th percentile [µs].
+    /// 95th percentile \[µs\].
     pub p95_us: f64,
 }
 
@@ -578,15 +572,19 @@ fn build_n(
 
 /// Runs Table III on this machine: per-update wall-clock time (median, P95) of RLS, KF and
 /// TAG-K for `n ∈ {40, 60, 80, 100, 120}`, `m = 30`, on the bench's synthetic windows (one
-/// thread). Writes `table.csv`, `table.json` and a figure.
+/// thread), `updates` timed updates per (estimator, n). Writes `table.csv`, `table.json` and
+/// a figure to `out` (default `out/dimension_sweep/`); returns the rows and the folder.
 ///
 /// # Errors
 /// I/O or plotting errors.
-pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, SimError> {
-    let dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join("dimension_sweep"));
+pub fn run_dimension_sweep(
+    out: Option<&Path>,
+    updates: usize,
+) -> Result<(Vec<TimingRow>, PathBuf), SimError> {
+    let dir = out.map_or_else(
+        || Path::new("out").join("dimension_sweep"),
+        Path::to_path_buf,
+    );
     std::fs::create_dir_all(&dir)?;
     let m = 30;
     let kinds = [
@@ -600,7 +598,7 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
         for kind in kinds {
             let mut est = build_n(kind, n, m)?;
             let mut times = crate::metrics::UpdateTimes::new();
-            for i in 0..args.updates.max(1) {
+            for i in 0..updates.max(1) {
                 let (a, b) = &stream[i % stream.len()];
                 let t = Instant::now();
                 let r = est.update(a, b);
@@ -621,16 +619,6 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
             });
         }
     }
-    println!(
-        "{:<8} {:>5} {:>4} {:>12} {:>12}",
-        "estimator", "n", "m", "median [us]", "P95 [us]"
-    );
-    for r in &rows {
-        println!(
-            "{:<8} {:>5} {:>4} {:>12.2} {:>12.2}",
-            r.estimator, r.n, r.m, r.median_us, r.p95_us
-        );
-    }
     let mut w = csv::Writer::from_path(dir.join("table.csv"))?;
     for r in &rows {
         w.serialize(r)?;
@@ -647,7 +635,7 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
             log_y: true,
             series: names
                 .iter()
-                .map(|nm| Series {
+                .map(|nm| ChartSeries {
                     label: (*nm).into(),
                     points: rows
                         .iter()
@@ -659,6 +647,5 @@ pub fn run_dimension_sweep(args: &DimensionSweepArgs) -> Result<Vec<TimingRow>, 
             markers: vec![],
         },
     )?;
-    println!("results in {}", dir.display());
-    Ok(rows)
+    Ok((rows, dir))
 }

@@ -1,32 +1,47 @@
 #![doc = include_str!("../README.md")]
 
-pub mod cli;
-pub mod effects;
 mod error;
 pub mod estimators;
+#[cfg(feature = "plot")]
 pub mod experiments;
-pub mod log;
 pub mod metrics;
 pub mod monte_carlo;
 pub mod plant;
+pub mod plant_effects;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod sim;
 pub mod trajectory;
 
-pub use effects::{
-    EffectKind, GroundEffect, LinearDrag, MotorLag, PlantEffects, QuadraticDrag,
-    ThrustCoefficientError, Wind, WrenchBias,
-};
 pub use error::SimError;
 pub use estimators::{EstimatorKind, EstimatorSpec};
-pub use log::{LogSample, write_log_csv, write_log_csv_file};
-pub use monte_carlo::{Capture, CellSummary, Sweep, SweepResult};
+pub use monte_carlo::{
+    CellSummary, ErrorCurves, Sweep, SweepObserver, SweepResult, Traces, trial_seed,
+};
 pub use plant::{Plant, PlantState};
+pub use plant_effects::PlantEffects;
 pub use sim::{
     Adaptation, Controller, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig,
     SimOutput, TrialMetrics, simulate,
 };
+/// The flight-log type the simulator records (re-exported from `tagk-dynamics`).
+pub use tagk_dynamics::log::{FlightLog, LogError, LogSample};
+/// The effect vocabulary shared with the diagnosis (re-exported from `tagk-dynamics`).
+pub use tagk_dynamics::{EffectKind, UnknownEffect};
 pub use trajectory::{Trajectory, TrajectoryKind};
 
-/// The clap version this crate's argument structs derive with (the examples parse through it).
-pub use clap;
+#[cfg(test)]
+mod tests {
+    /// The driver shares the sweep and its observers across rayon threads.
+    #[test]
+    fn public_types_are_send_and_sync() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<crate::SimConfig>();
+        send_sync::<crate::Sweep>();
+        send_sync::<crate::SweepResult>();
+        send_sync::<crate::SimOutput>();
+        send_sync::<crate::ErrorCurves>();
+        send_sync::<crate::Traces>();
+        send_sync::<crate::SimError>();
+    }
+}

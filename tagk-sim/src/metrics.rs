@@ -3,15 +3,15 @@
 use serde::{Deserialize, Serialize};
 use tagk_dynamics::InertialParams;
 
-/// Tracking error above which a trial is **aborted** [m] (30 cm).
+/// Tracking error above which a trial is **aborted** \[m\] (30 cm).
 pub const ABORT_THRESHOLD: f64 = 0.30;
 /// Tracking error a trial must be under, [`SUCCESS_DELAY_STEPS`] control steps after each
-/// payload event, to count as a **success** [m] (5 cm).
+/// payload event, to count as a **success** \[m\] (5 cm).
 pub const SUCCESS_THRESHOLD: f64 = 0.05;
 /// Control steps after a payload event at which success is judged.
 pub const SUCCESS_DELAY_STEPS: usize = 10;
 
-/// **Position error** of one trial [cm]: the mean over all control steps flown of the
+/// **Position error** of one trial \[cm\]: the mean over all control steps flown of the
 /// Euclidean tracking error `‖p(t_k) − p_ref(t_k)‖₂` (true position, world frame).
 pub fn position_error_cm(tracking_errors_m: &[f64]) -> f64 {
     if tracking_errors_m.is_empty() {
@@ -21,7 +21,7 @@ pub fn position_error_cm(tracking_errors_m: &[f64]) -> f64 {
 }
 
 /// **Parameter error** `‖θ̂ − θ‖₂` (absolute, SI units mixed as in θ: dominated by the mass
-/// [kg] and first moment [kg m]).
+/// \[kg\] and first moment [kg m]).
 pub fn parameter_error(estimate: &[f64], truth: &InertialParams) -> f64 {
     estimate
         .iter()
@@ -45,7 +45,7 @@ pub struct GroupErrors {
     pub inertia: f64,
 }
 
-/// **Per-group relative errors** of an estimate (see [`GroupErrors`]); `arm` is `L_arm` [m].
+/// **Per-group relative errors** of an estimate (see [`GroupErrors`]); `arm` is `L_arm` \[m\].
 pub fn group_errors(estimate: &[f64], truth: &InertialParams, arm: f64) -> GroupErrors {
     let t = truth.as_slice();
     let m = t[0];
@@ -100,7 +100,7 @@ pub fn is_success(tracking_errors_m: &[f64], event_steps: &[usize], aborted: boo
         })
 }
 
-/// **Update time** statistics [µs]: median and 95th percentile of per-update wall-clock
+/// **Update time** statistics \[µs\]: median and 95th percentile of per-update wall-clock
 /// times, from a streaming log-spaced histogram (bins 1 % wide from 0.01 µs to 10 s), so the
 /// memory is fixed however many updates are recorded. Quantiles are exact to the bin width.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,7 +128,7 @@ impl UpdateTimes {
         }
     }
 
-    /// Records one update time [µs] (non-finite values are ignored).
+    /// Records one update time \[µs\] (non-finite values are ignored).
     pub fn record(&mut self, micros: f64) {
         if !micros.is_finite() {
             return;
@@ -152,7 +152,7 @@ impl UpdateTimes {
         self.total
     }
 
-    /// The `q`-quantile [µs] (`q ∈ [0, 1]`; geometric bin centre), NaN when empty.
+    /// The `q`-quantile \[µs\] (`q ∈ [0, 1]`; geometric bin centre), NaN when empty.
     pub fn quantile(&self, q: f64) -> f64 {
         if self.total == 0 {
             return f64::NAN;
@@ -168,12 +168,12 @@ impl UpdateTimes {
         HIST_MIN_US * HIST_GROWTH.powf(HIST_BINS as f64)
     }
 
-    /// Median [µs].
+    /// Median \[µs\].
     pub fn median(&self) -> f64 {
         self.quantile(0.5)
     }
 
-    /// 95th percentile [µs].
+    /// 95th percentile \[µs\].
     pub fn p95(&self) -> f64 {
         self.quantile(0.95)
     }

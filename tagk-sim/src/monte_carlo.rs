@@ -1,30 +1,181 @@
-//! The one Monte Carlo driver behind every experiment.
+//! The one Monte Carlo driver behind every experiment, and the observers that plug into it.
 //!
 //! A sweep flies `trials` closed-loop trials for every (noise level, estimator) cell. Trial
 //! `i` of noise level `j` gets the seed `trial_seed(seed, j, i)` and the trajectory
 //! `TrajectoryKind::ALL[i % 5]`, the same for every estimator (paired comparison). Trials
-//! run in parallel with rayon in chunks; each chunk's small per-trial summaries are folded
-//! into the cell aggregates **in trial order**, so every number except wall-clock update
-//! times is identical at any thread count, and memory stays bounded by the chunk size (plus
-//! one position error per trial for the CDFs and whatever [`Capture`] asks for).
+//! run in parallel with rayon in chunks; each chunk's trials are folded into the cell
+//! aggregates — and handed to the [`SweepObserver`] — **in trial order**, so every number
+//! except wall-clock update times is identical at any thread count, and memory stays bounded
+//! by the chunk size (plus one position error per trial for the CDFs and whatever the
+//! observers keep).
+//!
+//! Observers add what an experiment needs beyond the aggregates: [`ErrorCurves`] (the mean
+//! parameter error on the control-step grid), [`Traces`] (full per-step traces of the first
+//! trials), a progress display (the examples' indicatif bar), or anything else. Combine
+//! several with a tuple: `sweep.run_with(&mut (&mut curves, &mut traces))`.
 
-use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::metrics::UpdateTimes;
-use crate::sim::{Adaptation, NoiseLevel, SimConfig, TraceSample, simulate};
+use crate::sim::{Adaptation, NoiseLevel, SimConfig, SimOutput, TraceSample, simulate};
 use crate::trajectory::TrajectoryKind;
 use crate::{EstimatorSpec, SimError};
 
-/// What a sweep keeps beyond the aggregate metrics.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Capture {
-    /// Keep the full per-step trace of the first `traces` trials of every cell.
-    pub traces: usize,
-    /// Accumulate the mean parameter error on the control-step grid over all trials of every
-    /// cell (Fig. 3b / 4b curves).
-    pub error_curve: bool,
+/// Watches a [`Sweep`]: which trials record their traces, progress as trials finish, and every
+/// trial's output in trial order.
+///
+/// `Send + Sync` because the driver asks [`wants_trace`](Self::wants_trace) and reports
+/// [`trial_finished`](Self::trial_finished) from its rayon worker threads (in any order);
+/// [`fold_trial`](Self::fold_trial) runs on the calling thread in trial order, so whatever
+/// an observer computes from it is identical at any thread count.
+pub trait SweepObserver: Send + Sync {
+    /// Whether trial `trial` of cell `cell` records its per-control-step trace
+    /// ([`SimOutput::trace`]) for [`fold_trial`](Self::fold_trial). Default: no.
+    fn wants_trace(&self, cell: usize, trial: usize) -> bool {
+        let _ = (cell, trial);
+        false
+    }
+
+    /// A trial finished on a worker thread: `done` trials of `total` so far (any order).
+    fn trial_finished(&self, done: usize, total: usize) {
+        let _ = (done, total);
+    }
+
+    /// Trial `trial` of cell `cell` (cells noise-major: `level * estimators + estimator`)
+    /// with its output; called on the calling thread, in trial order.
+    fn fold_trial(&mut self, cell: usize, trial: usize, output: &SimOutput) {
+        let _ = (cell, trial, output);
+    }
+
+    /// The sweep ended (after the last [`fold_trial`](Self::fold_trial)), successfully or not.
+    fn sweep_finished(&mut self) {}
+}
+
+/// The observer that observes nothing.
+impl SweepObserver for () {}
+
+impl<T: SweepObserver + ?Sized> SweepObserver for &mut T {
+    fn wants_trace(&self, cell: usize, trial: usize) -> bool {
+        (**self).wants_trace(cell, trial)
+    }
+    fn trial_finished(&self, done: usize, total: usize) {
+        (**self).trial_finished(done, total);
+    }
+    fn fold_trial(&mut self, cell: usize, trial: usize, output: &SimOutput) {
+        (**self).fold_trial(cell, trial, output);
+    }
+    fn sweep_finished(&mut self) {
+        (**self).sweep_finished();
+    }
+}
+
+/// Two observers as one (nest tuples for more).
+impl<A: SweepObserver, B: SweepObserver> SweepObserver for (A, B) {
+    fn wants_trace(&self, cell: usize, trial: usize) -> bool {
+        self.0.wants_trace(cell, trial) || self.1.wants_trace(cell, trial)
+    }
+    fn trial_finished(&self, done: usize, total: usize) {
+        self.0.trial_finished(done, total);
+        self.1.trial_finished(done, total);
+    }
+    fn fold_trial(&mut self, cell: usize, trial: usize, output: &SimOutput) {
+        self.0.fold_trial(cell, trial, output);
+        self.1.fold_trial(cell, trial, output);
+    }
+    fn sweep_finished(&mut self) {
+        self.0.sweep_finished();
+        self.1.sweep_finished();
+    }
+}
+
+/// The mean parameter error `‖θ̂ − θ‖₂` per control step over every trial of each cell
+/// (Fig. 3b / 4b curves): step `i` averages the finite errors of the trials that flew it.
+#[derive(Debug, Clone, Default)]
+pub struct ErrorCurves {
+    sums: Vec<Vec<f64>>,
+    counts: Vec<Vec<usize>>,
+}
+
+impl ErrorCurves {
+    /// An empty accumulator.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The mean error curve of cell `cell` (empty if it had no trial).
+    pub fn curve(&self, cell: usize) -> Vec<f64> {
+        match (self.sums.get(cell), self.counts.get(cell)) {
+            (Some(s), Some(n)) => s.iter().zip(n).map(|(s, n)| mean(*s, *n)).collect(),
+            _ => Vec::new(),
+        }
+    }
+}
+
+impl SweepObserver for ErrorCurves {
+    fn wants_trace(&self, _cell: usize, _trial: usize) -> bool {
+        true
+    }
+
+    fn fold_trial(&mut self, cell: usize, _trial: usize, output: &SimOutput) {
+        if output.trace.is_empty() {
+            return;
+        }
+        if self.sums.len() <= cell {
+            self.sums.resize(cell + 1, Vec::new());
+            self.counts.resize(cell + 1, Vec::new());
+        }
+        let (sum, n) = (&mut self.sums[cell], &mut self.counts[cell]);
+        if sum.len() < output.trace.len() {
+            sum.resize(output.trace.len(), 0.0);
+            n.resize(output.trace.len(), 0);
+        }
+        for (i, t) in output.trace.iter().enumerate() {
+            if t.parameter_error.is_finite() {
+                sum[i] += t.parameter_error;
+                n[i] += 1;
+            }
+        }
+    }
+}
+
+/// The full per-control-step traces of the first `per_cell` trials of every cell.
+#[derive(Debug, Clone, Default)]
+pub struct Traces {
+    per_cell: usize,
+    traces: Vec<Vec<Vec<TraceSample>>>,
+}
+
+impl Traces {
+    /// Keeps the traces of trials `0..per_cell` of every cell.
+    pub fn first(per_cell: usize) -> Self {
+        Self {
+            per_cell,
+            traces: Vec::new(),
+        }
+    }
+
+    /// The traces kept of cell `cell`, in trial order.
+    pub fn of_cell(&self, cell: usize) -> &[Vec<TraceSample>] {
+        self.traces.get(cell).map_or(&[], Vec::as_slice)
+    }
+}
+
+impl SweepObserver for Traces {
+    fn wants_trace(&self, _cell: usize, trial: usize) -> bool {
+        trial < self.per_cell
+    }
+
+    fn fold_trial(&mut self, cell: usize, trial: usize, output: &SimOutput) {
+        if trial < self.per_cell {
+            if self.traces.len() <= cell {
+                self.traces.resize(cell + 1, Vec::new());
+            }
+            self.traces[cell].push(output.trace.clone());
+        }
+    }
 }
 
 /// A sweep's configuration.
@@ -43,10 +194,6 @@ pub struct Sweep {
     pub base: SimConfig,
     /// If set, every trial flies this trajectory kind instead of cycling through all five.
     pub trajectory: Option<TrajectoryKind>,
-    /// Extra data to keep.
-    pub capture: Capture,
-    /// Show an indicatif progress bar on stderr.
-    pub progress: bool,
 }
 
 impl Sweep {
@@ -59,8 +206,6 @@ impl Sweep {
             seed,
             base: SimConfig::default(),
             trajectory: None,
-            capture: Capture::default(),
-            progress: false,
         }
     }
 }
@@ -82,7 +227,7 @@ pub struct CellSummary {
     pub label: String,
     /// Trials flown.
     pub trials: usize,
-    /// Mean position error over the trials that did not abort [cm].
+    /// Mean position error over the trials that did not abort \[cm\].
     pub position_error_cm: f64,
     /// Mean parameter error `‖θ̂ − θ‖₂` over trials (each the mean over its updates).
     pub parameter_error: f64,
@@ -100,17 +245,12 @@ pub struct CellSummary {
     pub success_after_update_pct: f64,
     /// Abort rate [%].
     pub aborted_pct: f64,
-    /// Median estimator update time [µs].
+    /// Median estimator update time \[µs\].
     pub update_median_us: f64,
-    /// 95th-percentile estimator update time [µs].
+    /// 95th-percentile estimator update time \[µs\].
     pub update_p95_us: f64,
-    /// Per-trial position errors [cm] (in trial order; NaN for aborted trials), for CDFs.
+    /// Per-trial position errors \[cm\] (in trial order; NaN for aborted trials), for CDFs.
     pub position_errors: Vec<f64>,
-    /// Mean parameter error per control step (if [`Capture::error_curve`]).
-    pub error_curve: Vec<f64>,
-    /// Full traces of the first trials (if [`Capture::traces`]).
-    #[serde(skip)]
-    pub traces: Vec<Vec<TraceSample>>,
 }
 
 #[derive(Default)]
@@ -130,17 +270,13 @@ struct Accumulator {
     aborted: usize,
     times: UpdateTimes,
     positions: Vec<f64>,
-    curve_sum: Vec<f64>,
-    curve_n: Vec<usize>,
-    traces: Vec<Vec<TraceSample>>,
 }
 
-struct TrialSummary {
+/// One finished trial on its way from a worker thread to the fold.
+struct FinishedTrial {
     cell: usize,
-    metrics: crate::TrialMetrics,
-    times: Vec<f64>,
-    trace: Vec<TraceSample>,
-    keep_trace: bool,
+    trial: usize,
+    output: SimOutput,
 }
 
 /// Results of a sweep: one [`CellSummary`] per (noise level, estimator), noise-major.
@@ -152,7 +288,7 @@ pub struct SweepResult {
     pub trials: usize,
     /// Base seed.
     pub seed: u64,
-    /// Wall-clock time of the sweep [s].
+    /// Wall-clock time of the sweep \[s\].
     pub elapsed_s: f64,
     /// Rayon threads used.
     pub threads: usize,
@@ -160,12 +296,33 @@ pub struct SweepResult {
 
 impl Sweep {
     /// Runs the sweep on the current rayon thread pool (use `ThreadPool::install` to pick
-    /// one).
+    /// one) without observers.
     ///
     /// # Errors
-    /// The first configuration error of any trial ([`SimConfig::validate`]); `trials == 0`
-    /// or no estimator/noise level is an [`SimError::InvalidParameter`].
+    /// As [`Sweep::run_with`].
     pub fn run(&self) -> Result<SweepResult, SimError> {
+        self.run_with(&mut ())
+    }
+
+    /// Runs the sweep on the current rayon thread pool, reporting to `observer`.
+    ///
+    /// # Errors
+    /// An invalid sweep ([`Sweep::validate`]) or the first configuration error of any trial.
+    pub fn run_with<O: SweepObserver + ?Sized>(
+        &self,
+        observer: &mut O,
+    ) -> Result<SweepResult, SimError> {
+        let result = self.run_observed(observer);
+        observer.sweep_finished();
+        result
+    }
+
+    /// Checks the sweep without flying: a non-empty grid and a valid template flight.
+    ///
+    /// # Errors
+    /// `trials == 0` or no estimator/noise level is an [`SimError::InvalidParameter`]; the
+    /// template's problems as [`SimConfig::validate`].
+    pub fn validate(&self) -> Result<(), SimError> {
         if self.trials == 0 || self.estimators.is_empty() || self.noise_levels.is_empty() {
             return Err(SimError::InvalidParameter {
                 name: "sweep size (trials, estimators, noise levels)",
@@ -173,43 +330,41 @@ impl Sweep {
                 reason: "must all be non-empty",
             });
         }
-        self.base.validate()?;
+        self.base.validate()
+    }
+
+    fn run_observed<O: SweepObserver + ?Sized>(
+        &self,
+        observer: &mut O,
+    ) -> Result<SweepResult, SimError> {
+        self.validate()?;
         let start = std::time::Instant::now();
         let n_est = self.estimators.len();
         let n_cells = self.noise_levels.len() * n_est;
         let total = n_cells * self.trials;
-        let bar = if self.progress {
-            let b = ProgressBar::new(total as u64);
-            if let Ok(style) = ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({per_sec}, eta {eta})",
-            ) {
-                b.set_style(style);
-            }
-            b
-        } else {
-            ProgressBar::hidden()
-        };
+        let done = AtomicUsize::new(0);
         let mut acc: Vec<Accumulator> = (0..n_cells).map(|_| Accumulator::default()).collect();
         // Job order: trial-major, so every chunk mixes cells and all cells progress together.
         let chunk = 512;
         let mut job = 0;
         while job < total {
             let end = (job + chunk).min(total);
-            let results: Vec<Result<TrialSummary, SimError>> = (job..end)
+            let shared: &O = observer;
+            let results: Vec<Result<FinishedTrial, SimError>> = (job..end)
                 .into_par_iter()
                 .map(|j| {
-                    let r = self.run_job(j, n_cells);
-                    bar.inc(1);
+                    let r = self.run_job(j, n_cells, shared);
+                    shared.trial_finished(done.fetch_add(1, Ordering::Relaxed) + 1, total);
                     r
                 })
                 .collect();
             for r in results {
-                let s = r?;
-                fold(&mut acc[s.cell], s);
+                let f = r?;
+                fold(&mut acc[f.cell], &f.output);
+                observer.fold_trial(f.cell, f.trial, &f.output);
             }
             job = end;
         }
-        bar.finish_and_clear();
         let cells = acc
             .into_iter()
             .enumerate()
@@ -227,13 +382,17 @@ impl Sweep {
         })
     }
 
-    fn run_job(&self, job: usize, n_cells: usize) -> Result<TrialSummary, SimError> {
+    fn run_job<O: SweepObserver + ?Sized>(
+        &self,
+        job: usize,
+        n_cells: usize,
+        observer: &O,
+    ) -> Result<FinishedTrial, SimError> {
         let trial = job / n_cells;
         let cell = job % n_cells;
         let n_est = self.estimators.len();
         let level = cell / n_est;
         let spec = self.estimators[cell % n_est];
-        let keep_trace = trial < self.capture.traces;
         let mut cfg = self.base.clone();
         cfg.seed = trial_seed(self.seed, level, trial);
         cfg.trajectory = self
@@ -241,21 +400,19 @@ impl Sweep {
             .unwrap_or(TrajectoryKind::ALL[trial % TrajectoryKind::ALL.len()]);
         cfg.noise = self.noise_levels[level];
         cfg.adaptation = Adaptation::Estimator(spec);
-        cfg.record_trace = keep_trace || self.capture.error_curve;
+        cfg.record_trace = observer.wants_trace(cell, trial);
         cfg.record_log = false;
-        let out = simulate(&cfg)?;
-        Ok(TrialSummary {
+        let output = simulate(&cfg)?;
+        Ok(FinishedTrial {
             cell,
-            times: out.updates.iter().map(|u| u.micros).collect(),
-            metrics: out.metrics,
-            trace: out.trace,
-            keep_trace,
+            trial,
+            output,
         })
     }
 }
 
-fn fold(a: &mut Accumulator, s: TrialSummary) {
-    let m = &s.metrics;
+fn fold(a: &mut Accumulator, output: &SimOutput) {
+    let m = &output.metrics;
     a.trials += 1;
     if m.aborted {
         a.aborted += 1;
@@ -278,23 +435,8 @@ fn fold(a: &mut Accumulator, s: TrialSummary) {
     }
     a.success += usize::from(m.success);
     a.success_upd += usize::from(m.success_after_update);
-    for t in &s.times {
-        a.times.record(*t);
-    }
-    if !s.trace.is_empty() {
-        if a.curve_sum.len() < s.trace.len() {
-            a.curve_sum.resize(s.trace.len(), 0.0);
-            a.curve_n.resize(s.trace.len(), 0);
-        }
-        for (i, t) in s.trace.iter().enumerate() {
-            if t.parameter_error.is_finite() {
-                a.curve_sum[i] += t.parameter_error;
-                a.curve_n[i] += 1;
-            }
-        }
-        if s.keep_trace {
-            a.traces.push(s.trace);
-        }
+    for u in &output.updates {
+        a.times.record(u.micros);
     }
 }
 
@@ -321,13 +463,6 @@ fn finish(noise: NoiseLevel, spec: EstimatorSpec, a: Accumulator) -> CellSummary
         update_median_us: a.times.median(),
         update_p95_us: a.times.p95(),
         position_errors: a.positions,
-        error_curve: a
-            .curve_sum
-            .iter()
-            .zip(&a.curve_n)
-            .map(|(s, n)| mean(*s, *n))
-            .collect(),
-        traces: a.traces,
     }
 }
 
@@ -430,7 +565,7 @@ impl SweepResult {
         Ok(())
     }
 
-    /// Writes the whole result (including per-trial position errors and curves) as JSON.
+    /// Writes the whole result (including the per-trial position errors) as JSON.
     ///
     /// # Errors
     /// I/O and JSON errors.

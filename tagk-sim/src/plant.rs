@@ -17,7 +17,7 @@ use crate::{PlantEffects, SimError};
 /// Full plant state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlantState {
-    /// Position of the body origin, world frame [m].
+    /// Position of the body origin, world frame \[m\].
     pub position: Vector3<f64>,
     /// Velocity of the body origin, world frame [m/s].
     pub velocity: Vector3<f64>,
@@ -220,7 +220,7 @@ impl Plant {
         }
     }
 
-    /// Advances the state by one RK4 step of `dt` [s] with the rotor-speed command `speeds`
+    /// Advances the state by one RK4 step of `dt` \[s\] with the rotor-speed command `speeds`
     /// [rad/s] held constant (clamped to `[0, ω_max]`). Without motor lag the actual rotor
     /// speeds equal the clamped command.
     pub fn step(&mut self, speeds: &[f64; 4], dt: f64) {
@@ -267,7 +267,7 @@ impl Plant {
 ///
 /// # Errors
 /// [`SimError::NonPositiveMass`], [`SimError::Dynamics`].
-pub fn validate_params(params: &InertialParams) -> Result<(), SimError> {
+pub(crate) fn validate_params(params: &InertialParams) -> Result<(), SimError> {
     let m = params.mass();
     if !(m > 0.0 && m.is_finite()) {
         return Err(SimError::NonPositiveMass {

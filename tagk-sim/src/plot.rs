@@ -55,7 +55,7 @@ fn axis_label(v: f64, log: bool) -> String {
 
 /// One named polyline.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Series {
+pub struct ChartSeries {
     /// Legend label.
     pub label: String,
     /// Points `(x, y)`; non-finite points are skipped.
@@ -73,13 +73,13 @@ pub struct LineChart {
     pub y_label: String,
     /// Logarithmic y axis.
     pub log_y: bool,
-    /// Series.
-    pub series: Vec<Series>,
+    /// ChartSeries.
+    pub series: Vec<ChartSeries>,
     /// Vertical marker lines at these x values (e.g. payload events).
     pub markers: Vec<f64>,
 }
 
-fn bounds(series: &[Series], log_y: bool) -> (f64, f64, f64, f64) {
+fn bounds(series: &[ChartSeries], log_y: bool) -> (f64, f64, f64, f64) {
     let pts = series
         .iter()
         .flat_map(|s| s.points.iter())
@@ -208,7 +208,7 @@ pub fn cdf(values: &[f64]) -> Vec<(f64, f64)> {
 pub struct Path3 {
     /// Legend label.
     pub label: String,
-    /// Points `(x, y, z)` [m].
+    /// Points `(x, y, z)` \[m\].
     pub points: Vec<(f64, f64, f64)>,
     /// Points to mark with a cross (aborts, payload events).
     pub marks: Vec<(f64, f64, f64)>,

@@ -21,11 +21,11 @@ use crate::SimError;
 pub const PEAK_SPEED: f64 = 0.5;
 /// Peak angular rate of the path parameter [rad/s] (CONVENTIONS §5).
 pub const PEAK_RATE: f64 = 0.5;
-/// Duration of the smooth start from rest [s].
+/// Duration of the smooth start from rest \[s\].
 pub const RAMP_TIME: f64 = 1.5;
 
 /// The shape of a reference path.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum TrajectoryKind {
     /// Lemniscate of Gerono: `(a sin s, (b/2) sin 2s, 0)`.
     Figure8,
@@ -49,6 +49,15 @@ impl TrajectoryKind {
         TrajectoryKind::Ellipse,
     ];
 
+    /// Command-line name (`figure8`, `circle`, `spiral`, `helix`, `ellipse`), parsed back by
+    /// `FromStr`.
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            TrajectoryKind::Figure8 => "figure8",
+            other => other.name(),
+        }
+    }
+
     /// Display name.
     pub fn name(self) -> &'static str {
         match self {
@@ -61,10 +70,26 @@ impl TrajectoryKind {
     }
 }
 
+impl std::str::FromStr for TrajectoryKind {
+    type Err = SimError;
+
+    /// Parses [`TrajectoryKind::cli_name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        TrajectoryKind::ALL
+            .into_iter()
+            .find(|k| k.cli_name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "trajectory",
+                value: s.to_string(),
+                expected: "figure8, circle, spiral, helix, ellipse",
+            })
+    }
+}
+
 /// Reference position, velocity and acceleration at one time (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReferenceSample {
-    /// Position [m].
+    /// Position \[m\].
     pub position: Vector3<f64>,
     /// Velocity [m/s].
     pub velocity: Vector3<f64>,
@@ -77,24 +102,24 @@ pub struct ReferenceSample {
 pub struct Trajectory {
     /// Shape.
     pub kind: TrajectoryKind,
-    /// Centre `c`, world frame [m].
+    /// Centre `c`, world frame \[m\].
     pub centre: [f64; 3],
-    /// Size along the path's first axis (`a` or `R`) [m].
+    /// Size along the path's first axis (`a` or `R`) \[m\].
     pub size_a: f64,
-    /// Size along the second axis (`b`; equal to `size_a` for circle, spiral, helix) [m].
+    /// Size along the second axis (`b`; equal to `size_a` for circle, spiral, helix) \[m\].
     pub size_b: f64,
-    /// Climb of the helix over the trial [m] (0 for the others).
+    /// Climb of the helix over the trial \[m\] (0 for the others).
     pub climb: f64,
-    /// Initial phase `φ` [rad].
+    /// Initial phase `φ` \[rad\].
     pub phase: f64,
     /// Angular rate `Ω` of the phase [rad/s].
     pub rate: f64,
-    /// Trial duration `T` [s] (sets the spiral's growth and the helix's climb rate, spread
+    /// Trial duration `T` \[s\] (sets the spiral's growth and the helix's climb rate, spread
     /// over `max(T, MIN_GROWTH_TIME)`).
     pub duration: f64,
 }
 
-/// Shortest time over which the spiral grows and the helix climbs [s], so that short flights
+/// Shortest time over which the spiral grows and the helix climbs \[s\], so that short flights
 /// keep the speed limit.
 pub const MIN_GROWTH_TIME: f64 = 10.0;
 
@@ -109,7 +134,7 @@ fn ramp(t: f64) -> f64 {
 }
 
 impl Trajectory {
-    /// A random path of `kind` for a trial of `duration` [s]: sizes `a ∈ U[0.4, 1.0] m`,
+    /// A random path of `kind` for a trial of `duration` \[s\]: sizes `a ∈ U[0.4, 1.0] m`,
     /// `b ∈ U[0.5, 1]·a` (ellipse, figure-8), helix climb `U[0.3, 0.6] m`, centre
     /// `x, y ∈ U[−0.5, 0.5] m`, `z = altitude` if given (else `U[0.8, 1.5] m`), phase
     /// `U[0, 2π)`, and the largest `Ω ≤ 0.5 rad/s` keeping the speed ≤ 0.5 m/s.
@@ -200,14 +225,14 @@ impl Trajectory {
         }
     }
 
-    /// Reference position at time `t` [s] (world frame, m).
+    /// Reference position at time `t` \[s\] (world frame, m).
     pub fn position(&self, t: f64) -> Vector3<f64> {
         let g = ramp(t);
         let lambda = g / self.growth_scale();
         Vector3::from(self.centre) + self.shape(self.phase + self.rate * g, lambda)
     }
 
-    /// Position, velocity and acceleration at `t` [s]; the derivatives are central
+    /// Position, velocity and acceleration at `t` \[s\]; the derivatives are central
     /// differences of [`position`](Self::position) (steps 1e-4 s and 1e-3 s; errors below
     /// 1e-7 m/s and 1e-5 m/s² for these smooth, slow paths).
     pub fn sample(&self, t: f64) -> ReferenceSample {

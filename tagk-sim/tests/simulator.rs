@@ -1,9 +1,9 @@
 //! Physics, measurement, configuration and driver tests of tagk-sim.
 
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use tagk_dynamics::{InertialParams, QuadrotorModel, rigid_body_regressor};
-use tagk_sim::effects::{GroundEffect, LinearDrag};
 use tagk_sim::metrics::{UpdateTimes, group_errors, is_success, parameter_error};
+use tagk_sim::plant_effects::{GroundEffect, LinearDrag, MotorLag, RotorDrag};
 use tagk_sim::sim::{prioritise_attitude, tracking_weights};
 use tagk_sim::trajectory::{PEAK_RATE, PEAK_SPEED, ReferenceSample};
 use tagk_sim::*;
@@ -138,7 +138,7 @@ fn logged_frames_satisfy_the_regressor_in_closed_loop() {
     assert_eq!(out.log.len(), 400);
     let nominal = cfg.vehicle.params;
     let mut worst: f64 = 0.0;
-    for s in &out.log {
+    for s in out.log.samples() {
         let truth = out
             .events
             .iter()
@@ -152,9 +152,13 @@ fn logged_frames_satisfy_the_regressor_in_closed_loop() {
             s.attitude[3],
         ));
         let a = q.inverse_transform_vector(
-            &(Vector3::from(s.accel_world) - tagk_dynamics::GRAVITY_WORLD),
+            &(Vector3::from(s.accel.unwrap()) - tagk_dynamics::GRAVITY_WORLD),
         );
-        let y = rigid_body_regressor(&a, &Vector3::from(s.body_rate), &Vector3::from(s.omega_dot));
+        let y = rigid_body_regressor(
+            &a,
+            &Vector3::from(s.omega),
+            &Vector3::from(s.omega_dot.unwrap()),
+        );
         let yt = y * nalgebra::SVector::<f64, 10>::from_column_slice(truth.as_slice());
         // Force rows against the thrust, torque rows against the gravity torque scale.
         for i in 0..6 {
@@ -230,6 +234,27 @@ fn bad_configurations_are_rejected_with_typed_errors() {
         Err(SimError::InvalidDuration { .. })
     ));
 
+    let mut cfg = SimConfig {
+        altitude: Some(f64::NAN),
+        ..SimConfig::default()
+    };
+    assert!(matches!(
+        cfg.validate(),
+        Err(SimError::InvalidParameter {
+            name: "altitude",
+            ..
+        })
+    ));
+    cfg.altitude = None;
+    cfg.gate.max_com_offset = 0.0;
+    assert!(matches!(
+        simulate(&cfg),
+        Err(SimError::InvalidParameter {
+            name: "gate.max_com_offset",
+            ..
+        })
+    ));
+
     let heavy = Payload {
         mass: 0.03,
         offset: [0.0, 0.0, 0.0],
@@ -303,16 +328,21 @@ fn effects_follow_their_formulas() {
     let g = GroundEffect::crazyflie();
     assert!((g.thrust_ratio(g.rotor_radius) - 16.0 / 15.0).abs() < 1e-12);
     assert!((g.thrust_ratio(1.0) - 1.0).abs() < 1e-4);
-    let fx = PlantEffects::only(EffectKind::LinearDrag);
+    let fx = PlantEffects::only(EffectKind::RotorDrag).unwrap();
     let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
     // World velocity +x is body −y after a 90° yaw.
     let f = fx.extra_force(&Vector3::new(1.0, 0.0, 0.0), &q, 4000.0);
-    let k = LinearDrag::crazyflie().coefficients;
+    let k = RotorDrag::crazyflie().coefficients;
     assert!((f - Vector3::new(0.0, k[1] * 4000.0, 0.0)).norm() < 1e-15);
-    let te = PlantEffects::only(EffectKind::ThrustError);
+    // Plain linear drag does not depend on the rotor speeds.
+    let lin = PlantEffects::only(EffectKind::LinearDrag).unwrap();
+    let f = lin.extra_force(&Vector3::new(1.0, 0.0, 0.0), &q, 4000.0);
+    let d = LinearDrag::crazyflie().coefficients;
+    assert!((f - Vector3::new(0.0, d[1], 0.0)).norm() < 1e-15);
+    let te = PlantEffects::only(EffectKind::ThrustGain).unwrap();
     assert!((te.thrust_multiplier(1.0) - 0.9).abs() < 1e-15);
-    for kind in EffectKind::ALL {
-        let e = PlantEffects::only(kind);
+    for kind in PlantEffects::supported() {
+        let e = PlantEffects::only(kind).unwrap();
         assert!(!e.is_ideal());
         e.validate().unwrap();
         // Each effect changes a flight relative to the ideal plant.
@@ -327,12 +357,42 @@ fn effects_follow_their_formulas() {
         };
         let a = simulate(&cfg(PlantEffects::none())).unwrap();
         let b = simulate(&cfg(e)).unwrap();
-        assert_ne!(
-            a.log.last().unwrap().position,
-            b.log.last().unwrap().position,
-            "{kind:?}"
-        );
+        if kind == EffectKind::TimeDelay {
+            // The same flight; the logged wrench stream lags the motion by one 20 ms step.
+            assert_eq!(a.log.position, b.log.position);
+            assert_eq!(b.log.wrench[0], a.log.wrench[0]);
+            assert_eq!(&b.log.wrench[1..], &a.log.wrench[..a.log.len() - 1]);
+            let (ra, rb) = (a.log.rotor_speeds.unwrap(), b.log.rotor_speeds.unwrap());
+            assert_eq!(&rb[1..], &ra[..ra.len() - 1]);
+        } else {
+            assert_ne!(
+                a.log.position.last().unwrap(),
+                b.log.position.last().unwrap(),
+                "{kind:?}"
+            );
+        }
     }
+    // Commands are held over each 20 ms interval and samples sit at the midpoints: a 15 ms
+    // delay reaches back into the previous interval.
+    let half = PlantEffects {
+        time_delay: Some(tagk_sim::plant_effects::TimeDelay { delay: 0.015 }),
+        ..PlantEffects::none()
+    };
+    let cfg = SimConfig {
+        duration: 1.0,
+        payload: PayloadSchedule::None,
+        adaptation: Adaptation::Nominal,
+        effects: half,
+        record_log: true,
+        ..SimConfig::default()
+    };
+    let out = simulate(&cfg).unwrap();
+    let ideal = simulate(&SimConfig {
+        effects: PlantEffects::none(),
+        ..cfg
+    })
+    .unwrap();
+    assert_eq!(out.log.wrench[5], ideal.log.wrench[4]);
 }
 
 #[test]
@@ -394,7 +454,7 @@ fn log_csv_has_the_conventions_header() {
     };
     let out = simulate(&cfg).unwrap();
     let mut buf = Vec::new();
-    write_log_csv(&out.log, &mut buf).unwrap();
+    out.log.write_csv(&mut buf).unwrap();
     let text = String::from_utf8(buf).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -403,10 +463,10 @@ fn log_csv_has_the_conventions_header() {
     );
     assert_eq!(lines.count(), 25);
     let mut rev = out.log.clone();
-    rev.reverse();
+    rev.t.reverse();
     assert!(matches!(
-        write_log_csv(&rev, Vec::new()),
-        Err(SimError::InvalidParameter { .. })
+        rev.write_csv(Vec::new()),
+        Err(LogError::NonIncreasingTime { line: 3, .. })
     ));
 }
 
@@ -452,6 +512,87 @@ fn sweep_is_identical_at_one_and_two_threads() {
     assert!(Sweep::new(vec![], 3, 0).run().is_err());
 }
 
+/// Counts the progress reports and records the order in which trials are folded.
+#[derive(Default)]
+struct Recorder {
+    finished: std::sync::atomic::AtomicUsize,
+    folded: Vec<(usize, usize)>,
+    ended: bool,
+}
+
+impl SweepObserver for Recorder {
+    fn trial_finished(&self, done: usize, total: usize) {
+        assert!(done >= 1 && done <= total);
+        self.finished
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn fold_trial(&mut self, cell: usize, trial: usize, output: &SimOutput) {
+        // The error curves ask every trial for its trace.
+        assert!(!output.trace.is_empty());
+        self.folded.push((cell, trial));
+    }
+    fn sweep_finished(&mut self) {
+        self.ended = true;
+    }
+}
+
+#[test]
+fn observers_see_every_trial_in_trial_order_at_any_thread_count() {
+    let mut sweep = Sweep::new(
+        vec![
+            EstimatorSpec::new(EstimatorKind::TagK),
+            EstimatorSpec::new(EstimatorKind::RlsLow),
+        ],
+        3,
+        4,
+    );
+    sweep.noise_levels = vec![NoiseLevel::Medium];
+    sweep.base.duration = 6.0;
+    sweep.base.payload = PayloadSchedule::ProtocolAt {
+        attach: 2.0,
+        remove: 4.0,
+    };
+    let run = |threads| {
+        let mut curves = ErrorCurves::new();
+        let mut traces = Traces::first(1);
+        let mut recorder = Recorder::default();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| sweep.run_with(&mut (&mut recorder, (&mut curves, &mut traces))))
+            .unwrap();
+        (curves, traces, recorder)
+    };
+    let (c1, t1, r1) = run(1);
+    let (c2, t2, r2) = run(2);
+    // Trial-major job order, folded in that order.
+    let expected: Vec<(usize, usize)> = (0..3).flat_map(|t| (0..2).map(move |c| (c, t))).collect();
+    for r in [&r1, &r2] {
+        assert_eq!(r.folded, expected);
+        assert_eq!(r.finished.load(std::sync::atomic::Ordering::Relaxed), 6);
+        assert!(r.ended);
+    }
+    for cell in 0..2 {
+        let (a, b) = (c1.curve(cell), c2.curve(cell));
+        assert_eq!(a.len(), 300);
+        assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+        assert_eq!(t1.of_cell(cell).len(), 1);
+        assert_eq!(t1.of_cell(cell), t2.of_cell(cell));
+    }
+    // The curve is the mean of the trials' traces, computed here from the traces directly.
+    let mut direct = Traces::first(3);
+    sweep.run_with(&mut direct).unwrap();
+    let mean0: f64 = direct
+        .of_cell(0)
+        .iter()
+        .map(|t| t[0].parameter_error)
+        .sum::<f64>()
+        / 3.0;
+    assert!((c1.curve(0)[0] - mean0).abs() <= 1e-15 * mean0.abs());
+}
+
+#[cfg(feature = "plot")]
 #[test]
 fn figures_render_with_the_embedded_font() {
     let dir = std::env::temp_dir().join(format!("tagk-sim-plot-{}", std::process::id()));
@@ -461,7 +602,7 @@ fn figures_render_with_the_embedded_font() {
         x_label: "x".into(),
         y_label: "y".into(),
         log_y: true,
-        series: vec![plot::Series {
+        series: vec![plot::ChartSeries {
             label: "a".into(),
             points: vec![(0.0, 1.0), (1.0, 10.0)],
         }],
@@ -472,61 +613,13 @@ fn figures_render_with_the_embedded_font() {
     let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
     assert!(svg.contains("test"));
     std::fs::remove_dir_all(&dir).ok();
-    let _ = Matrix3::<f64>::identity();
-}
-
-#[test]
-fn simulate_command_writes_a_log_from_flags() {
-    use tagk_sim::clap::Parser;
-    #[derive(Parser)]
-    struct Cli {
-        #[command(flatten)]
-        args: cli::SimulateArgs,
-    }
-    let path = std::env::temp_dir().join(format!("tagk-sim-cli-{}.csv", std::process::id()));
-    let cli = Cli::try_parse_from([
-        "tagk",
-        "--trajectory",
-        "helix",
-        "--duration",
-        "2",
-        "--noise",
-        "low",
-        "--effect",
-        "linear-drag",
-        "--effect",
-        "motor-lag",
-        "--payload",
-        "fixed",
-        "--payload-mass",
-        "0.01",
-        "--payload-offset",
-        "0.005,0,0",
-        "--attach",
-        "1",
-        "--output",
-        path.to_str().unwrap(),
-    ])
-    .unwrap();
-    let cfg = cli.args.config().unwrap();
-    assert!(cfg.effects.linear_drag.is_some() && cfg.effects.motor_lag.is_some());
-    assert!(cfg.effects.wind.is_none());
-    cli::run_simulate(&cli.args).unwrap();
-    let text = std::fs::read_to_string(&path).unwrap();
-    assert_eq!(text.lines().count(), 101);
-    std::fs::remove_file(&path).ok();
-    let bad = Cli::try_parse_from(["tagk", "--duration", "0"]).unwrap();
-    assert!(matches!(
-        cli::run_simulate(&bad.args),
-        Err(SimError::InvalidDuration { .. })
-    ));
 }
 
 #[test]
 fn tuned_tagk_identifies_the_payload_in_closed_loop() {
     let cfg = SimConfig {
         seed: 5,
-        adaptation: Adaptation::Estimator(experiments::tagk_tuned()),
+        adaptation: Adaptation::Estimator(estimators::tagk_tuned()),
         ..SimConfig::default()
     };
     let out = simulate(&cfg).unwrap();

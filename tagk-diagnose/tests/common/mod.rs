@@ -1,7 +1,7 @@
 //! Shared helpers: flight logs from the simulator with one hidden plant effect.
 #![allow(dead_code)]
 
-use tagk_diagnose::{FlightLog, LogSample};
+use tagk_diagnose::FlightLog;
 use tagk_sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, TrajectoryKind,
 };
@@ -18,7 +18,9 @@ pub fn config(effect: Option<EffectKind>, seed: u64) -> SimConfig {
         seed,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
-        effects: effect.map_or(PlantEffects::none(), PlantEffects::only),
+        effects: effect
+            .map_or(Ok(PlantEffects::none()), PlantEffects::only)
+            .expect("the simulator produces the effect"),
         adaptation: Adaptation::Nominal,
         record_log: true,
         stop_on_abort: false,
@@ -34,32 +36,13 @@ pub fn config(effect: Option<EffectKind>, seed: u64) -> SimConfig {
         // The simulator's default 50 ms lag destabilises the nominal LQR (the vehicle falls);
         // 20 ms is still in the range reported for Crazyflie-class motors.
         Some(EffectKind::MotorLag) => {
-            c.effects.motor_lag = Some(tagk_sim::MotorLag {
+            c.effects.motor_lag = Some(tagk_sim::plant_effects::MotorLag {
                 time_constant: 0.02,
             });
         }
         _ => {}
     }
     c
-}
-
-/// Converts simulator samples into a diagnosis log.
-pub fn to_log(samples: &[tagk_sim::LogSample]) -> FlightLog {
-    let mut log = FlightLog::new();
-    for s in samples {
-        log.push(&LogSample {
-            t: s.t,
-            position: s.position,
-            velocity: s.velocity,
-            attitude: s.attitude,
-            omega: s.body_rate,
-            wrench: s.wrench,
-            accel: Some(s.accel_world),
-            omega_dot: Some(s.omega_dot),
-            rotor_speeds: Some(s.rotor_speeds),
-        });
-    }
-    log
 }
 
 /// A simulated log with `effect` hidden (panics if the flight aborted: the data would not be
@@ -70,18 +53,10 @@ pub fn sim_log(effect: Option<EffectKind>, seed: u64) -> FlightLog {
         !out.metrics.aborted,
         "flight with {effect:?} seed {seed} aborted"
     );
-    to_log(&out.log)
+    out.log
 }
 
-/// The name of the diagnosis effect that models a simulator effect.
+/// The name of the diagnosis effect that models a simulator effect: the shared vocabulary's.
 pub fn expected_name(kind: EffectKind) -> &'static str {
-    match kind {
-        EffectKind::LinearDrag => "rotor-drag",
-        EffectKind::QuadraticDrag => "quadratic-drag",
-        EffectKind::MotorLag => "motor-lag",
-        EffectKind::GroundEffect => "ground-effect",
-        EffectKind::Wind => "wind",
-        EffectKind::ThrustError => "thrust-gain",
-        EffectKind::Bias => "body-bias",
-    }
+    kind.name()
 }

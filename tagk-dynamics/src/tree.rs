@@ -90,7 +90,7 @@ impl Pose {
     }
 }
 
-/// One moving body of a [`SerialChain`] and the joint that carries it.
+/// One moving body of a [`KinematicTree`] and the joint that carries it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {
     pub(crate) link: String,
@@ -153,10 +153,10 @@ impl Body {
     }
 }
 
-/// Preallocated scratch space for the allocation-free `*_into` methods of a [`SerialChain`];
-/// get one from [`SerialChain::workspace`].
+/// Preallocated scratch space for the allocation-free `*_into` methods of a [`KinematicTree`];
+/// get one from [`KinematicTree::workspace`].
 #[derive(Debug, Clone)]
-pub struct ChainWorkspace {
+pub struct TreeWorkspace {
     pose: Vec<Pose>,
     omega: Vec<Vector3<f64>>,
     omega_dot: Vec<Vector3<f64>>,
@@ -167,7 +167,7 @@ pub struct ChainWorkspace {
     zeta: Vec<Vector6<f64>>,
 }
 
-impl ChainWorkspace {
+impl TreeWorkspace {
     fn new(n: usize) -> Self {
         Self {
             pose: vec![Pose::identity(); n],
@@ -196,9 +196,9 @@ pub(crate) struct LinkPlacement {
 }
 
 /// A fixed-base kinematic tree of one-DoF joints (see the [module docs](self)). Build one
-/// from URDF with [`SerialChain::from_urdf_str`] or [`SerialChain::from_urdf_file`].
+/// from URDF with [`KinematicTree::from_urdf_str`] or [`KinematicTree::from_urdf_file`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct SerialChain {
+pub struct KinematicTree {
     pub(crate) name: String,
     pub(crate) base_link: String,
     pub(crate) bodies: Vec<Body>,
@@ -208,8 +208,8 @@ pub struct SerialChain {
     pub(crate) base_params: InertialParams,
 }
 
-impl SerialChain {
-    /// Assembles a chain from bodies in depth-first preorder (the URDF loader's output).
+impl KinematicTree {
+    /// Assembles a tree from bodies in depth-first preorder (the URDF loader's output).
     pub(crate) fn from_parts(
         name: String,
         base_link: String,
@@ -319,8 +319,8 @@ impl SerialChain {
     }
 
     /// Scratch space for the `*_into` methods.
-    pub fn workspace(&self) -> ChainWorkspace {
-        ChainWorkspace::new(self.bodies.len())
+    pub fn workspace(&self) -> TreeWorkspace {
+        TreeWorkspace::new(self.bodies.len())
     }
 
     // ----------------------------------------------------------------------------- checks
@@ -355,7 +355,7 @@ impl SerialChain {
         Ok(())
     }
 
-    fn check_workspace(&self, ws: &ChainWorkspace) -> Result<(), DynamicsError> {
+    fn check_workspace(&self, ws: &TreeWorkspace) -> Result<(), DynamicsError> {
         if ws.bodies() != self.n_bodies() {
             return Err(DynamicsError::DimensionMismatch {
                 what: "workspace",
@@ -428,7 +428,7 @@ impl SerialChain {
         qd: &[f64],
         qdd: &[f64],
         gravity: &Vector3<f64>,
-        ws: &mut ChainWorkspace,
+        ws: &mut TreeWorkspace,
     ) {
         for i in 0..self.dof() {
             let b = &self.bodies[i];
@@ -474,7 +474,7 @@ impl SerialChain {
         qdd: &[f64],
         params: &[InertialParams],
         gravity: &Vector3<f64>,
-        ws: &mut ChainWorkspace,
+        ws: &mut TreeWorkspace,
         tau: &mut [f64],
     ) {
         self.forward_pass(q, qd, qdd, gravity, ws);
@@ -502,7 +502,7 @@ impl SerialChain {
 
     /// Inverse dynamics by the recursive Newton–Euler algorithm with the nominal parameters:
     /// joint torques \[N m\] / forces \[N\] for positions `q`, velocities `q̇` and accelerations
-    /// `q̈` (rad or m, per second, per second²), under this chain's gravity.
+    /// `q̈` (rad or m, per second, per second²), under this tree's gravity.
     ///
     /// # Errors
     /// [`DynamicsError::DimensionMismatch`] / [`DynamicsError::NonFinite`] for bad inputs.
@@ -532,7 +532,7 @@ impl SerialChain {
     ///
     /// # Errors
     /// As [`rnea_with_params`](Self::rnea_with_params), and for a wrong `tau` length or a
-    /// workspace of another chain.
+    /// workspace of another tree.
     #[allow(clippy::too_many_arguments)]
     pub fn rnea_into(
         &self,
@@ -540,7 +540,7 @@ impl SerialChain {
         qd: &[f64],
         qdd: &[f64],
         params: &[InertialParams],
-        ws: &mut ChainWorkspace,
+        ws: &mut TreeWorkspace,
         tau: &mut [f64],
     ) -> Result<(), DynamicsError> {
         self.check_vec("q", q)?;
@@ -586,13 +586,13 @@ impl SerialChain {
     ///
     /// # Errors
     /// As [`joint_torque_regressor`](Self::joint_torque_regressor), and for a wrong `out`
-    /// length or a workspace of another chain.
+    /// length or a workspace of another tree.
     pub fn joint_torque_regressor_into(
         &self,
         q: &[f64],
         qd: &[f64],
         qdd: &[f64],
-        ws: &mut ChainWorkspace,
+        ws: &mut TreeWorkspace,
         out: &mut [f64],
     ) -> Result<(), DynamicsError> {
         self.check_vec("q", q)?;
@@ -679,7 +679,7 @@ impl SerialChain {
     ///
     /// # Errors
     /// For bad inputs; [`DynamicsError::SingularMassMatrix`] if `M` is not positive definite
-    /// (for example a massless body at the end of the chain).
+    /// (for example a massless body at the end of a branch).
     pub fn forward_dynamics(
         &self,
         q: &[f64],
@@ -730,7 +730,7 @@ impl SerialChain {
         Ok(energy)
     }
 
-    /// Potential energy in this chain's gravity field \[J\], `−Σ m gᵀ p_com` with the centres of
+    /// Potential energy in this tree's gravity field \[J\], `−Σ m gᵀ p_com` with the centres of
     /// mass in the base frame (zero at the base origin).
     ///
     /// # Errors

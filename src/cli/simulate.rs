@@ -1,11 +1,17 @@
-//! The `tagk simulate` command: fly one trial from flags and write its flight log
-//! (CONVENTIONS §6 CSV). The root binary flattens [`SimulateArgs`] and calls
-//! [`run_simulate`].
+//! The `tagk simulate` command: fly one trial from flags and write its flight log (the CSV
+//! format of [`tagk_dynamics::log`]). The binary flattens [`SimulateArgs`], calls
+//! [`run_simulate`] and prints the returned [`SimulateSummary`].
 
+use std::fmt;
 use std::path::PathBuf;
 
-use crate::sim::{Adaptation, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig};
-use crate::{EffectKind, EstimatorKind, EstimatorSpec, PlantEffects, SimError, TrajectoryKind};
+use tagk_dynamics::EffectKind;
+use tagk_sim::{
+    Adaptation, EstimatorKind, EstimatorSpec, NoiseLevel, Payload, PayloadSchedule, PayloadShape,
+    PlantEffects, SimConfig, SimError, TrajectoryKind,
+};
+
+use super::{effect_parser, estimator_parser, noise_parser, trajectory_parser};
 
 /// Payload choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -23,7 +29,7 @@ pub enum PayloadArg {
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
     /// Reference trajectory.
-    #[arg(long, value_enum, default_value_t = TrajectoryKind::Figure8)]
+    #[arg(long, value_parser = trajectory_parser(), default_value = "figure8")]
     pub trajectory: TrajectoryKind,
     /// Flight duration [s].
     #[arg(long, default_value_t = 20.0)]
@@ -32,7 +38,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Velocity/acceleration noise level.
-    #[arg(long, value_enum, default_value_t = NoiseLevel::None)]
+    #[arg(long, value_parser = noise_parser(), default_value = "none")]
     pub noise: NoiseLevel,
     /// Rate-gyro noise, standard deviation per axis [rad/s].
     #[arg(long, default_value_t = 0.0)]
@@ -52,12 +58,13 @@ pub struct SimulateArgs {
     /// Fixed payload removal time [s] (omit to keep it).
     #[arg(long)]
     pub remove: Option<f64>,
-    /// Plant effects to switch on at their Crazyflie defaults (repeatable).
-    #[arg(long = "effect", value_enum)]
+    /// Plant effects to switch on at their Crazyflie defaults (repeatable; the names of the
+    /// effect vocabulary shared with `tagk diagnose --with`).
+    #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
     /// Online estimator feeding the controller (omit: the controller keeps the nominal
     /// parameters).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = estimator_parser())]
     pub estimator: Option<EstimatorKind>,
     /// Height of the trajectory centre [m] (default: random 0.8–1.5 m).
     #[arg(long)]
@@ -71,7 +78,8 @@ impl SimulateArgs {
     /// The flight configuration these flags describe.
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] for a payload offset without three values.
+    /// [`SimError::InvalidParameter`] for a payload offset without three values;
+    /// [`SimError::UnsupportedEffect`] for an effect the simulator cannot produce.
     pub fn config(&self) -> Result<SimConfig, SimError> {
         let payload = match self.payload {
             PayloadArg::None => PayloadSchedule::None,
@@ -96,7 +104,7 @@ impl SimulateArgs {
         let effects = self
             .effects
             .iter()
-            .fold(PlantEffects::none(), |e, k| e.with(*k));
+            .try_fold(PlantEffects::none(), |e, k| e.with(*k))?;
         let adaptation = match self.estimator {
             Some(k) => Adaptation::Estimator(EstimatorSpec::new(k)),
             None => Adaptation::Nominal,
@@ -117,21 +125,48 @@ impl SimulateArgs {
     }
 }
 
-/// Flies the flight of `args` and writes its log to `args.output`; prints a one-line summary.
+/// What `tagk simulate` did; its `Display` is the one-line summary the command prints.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulateSummary {
+    /// Samples written.
+    pub samples: usize,
+    /// The log file.
+    pub output: PathBuf,
+    /// Position error of the flight [cm].
+    pub position_error_cm: f64,
+    /// Whether the flight aborted.
+    pub aborted: bool,
+    /// Payload events.
+    pub events: usize,
+}
+
+impl fmt::Display for SimulateSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "wrote {} samples to {} (position error {:.2} cm{}, {} payload events)",
+            self.samples,
+            self.output.display(),
+            self.position_error_cm,
+            if self.aborted { ", aborted" } else { "" },
+            self.events
+        )
+    }
+}
+
+/// Flies the flight of `args` and writes its log to `args.output`.
 ///
 /// # Errors
 /// Invalid flags (typed [`SimError`]s) and I/O errors.
-pub fn run_simulate(args: &SimulateArgs) -> Result<(), SimError> {
+pub fn run_simulate(args: &SimulateArgs) -> Result<SimulateSummary, SimError> {
     let cfg = args.config()?;
-    let out = crate::simulate(&cfg)?;
-    crate::write_log_csv_file(&out.log, &args.output)?;
-    println!(
-        "wrote {} samples to {} (position error {:.2} cm{}, {} payload events)",
-        out.log.len(),
-        args.output.display(),
-        out.metrics.position_error_cm,
-        if out.metrics.aborted { ", aborted" } else { "" },
-        out.events.len()
-    );
-    Ok(())
+    let out = tagk_sim::simulate(&cfg)?;
+    out.log.write_csv_path(&args.output)?;
+    Ok(SimulateSummary {
+        samples: out.log.len(),
+        output: args.output.clone(),
+        position_error_cm: out.metrics.position_error_cm,
+        aborted: out.metrics.aborted,
+        events: out.events.len(),
+    })
 }

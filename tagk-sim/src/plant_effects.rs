@@ -3,6 +3,24 @@
 //! (the TAG-K paper's experiments), and every effect's `crazyflie()` constructor (also its
 //! `Default`) gives a realistic magnitude for a Crazyflie 2.x with its source.
 //!
+//! The effects are named by the shared vocabulary [`tagk_dynamics::EffectKind`] (the names
+//! `tagk simulate --effect` and `tagk diagnose --with` accept). The parameter structs of this
+//! module are reached through the module path only (`tagk_sim::plant_effects::RotorDrag`), not
+//! from the crate root: the diagnosis has model candidates of the same physics, and a plant
+//! parameter set is not a model candidate.
+//!
+//! | [`EffectKind`] | plant parameters | [`PlantEffects`] field |
+//! |---|---|---|
+//! | `linear-drag` | [`LinearDrag`] | `linear_drag` |
+//! | `quadratic-drag` | [`QuadraticDrag`] | `quadratic_drag` |
+//! | `rotor-drag` | [`RotorDrag`] | `rotor_drag` |
+//! | `motor-lag` | [`MotorLag`] | `motor_lag` |
+//! | `ground-effect` | [`GroundEffect`] | `ground_effect` |
+//! | `body-bias` | [`BodyBias`] | `body_bias` |
+//! | `wind` | [`Wind`] | `wind` |
+//! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
+//! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
+//!
 //! The effects act on the **plant only**. The measured wrench `b` the estimator sees is
 //! always computed from the commanded rotor speeds with the nominal `k_f`, `k_m` through the
 //! mixer, so every effect shows up as a model mismatch `b − Y θ ≠ 0` that a diagnosis tool can
@@ -10,6 +28,8 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
+use tagk_dynamics::EffectKind;
+use tagk_dynamics::quadrotor::{CRAZYFLIE_K_F, CRAZYFLIE_MASS};
 
 use crate::SimError;
 
@@ -21,18 +41,54 @@ use crate::SimError;
 /// nano quadrocopter", ETH Zürich, 2015 (`K = diag(9.1785, 9.1785, 10.311)·10⁻⁷ kg/rad`);
 /// the body-frame linear form is also the one of M. Faessler, A. Franchi, D. Scaramuzza,
 /// "Differential flatness of quadrotor dynamics subject to rotor drag", IEEE RA-L 2018.
-/// At hover (`Σω ≈ 3.9·10³ rad/s`) this is about `3.5·10⁻³ N s/m` horizontally.
+/// At the nominal 35 g vehicle's hover (`Σω ≈ 7.7·10³ rad/s`) this is about
+/// `7.1·10⁻³ N s/m` horizontally ([`LinearDrag::crazyflie`]).
+///
+/// The vocabulary's `rotor-drag` (called `linear-drag` by the simulator before the shared
+/// vocabulary).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct LinearDrag {
+pub struct RotorDrag {
     /// Diagonal of `K` [kg/rad] (body x, y, z).
     pub coefficients: [f64; 3],
 }
 
-impl LinearDrag {
+impl RotorDrag {
     /// Förster (2015)'s identified Crazyflie 2.0 coefficients.
     pub fn crazyflie() -> Self {
         Self {
             coefficients: [9.1785e-7, 9.1785e-7, 10.311e-7],
+        }
+    }
+}
+
+impl Default for RotorDrag {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
+/// Body-frame drag linear in the air-relative velocity alone, `f_b = −D v_b` with
+/// `D = diag(d_x, d_y, d_z)` [N s/m] and `v_b = Rᵀ (v − v_wind)` [m/s]: the usual
+/// first-order aerodynamic model of a multirotor when rotor speeds are not logged.
+///
+/// Default ([`LinearDrag::crazyflie`]): [`RotorDrag::crazyflie`]'s coefficients (Förster 2015)
+/// at the nominal Crazyflie's hover rotor-speed sum `Σω = 4 √(m g / (4 k_f))`
+/// (`≈ 7.7·10³ rad/s` for 35 g and `k_f = 2.3·10⁻⁸`), i.e. rotor drag linearised at hover:
+/// `D ≈ diag(7.1, 7.1, 8.0)·10⁻³ N s/m`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LinearDrag {
+    /// Diagonal of `D` [N s/m] (body x, y, z).
+    pub coefficients: [f64; 3],
+}
+
+impl LinearDrag {
+    /// Förster (2015)'s rotor drag at the nominal Crazyflie 2.1's hover.
+    pub fn crazyflie() -> Self {
+        let hover_speed_sum = 4.0 * (CRAZYFLIE_MASS * 9.81 / (4.0 * CRAZYFLIE_K_F)).sqrt();
+        Self {
+            coefficients: RotorDrag::crazyflie()
+                .coefficients
+                .map(|k| k * hover_speed_sum),
         }
     }
 }
@@ -52,7 +108,7 @@ impl Default for LinearDrag {
 /// drag below 1 m/s — as Faessler et al. (2018) observe for quadrotors at low speed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct QuadraticDrag {
-    /// `C_d A` per body axis [m²].
+    /// `C_d A` per body axis \[m²\].
     pub cd_area: [f64; 3],
     /// Air density `ρ` [kg/m³].
     pub air_density: f64,
@@ -83,7 +139,7 @@ impl Default for QuadraticDrag {
 /// the lag before that happens).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MotorLag {
-    /// Time constant `τ_m` [s].
+    /// Time constant `τ_m` \[s\].
     pub time_constant: f64,
 }
 
@@ -112,7 +168,7 @@ impl Default for MotorLag {
 /// ([`crate::SimConfig::altitude`]) to see it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GroundEffect {
-    /// Rotor radius `R` [m].
+    /// Rotor radius `R` \[m\].
     pub rotor_radius: f64,
 }
 
@@ -124,7 +180,7 @@ impl GroundEffect {
         }
     }
 
-    /// Thrust multiplier at height `z` [m].
+    /// Thrust multiplier at height `z` \[m\].
     pub fn thrust_ratio(&self, z: f64) -> f64 {
         let z = z.max(self.rotor_radius);
         let r = self.rotor_radius / (4.0 * z);
@@ -139,8 +195,8 @@ impl Default for GroundEffect {
 }
 
 /// Constant wind, world frame [m/s]. It acts through the air-relative velocity of the drag
-/// effects; if neither [`LinearDrag`] nor [`QuadraticDrag`] is on, the wind uses
-/// [`LinearDrag::crazyflie`] (without drag, air motion would exert no force).
+/// effects; if no drag effect ([`RotorDrag`], [`LinearDrag`], [`QuadraticDrag`]) is on, the
+/// wind uses [`RotorDrag::crazyflie`] (without drag, air motion would exert no force).
 ///
 /// Default: a light indoor draft of 0.3 m/s along world x (e.g. ventilation).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -164,17 +220,17 @@ impl Default for Wind {
     }
 }
 
-/// Thrust-coefficient error: the true rotors make `(1 + ε) k_f ω²` (and `(1 + ε) k_m ω²` of
-/// reaction torque) while the vehicle computes its wrench with the nominal `k_f`, `k_m`.
-/// Default `ε = −0.1`: battery sag and propeller wear, which Förster (2015) shows change the
-/// Crazyflie's thrust map by this order.
+/// Thrust gain (the vocabulary's `thrust-gain`): the true rotors make `(1 + ε) k_f ω²` (and
+/// `(1 + ε) k_m ω²` of reaction torque) while the vehicle computes its wrench with the
+/// nominal `k_f`, `k_m`. Default `ε = −0.1`: battery sag and propeller wear, which Förster
+/// (2015) shows change the Crazyflie's thrust map by this order.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ThrustCoefficientError {
+pub struct ThrustGain {
     /// Relative error `ε` (dimensionless, `> −1`).
     pub relative_error: f64,
 }
 
-impl ThrustCoefficientError {
+impl ThrustGain {
     /// `ε = −0.1`.
     pub fn crazyflie() -> Self {
         Self {
@@ -183,25 +239,25 @@ impl ThrustCoefficientError {
     }
 }
 
-impl Default for ThrustCoefficientError {
+impl Default for ThrustGain {
     fn default() -> Self {
         Self::crazyflie()
     }
 }
 
-/// Constant body-frame force [N] and torque about the origin [N m] not produced by the
-/// commanded rotors (an unmodelled cable, a bent arm or unbalanced propeller).
-/// Default: 2 mN along body x and 3·10⁻⁵ N m about body x (a 1 % thrust imbalance of one
-/// rotor at hover times its 0.0325 m lever).
+/// Body bias (the vocabulary's `body-bias`): a constant body-frame force \[N\] and torque about
+/// the origin [N m] not produced by the commanded rotors (an unmodelled cable, a bent arm or
+/// unbalanced propeller). Default: 2 mN along body x and 3·10⁻⁵ N m about body x (about a
+/// 1 % thrust imbalance of one rotor at hover times its lever `L_arm`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct WrenchBias {
-    /// Force, body frame [N].
+pub struct BodyBias {
+    /// Force, body frame \[N\].
     pub force: [f64; 3],
     /// Torque about the body origin, body frame [N m].
     pub torque: [f64; 3],
 }
 
-impl WrenchBias {
+impl BodyBias {
     /// 2 mN along body x, 3·10⁻⁵ N m about body x.
     pub fn crazyflie() -> Self {
         Self {
@@ -211,49 +267,47 @@ impl WrenchBias {
     }
 }
 
-impl Default for WrenchBias {
+impl Default for BodyBias {
     fn default() -> Self {
         Self::crazyflie()
     }
 }
 
-/// Names of the plant effects (for the CLI and for generating one-effect logs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
-pub enum EffectKind {
-    /// [`LinearDrag`].
-    LinearDrag,
-    /// [`QuadraticDrag`].
-    QuadraticDrag,
-    /// [`MotorLag`].
-    MotorLag,
-    /// [`GroundEffect`].
-    GroundEffect,
-    /// [`Wind`].
-    Wind,
-    /// [`ThrustCoefficientError`].
-    ThrustError,
-    /// [`WrenchBias`].
-    Bias,
+/// Time delay (the vocabulary's `time-delay`) between the wrench stream and the motion
+/// stream of the flight log: the logged wrench and rotor speeds at time `t` are the ones
+/// commanded at `t − delay` (commands are held over each control interval), while the
+/// motion columns are those of `t`. It models two log streams stamped with misaligned clocks;
+/// the vehicle itself (plant, controller, onboard estimator) is not affected.
+///
+/// Default: one period of the simulator's 50 Hz control loop, 0.02 s — the smallest
+/// misalignment a logger sampling at the control rate produces (a chosen magnitude, not a
+/// measured Crazyflie value).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TimeDelay {
+    /// Delay of the wrench stream behind the motion stream \[s\] (`≥ 0`).
+    pub delay: f64,
 }
 
-impl EffectKind {
-    /// Every effect, in declaration order.
-    pub const ALL: [EffectKind; 7] = [
-        EffectKind::LinearDrag,
-        EffectKind::QuadraticDrag,
-        EffectKind::MotorLag,
-        EffectKind::GroundEffect,
-        EffectKind::Wind,
-        EffectKind::ThrustError,
-        EffectKind::Bias,
-    ];
+impl TimeDelay {
+    /// One 50 Hz control period, 0.02 s.
+    pub fn crazyflie() -> Self {
+        Self { delay: 0.02 }
+    }
+}
+
+impl Default for TimeDelay {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
 }
 
 /// Which plant effects are on (all off by default: the paper's ideal plant).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct PlantEffects {
-    /// Body-frame linear rotor drag.
+    /// Body-frame linear drag on the air-relative velocity.
     pub linear_drag: Option<LinearDrag>,
+    /// Body-frame rotor drag, proportional to the rotor-speed sum.
+    pub rotor_drag: Option<RotorDrag>,
     /// Quadratic parasitic drag.
     pub quadratic_drag: Option<QuadraticDrag>,
     /// First-order motor lag.
@@ -262,10 +316,12 @@ pub struct PlantEffects {
     pub ground_effect: Option<GroundEffect>,
     /// Constant wind.
     pub wind: Option<Wind>,
-    /// Thrust-coefficient error.
-    pub thrust_error: Option<ThrustCoefficientError>,
+    /// Thrust gain error.
+    pub thrust_gain: Option<ThrustGain>,
     /// Constant body force/torque bias.
-    pub bias: Option<WrenchBias>,
+    pub body_bias: Option<BodyBias>,
+    /// Delay of the logged wrench behind the logged motion (the log only).
+    pub time_delay: Option<TimeDelay>,
 }
 
 impl PlantEffects {
@@ -274,25 +330,41 @@ impl PlantEffects {
         Self::default()
     }
 
+    /// The effects of the vocabulary the simulator can produce (today every [`EffectKind`]),
+    /// in the vocabulary's order.
+    pub fn supported() -> impl Iterator<Item = EffectKind> {
+        EffectKind::ALL
+            .into_iter()
+            .filter(|k| Self::none().with(*k).is_ok())
+    }
+
     /// Exactly one effect on, at its Crazyflie default magnitude.
-    pub fn only(kind: EffectKind) -> Self {
+    ///
+    /// # Errors
+    /// [`SimError::UnsupportedEffect`] for an effect the plant cannot produce.
+    pub fn only(kind: EffectKind) -> Result<Self, SimError> {
         Self::none().with(kind)
     }
 
     /// This set with `kind` switched on at its Crazyflie default magnitude.
-    pub fn with(mut self, kind: EffectKind) -> Self {
+    ///
+    /// # Errors
+    /// [`SimError::UnsupportedEffect`] for an effect of the vocabulary the simulator cannot
+    /// produce (none today; the vocabulary may grow first).
+    pub fn with(mut self, kind: EffectKind) -> Result<Self, SimError> {
         match kind {
             EffectKind::LinearDrag => self.linear_drag = Some(LinearDrag::crazyflie()),
+            EffectKind::RotorDrag => self.rotor_drag = Some(RotorDrag::crazyflie()),
             EffectKind::QuadraticDrag => self.quadratic_drag = Some(QuadraticDrag::crazyflie()),
             EffectKind::MotorLag => self.motor_lag = Some(MotorLag::crazyflie()),
             EffectKind::GroundEffect => self.ground_effect = Some(GroundEffect::crazyflie()),
             EffectKind::Wind => self.wind = Some(Wind::crazyflie()),
-            EffectKind::ThrustError => {
-                self.thrust_error = Some(ThrustCoefficientError::crazyflie())
-            }
-            EffectKind::Bias => self.bias = Some(WrenchBias::crazyflie()),
+            EffectKind::ThrustGain => self.thrust_gain = Some(ThrustGain::crazyflie()),
+            EffectKind::BodyBias => self.body_bias = Some(BodyBias::crazyflie()),
+            EffectKind::TimeDelay => self.time_delay = Some(TimeDelay::crazyflie()),
+            other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
-        self
+        Ok(self)
     }
 
     /// `true` when no effect is on.
@@ -329,6 +401,9 @@ impl PlantEffects {
         if let Some(d) = &self.linear_drag {
             finite("linear_drag.coefficients", &d.coefficients)?;
         }
+        if let Some(d) = &self.rotor_drag {
+            finite("rotor_drag.coefficients", &d.coefficients)?;
+        }
         if let Some(d) = &self.quadratic_drag {
             finite("quadratic_drag.cd_area", &d.cd_area)?;
             positive("quadratic_drag.air_density", d.air_density)?;
@@ -342,28 +417,37 @@ impl PlantEffects {
         if let Some(w) = &self.wind {
             finite("wind.velocity", &w.velocity)?;
         }
-        if let Some(e) = &self.thrust_error {
-            finite("thrust_error.relative_error", &[e.relative_error])?;
+        if let Some(e) = &self.thrust_gain {
+            finite("thrust_gain.relative_error", &[e.relative_error])?;
             if e.relative_error <= -1.0 {
                 return Err(SimError::InvalidParameter {
-                    name: "thrust_error.relative_error",
+                    name: "thrust_gain.relative_error",
                     value: e.relative_error,
                     reason: "must be > -1",
                 });
             }
         }
-        if let Some(b) = &self.bias {
-            finite("bias.force", &b.force)?;
-            finite("bias.torque", &b.torque)?;
+        if let Some(b) = &self.body_bias {
+            finite("body_bias.force", &b.force)?;
+            finite("body_bias.torque", &b.torque)?;
+        }
+        if let Some(d) = &self.time_delay
+            && !(d.delay >= 0.0 && d.delay.is_finite())
+        {
+            return Err(SimError::InvalidParameter {
+                name: "time_delay.delay",
+                value: d.delay,
+                reason: "must be non-negative and finite",
+            });
         }
         Ok(())
     }
 
-    /// Multiplier on every rotor's thrust and reaction torque at height `z` [m]
-    /// (thrust-coefficient error times ground effect; 1 for the ideal plant).
+    /// Multiplier on every rotor's thrust and reaction torque at height `z` \[m\]
+    /// (thrust gain times ground effect; 1 for the ideal plant).
     pub fn thrust_multiplier(&self, z: f64) -> f64 {
         let mut k = 1.0;
-        if let Some(e) = &self.thrust_error {
+        if let Some(e) = &self.thrust_gain {
             k *= 1.0 + e.relative_error;
         }
         if let Some(g) = &self.ground_effect {
@@ -372,7 +456,7 @@ impl PlantEffects {
         k
     }
 
-    /// Aerodynamic force on the body origin, body frame [N], at world velocity `velocity`
+    /// Aerodynamic force on the body origin, body frame \[N\], at world velocity `velocity`
     /// [m/s], attitude `attitude` and actual rotor-speed sum `rotor_speed_sum` [rad/s], plus
     /// the constant bias force.
     pub fn extra_force(
@@ -386,29 +470,66 @@ impl PlantEffects {
             .wind
             .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity));
         let v_air_b = attitude.inverse_transform_vector(&(velocity - wind));
-        let linear = match (&self.linear_drag, &self.quadratic_drag, &self.wind) {
-            (Some(d), _, _) => Some(*d),
-            (None, None, Some(_)) => Some(LinearDrag::crazyflie()),
+        let no_drag = self.linear_drag.is_none() && self.quadratic_drag.is_none();
+        let rotor = match (&self.rotor_drag, &self.wind) {
+            (Some(d), _) => Some(*d),
+            (None, Some(_)) if no_drag => Some(RotorDrag::crazyflie()),
             _ => None,
         };
-        if let Some(d) = linear {
+        if let Some(d) = rotor {
             f -= Vector3::from(d.coefficients).component_mul(&v_air_b) * rotor_speed_sum;
+        }
+        if let Some(d) = &self.linear_drag {
+            f -= Vector3::from(d.coefficients).component_mul(&v_air_b);
         }
         if let Some(d) = &self.quadratic_drag {
             for i in 0..3 {
                 f[i] -= 0.5 * d.air_density * d.cd_area[i] * v_air_b[i].abs() * v_air_b[i];
             }
         }
-        if let Some(b) = &self.bias {
+        if let Some(b) = &self.body_bias {
             f += Vector3::from(b.force);
         }
         f
     }
 
     /// Constant bias torque about the origin, body frame [N m] (zero unless
-    /// [`bias`](Self::bias) is on).
+    /// [`body_bias`](Self::body_bias) is on).
     pub fn extra_torque(&self) -> Vector3<f64> {
-        self.bias
+        self.body_bias
             .map_or_else(Vector3::zeros, |b| Vector3::from(b.torque))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_effect_of_the_vocabulary_has_a_simulator_model() {
+        for kind in EffectKind::ALL {
+            let e = PlantEffects::only(kind).unwrap();
+            assert!(!e.is_ideal() && e.validate().is_ok(), "{kind}");
+        }
+        assert_eq!(PlantEffects::supported().count(), EffectKind::ALL.len());
+        let bad = PlantEffects {
+            time_delay: Some(TimeDelay { delay: -0.01 }),
+            ..PlantEffects::none()
+        };
+        assert!(bad.validate().is_err());
+    }
+
+    #[test]
+    fn linear_drag_default_is_rotor_drag_at_hover() {
+        let d = LinearDrag::crazyflie().coefficients;
+        // Förster's K times Σω at hover, computed independently: ω = sqrt(m g / (4 k_f)).
+        let omega = (0.035_f64 * 9.81 / 4.0 / 2.3e-8).sqrt();
+        assert!((d[0] - 9.1785e-7 * 4.0 * omega).abs() < 1e-12);
+        assert!((7.0e-3..7.2e-3).contains(&d[0]) && (7.9e-3..8.1e-3).contains(&d[2]));
+        let v = Vector3::new(1.0, 0.0, 0.0);
+        let f = PlantEffects::only(EffectKind::LinearDrag)
+            .unwrap()
+            .extra_force(&v, &UnitQuaternion::identity(), 0.0);
+        assert!((f.x + d[0]).abs() < 1e-15 && f.y == 0.0 && f.z == 0.0);
     }
 }

@@ -1,4 +1,4 @@
-//! Serial chains from URDF: closed-form dynamics, regressor identity, power balance,
+//! Kinematic trees from URDF: closed-form dynamics, regressor identity, power balance,
 //! frame handling of inertials and fixed joints.
 
 use nalgebra::{DVector, Matrix3, Vector3};
@@ -11,30 +11,30 @@ fn robot_path(name: &str) -> String {
     format!("{}/robots/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
-fn planar() -> SerialChain {
-    SerialChain::from_urdf_file(robot_path("planar_2link.urdf"))
+fn planar() -> KinematicTree {
+    KinematicTree::from_urdf_file(robot_path("planar_2link.urdf"))
         .unwrap()
         .with_gravity(Vector3::new(0.0, -9.81, 0.0))
 }
 
-fn panda_arm() -> SerialChain {
+fn panda_arm() -> KinematicTree {
     let opts = UrdfOptions {
         locked_joints: vec!["panda_finger_joint1".into(), "panda_finger_joint2".into()],
     };
-    SerialChain::from_urdf_file_with(robot_path("panda.urdf"), &opts).unwrap()
+    KinematicTree::from_urdf_file_with(robot_path("panda.urdf"), &opts).unwrap()
 }
 
-fn all_robots() -> Vec<(&'static str, SerialChain)> {
+fn all_robots() -> Vec<(&'static str, KinematicTree)> {
     vec![
         ("planar_2link", planar()),
         (
             "panda (9 dof, fingers)",
-            SerialChain::from_urdf_file(robot_path("panda.urdf")).unwrap(),
+            KinematicTree::from_urdf_file(robot_path("panda.urdf")).unwrap(),
         ),
         ("panda arm (7 dof)", panda_arm()),
         (
             "ur5",
-            SerialChain::from_urdf_file(robot_path("ur5.urdf")).unwrap(),
+            KinematicTree::from_urdf_file(robot_path("ur5.urdf")).unwrap(),
         ),
     ]
 }
@@ -128,7 +128,7 @@ fn polar_rp_arm_matches_closed_form() {
       <link name="slider"><inertial><mass value="0.7"/>
         <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.004"/></inertial></link>
     </robot>"#;
-    let arm = SerialChain::from_urdf_str(urdf)
+    let arm = KinematicTree::from_urdf_str(urdf)
         .unwrap()
         .with_gravity(Vector3::new(0.0, -G, 0.0));
     assert_eq!(arm.bodies()[1].kind(), JointKind::Prismatic);
@@ -199,7 +199,7 @@ fn regressor_times_theta_equals_rnea_on_every_robot() {
 
 /// Kinetic energy from finite differences of forward kinematics (world-frame velocities of
 /// each body), independent of the velocity recursion.
-fn kinetic_energy_from_fk(robot: &SerialChain, q: &[f64], qd: &[f64]) -> f64 {
+fn kinetic_energy_from_fk(robot: &KinematicTree, q: &[f64], qd: &[f64]) -> f64 {
     let h = 1e-6;
     let at = |t: f64| {
         let qt: Vec<f64> = q.iter().zip(qd).map(|(a, b)| a + b * t).collect();
@@ -347,9 +347,9 @@ fn fixed_joints_merge_like_a_joint_held_still() {
         </robot>"#
         )
     };
-    let welded = SerialChain::from_urdf_str(&make("fixed")).unwrap();
-    let jointed = SerialChain::from_urdf_str(&make("revolute")).unwrap();
-    let locked = SerialChain::from_urdf_str_with(
+    let welded = KinematicTree::from_urdf_str(&make("fixed")).unwrap();
+    let jointed = KinematicTree::from_urdf_str(&make("revolute")).unwrap();
+    let locked = KinematicTree::from_urdf_str_with(
         &make("revolute"),
         &UrdfOptions {
             locked_joints: vec!["weld".into()],
@@ -396,7 +396,7 @@ fn inertial_origin_is_rotated_and_shifted_into_link_frame() {
         <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
       <link name="l"><inertial><origin xyz="0.1 0.2 0.3" rpy="0 0 1.5707963267948966"/><mass value="2.0"/>
         <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.02"/></inertial></link></robot>"#;
-    let chain = SerialChain::from_urdf_str(urdf).unwrap();
+    let chain = KinematicTree::from_urdf_str(urdf).unwrap();
     let th = chain.bodies()[0].params();
     let c = Vector3::new(0.1, 0.2, 0.3);
     let ic = Matrix3::from_diagonal(&Vector3::new(0.03, 0.01, 0.02));
@@ -407,14 +407,14 @@ fn inertial_origin_is_rotated_and_shifted_into_link_frame() {
     // A generic rotation: R I_C Rᵀ.
     let r = rotation_from_rpy(0.3, -0.4, 0.5);
     let urdf2 = urdf.replace(r#"rpy="0 0 1.5707963267948966""#, r#"rpy="0.3 -0.4 0.5""#);
-    let th2 = *SerialChain::from_urdf_str(&urdf2).unwrap().bodies()[0].params();
+    let th2 = *KinematicTree::from_urdf_str(&urdf2).unwrap().bodies()[0].params();
     let ic0 = Matrix3::from_diagonal(&Vector3::new(0.01, 0.03, 0.02));
     assert!((th2.inertia_com() - r * ic0 * r.transpose()).amax() < 1e-12);
 }
 
 #[test]
 fn shipped_robots_have_expected_structure() {
-    let panda = SerialChain::from_urdf_file(robot_path("panda.urdf")).unwrap();
+    let panda = KinematicTree::from_urdf_file(robot_path("panda.urdf")).unwrap();
     assert_eq!(panda.dof(), 9);
     assert_eq!(panda.base_link(), "panda_link0");
     assert_eq!(panda.bodies()[8].mimic(), Some("panda_finger_joint1"));
@@ -438,7 +438,7 @@ fn shipped_robots_have_expected_structure() {
         "{:?}",
         flange.translation
     );
-    let ur5 = SerialChain::from_urdf_file(robot_path("ur5.urdf")).unwrap();
+    let ur5 = KinematicTree::from_urdf_file(robot_path("ur5.urdf")).unwrap();
     assert_eq!(ur5.dof(), 6);
     for p in arm.params().iter().chain(ur5.params().iter()) {
         assert!(p.mass() > 0.0);

@@ -1,0 +1,93 @@
+//! What the experiment examples share: the common flags, the progress bar (a
+//! `SweepObserver`), and the printing of results. The experiments themselves live in
+//! `tagk::sim::experiments` and print nothing.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use tagk::sim::SweepObserver;
+use tagk::sim::experiments::{ExperimentOptions, ExperimentReport};
+
+/// Options every experiment takes.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CommonArgs {
+    /// Trials per (noise level, estimator) cell (each experiment has its own default).
+    #[arg(long)]
+    pub trials: Option<usize>,
+    /// Base seed.
+    #[arg(long, default_value_t = 2025)]
+    pub seed: u64,
+    /// Output folder (default `out/<experiment>/`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Rayon threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Hide the progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl CommonArgs {
+    /// The experiment options these flags describe.
+    pub fn options(&self) -> ExperimentOptions {
+        ExperimentOptions {
+            trials: self.trials,
+            seed: self.seed,
+            out: self.out.clone(),
+            threads: self.threads,
+        }
+    }
+
+    /// A progress bar on stderr, hidden with `--quiet`.
+    pub fn progress(&self) -> Progress {
+        Progress::new(!self.quiet)
+    }
+}
+
+/// An indicatif progress bar over a sweep's trials, as a sweep observer.
+pub struct Progress {
+    bar: ProgressBar,
+}
+
+impl Progress {
+    /// A visible bar (or a hidden one).
+    pub fn new(visible: bool) -> Self {
+        let bar = if visible {
+            let b = ProgressBar::new(0);
+            if let Ok(style) = ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({per_sec}, eta {eta})",
+            ) {
+                b.set_style(style);
+            }
+            b
+        } else {
+            ProgressBar::hidden()
+        };
+        Self { bar }
+    }
+}
+
+impl SweepObserver for Progress {
+    fn trial_finished(&self, _done: usize, total: usize) {
+        if self.bar.length() != Some(total as u64) {
+            self.bar.set_length(total as u64);
+        }
+        self.bar.inc(1);
+    }
+
+    fn sweep_finished(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// Prints a sweep's table and where its files went (the common tail of every experiment).
+pub fn print_table(report: &ExperimentReport) {
+    print!("{}", report.result.table());
+}
+
+/// Prints `results in DIR`.
+pub fn print_results_dir(report: &ExperimentReport) {
+    println!("results in {}", report.dir.display());
+}

@@ -1,0 +1,780 @@
+//! Flight logs: the in-memory [`FlightLog`], its one CSV reader and writer, and the
+//! validation whose typed errors ([`LogError`]) name the file, line and column at fault.
+//!
+//! # Format (CSV, v1)
+//!
+//! One header row, one row per sample, SI units, strictly increasing `t`:
+//!
+//! | columns | meaning | required |
+//! |---|---|---|
+//! | `t` | time \[s\] | yes |
+//! | `px,py,pz`, `vx,vy,vz` | world position \[m\], world velocity \[m/s\] | yes |
+//! | `qw,qx,qy,qz` | attitude quaternion, Hamilton, body → world | yes |
+//! | `wx,wy,wz` | body angular velocity \[rad/s\] | yes |
+//! | `fx,fy,fz`, `tx,ty,tz` | actuator wrench, body frame, about the origin \[N, N m\] | yes |
+//! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] | no: derived from velocity if absent |
+//! | `dwx,dwy,dwz` | body angular acceleration \[rad/s²\] | no: derived from `w` if absent |
+//! | `w1..w4` | rotor speeds \[rad/s\] | no |
+//!
+//! Any other column is kept ([`FlightLog::extra`]). The simulator writes its logs with
+//! [`FlightLog::write_csv`]; the diagnosis reads them with [`FlightLog::from_csv_path`].
+//!
+//! ```
+//! use tagk_dynamics::log::{FlightLog, LogSample};
+//!
+//! let mut log = FlightLog::new();
+//! for i in 0..250 {
+//!     log.push(&LogSample {
+//!         t: 0.01 * f64::from(i),
+//!         attitude: [1.0, 0.0, 0.0, 0.0],
+//!         wrench: [0.0, 0.0, 0.34, 0.0, 0.0, 0.0],
+//!         ..LogSample::default()
+//!     });
+//! }
+//! let mut csv = Vec::new();
+//! log.write_csv(&mut csv)?;
+//! assert_eq!(FlightLog::from_csv_reader(csv.as_slice())?, log);
+//! # Ok::<(), tagk_dynamics::log::LogError>(())
+//! ```
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use thiserror::Error;
+
+/// Allowed deviation of the attitude quaternion's norm from 1 before a log is rejected.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
+
+/// Fewest samples a log must have to be fitted (the 10 rigid-body parameters, a few effects,
+/// and the 5 blocks of the cross-validation need a few hundred samples).
+pub const MIN_ROWS: usize = 200;
+
+/// Required columns, in the order of the [format](self).
+pub const REQUIRED_COLUMNS: [&str; 20] = [
+    "t", "px", "py", "pz", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz", "fx", "fy",
+    "fz", "tx", "ty", "tz",
+];
+
+/// Optional columns with a meaning in the format (the three groups below, in this order).
+pub const OPTIONAL_COLUMNS: [&str; 10] = [
+    "ax", "ay", "az", "dwx", "dwy", "dwz", "w1", "w2", "w3", "w4",
+];
+
+/// The optional world-acceleration group (all or none).
+pub const ACCEL_COLUMNS: [&str; 3] = ["ax", "ay", "az"];
+/// The optional body angular-acceleration group (all or none).
+pub const OMEGA_DOT_COLUMNS: [&str; 3] = ["dwx", "dwy", "dwz"];
+/// The optional rotor-speed group (all or none).
+pub const ROTOR_SPEED_COLUMNS: [&str; 4] = ["w1", "w2", "w3", "w4"];
+
+/// A flight log in memory: one entry per sample in every signal, SI units (the [format](self)).
+///
+/// The simulator (or any Rust program) fills it directly with [`FlightLog::push`]; CSV files
+/// are read with [`FlightLog::from_csv_path`]. Call [`FlightLog::validate`] before use (the
+/// diagnosis does it for you).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlightLog {
+    /// Time \[s\], strictly increasing.
+    pub t: Vec<f64>,
+    /// World position of the body origin \[m\].
+    pub position: Vec<[f64; 3]>,
+    /// World velocity of the body origin \[m/s\].
+    pub velocity: Vec<[f64; 3]>,
+    /// Attitude `(w, x, y, z)`, Hamilton, body → world .
+    pub attitude: Vec<[f64; 4]>,
+    /// Body angular velocity \[rad/s\].
+    pub omega: Vec<[f64; 3]>,
+    /// Actuator wrench `[fx, fy, fz, tx, ty, tz]`, body frame, about the origin [N, N m].
+    pub wrench: Vec<[f64; 6]>,
+    /// World linear acceleration `p̈` \[m/s²\]; `None`: derived from the velocity.
+    pub accel: Option<Vec<[f64; 3]>>,
+    /// Body angular acceleration \[rad/s²\]; `None`: derived from `omega`.
+    pub omega_dot: Option<Vec<[f64; 3]>>,
+    /// Rotor speeds `w1..w4` \[rad/s\], if logged.
+    pub rotor_speeds: Option<Vec<[f64; 4]>>,
+    /// Any other columns, by name (kept and offered as signals for custom effects).
+    pub extra: Vec<(String, Vec<f64>)>,
+}
+
+/// One sample, for [`FlightLog::push`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LogSample {
+    /// Time \[s\].
+    pub t: f64,
+    /// World position \[m\].
+    pub position: [f64; 3],
+    /// World velocity \[m/s\].
+    pub velocity: [f64; 3],
+    /// Attitude quaternion `(w, x, y, z)`.
+    pub attitude: [f64; 4],
+    /// Body angular velocity \[rad/s\].
+    pub omega: [f64; 3],
+    /// Actuator wrench `[fx, fy, fz, tx, ty, tz]` [N, N m], body frame.
+    pub wrench: [f64; 6],
+    /// World acceleration `p̈` \[m/s²\], if measured.
+    pub accel: Option<[f64; 3]>,
+    /// Body angular acceleration \[rad/s²\], if measured.
+    pub omega_dot: Option<[f64; 3]>,
+    /// Rotor speeds \[rad/s\], if measured.
+    pub rotor_speeds: Option<[f64; 4]>,
+}
+
+impl FlightLog {
+    /// An empty log.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// `true` if there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Appends one sample. The optional signals are kept only if every sample has them: the
+    /// first sample decides, and a later sample without a signal the first one had drops it.
+    pub fn push(&mut self, s: &LogSample) {
+        let first = self.t.is_empty();
+        self.t.push(s.t);
+        self.position.push(s.position);
+        self.velocity.push(s.velocity);
+        self.attitude.push(s.attitude);
+        self.omega.push(s.omega);
+        self.wrench.push(s.wrench);
+        push_opt(&mut self.accel, s.accel, first);
+        push_opt(&mut self.omega_dot, s.omega_dot, first);
+        push_opt(&mut self.rotor_speeds, s.rotor_speeds, first);
+    }
+
+    /// Sample `i` (without the extra columns), `None` past the end.
+    pub fn sample(&self, i: usize) -> Option<LogSample> {
+        Some(LogSample {
+            t: *self.t.get(i)?,
+            position: *self.position.get(i)?,
+            velocity: *self.velocity.get(i)?,
+            attitude: *self.attitude.get(i)?,
+            omega: *self.omega.get(i)?,
+            wrench: *self.wrench.get(i)?,
+            accel: self.accel.as_ref().and_then(|a| a.get(i).copied()),
+            omega_dot: self.omega_dot.as_ref().and_then(|a| a.get(i).copied()),
+            rotor_speeds: self.rotor_speeds.as_ref().and_then(|a| a.get(i).copied()),
+        })
+    }
+
+    /// The samples in time order (without the extra columns).
+    pub fn samples(&self) -> impl Iterator<Item = LogSample> + '_ {
+        (0..self.len()).map_while(|i| self.sample(i))
+    }
+
+    /// Adds an extra named signal (one value per sample).
+    pub fn add_extra(&mut self, name: &str, values: Vec<f64>) {
+        self.extra.push((name.to_string(), values));
+    }
+
+    /// Looks a scalar signal up by its CSV column name (standard or extra); `None` if absent.
+    pub fn signal(&self, name: &str) -> Option<Vec<f64>> {
+        let pick3 = |v: &Vec<[f64; 3]>, k: usize| v.iter().map(|x| x[k]).collect();
+        let std3 = |name: &str| -> Option<(usize, usize)> {
+            let table: [(&str, usize, usize); 12] = [
+                ("px", 0, 0),
+                ("py", 0, 1),
+                ("pz", 0, 2),
+                ("vx", 1, 0),
+                ("vy", 1, 1),
+                ("vz", 1, 2),
+                ("wx", 2, 0),
+                ("wy", 2, 1),
+                ("wz", 2, 2),
+                ("ax", 3, 0),
+                ("ay", 3, 1),
+                ("az", 3, 2),
+            ];
+            table
+                .iter()
+                .find(|(n, _, _)| *n == name)
+                .map(|(_, g, k)| (*g, *k))
+        };
+        if name == "t" {
+            return Some(self.t.clone());
+        }
+        if let Some((g, k)) = std3(name) {
+            return match g {
+                0 => Some(pick3(&self.position, k)),
+                1 => Some(pick3(&self.velocity, k)),
+                2 => Some(pick3(&self.omega, k)),
+                _ => self.accel.as_ref().map(|a| pick3(a, k)),
+            };
+        }
+        if let Some(k) = ["dwx", "dwy", "dwz"].iter().position(|n| *n == name) {
+            return self.omega_dot.as_ref().map(|a| pick3(a, k));
+        }
+        if let Some(k) = ["qw", "qx", "qy", "qz"].iter().position(|n| *n == name) {
+            return Some(self.attitude.iter().map(|q| q[k]).collect());
+        }
+        if let Some(k) = ["fx", "fy", "fz", "tx", "ty", "tz"]
+            .iter()
+            .position(|n| *n == name)
+        {
+            return Some(self.wrench.iter().map(|w| w[k]).collect());
+        }
+        if let Some(k) = ["w1", "w2", "w3", "w4"].iter().position(|n| *n == name) {
+            return self
+                .rotor_speeds
+                .as_ref()
+                .map(|r| r.iter().map(|x| x[k]).collect());
+        }
+        self.extra
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.clone())
+    }
+
+    /// Checks that every signal has one value per sample.
+    fn check_lengths(&self) -> Result<(), LogError> {
+        let n = self.t.len();
+        let check_len = |name: &str, got: usize| {
+            if got == n {
+                Ok(())
+            } else {
+                Err(LogError::LengthMismatch {
+                    column: name.to_string(),
+                    got,
+                    expected: n,
+                })
+            }
+        };
+        check_len("position", self.position.len())?;
+        check_len("velocity", self.velocity.len())?;
+        check_len("attitude", self.attitude.len())?;
+        check_len("omega", self.omega.len())?;
+        check_len("wrench", self.wrench.len())?;
+        if let Some(a) = &self.accel {
+            check_len("accel", a.len())?;
+        }
+        if let Some(a) = &self.omega_dot {
+            check_len("omega_dot", a.len())?;
+        }
+        if let Some(a) = &self.rotor_speeds {
+            check_len("rotor_speeds", a.len())?;
+        }
+        for (name, v) in &self.extra {
+            check_len(name, v.len())?;
+        }
+        Ok(())
+    }
+
+    /// Checks the log: equal signal lengths, finite values, strictly increasing time, unit
+    /// quaternions (within [`QUATERNION_NORM_TOLERANCE`]) and at least [`MIN_ROWS`] samples.
+    /// Line numbers in the errors are those of the equivalent CSV file (sample `i` is line
+    /// `i + 2`).
+    ///
+    /// # Errors
+    /// The first problem found, as a [`LogError`].
+    pub fn validate(&self) -> Result<(), LogError> {
+        let n = self.t.len();
+        self.check_lengths()?;
+        for i in 0..n {
+            let line = i + 2;
+            let finite = |col: &str, x: f64| {
+                if x.is_finite() {
+                    Ok(())
+                } else {
+                    Err(LogError::NonFinite {
+                        line,
+                        column: col.to_string(),
+                        value: x,
+                    })
+                }
+            };
+            finite("t", self.t[i])?;
+            for (k, c) in ["px", "py", "pz"].iter().enumerate() {
+                finite(c, self.position[i][k])?;
+            }
+            for (k, c) in ["vx", "vy", "vz"].iter().enumerate() {
+                finite(c, self.velocity[i][k])?;
+            }
+            for (k, c) in ["qw", "qx", "qy", "qz"].iter().enumerate() {
+                finite(c, self.attitude[i][k])?;
+            }
+            for (k, c) in ["wx", "wy", "wz"].iter().enumerate() {
+                finite(c, self.omega[i][k])?;
+            }
+            for (k, c) in ["fx", "fy", "fz", "tx", "ty", "tz"].iter().enumerate() {
+                finite(c, self.wrench[i][k])?;
+            }
+            if let Some(a) = &self.accel {
+                for (k, c) in ["ax", "ay", "az"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            if let Some(a) = &self.omega_dot {
+                for (k, c) in ["dwx", "dwy", "dwz"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            if let Some(a) = &self.rotor_speeds {
+                for (k, c) in ["w1", "w2", "w3", "w4"].iter().enumerate() {
+                    finite(c, a[i][k])?;
+                }
+            }
+            for (name, v) in &self.extra {
+                finite(name, v[i])?;
+            }
+            if i > 0 && self.t[i] <= self.t[i - 1] {
+                return Err(LogError::NonIncreasingTime {
+                    line,
+                    t: self.t[i],
+                    previous: self.t[i - 1],
+                });
+            }
+            let q = self.attitude[i];
+            let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                return Err(LogError::QuaternionNorm {
+                    line,
+                    norm,
+                    tolerance: QUATERNION_NORM_TOLERANCE,
+                });
+            }
+        }
+        if n < MIN_ROWS {
+            return Err(LogError::TooShort {
+                rows: n,
+                needed: MIN_ROWS,
+            });
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a CSV flight log from a file.
+    ///
+    /// # Errors
+    /// [`LogError::Io`] if the file cannot be opened, otherwise the error of
+    /// [`FlightLog::from_csv_reader`] wrapped in [`LogError::InFile`] (so that the message
+    /// names the file as well as the line and column).
+    pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
+        let path = path.as_ref();
+        let file = std::fs::File::open(path).map_err(|e| LogError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::from_csv_reader(std::io::BufReader::new(file)).map_err(|e| LogError::InFile {
+            path: path.display().to_string(),
+            source: Box::new(e),
+        })
+    }
+
+    /// Reads and validates a CSV flight log (the [format](self)): one header row, then one row per
+    /// sample. Unknown columns are kept in [`FlightLog::extra`].
+    ///
+    /// # Errors
+    /// A [`LogError`] naming the line and column of the first problem.
+    pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(reader);
+        let header: Vec<String> = rdr
+            .headers()
+            .map_err(|e| LogError::Malformed {
+                line: 1,
+                message: e.to_string(),
+            })?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        for (j, name) in header.iter().enumerate() {
+            if let Some(k) = header[..j].iter().position(|h| h == name) {
+                return Err(LogError::DuplicateColumn {
+                    column: name.clone(),
+                    first: k + 1,
+                    second: j + 1,
+                });
+            }
+        }
+        let idx = |name: &str| header.iter().position(|h| h == name);
+        for c in REQUIRED_COLUMNS {
+            if idx(c).is_none() {
+                return Err(LogError::MissingColumn {
+                    column: c.to_string(),
+                });
+            }
+        }
+        // Optional groups are all-or-nothing.
+        let group = |names: &[&str]| -> Result<Option<Vec<usize>>, LogError> {
+            let found: Vec<Option<usize>> = names.iter().map(|n| idx(n)).collect();
+            if found.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            if let Some(k) = found.iter().position(Option::is_none) {
+                return Err(LogError::MissingColumn {
+                    column: names[k].to_string(),
+                });
+            }
+            Ok(Some(found.into_iter().flatten().collect()))
+        };
+        let acc_cols = group(&ACCEL_COLUMNS)?;
+        let dw_cols = group(&OMEGA_DOT_COLUMNS)?;
+        let rot_cols = group(&ROTOR_SPEED_COLUMNS)?;
+        let req: Vec<usize> = REQUIRED_COLUMNS.iter().filter_map(|c| idx(c)).collect();
+        let extra_cols: Vec<usize> = (0..header.len())
+            .filter(|j| {
+                let h = header[*j].as_str();
+                !REQUIRED_COLUMNS.contains(&h) && !OPTIONAL_COLUMNS.contains(&h)
+            })
+            .collect();
+        let mut log = FlightLog {
+            accel: acc_cols.as_ref().map(|_| Vec::new()),
+            omega_dot: dw_cols.as_ref().map(|_| Vec::new()),
+            rotor_speeds: rot_cols.as_ref().map(|_| Vec::new()),
+            extra: extra_cols
+                .iter()
+                .map(|&j| (header[j].clone(), Vec::new()))
+                .collect(),
+            ..FlightLog::default()
+        };
+        let mut record = csv::StringRecord::new();
+        let mut line = 1usize;
+        let mut values = vec![0.0; header.len()];
+        loop {
+            match rdr.read_record(&mut record) {
+                Ok(false) => break,
+                Ok(true) => {}
+                Err(e) => {
+                    let l = e.position().map_or(line + 1, |p| p.line() as usize);
+                    return Err(LogError::Malformed {
+                        line: l,
+                        message: e.to_string(),
+                    });
+                }
+            }
+            line = record.position().map_or(line + 1, |p| p.line() as usize);
+            if record.len() != header.len() {
+                return Err(LogError::Malformed {
+                    line,
+                    message: format!("{} fields, header has {}", record.len(), header.len()),
+                });
+            }
+            for (j, field) in record.iter().enumerate() {
+                let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
+                    line,
+                    column: header[j].clone(),
+                    value: field.to_string(),
+                })?;
+                if !x.is_finite() {
+                    return Err(LogError::NonFinite {
+                        line,
+                        column: header[j].clone(),
+                        value: x,
+                    });
+                }
+                values[j] = x;
+            }
+            let v = |k: usize| values[req[k]];
+            let t = v(0);
+            if let Some(&prev) = log.t.last()
+                && t <= prev
+            {
+                return Err(LogError::NonIncreasingTime {
+                    line,
+                    t,
+                    previous: prev,
+                });
+            }
+            let q = [v(7), v(8), v(9), v(10)];
+            let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                return Err(LogError::QuaternionNorm {
+                    line,
+                    norm,
+                    tolerance: QUATERNION_NORM_TOLERANCE,
+                });
+            }
+            log.t.push(t);
+            log.position.push([v(1), v(2), v(3)]);
+            log.velocity.push([v(4), v(5), v(6)]);
+            log.attitude.push(q);
+            log.omega.push([v(11), v(12), v(13)]);
+            log.wrench.push([v(14), v(15), v(16), v(17), v(18), v(19)]);
+            if let (Some(c), Some(a)) = (&acc_cols, &mut log.accel) {
+                a.push([values[c[0]], values[c[1]], values[c[2]]]);
+            }
+            if let (Some(c), Some(a)) = (&dw_cols, &mut log.omega_dot) {
+                a.push([values[c[0]], values[c[1]], values[c[2]]]);
+            }
+            if let (Some(c), Some(a)) = (&rot_cols, &mut log.rotor_speeds) {
+                a.push([values[c[0]], values[c[1]], values[c[2]], values[c[3]]]);
+            }
+            for (k, &j) in extra_cols.iter().enumerate() {
+                log.extra[k].1.push(values[j]);
+            }
+        }
+        if log.len() < MIN_ROWS {
+            return Err(LogError::TooShort {
+                rows: log.len(),
+                needed: MIN_ROWS,
+            });
+        }
+        Ok(log)
+    }
+
+    /// Checks what writing needs: equal signal lengths and strictly increasing time.
+    fn check_writable(&self) -> Result<(), LogError> {
+        self.check_lengths()?;
+        if let Some(i) = (1..self.t.len())
+            .find(|&i| self.t[i].partial_cmp(&self.t[i - 1]) != Some(std::cmp::Ordering::Greater))
+        {
+            return Err(LogError::NonIncreasingTime {
+                line: i + 2,
+                t: self.t[i],
+                previous: self.t[i - 1],
+            });
+        }
+        Ok(())
+    }
+
+    /// Writes the log as CSV: the header (required columns, then the optional groups that are
+    /// present, then the extra columns), one row per sample; `t` in plain decimal, every other
+    /// value in Rust's shortest round-trip scientific notation (reading it back gives the same
+    /// bits).
+    ///
+    /// # Errors
+    /// [`LogError::LengthMismatch`] or [`LogError::NonIncreasingTime`] for a log that is not
+    /// a log; [`LogError::Io`] on a write failure.
+    pub fn write_csv<W: Write>(&self, writer: W) -> Result<(), LogError> {
+        self.write_csv_named(writer, "<csv writer>")
+    }
+
+    /// [`FlightLog::write_csv`] to a file (parent directories are created).
+    ///
+    /// # Errors
+    /// As [`FlightLog::write_csv`]; I/O errors name the file.
+    pub fn write_csv_path(&self, path: impl AsRef<Path>) -> Result<(), LogError> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let io = |e: std::io::Error| LogError::Io {
+            path: name.clone(),
+            message: e.to_string(),
+        };
+        self.check_writable()?;
+        if let Some(dir) = path.parent()
+            && !dir.as_os_str().is_empty()
+        {
+            std::fs::create_dir_all(dir).map_err(io)?;
+        }
+        let file = std::fs::File::create(path).map_err(io)?;
+        self.write_csv_named(std::io::BufWriter::new(file), &name)
+    }
+
+    fn write_csv_named<W: Write>(&self, writer: W, name: &str) -> Result<(), LogError> {
+        self.check_writable()?;
+        let io = |message: String| LogError::Io {
+            path: name.to_string(),
+            message,
+        };
+        let mut w = csv::Writer::from_writer(writer);
+        let mut header: Vec<String> = REQUIRED_COLUMNS.iter().map(|s| s.to_string()).collect();
+        if self.accel.is_some() {
+            header.extend(ACCEL_COLUMNS.map(String::from));
+        }
+        if self.omega_dot.is_some() {
+            header.extend(OMEGA_DOT_COLUMNS.map(String::from));
+        }
+        if self.rotor_speeds.is_some() {
+            header.extend(ROTOR_SPEED_COLUMNS.map(String::from));
+        }
+        header.extend(self.extra.iter().map(|(n, _)| n.clone()));
+        w.write_record(&header).map_err(|e| io(e.to_string()))?;
+        let mut row: Vec<String> = Vec::with_capacity(header.len());
+        for i in 0..self.len() {
+            row.clear();
+            row.push(format!("{}", self.t[i]));
+            let mut put = |x: f64| row.push(format!("{x:e}"));
+            self.position[i].iter().for_each(|x| put(*x));
+            self.velocity[i].iter().for_each(|x| put(*x));
+            self.attitude[i].iter().for_each(|x| put(*x));
+            self.omega[i].iter().for_each(|x| put(*x));
+            self.wrench[i].iter().for_each(|x| put(*x));
+            if let Some(a) = &self.accel {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            if let Some(a) = &self.omega_dot {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            if let Some(a) = &self.rotor_speeds {
+                a[i].iter().for_each(|x| put(*x));
+            }
+            for (_, v) in &self.extra {
+                put(v[i]);
+            }
+            w.write_record(&row).map_err(|e| io(e.to_string()))?;
+        }
+        w.flush().map_err(|e| io(e.to_string()))?;
+        Ok(())
+    }
+}
+
+/// A problem with a flight log: every variant names where it is (CSV line, 1-based, the header
+/// being line 1; and the column) so that the user can fix the file.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum LogError {
+    /// A required column (the [format](self)) is absent from the header.
+    #[error("line 1: missing required column `{column}`")]
+    MissingColumn {
+        /// The column's name.
+        column: String,
+    },
+    /// The same column name appears twice in the header.
+    #[error("line 1: duplicate column `{column}` (columns {first} and {second}, 1-based)")]
+    DuplicateColumn {
+        /// The column's name.
+        column: String,
+        /// 1-based position of its first occurrence.
+        first: usize,
+        /// 1-based position of its second occurrence.
+        second: usize,
+    },
+    /// A cell that is not a number.
+    #[error("line {line}, column `{column}`: `{value}` is not a number")]
+    NotANumber {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// Column name.
+        column: String,
+        /// The offending text.
+        value: String,
+    },
+    /// A cell that is NaN or infinite.
+    #[error("line {line}, column `{column}`: non-finite value {value}")]
+    NonFinite {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// Column name.
+        column: String,
+        /// The value read.
+        value: f64,
+    },
+    /// Time does not strictly increase.
+    #[error("line {line}, column `t`: time {t} s does not increase (previous sample {previous} s)")]
+    NonIncreasingTime {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// The time on this line \[s\].
+        t: f64,
+        /// The previous sample's time \[s\].
+        previous: f64,
+    },
+    /// The attitude quaternion's norm is far from one.
+    #[error(
+        "line {line}, columns `qw,qx,qy,qz`: quaternion norm {norm:.4} is not 1 (tolerance {tolerance})"
+    )]
+    QuaternionNorm {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// The norm found.
+        norm: f64,
+        /// Allowed deviation `|‖q‖ − 1|`.
+        tolerance: f64,
+    },
+    /// A row with the wrong number of fields, or a CSV syntax error.
+    #[error("line {line}: malformed CSV row: {message}")]
+    Malformed {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// What the CSV reader reported.
+        message: String,
+    },
+    /// Too few samples to fit the model.
+    #[error("log too short to fit: {rows} rows, at least {needed} needed")]
+    TooShort {
+        /// Rows in the log.
+        rows: usize,
+        /// Rows needed.
+        needed: usize,
+    },
+    /// In-memory log whose signals have different lengths.
+    #[error("signal `{column}` has {got} samples, expected {expected}")]
+    LengthMismatch {
+        /// Signal name.
+        column: String,
+        /// Its length.
+        got: usize,
+        /// The length of `t`.
+        expected: usize,
+    },
+    /// A problem in a log file: the file's name and the problem (which names line and
+    /// column).
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// The problem.
+        #[source]
+        source: Box<LogError>,
+    },
+    /// A file could not be read or written.
+    #[error("{path}: {message}")]
+    Io {
+        /// The path.
+        path: String,
+        /// The OS error.
+        message: String,
+    },
+}
+
+impl LogError {
+    /// The 1-based CSV line the error points at (the header is line 1), if any.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            LogError::MissingColumn { .. } | LogError::DuplicateColumn { .. } => Some(1),
+            LogError::NotANumber { line, .. }
+            | LogError::NonFinite { line, .. }
+            | LogError::NonIncreasingTime { line, .. }
+            | LogError::QuaternionNorm { line, .. }
+            | LogError::Malformed { line, .. } => Some(*line),
+            LogError::InFile { source, .. } => source.line(),
+            _ => None,
+        }
+    }
+
+    /// The column the error points at, if any.
+    pub fn column(&self) -> Option<&str> {
+        match self {
+            LogError::MissingColumn { column }
+            | LogError::DuplicateColumn { column, .. }
+            | LogError::NotANumber { column, .. }
+            | LogError::NonFinite { column, .. }
+            | LogError::LengthMismatch { column, .. } => Some(column),
+            LogError::NonIncreasingTime { .. } => Some("t"),
+            LogError::QuaternionNorm { .. } => Some("qw"),
+            LogError::InFile { source, .. } => source.column(),
+            _ => None,
+        }
+    }
+
+    /// The file the error points at, if known.
+    pub fn file(&self) -> Option<&str> {
+        match self {
+            LogError::InFile { path, .. } | LogError::Io { path, .. } => Some(path),
+            _ => None,
+        }
+    }
+}
+
+fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
+    match (first, x) {
+        (true, Some(x)) => *v = Some(vec![x]),
+        (true, None) => *v = None,
+        (false, Some(x)) => {
+            if let Some(v) = v {
+                v.push(x);
+            }
+        }
+        (false, None) => *v = None,
+    }
+}

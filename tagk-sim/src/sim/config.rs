@@ -1,0 +1,399 @@
+//! The configuration of one flight and its validation: noise levels, payloads and their
+//! schedule, what the controller is designed for, the LQR weights, and [`SimConfig`].
+
+use std::str::FromStr;
+
+use nalgebra::Vector3;
+use rand::RngExt;
+use serde::{Deserialize, Serialize};
+use tagk_control::{LqrWeights, hover_trim};
+use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
+use tagk_dynamics::{InertialParams, QuadrotorModel, SafetyGate};
+
+use crate::estimators::EstimatorSpec;
+use crate::plant::validate_params;
+use crate::trajectory::TrajectoryKind;
+use crate::{EstimatorKind, PlantEffects, SimError};
+
+/// Noise on the velocity and acceleration fed to the controller and the estimator
+/// (CONVENTIONS §5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum NoiseLevel {
+    /// σ_v = 0, σ_a = 0.
+    #[default]
+    None,
+    /// σ_v = 0.05 cm/s, σ_a = 0.005 cm/s².
+    Low,
+    /// σ_v = 0.5 cm/s, σ_a = 0.05 cm/s².
+    Medium,
+    /// σ_v = 2.5 cm/s, σ_a = 0.25 cm/s².
+    High,
+}
+
+impl NoiseLevel {
+    /// The four levels of Table II.
+    pub const ALL: [NoiseLevel; 4] = [
+        NoiseLevel::None,
+        NoiseLevel::Low,
+        NoiseLevel::Medium,
+        NoiseLevel::High,
+    ];
+
+    /// Standard deviation of each velocity component [m/s].
+    pub fn sigma_velocity(self) -> f64 {
+        match self {
+            NoiseLevel::None => 0.0,
+            NoiseLevel::Low => 0.05e-2,
+            NoiseLevel::Medium => 0.5e-2,
+            NoiseLevel::High => 2.5e-2,
+        }
+    }
+
+    /// Standard deviation of each acceleration component [m/s²].
+    pub fn sigma_acceleration(self) -> f64 {
+        match self {
+            NoiseLevel::None => 0.0,
+            NoiseLevel::Low => 0.005e-2,
+            NoiseLevel::Medium => 0.05e-2,
+            NoiseLevel::High => 0.25e-2,
+        }
+    }
+
+    /// Display name.
+    pub fn name(self) -> &'static str {
+        match self {
+            NoiseLevel::None => "none",
+            NoiseLevel::Low => "low",
+            NoiseLevel::Medium => "medium",
+            NoiseLevel::High => "high",
+        }
+    }
+}
+
+impl FromStr for NoiseLevel {
+    type Err = SimError;
+
+    /// Parses [`NoiseLevel::name`] (`none`, `low`, `medium`, `high`).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        NoiseLevel::ALL
+            .into_iter()
+            .find(|n| n.name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "noise level",
+                value: s.to_string(),
+                expected: "none, low, medium, high",
+            })
+    }
+}
+
+/// Shape of a payload.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum PayloadShape {
+    /// A point mass.
+    PointMass,
+    /// An axis-aligned solid box with edge lengths `size` \[m\], centred at the offset.
+    Box {
+        /// Edge lengths along body x, y, z \[m\].
+        size: [f64; 3],
+    },
+}
+
+/// A payload attached at `attach_time` and (optionally) removed at `remove_time`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Payload {
+    /// Mass \[kg\].
+    pub mass: f64,
+    /// Position of its centre of mass in the body frame \[m\].
+    pub offset: [f64; 3],
+    /// Shape.
+    pub shape: PayloadShape,
+    /// Attach time \[s\].
+    pub attach_time: f64,
+    /// Removal time \[s\] (`None`: carried to the end).
+    pub remove_time: Option<f64>,
+}
+
+impl Payload {
+    /// The inertial parameters of the payload alone, about the body origin.
+    pub fn params(&self) -> InertialParams {
+        let c = Vector3::from(self.offset);
+        match self.shape {
+            PayloadShape::PointMass => InertialParams::point_mass(self.mass, c),
+            PayloadShape::Box { size } => {
+                InertialParams::solid_box(self.mass, c, Vector3::from(size))
+            }
+        }
+    }
+
+    /// The protocol's random payload (CONVENTIONS §5) for a vehicle of mass `vehicle_mass`:
+    /// a point mass of `U[0.3, 0.5]·m`, at `U[0.2, 0.3]·L_arm` (the Crazyflie's
+    /// [`CRAZYFLIE_ARM_OFFSET`]) from the origin in a direction
+    /// uniform on the sphere, attached at `U[4, 6] s`, removed at `U[12, 14] s`.
+    pub fn random_protocol<R: rand::Rng + ?Sized>(vehicle_mass: f64, rng: &mut R) -> Self {
+        let mass = vehicle_mass * rng.random_range(0.3..0.5);
+        let dist = CRAZYFLIE_ARM_OFFSET * rng.random_range(0.2..0.3);
+        let z: f64 = rng.random_range(-1.0..1.0);
+        let az: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+        let r = (1.0 - z * z).sqrt();
+        Self {
+            mass,
+            offset: [dist * r * az.cos(), dist * r * az.sin(), dist * z],
+            shape: PayloadShape::PointMass,
+            attach_time: rng.random_range(4.0..6.0),
+            remove_time: Some(rng.random_range(12.0..14.0)),
+        }
+    }
+}
+
+/// Which payloads a flight carries.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub enum PayloadSchedule {
+    /// No payload.
+    None,
+    /// One random payload per the protocol ([`Payload::random_protocol`]), drawn from the seed;
+    /// draws the rotors cannot hover are redrawn.
+    #[default]
+    Protocol,
+    /// One random payload as in [`Protocol`](Self::Protocol) but attached and removed at these
+    /// fixed times \[s\] (aligns the events across trials for averaged time curves).
+    ProtocolAt {
+        /// Attach time \[s\].
+        attach: f64,
+        /// Removal time \[s\].
+        remove: f64,
+    },
+    /// These payloads.
+    Fixed(Vec<Payload>),
+}
+
+/// What parameters the controller is designed for.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Adaptation {
+    /// The nominal (payload-free) vehicle throughout: no estimation.
+    Nominal,
+    /// The true parameters, redesigned at every payload event (an oracle; no estimation).
+    Oracle,
+    /// An online estimator through the safety gate.
+    Estimator(EstimatorSpec),
+}
+
+/// The simulator's default LQR weights (Bryson's rule, `Q_ii = 1/x_max²`, `R_ii = 1/u_max²`)
+/// for trajectory tracking with payloads:
+///
+/// | state | acceptable deviation | weight |
+/// |---|---|---|
+/// | position x, y | 1.6 cm | 4000 |
+/// | position z | 1 cm | 10 000 |
+/// | velocity x, y / z | 10 / 7 cm/s | 100 / 200 |
+/// | roll, pitch / yaw error | 0.05 / 0.2 rad | 400 / 25 |
+/// | body rates | 1 rad/s | 1 |
+/// | each rotor thrust deviation | 0.02 N | 2500 |
+///
+/// `tagk_control::LqrWeights::crazyflie` (5 cm position tolerance) is a gentler hover design:
+/// with it, a 30–50 % payload drops the vehicle by more than the 5 cm success threshold before
+/// any estimator at 2.5 Hz can respond (see the crate README's study).
+pub fn tracking_weights() -> LqrWeights {
+    LqrWeights::from_diagonals(
+        [
+            4000.0, 4000.0, 10000.0, 100.0, 100.0, 200.0, 400.0, 400.0, 25.0, 1.0, 1.0, 1.0,
+        ],
+        [2500.0; 4],
+    )
+}
+
+/// Configuration of one flight. [`SimConfig::default`] is the paper's protocol (figure-8,
+/// 20 s, random payload, ideal plant, no noise, TAG-K).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    /// Reference path shape (size, centre and phase are drawn from the seed).
+    pub trajectory: TrajectoryKind,
+    /// Flight duration \[s\].
+    pub duration: f64,
+    /// Seed of every random choice of the flight.
+    pub seed: u64,
+    /// Velocity/acceleration noise.
+    pub noise: NoiseLevel,
+    /// Standard deviation of rate-gyro noise on each axis [rad/s] (0: off).
+    pub gyro_noise: f64,
+    /// Payload events.
+    pub payload: PayloadSchedule,
+    /// Plant effects (all off by default).
+    pub effects: PlantEffects,
+    /// Controller parameters: nominal, oracle, or estimated.
+    pub adaptation: Adaptation,
+    /// Height of the path centre \[m\] (`None`: random in `[0.8, 1.5]`).
+    pub altitude: Option<f64>,
+    /// RK4 physics step \[s\] (must divide the control period; ≤ 2 ms).
+    pub physics_dt: f64,
+    /// Control period \[s\] (50 Hz).
+    pub control_dt: f64,
+    /// Control steps between estimator updates (20 → 2.5 Hz).
+    pub estimator_period: usize,
+    /// Frames per estimator window (5 → `A` is 30×10).
+    pub window_frames: usize,
+    /// Safety gate between estimator and controller.
+    pub gate: SafetyGate,
+    /// Stop the flight when the tracking error exceeds 30 cm (an abort).
+    pub stop_on_abort: bool,
+    /// Keep a flight-log sample per control step ([`SimOutput::log`](crate::SimOutput::log)).
+    pub record_log: bool,
+    /// Keep a [`TraceSample`](crate::sim::TraceSample) per control step.
+    pub record_trace: bool,
+    /// Actuator layout and nominal parameters of the vehicle.
+    pub vehicle: QuadrotorModel,
+    /// LQR cost weights.
+    pub weights: LqrWeights,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            trajectory: TrajectoryKind::Figure8,
+            duration: 20.0,
+            seed: 0,
+            noise: NoiseLevel::None,
+            gyro_noise: 0.0,
+            payload: PayloadSchedule::Protocol,
+            effects: PlantEffects::none(),
+            adaptation: Adaptation::Estimator(EstimatorSpec::new(EstimatorKind::TagK)),
+            altitude: None,
+            physics_dt: 0.002,
+            control_dt: 0.02,
+            estimator_period: 20,
+            window_frames: 5,
+            gate: SafetyGate::crazyflie(),
+            stop_on_abort: true,
+            record_log: false,
+            record_trace: false,
+            vehicle: QuadrotorModel::crazyflie_2_1(),
+            weights: tracking_weights(),
+        }
+    }
+}
+
+fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(())
+    } else {
+        Err(SimError::InvalidDuration { what, value })
+    }
+}
+
+impl SimConfig {
+    /// Checks the configuration without flying: durations and steps, noise, altitude, the
+    /// safety gate's thresholds, the vehicle, the effects, fixed payloads (positive mass, and
+    /// hover feasible within the rotor limits) and the estimator's burn-in.
+    ///
+    /// # Errors
+    /// The first problem found, as a typed [`SimError`].
+    pub fn validate(&self) -> Result<(), SimError> {
+        positive("duration", self.duration)?;
+        positive("physics_dt", self.physics_dt)?;
+        positive("control_dt", self.control_dt)?;
+        if self.physics_dt > 0.002 + 1e-15 {
+            return Err(SimError::InvalidParameter {
+                name: "physics_dt",
+                value: self.physics_dt,
+                reason: "must be at most 2 ms",
+            });
+        }
+        let ratio = self.control_dt / self.physics_dt;
+        if (ratio - ratio.round()).abs() > 1e-9 || ratio.round() < 1.0 {
+            return Err(SimError::InvalidParameter {
+                name: "control_dt / physics_dt",
+                value: ratio,
+                reason: "must be a positive integer",
+            });
+        }
+        if self.estimator_period == 0 || self.window_frames == 0 {
+            return Err(SimError::InvalidParameter {
+                name: "estimator_period / window_frames",
+                value: 0.0,
+                reason: "must be positive",
+            });
+        }
+        if !(self.gyro_noise >= 0.0 && self.gyro_noise.is_finite()) {
+            return Err(SimError::InvalidParameter {
+                name: "gyro_noise",
+                value: self.gyro_noise,
+                reason: "must be non-negative and finite",
+            });
+        }
+        if let Some(z) = self.altitude
+            && !z.is_finite()
+        {
+            return Err(SimError::InvalidParameter {
+                name: "altitude",
+                value: z,
+                reason: "must be finite",
+            });
+        }
+        for (name, value) in [
+            ("gate.max_com_offset", self.gate.max_com_offset),
+            (
+                "gate.max_inertia_eigenvalue",
+                self.gate.max_inertia_eigenvalue,
+            ),
+        ] {
+            if !(value > 0.0 && value.is_finite()) {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be positive and finite",
+                });
+            }
+        }
+        validate_params(&self.vehicle.params)?;
+        self.effects.validate()?;
+        if let PayloadSchedule::Fixed(list) = &self.payload {
+            for p in list {
+                check_payload(&self.vehicle, p)?;
+            }
+        }
+        if let Adaptation::Estimator(spec) = &self.adaptation
+            && !(0.0..1.0).contains(&spec.burn_in)
+        {
+            return Err(SimError::InvalidParameter {
+                name: "burn_in",
+                value: spec.burn_in,
+                reason: "must be in [0, 1)",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Checks one payload: positive finite mass, finite offset and times, and a hover trim of
+/// vehicle plus payload within the rotor limits.
+///
+/// # Errors
+/// [`SimError::NonPositiveMass`], [`SimError::InvalidParameter`],
+/// [`SimError::PayloadBeyondThrust`].
+pub fn check_payload(vehicle: &QuadrotorModel, p: &Payload) -> Result<(), SimError> {
+    if !(p.mass > 0.0 && p.mass.is_finite()) {
+        return Err(SimError::NonPositiveMass {
+            what: "payload",
+            mass: p.mass,
+        });
+    }
+    let times = [p.attach_time, p.remove_time.unwrap_or(p.attach_time)];
+    if let Some(&v) = p.offset.iter().chain(&times).find(|v| !v.is_finite()) {
+        return Err(SimError::InvalidParameter {
+            name: "payload offset/time",
+            value: v,
+            reason: "must be finite",
+        });
+    }
+    let with = vehicle.params + p.params();
+    validate_params(&with)?;
+    let trim = hover_trim(vehicle, &with, Vector3::zeros(), 0.0)?;
+    let required = trim.thrusts.iter().copied().fold(f64::MIN, f64::max);
+    let available = vehicle.max_thrust_per_rotor();
+    if required > available || trim.thrusts.iter().any(|t| *t < 0.0) {
+        return Err(SimError::PayloadBeyondThrust {
+            required,
+            available,
+        });
+    }
+    Ok(())
+}

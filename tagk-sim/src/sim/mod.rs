@@ -1,0 +1,561 @@
+//! One closed-loop flight: plant, measurement model, LQR, payload events, estimator and
+//! safety gate (see the crate docs for the whole loop).
+//!
+//! The concerns live in submodules: the configuration and its validation
+//! ([`SimConfig`], `config.rs`), the controller ([`Controller`], `controller.rs`), the sensors
+//! (`sensors.rs`), what a flight produces ([`SimOutput`], `output.rs`); this file is the
+//! flight loop, [`simulate`], as a sequence of named steps.
+
+mod config;
+mod controller;
+mod output;
+mod sensors;
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use tagk_control::hover_trim;
+use tagk_core::OnlineEstimator;
+use tagk_dynamics::log::{FlightLog, LogSample};
+use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
+use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
+
+pub use config::{
+    Adaptation, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig, check_payload,
+    tracking_weights,
+};
+pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
+pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
+pub(crate) use sensors::sub_rng;
+
+use crate::EstimatorKind;
+use crate::SimError;
+use crate::estimators::{N_PARAMS, build_kind, column_scales, noise_floor};
+use crate::metrics::{
+    ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_success, parameter_error,
+    position_error_cm, t_plus_one_error,
+};
+use crate::plant::{Accelerations, Plant, PlantState};
+use crate::trajectory::Trajectory;
+use sensors::{Frame, Sensors};
+
+/// A scheduled change of the true parameters.
+#[derive(Debug, Clone, Copy)]
+struct ScheduledEvent {
+    step: usize,
+    attach: bool,
+    payload: InertialParams,
+}
+
+/// The estimator of a flight with what turns frames into its windows.
+struct EstimatorStage {
+    main: Box<dyn OnlineEstimator<f64> + Send>,
+    /// TAG-K run alongside for early adaptation (its first post-event estimate replaces the
+    /// main estimator's state).
+    early: Option<Box<dyn OnlineEstimator<f64> + Send>>,
+    window: WindowBuilder,
+    a_buf: Vec<f64>,
+    b_buf: Vec<f64>,
+    /// Column scales `d` (the estimator works on `θ / d`).
+    scales: [f64; 10],
+    /// Zero the lateral-force rows (their measurement is always 0).
+    actuated_rows_only: bool,
+}
+
+/// The state of a flight in progress.
+struct Flight<'a> {
+    config: &'a SimConfig,
+    /// Physics substeps per control step and their length \[s\].
+    substeps: usize,
+    substep: f64,
+    trajectory: Trajectory,
+    schedule: Vec<ScheduledEvent>,
+    next_event: usize,
+    plant: Plant,
+    controller: Controller,
+    sensors: Sensors,
+    estimator: Option<EstimatorStage>,
+    events: Vec<EventRecord>,
+    updates: Vec<UpdateRecord>,
+    log: FlightLog,
+    /// Rotor speeds and wrench commanded at every control step so far (kept only for a log
+    /// with a `time-delay` effect, whose wrench stream lags the motion).
+    commands: Vec<([f64; 4], [f64; 6])>,
+    trace: Vec<TraceSample>,
+    tracking: Vec<f64>,
+    first_after_event: Vec<(Vec<f64>, InertialParams)>,
+    pending_event: bool,
+    first_update_steps: Vec<usize>,
+    latest_estimate: [f64; 10],
+}
+
+/// Flies one trial (see the crate docs for the loop, the measurement model and the timing).
+///
+/// # Errors
+/// An invalid configuration ([`SimConfig::validate`]) or a controller that cannot be
+/// designed for the nominal vehicle. Estimator rejections and gate violations during the
+/// flight are not errors: the controller keeps its previous parameters.
+pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
+    config.validate()?;
+    let steps = (config.duration / config.control_dt).round().max(1.0) as usize;
+    let mut flight = Flight::new(config, steps)?;
+    for k in 0..steps {
+        if flight.step(k)?.is_break() {
+            break;
+        }
+    }
+    Ok(flight.finish())
+}
+
+/// The payloads of a flight, drawn from the setup stream for the protocol schedules.
+fn draw_payloads(config: &SimConfig, setup: &mut ChaCha8Rng) -> Result<Vec<Payload>, SimError> {
+    let vehicle = &config.vehicle;
+    let nominal_mass = vehicle.params.mass();
+    Ok(match &config.payload {
+        PayloadSchedule::None => Vec::new(),
+        PayloadSchedule::Protocol | PayloadSchedule::ProtocolAt { .. } => {
+            // Rejection sampling: a heavy payload far out along a diagonal can need more than
+            // the rotors' limit to hover (the protocol's corner case); such draws are redrawn.
+            let mut draw = Payload::random_protocol(nominal_mass, setup);
+            let mut attempts = 1;
+            while let Err(e) = check_payload(vehicle, &draw) {
+                if attempts >= 1000 {
+                    return Err(e);
+                }
+                draw = Payload::random_protocol(nominal_mass, setup);
+                attempts += 1;
+            }
+            if let PayloadSchedule::ProtocolAt { attach, remove } = config.payload {
+                draw.attach_time = attach;
+                draw.remove_time = Some(remove);
+            }
+            vec![draw]
+        }
+        PayloadSchedule::Fixed(list) => list.clone(),
+    })
+}
+
+/// Attach and removal events of `payloads` on the control-step grid of period `dt` \[s\], in
+/// step order.
+fn schedule_events(payloads: &[Payload], dt: f64) -> Vec<ScheduledEvent> {
+    let mut schedule: Vec<ScheduledEvent> = Vec::new();
+    let step_of = |t: f64| (t / dt).ceil().max(0.0) as usize;
+    for p in payloads {
+        let theta = p.params();
+        schedule.push(ScheduledEvent {
+            step: step_of(p.attach_time),
+            attach: true,
+            payload: theta,
+        });
+        if let Some(r) = p.remove_time {
+            schedule.push(ScheduledEvent {
+                step: step_of(r).max(step_of(p.attach_time) + 1),
+                attach: false,
+                payload: theta,
+            });
+        }
+    }
+    schedule.sort_by_key(|e| e.step);
+    schedule
+}
+
+/// The estimator of `config` (none unless it adapts with one), reset to the nominal prior.
+fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStage>, SimError> {
+    let Adaptation::Estimator(spec) = &config.adaptation else {
+        return Ok(None);
+    };
+    let nominal = config.vehicle.params;
+    let m_max = 6 * config.window_frames;
+    let scales = if spec.scaled {
+        column_scales(&nominal.to_array(), CRAZYFLIE_ARM_OFFSET)
+    } else {
+        [1.0; 10]
+    };
+    let prior: Vec<f64> = nominal
+        .as_slice()
+        .iter()
+        .zip(&scales)
+        .map(|(t, d)| t / d)
+        .collect();
+    let tol = spec.noise_tolerance
+        * noise_floor(
+            nominal.mass(),
+            config.noise.sigma_acceleration(),
+            config.window_frames,
+        );
+    let mut main = spec.build(m_max, seed, tol)?;
+    main.reset(&prior)?;
+    let early = if spec.early_tagk {
+        let mut e = build_kind(EstimatorKind::TagK, spec.burn_in, m_max, seed, tol)?;
+        e.reset(&prior)?;
+        Some(e)
+    } else {
+        None
+    };
+    Ok(Some(EstimatorStage {
+        main,
+        early,
+        window: WindowBuilder::new(config.window_frames)?,
+        a_buf: vec![0.0; m_max * N_PARAMS],
+        b_buf: vec![0.0; m_max],
+        scales,
+        actuated_rows_only: spec.actuated_rows_only,
+    }))
+}
+
+impl<'a> Flight<'a> {
+    /// Sets a flight up: independent random streams (setup, measurement noise, estimator
+    /// seeds), the reference path, the payload schedule, the initial state near the path's
+    /// start (at rest, slightly tilted), the plant, the controller and the estimator.
+    fn new(config: &'a SimConfig, steps: usize) -> Result<Self, SimError> {
+        let vehicle = &config.vehicle;
+        let nominal = vehicle.params;
+        let substeps = (config.control_dt / config.physics_dt).round() as usize;
+        let mut setup = sub_rng(config.seed, 1);
+        let noise = sub_rng(config.seed, 2);
+        let estimator_seed = sub_rng(config.seed, 3).random::<u64>();
+
+        let trajectory = Trajectory::random(
+            config.trajectory,
+            config.duration,
+            config.altitude,
+            &mut setup,
+        )?;
+        let payloads = draw_payloads(config, &mut setup)?;
+        let schedule = schedule_events(&payloads, config.control_dt);
+
+        let r0 = trajectory.sample(0.0);
+        let offset = Vector3::new(
+            setup.random_range(-0.02..0.02),
+            setup.random_range(-0.02..0.02),
+            setup.random_range(-0.02..0.02),
+        );
+        let attitude = UnitQuaternion::from_euler_angles(
+            setup.random_range(-0.02..0.02),
+            setup.random_range(-0.02..0.02),
+            setup.random_range(-0.05..0.05),
+        );
+        let hover = hover_trim(vehicle, &nominal, Vector3::zeros(), 0.0)?;
+        let init = PlantState {
+            position: r0.position + offset,
+            velocity: Vector3::zeros(),
+            attitude,
+            body_rate: Vector3::zeros(),
+            rotor_speeds: vehicle.rotor_speeds_from_thrusts(&hover.thrusts),
+        };
+        let plant = Plant::new(*vehicle, nominal, config.effects, init)?;
+        let controller = Controller::new(vehicle, &nominal, config.weights, config.control_dt)?;
+        let estimator = build_estimator(config, estimator_seed)?;
+        let sensors = Sensors::new(
+            noise,
+            config.noise,
+            config.gyro_noise,
+            plant.state().body_rate,
+        );
+        Ok(Self {
+            config,
+            substeps,
+            substep: config.control_dt / substeps as f64,
+            trajectory,
+            schedule,
+            next_event: 0,
+            plant,
+            controller,
+            sensors,
+            estimator,
+            events: Vec::new(),
+            updates: Vec::new(),
+            log: FlightLog::new(),
+            commands: Vec::new(),
+            trace: Vec::new(),
+            tracking: Vec::with_capacity(steps + 1),
+            first_after_event: Vec::new(),
+            pending_event: false,
+            first_update_steps: Vec::new(),
+            latest_estimate: nominal.to_array(),
+        })
+    }
+
+    /// Control step `k`: payload events, tracking error and abort check, control, physics,
+    /// sensing, logging and the estimator update. `Break` ends the flight (an abort or a
+    /// diverged plant).
+    fn step(&mut self, k: usize) -> Result<ControlFlow<()>, SimError> {
+        let dt = self.config.control_dt;
+        let t = k as f64 * dt;
+        self.apply_payload_events(k, t)?;
+        let state = *self.plant.state();
+        if self.track(t, &state).is_break() {
+            return Ok(ControlFlow::Break(()));
+        }
+        let reference = self.trajectory.sample(t);
+        let measured = self.sensors.controller_measurement(&state);
+        let cmd = self
+            .plant
+            .clamp_speeds(&self.controller.rotor_speeds(&measured, &reference));
+        let wrench_cmd: Wrench = self.config.vehicle.wrench_from_rotor_speeds(&cmd);
+        let (mid_state, mid_acc) = self.fly_interval(&cmd);
+        if !self.plant.is_finite() {
+            self.tracking.push(f64::INFINITY);
+            return Ok(ControlFlow::Break(()));
+        }
+        let frame = self.sensors.frame(
+            self.plant.state().body_rate,
+            mid_state.body_rate,
+            mid_acc.proper,
+            dt,
+        );
+        if self.config.record_log {
+            self.log_sample(k, &mid_state, &frame, &wrench_cmd, cmd);
+        }
+        self.update_estimator(k, t, &frame, &wrench_cmd)?;
+        Ok(ControlFlow::Continue(()))
+    }
+
+    /// Applies the payload events due at the start of step `k` (time `t` \[s\]); the oracle
+    /// redesigns its controller at once.
+    fn apply_payload_events(&mut self, k: usize, t: f64) -> Result<(), SimError> {
+        while self.next_event < self.schedule.len() && self.schedule[self.next_event].step <= k {
+            let ev = self.schedule[self.next_event];
+            let theta = if ev.attach {
+                *self.plant.params() + ev.payload
+            } else {
+                *self.plant.params() - ev.payload
+            };
+            self.plant.set_params(theta)?;
+            self.events.push(EventRecord {
+                time: t,
+                step: k,
+                attach: ev.attach,
+                params: theta.to_array(),
+            });
+            if !matches!(self.config.adaptation, Adaptation::Estimator(_)) {
+                self.first_update_steps.push(k);
+            }
+            if matches!(self.config.adaptation, Adaptation::Oracle) {
+                self.controller.redesign(&theta)?;
+            }
+            self.pending_event = true;
+            self.next_event += 1;
+        }
+        Ok(())
+    }
+
+    /// Records the tracking error of the true `state` at time `t` (and the trace);
+    /// `Break` on an abort when the configuration stops there.
+    fn track(&mut self, t: f64, state: &PlantState) -> ControlFlow<()> {
+        let reference = self.trajectory.sample(t);
+        let err = (state.position - reference.position).norm();
+        self.tracking
+            .push(if err.is_finite() { err } else { f64::INFINITY });
+        if self.config.record_trace {
+            let pe = match &self.estimator {
+                Some(_) => parameter_error(&self.latest_estimate, self.plant.params()),
+                None => parameter_error(
+                    self.controller.lqr().params().as_slice(),
+                    self.plant.params(),
+                ),
+            };
+            self.trace.push(TraceSample {
+                t,
+                position: state.position.into(),
+                reference: reference.position.into(),
+                parameter_error: pe,
+            });
+        }
+        if (err.is_nan() || err > ABORT_THRESHOLD) && self.config.stop_on_abort {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    }
+
+    /// RK4 substeps over one control interval with the rotor speeds `cmd`; returns the state
+    /// and accelerations at the interval's midpoint.
+    fn fly_interval(&mut self, cmd: &[f64; 4]) -> (PlantState, Accelerations) {
+        let mut mid = None;
+        for j in 0..self.substeps {
+            if 2 * j == self.substeps {
+                mid = Some((*self.plant.state(), self.plant.accelerations(cmd)));
+            }
+            self.plant.step(cmd, self.substep);
+        }
+        mid.unwrap_or_else(|| (*self.plant.state(), self.plant.accelerations(cmd)))
+    }
+
+    /// Appends the log sample of control interval `k` (stamped at its midpoint); with a
+    /// `time-delay` effect, the wrench and rotor speeds are those commanded `delay` earlier.
+    fn log_sample(
+        &mut self,
+        k: usize,
+        mid: &PlantState,
+        frame: &Frame,
+        wrench: &Wrench,
+        rotor_speeds: [f64; 4],
+    ) {
+        let dt = self.config.control_dt;
+        let (rotor_speeds, wrench) = match self.config.effects.time_delay {
+            None => (rotor_speeds, wrench.to_array()),
+            Some(d) => {
+                self.commands.push((rotor_speeds, wrench.to_array()));
+                // The command held at `t_mid − delay` is that of interval
+                // `floor(k + ½ − delay/dt)` (the first one before the flight began).
+                let j = (k as f64 + 0.5 - d.delay / dt).floor().max(0.0) as usize;
+                self.commands[j.min(k)]
+            }
+        };
+        let q = mid.attitude;
+        let velocity = self.sensors.logged_velocity(mid.velocity);
+        self.log.push(&LogSample {
+            t: k as f64 * dt + 0.5 * dt,
+            position: mid.position.into(),
+            velocity: velocity.into(),
+            attitude: [q.w, q.i, q.j, q.k],
+            omega: frame.omega.into(),
+            wrench,
+            accel: Some((q * frame.accel + GRAVITY_WORLD).into()),
+            omega_dot: Some(frame.omega_dot.into()),
+            rotor_speeds: Some(rotor_speeds),
+        });
+    }
+
+    /// Pushes the frame into the estimator's window and, every `estimator_period` steps with
+    /// a full window, updates the estimator and hands its estimate through the safety gate to
+    /// the controller.
+    fn update_estimator(
+        &mut self,
+        k: usize,
+        t: f64,
+        frame: &Frame,
+        wrench: &Wrench,
+    ) -> Result<(), SimError> {
+        let Some(stage) = self.estimator.as_mut() else {
+            return Ok(());
+        };
+        stage
+            .window
+            .push(&frame.accel, &frame.omega, &frame.omega_dot, wrench)?;
+        if !(k + 1).is_multiple_of(self.config.estimator_period) || !stage.window.is_full() {
+            return Ok(());
+        }
+        let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
+        for row in stage.a_buf[..rows * N_PARAMS].chunks_exact_mut(N_PARAMS) {
+            for (x, d) in row.iter_mut().zip(&stage.scales) {
+                *x *= d;
+            }
+        }
+        if stage.actuated_rows_only {
+            // Rows 0 and 1 of every frame: the lateral forces, whose measurement is always 0.
+            for r in 0..rows {
+                if r % 6 < 2 {
+                    stage.a_buf[r * N_PARAMS..(r + 1) * N_PARAMS].fill(0.0);
+                    stage.b_buf[r] = 0.0;
+                }
+            }
+        }
+        let (a, b) = (&stage.a_buf[..rows * N_PARAMS], &stage.b_buf[..rows]);
+        let start = Instant::now();
+        let result = stage.main.update(a, b);
+        let micros = start.elapsed().as_secs_f64() * 1e6;
+        if let Some(e) = stage.early.as_mut() {
+            // Estimator errors leave the state unchanged; the flight goes on.
+            let _ = e.update(a, b);
+        }
+        if result.is_err() {
+            return Ok(());
+        }
+        if self.pending_event
+            && let Some(e) = stage.early.as_ref()
+        {
+            let tagk_estimate = e.estimate().to_vec();
+            stage.main.reset(&tagk_estimate)?;
+        }
+        let estimate: [f64; 10] =
+            core::array::from_fn(|i| stage.main.estimate()[i] * stage.scales[i]);
+        self.latest_estimate = estimate;
+        let truth = *self.plant.params();
+        if self.pending_event {
+            self.first_after_event.push((estimate.to_vec(), truth));
+            self.first_update_steps.push(k + 1);
+            self.pending_event = false;
+        }
+        let theta = InertialParams::from_array(estimate);
+        let accepted = theta.safety_gate(&self.config.gate).is_ok()
+            && self.controller.redesign(&theta).is_ok();
+        self.updates.push(UpdateRecord {
+            time: t + self.config.control_dt,
+            estimate,
+            truth: truth.to_array(),
+            accepted,
+            micros,
+        });
+        Ok(())
+    }
+
+    /// The metrics of the flight flown and everything it recorded.
+    fn finish(self) -> SimOutput {
+        let tracking = self.tracking;
+        let aborted = is_aborted(&tracking);
+        let event_steps: Vec<usize> = self.events.iter().map(|e| e.step).collect();
+        let success = is_success(&tracking, &event_steps, aborted);
+        let success_after_update = is_success(&tracking, &self.first_update_steps, aborted);
+        let finite: Vec<f64> = tracking.iter().copied().filter(|e| e.is_finite()).collect();
+        let (pe, ge) = mean_update_errors(&self.updates);
+        let metrics = TrialMetrics {
+            position_error_cm: position_error_cm(&finite),
+            max_tracking_error_cm: 100.0 * tracking.iter().copied().fold(0.0, f64::max),
+            parameter_error: pe,
+            group_errors: ge,
+            t1_error: t_plus_one_error(&self.first_after_event),
+            success,
+            success_after_update,
+            aborted,
+            steps: tracking.len(),
+        };
+        SimOutput {
+            trajectory: self.trajectory,
+            metrics,
+            events: self.events,
+            updates: self.updates,
+            log: self.log,
+            trace: self.trace,
+            tracking_errors: tracking,
+        }
+    }
+}
+
+/// Mean parameter error and mean per-group relative errors over the estimator's updates
+/// (NaN without updates).
+fn mean_update_errors(updates: &[UpdateRecord]) -> (f64, GroupErrors) {
+    if updates.is_empty() {
+        return (
+            f64::NAN,
+            GroupErrors {
+                mass: f64::NAN,
+                first_moment: f64::NAN,
+                inertia: f64::NAN,
+            },
+        );
+    }
+    let n_up = updates.len() as f64;
+    let mut pe = 0.0;
+    let mut ge = GroupErrors::default();
+    for u in updates {
+        let truth = InertialParams::from_array(u.truth);
+        pe += parameter_error(&u.estimate, &truth);
+        let g = group_errors(&u.estimate, &truth, CRAZYFLIE_ARM_OFFSET);
+        ge.mass += g.mass;
+        ge.first_moment += g.first_moment;
+        ge.inertia += g.inertia;
+    }
+    (
+        pe / n_up,
+        GroupErrors {
+            mass: ge.mass / n_up,
+            first_moment: ge.first_moment / n_up,
+            inertia: ge.inertia / n_up,
+        },
+    )
+}

@@ -1,0 +1,102 @@
+//! What one flight produced: payload events, estimator updates, the per-step trace, the
+//! metrics and the flight log.
+
+use serde::{Deserialize, Serialize};
+use tagk_dynamics::log::FlightLog;
+
+use crate::metrics::GroupErrors;
+use crate::trajectory::Trajectory;
+
+/// A payload change as it happened.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EventRecord {
+    /// Time \[s\] (quantised to the control step).
+    pub time: f64,
+    /// Control step index.
+    pub step: usize,
+    /// `true` for an attach, `false` for a removal.
+    pub attach: bool,
+    /// True parameters after the event.
+    pub params: [f64; 10],
+}
+
+/// One estimator update.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct UpdateRecord {
+    /// Time \[s\].
+    pub time: f64,
+    /// The estimator's output `θ̂`.
+    pub estimate: [f64; 10],
+    /// True parameters at that time.
+    pub truth: [f64; 10],
+    /// Whether the safety gate (and the controller redesign) accepted it.
+    pub accepted: bool,
+    /// Wall-clock time of the estimator update alone \[µs\].
+    pub micros: f64,
+}
+
+/// Per-control-step trace for figures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TraceSample {
+    /// Time \[s\].
+    pub t: f64,
+    /// True position \[m\].
+    pub position: [f64; 3],
+    /// Reference position \[m\].
+    pub reference: [f64; 3],
+    /// `‖θ̂ − θ‖₂` of the latest estimator output (of the controller's parameters without
+    /// an estimator).
+    pub parameter_error: f64,
+}
+
+/// Metrics of one flight (definitions in [`crate::metrics`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrialMetrics {
+    /// Position error \[cm\].
+    pub position_error_cm: f64,
+    /// Largest tracking error \[cm\].
+    pub max_tracking_error_cm: f64,
+    /// Mean parameter error `‖θ̂ − θ‖₂` over the estimator's updates (NaN without updates).
+    pub parameter_error: f64,
+    /// Mean per-group relative errors over the updates.
+    pub group_errors: GroupErrors,
+    /// (t+1) error (NaN without an event followed by an update).
+    pub t1_error: f64,
+    /// Success (CONVENTIONS §5: judged 10 control steps after each payload event).
+    pub success: bool,
+    /// Success judged instead 10 control steps after the first estimator update following
+    /// each payload event (the window in which an estimator can act; equals the controller's
+    /// redesign for the oracle, judged at the event).
+    pub success_after_update: bool,
+    /// Aborted.
+    pub aborted: bool,
+    /// Control steps flown.
+    pub steps: usize,
+}
+
+/// Everything one flight produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOutput {
+    /// The reference path flown.
+    pub trajectory: Trajectory,
+    /// Metrics.
+    pub metrics: TrialMetrics,
+    /// Payload events.
+    pub events: Vec<EventRecord>,
+    /// Estimator updates.
+    pub updates: Vec<UpdateRecord>,
+    /// Flight log (empty unless [`SimConfig::record_log`](crate::SimConfig::record_log)).
+    ///
+    /// Every sample refers to its control interval's midpoint `t`: position and attitude are
+    /// the true (motion-capture) values, velocity carries the velocity noise, the body rate
+    /// the gyro noise, the acceleration is the (noisy) accelerometer reading rotated into
+    /// the world frame with gravity added back (`p̈ = R a_meas + g_w`), `omega_dot` the
+    /// difference of gyro rates across the interval, and the wrench and rotor speeds are the
+    /// commanded ones (nominal `k_f`, `k_m`, through the mixer). Every optional signal is
+    /// present.
+    pub log: FlightLog,
+    /// Trace (empty unless [`SimConfig::record_trace`](crate::SimConfig::record_trace)).
+    pub trace: Vec<TraceSample>,
+    /// Tracking error per control step \[m\].
+    pub tracking_errors: Vec<f64>,
+}

@@ -1,0 +1,114 @@
+//! `tagk simulate`: flags to configuration to flight log, and the names of the shared effect
+//! vocabulary.
+
+use clap::Parser;
+use tagk::cli::simulate::{SimulateArgs, run_simulate};
+use tagk::dynamics::EffectKind;
+use tagk::sim::SimError;
+
+#[derive(Parser)]
+struct Cli {
+    #[command(flatten)]
+    args: SimulateArgs,
+}
+
+#[test]
+fn simulate_command_writes_a_log_from_flags() {
+    let path = std::env::temp_dir().join(format!("tagk-sim-cli-{}.csv", std::process::id()));
+    let cli = Cli::try_parse_from([
+        "tagk",
+        "--trajectory",
+        "helix",
+        "--duration",
+        "2",
+        "--noise",
+        "low",
+        "--effect",
+        "rotor-drag",
+        "--effect",
+        "motor-lag",
+        "--payload",
+        "fixed",
+        "--payload-mass",
+        "0.01",
+        "--payload-offset",
+        "0.005,0,0",
+        "--attach",
+        "1",
+        "--output",
+        path.to_str().unwrap(),
+    ])
+    .unwrap();
+    let cfg = cli.args.config().unwrap();
+    assert!(cfg.effects.rotor_drag.is_some() && cfg.effects.motor_lag.is_some());
+    assert!(cfg.effects.wind.is_none() && cfg.effects.linear_drag.is_none());
+    let summary = run_simulate(&cli.args).unwrap();
+    assert_eq!(summary.samples, 100);
+    assert!(summary.to_string().starts_with("wrote 100 samples to "));
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text.lines().count(), 101);
+    std::fs::remove_file(&path).ok();
+    let bad = Cli::try_parse_from(["tagk", "--duration", "0"]).unwrap();
+    assert!(matches!(
+        run_simulate(&bad.args),
+        Err(SimError::InvalidDuration { .. })
+    ));
+}
+
+#[test]
+fn effect_flag_takes_the_vocabulary_and_its_aliases() {
+    let parse = |name: &str| {
+        Cli::try_parse_from(["tagk", "--effect", name])
+            .map(|c| c.args.effects)
+            .map_err(|e| e.to_string())
+    };
+    for kind in EffectKind::ALL {
+        assert_eq!(parse(kind.name()).unwrap(), vec![kind]);
+        for alias in kind.aliases() {
+            assert_eq!(parse(alias).unwrap(), vec![kind], "{alias}");
+        }
+    }
+    let cfg = Cli::try_parse_from(["tagk", "--effect", "linear-drag", "--effect", "bias"])
+        .unwrap()
+        .args
+        .config()
+        .unwrap();
+    assert!(cfg.effects.linear_drag.is_some() && cfg.effects.body_bias.is_some());
+    assert!(cfg.effects.rotor_drag.is_none());
+    let unknown = parse("drag").unwrap_err();
+    assert!(unknown.contains("rotor-drag"), "{unknown}");
+}
+
+#[test]
+fn every_effect_of_the_vocabulary_can_be_simulated() {
+    for kind in EffectKind::ALL {
+        let cli = Cli::try_parse_from(["tagk", "--effect", kind.name()]).unwrap();
+        let cfg = cli.args.config().unwrap();
+        assert!(!cfg.effects.is_ideal(), "{kind}");
+    }
+    let cfg = Cli::try_parse_from(["tagk", "--effect", "delay"])
+        .unwrap()
+        .args
+        .config()
+        .unwrap();
+    assert!(cfg.effects.time_delay.is_some());
+}
+
+#[test]
+fn names_of_trajectories_noise_and_estimators_are_unchanged() {
+    let cli = Cli::try_parse_from([
+        "tagk",
+        "--trajectory",
+        "figure8",
+        "--noise",
+        "high",
+        "--estimator",
+        "kf-high",
+    ])
+    .unwrap();
+    assert_eq!(cli.args.trajectory, tagk::sim::TrajectoryKind::Figure8);
+    assert_eq!(cli.args.noise, tagk::sim::NoiseLevel::High);
+    assert_eq!(cli.args.estimator, Some(tagk::sim::EstimatorKind::KfHigh));
+    assert!(Cli::try_parse_from(["tagk", "--estimator", "tagk"]).is_ok());
+    assert!(Cli::try_parse_from(["tagk", "--noise", "loud"]).is_err());
+}
