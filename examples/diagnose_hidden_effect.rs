@@ -9,8 +9,9 @@
 //! Run: `cargo run --release --example diagnose_hidden_effect [-- OUT_DIR]` (with an OUT_DIR
 //! it also writes the CSV log, the JSON and the HTML report there).
 
-use tagk::diagnose::report::{diagnosis_table, report_table};
-use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
+use tagk::diagnose::{
+    DiagnoseOptions, FlightLog, Model, Signals, add_recommended, diagnosis_table, report_table,
+};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
     write_log_csv,

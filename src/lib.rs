@@ -1,5 +1,7 @@
 #![doc = include_str!("../README.md")]
 
+pub mod cli;
+
 pub use tagk_baselines as baselines;
 pub use tagk_control as control;
 pub use tagk_core as core;

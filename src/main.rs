@@ -24,14 +24,14 @@ enum Command {
     Simulate(tagk::sim::cli::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (`--with`).
-    Diagnose(tagk::diagnose::cli::DiagnoseArgs),
+    Diagnose(tagk::cli::diagnose::DiagnoseArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<(), Box<dyn std::error::Error>> = match &cli.command {
         Command::Simulate(args) => tagk::sim::cli::run_simulate(args).map_err(Into::into),
-        Command::Diagnose(args) => tagk::diagnose::cli::run_diagnose(args).map_err(Into::into),
+        Command::Diagnose(args) => tagk::cli::diagnose::run_diagnose(args).map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,7 +8,7 @@ use crate::fit::{Fit, rigid_columns};
 use crate::signals::Signals;
 
 /// Frames per TAG-K window (CONVENTIONS §5: the 5 most recent frames, 30 rows).
-pub const WINDOW_FRAMES: usize = 5;
+pub(crate) const WINDOW_FRAMES: usize = 5;
 
 /// Summary of the online pass.
 #[derive(Debug, Clone, Serialize)]
@@ -32,8 +32,15 @@ pub struct OnlineSummary {
 /// inertia, five orders of magnitude apart, converge alike), warm-started from zero.
 ///
 /// # Errors
-/// [`DiagnoseError::Online`] if the estimator rejects a window.
+/// [`DiagnoseError::InvalidOption`] for `stride == 0`; [`DiagnoseError::Online`] if the
+/// estimator rejects a window.
 pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummary, DiagnoseError> {
+    if stride == 0 {
+        return Err(DiagnoseError::InvalidOption {
+            field: "stride",
+            reason: "0 samples between windows: the stride must be at least 1".into(),
+        });
+    }
     let n = s.len();
     let cols = rigid_columns(s);
     let w = fit.weights;
@@ -56,7 +63,6 @@ pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummar
         .map_err(|e| DiagnoseError::Online(e.to_string()))?;
     let mut a = vec![0.0; rows * 10];
     let mut b = vec![0.0; rows];
-    let stride = stride.max(1);
     let mut updates = 0;
     let mut tail = [0.0; 10];
     let mut tail_n = 0usize;

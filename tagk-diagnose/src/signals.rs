@@ -16,7 +16,7 @@ pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];
 pub type Channel = usize;
 
 /// Half-width of the Savitzky–Golay smoothing of the velocity used by the drag effects.
-pub const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
+pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
@@ -129,8 +129,10 @@ impl Signals {
     }
 }
 
-/// Linear interpolation of a series `x(t)` at time `tq` (clamped at the ends).
-pub fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
+/// Linear interpolation of a series `x(t)` at time `tq` (clamped at the ends): the
+/// pointwise reference of the time-delay effect's sweep in the unit tests.
+#[cfg(test)]
+pub(crate) fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
     let n = t.len();
     if n == 0 {
         return 0.0;
@@ -145,9 +147,4 @@ pub fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
     let (t0, t1) = (t[k - 1], t[k]);
     let f = (tq - t0) / (t1 - t0);
     x[k - 1] * (1.0 - f) + x[k] * f
-}
-
-/// Attitude as a unit quaternion helper for writers of synthetic logs: `(w, x, y, z)`.
-pub fn quaternion_array(q: &UnitQuaternion<f64>) -> [f64; 4] {
-    [q.w, q.i, q.j, q.k]
 }

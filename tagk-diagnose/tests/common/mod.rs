@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use tagk_diagnose::{FlightLog, LogSample};
+use tagk_dynamics::EffectKind as Vocabulary;
 use tagk_sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, TrajectoryKind,
 };
@@ -73,15 +74,22 @@ pub fn sim_log(effect: Option<EffectKind>, seed: u64) -> FlightLog {
     to_log(&out.log)
 }
 
-/// The name of the diagnosis effect that models a simulator effect.
-pub fn expected_name(kind: EffectKind) -> &'static str {
+/// The effect of the shared vocabulary (`tagk_dynamics::EffectKind`) that models a simulator
+/// plant effect.
+///
+/// TO SWITCH AFTER THE MERGE of the simulator's effect enum into `tagk_dynamics::EffectKind`:
+/// delete this table, make `config`/`sim_log` take a `tagk_dynamics::EffectKind`, and call the
+/// tests with the vocabulary's names. The simulator's `LinearDrag` (today rotor drag,
+/// `K (Σ ωᵢ) v_b`) becomes `EffectKind::RotorDrag`, `ThrustError` becomes `ThrustGain` and
+/// `Bias` becomes `BodyBias`.
+pub fn vocabulary_kind(kind: EffectKind) -> Vocabulary {
     match kind {
-        EffectKind::LinearDrag => "rotor-drag",
-        EffectKind::QuadraticDrag => "quadratic-drag",
-        EffectKind::MotorLag => "motor-lag",
-        EffectKind::GroundEffect => "ground-effect",
-        EffectKind::Wind => "wind",
-        EffectKind::ThrustError => "thrust-gain",
-        EffectKind::Bias => "body-bias",
+        EffectKind::LinearDrag => Vocabulary::RotorDrag,
+        EffectKind::QuadraticDrag => Vocabulary::QuadraticDrag,
+        EffectKind::MotorLag => Vocabulary::MotorLag,
+        EffectKind::GroundEffect => Vocabulary::GroundEffect,
+        EffectKind::Wind => Vocabulary::Wind,
+        EffectKind::ThrustError => Vocabulary::ThrustGain,
+        EffectKind::Bias => Vocabulary::BodyBias,
     }
 }
