@@ -27,7 +27,7 @@ pub struct OnlineSummary {
     pub mass_history: Vec<f64>,
 }
 
-/// Runs TAG-K over the log with windows of [`WINDOW_FRAMES`] frames every `stride` samples,
+/// Runs TAG-K over the log with windows of 5 frames (30 rows) every `stride` samples,
 /// rows weighted like the batch fit `fit` and columns equilibrated (so that the mass and the
 /// inertia, five orders of magnitude apart, converge alike), warm-started from zero.
 ///

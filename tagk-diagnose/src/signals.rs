@@ -28,7 +28,7 @@ pub struct Signals {
     /// World position \[m\].
     pub position: Vec<Vector3<f64>>,
     /// Body-frame velocity `Rᵀ v` \[m/s\], from the logged velocity smoothed by a
-    /// Savitzky–Golay filter of half-width [`VELOCITY_SMOOTHING_HALF_WIDTH`] (velocity noise
+    /// Savitzky–Golay filter of half-width 7 (15 samples; velocity noise
     /// in a regressor column would bias drag coefficients towards zero).
     pub velocity_body: Vec<Vector3<f64>>,
     /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame \[m/s²\].
@@ -51,7 +51,7 @@ pub struct Signals {
 
 impl Signals {
     /// Validates the log and derives the signals (missing accelerations by the
-    /// Savitzky–Golay differentiator of [`crate::deriv`]).
+    /// Savitzky–Golay differentiator: a local quadratic least-squares fit over 11 samples).
     ///
     /// # Errors
     /// The log's validation error.
