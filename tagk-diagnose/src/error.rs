@@ -8,7 +8,7 @@ use thiserror::Error;
 #[derive(Debug, Error, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum LogError {
-    /// A required column (CONVENTIONS §6) is absent from the header.
+    /// A required column of the log format is absent from the header.
     #[error("line 1: missing required column `{column}`")]
     MissingColumn {
         /// The column's name.

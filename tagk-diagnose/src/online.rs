@@ -7,7 +7,7 @@ use crate::error::DiagnoseError;
 use crate::fit::{Fit, rigid_columns};
 use crate::signals::Signals;
 
-/// Frames per TAG-K window (CONVENTIONS §5: the 5 most recent frames, 30 rows).
+/// Frames per TAG-K window (the 5 most recent frames, 30 rows).
 pub(crate) const WINDOW_FRAMES: usize = 5;
 
 /// Summary of the online pass.
@@ -15,7 +15,7 @@ pub(crate) const WINDOW_FRAMES: usize = 5;
 pub struct OnlineSummary {
     /// Windows processed.
     pub updates: usize,
-    /// Estimate after the last window (CONVENTIONS order).
+    /// Estimate after the last window (order of `tagk_dynamics::InertialParams`).
     pub final_estimate: [f64; 10],
     /// Tail average of the estimates over the second half of the log.
     pub tail_average: [f64; 10],

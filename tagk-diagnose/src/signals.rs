@@ -7,7 +7,7 @@ use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
 use crate::error::LogError;
 use crate::log::FlightLog;
 
-/// Names of the six wrench channels, in CONVENTIONS order.
+/// Names of the six wrench channels: body-frame force, then torque about the body origin.
 pub const CHANNEL_NAMES: [&str; 6] = ["fx", "fy", "fz", "tx", "ty", "tz"];
 /// Units of the six wrench channels.
 pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];

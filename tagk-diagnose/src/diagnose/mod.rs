@@ -132,7 +132,8 @@ pub struct Diagnosis {
     pub derived_accelerations: bool,
     /// Per-channel fit.
     pub channels: Vec<ChannelFit>,
-    /// Rigid-body parameter estimates (CONVENTIONS order) with standard errors.
+    /// Rigid-body parameter estimates (order of `tagk_dynamics::InertialParams`) with
+    /// standard errors.
     pub parameters: Vec<Parameter>,
     /// Centre of mass `h / m` \[m\].
     pub com: [f64; 3],

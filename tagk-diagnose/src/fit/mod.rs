@@ -22,7 +22,7 @@ pub use model::Model;
 use design::{add_known_mass, initial_weights, weights_from_residual};
 use lsq::{LsSolution, predict, residual_kappa};
 
-/// Names of the ten rigid-body parameters (CONVENTIONS §1 order).
+/// Names of the ten rigid-body parameters, in the order of `tagk_dynamics::InertialParams`.
 pub(crate) const THETA_NAMES: [&str; 10] = [
     "m", "h_x", "h_y", "h_z", "I_xx", "I_xy", "I_yy", "I_xz", "I_yz", "I_zz",
 ];
