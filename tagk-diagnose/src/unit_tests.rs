@@ -657,3 +657,56 @@ fn public_types_are_send_sync_debug_clone() {
     check::<DiagnoseError>();
     check::<Signals>();
 }
+
+/// A user-defined effect whose columns are malformed (too short, or not finite).
+#[derive(Debug)]
+struct Faulty {
+    short: bool,
+}
+
+impl Effect for Faulty {
+    fn name(&self) -> &str {
+        if self.short { "short" } else { "nan" }
+    }
+    fn description(&self) -> &str {
+        "a malformed user effect"
+    }
+    fn channels(&self) -> Vec<crate::Channel> {
+        vec![0]
+    }
+    fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<crate::EffectColumn> {
+        let n = if self.short { s.len() - 1 } else { s.len() };
+        let mut v = vec![1.0; n];
+        if !self.short {
+            v[7] = f64::NAN;
+        }
+        vec![crate::EffectColumn::on("x", "N", 0, v)]
+    }
+    fn plausibility(&self, _c: &[f64], _se: &[f64], _p: Option<f64>) -> crate::Plausibility {
+        crate::Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        ("t".into(), s.t.clone())
+    }
+}
+
+#[test]
+fn malformed_user_effects_are_reported_not_panicked_on() {
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 6, &none)).unwrap();
+    let mut opts = DiagnoseOptions::default();
+    for short in [true, false] {
+        opts.candidates
+            .push(std::sync::Arc::new(Faulty { short }) as crate::EffectRef);
+        let model = Model::rigid_body().with(Faulty { short });
+        assert!(matches!(
+            model.fit(&s),
+            Err(DiagnoseError::EffectUnavailable { .. })
+        ));
+    }
+    let d = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
+    let skipped: Vec<&str> = d.unavailable.iter().map(|u| u.effect.as_str()).collect();
+    assert!(
+        skipped.contains(&"short") && skipped.contains(&"nan"),
+        "{skipped:?}"
+    );
+}

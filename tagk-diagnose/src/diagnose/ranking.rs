@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use crate::diagnose::DiagnoseOptions;
-use crate::effects::{Effect, EffectRef};
+use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
     Coefficient, ColData, Evaluation, Fit, GramEngine, Model, effect_design, rigid_design, scan_min,
 };
@@ -152,7 +152,7 @@ fn availability(e: &dyn Effect, model: &Model, s: &Signals) -> Option<Unavailabl
             reason: "needs a known mass (`--mass KG`): a thrust-gain error and a mass error scale the regression alike".into(),
         });
     }
-    e.check(s).err().map(|reason| Unavailable {
+    usable(e, s).err().map(|reason| Unavailable {
         effect: e.name().to_string(),
         reason,
     })

@@ -10,7 +10,7 @@ mod model;
 use serde::Serialize;
 use tagk_dynamics::InertialParams;
 
-use crate::effects::Plausibility;
+use crate::effects::{Plausibility, usable};
 use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
@@ -182,14 +182,13 @@ pub fn fit_model(
 }
 
 /// Step 1 of [`fit_model`]: every effect of the model must be usable on this log (e.g. rotor
-/// drag needs rotor speeds).
+/// drag needs rotor speeds; a user's effect must give finite columns of the log's length).
 fn check_effects_usable(model: &Model, s: &Signals) -> Result<(), DiagnoseError> {
     for e in model.effects() {
-        e.check(s)
-            .map_err(|reason| DiagnoseError::EffectUnavailable {
-                effect: e.name().to_string(),
-                reason,
-            })?;
+        usable(e.as_ref(), s).map_err(|reason| DiagnoseError::EffectUnavailable {
+            effect: e.name().to_string(),
+            reason,
+        })?;
     }
     Ok(())
 }
