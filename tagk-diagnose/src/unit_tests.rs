@@ -316,6 +316,11 @@ fn custom_effect_from_a_log_column_is_found() {
     ));
     let d = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
     assert_eq!(d.recommended.as_deref(), Some("gust"));
+    // The whole loop adds a recommended custom effect as well as a built-in one.
+    let report = crate::add_recommended(&s, &Model::rigid_body(), &opts).unwrap();
+    assert_eq!(report.with, vec!["gust".to_string()]);
+    let after = report.after.as_ref().unwrap();
+    assert!(after.channels[0].rms < 0.5 * report.before.channels[0].rms);
 }
 
 fn csv_text(rows: usize) -> String {
