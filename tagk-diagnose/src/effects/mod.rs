@@ -91,7 +91,13 @@ impl Plausibility {
 }
 
 /// A physical effect: named regressor columns with units, the channels it acts on, a
-/// plausibility check and an optional nonlinear parameter. Implement it to add your own.
+/// plausibility check and an optional nonlinear parameter. Implement it to add your own and
+/// push it onto [`crate::DiagnoseOptions::candidates`] (to rank it) or add it to a
+/// [`crate::Model`] (to fit it); `examples/custom_effect.rs` implements an elastic tether.
+///
+/// The name must differ from the other candidates' names. An effect that cannot be used on a
+/// log (its [`Effect::check`] fails, or its columns are empty, of the wrong length or not
+/// finite) is listed as unavailable, or refused by [`crate::fit_model`].
 pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Short name, e.g. `linear-drag`.
     fn name(&self) -> &str;
@@ -111,9 +117,11 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn scan(&self) -> Option<ScanSpec> {
         None
     }
-    /// The columns of `Φ` on this log (`param` is the scanned parameter, if any).
+    /// The columns of `Φ` on this log (`param` is the scanned parameter, if any): at least
+    /// one, each with one finite value per sample on the channels it touches.
     fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;
-    /// Physical plausibility of fitted coefficients `coef` with standard errors `se`.
+    /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
+    /// column of [`Effect::columns`], in that order).
     fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
     /// A scalar signal the effect is driven by (for regime plots), with its name and unit.
     fn driver(&self, signals: &Signals) -> (String, Vec<f64>);
