@@ -25,7 +25,7 @@ fn ten_minute_log() -> FlightLog {
         ..SimConfig::default()
     };
     let out = simulate(&config).expect("simulation runs");
-    // Through the CONVENTIONS §6 log format, as a user's own data would arrive.
+    // Through the CSV log format, as a user's own data would arrive.
     let mut csv = Vec::new();
     out.log.write_csv(&mut csv).expect("in-memory log");
     FlightLog::from_csv_reader(csv.as_slice()).expect("a valid log")

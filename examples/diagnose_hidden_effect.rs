@@ -1,7 +1,7 @@
 //! The diagnosis loop end to end on a simulated flight with a hidden effect.
 //!
 //! 1. Fly the simulated Crazyflie (tagk-sim) for 25 s with quadratic drag switched ON in the
-//!    plant, the paper's medium sensor noise, and log it (CONVENTIONS §6).
+//!    plant, the paper's medium sensor noise, and log it as a CSV flight log.
 //! 2. Compare the rigid-body model with the log: fit % and residual RMS per wrench channel.
 //! 3. See where it fails and which effect is missing (blocked cross-validation ranking).
 //! 4. Add the recommended effect and watch the error fall: before/after table.
@@ -9,8 +9,9 @@
 //! Run: `cargo run --release --example diagnose_hidden_effect [-- OUT_DIR]` (with an OUT_DIR
 //! it also writes the CSV log, the JSON and the HTML report there).
 
-use tagk::diagnose::report::{diagnosis_table, report_table};
-use tagk::diagnose::{DiagnoseOptions, FlightLog, Model, Signals, add_recommended};
+use tagk::diagnose::{
+    DiagnoseOptions, FlightLog, Model, Signals, add_recommended, diagnosis_table, report_table,
+};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
 };
@@ -31,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..SimConfig::default()
     };
     let flight = simulate(&config)?;
-    // The simulator hands its samples over as a user's data would arrive: a CONVENTIONS §6 log.
+    // The simulator hands its samples over as a user's data would arrive: a CSV flight log.
     let mut csv = Vec::new();
     flight.log.write_csv(&mut csv)?;
     let log = FlightLog::from_csv_reader(csv.as_slice())?;

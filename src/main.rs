@@ -24,7 +24,7 @@ enum Command {
     Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (`--with`).
-    Diagnose(tagk::diagnose::cli::DiagnoseArgs),
+    Diagnose(tagk::cli::diagnose::DiagnoseArgs),
 }
 
 fn main() -> ExitCode {
@@ -33,7 +33,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => tagk::cli::simulate::run_simulate(args)
             .map(|summary| println!("{summary}"))
             .map_err(Into::into),
-        Command::Diagnose(args) => tagk::diagnose::cli::run_diagnose(args).map_err(Into::into),
+        Command::Diagnose(args) => tagk::cli::diagnose::run_diagnose(args).map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,7 +1,8 @@
-//! Command-line pieces shared by the `tagk` binary and the examples: the `simulate`
+//! Command-line pieces shared by the `tagk` binary and the examples: the `simulate` and `diagnose`
 //! subcommand and clap parsers for the simulator's names (trajectories, noise levels,
 //! estimators, effects) that list the accepted values in `--help`.
 
+pub mod diagnose;
 pub mod simulate;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};

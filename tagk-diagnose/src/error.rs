@@ -1,12 +1,14 @@
 //! Typed errors of the diagnosis layer.
 
+use tagk_dynamics::EffectKind;
 use thiserror::Error;
 
 /// A problem with a flight log (defined with the log type in `tagk-dynamics`).
 pub use tagk_dynamics::log::LogError;
 
 /// Every failure of the diagnosis workflow.
-#[derive(Debug, Error)]
+#[derive(Debug, Error, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum DiagnoseError {
     /// The flight log is invalid.
     #[error(transparent)]
@@ -19,9 +21,33 @@ pub enum DiagnoseError {
         /// Why.
         reason: String,
     },
-    /// An unknown effect name (CLI `--with`).
-    #[error("unknown effect `{0}` (known: {known})", known = crate::effects::BUILTIN_NAMES.join(", "))]
+    /// An unknown effect name (CLI `--with`): neither a name or alias of
+    /// [`tagk_dynamics::EffectKind`] nor a custom effect's name.
+    #[error("unknown effect `{0}` (known: {known})", known = known_effects())]
     UnknownEffect(String),
+    /// An effect of the vocabulary without a diagnosis candidate in this version.
+    #[error("effect `{0}` has no diagnosis candidate")]
+    NoCandidate(EffectKind),
+    /// A custom effect multiplies a column the log does not have.
+    #[error("custom effect `{effect}`: the log has no column `{column}`")]
+    UnknownColumn {
+        /// Effect name.
+        effect: String,
+        /// The missing column.
+        column: String,
+    },
+    /// A setting out of its domain (e.g. `DiagnoseOptions { folds: 0 }`).
+    #[error("invalid option `{field}`: {reason}")]
+    InvalidOption {
+        /// The setting, as named in its struct.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A model that cannot be fitted as specified (a duplicate effect, a known mass that is
+    /// not a positive finite number).
+    #[error("invalid model: {0}")]
+    InvalidModel(String),
     /// A malformed `--custom` specification.
     #[error("bad custom effect `{spec}`: {reason}")]
     BadCustomSpec {
@@ -44,4 +70,9 @@ pub enum DiagnoseError {
     /// The online TAG-K pass failed.
     #[error("online TAG-K pass failed: {0}")]
     Online(String),
+}
+
+/// The built-in effect names, comma separated (for error messages).
+fn known_effects() -> String {
+    EffectKind::ALL.map(EffectKind::name).join(", ")
 }

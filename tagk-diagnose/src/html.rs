@@ -22,7 +22,7 @@ const MB: f64 = 34.0;
 const MAX_POINTS: usize = 1200;
 
 /// Escapes text for HTML/SVG.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -43,7 +43,7 @@ fn fmt_tick(v: f64) -> String {
 }
 
 /// A line series: label, colour, x, y.
-pub struct Series<'a> {
+struct LineSeries<'a> {
     /// Legend label.
     pub label: &'a str,
     /// CSS colour.
@@ -115,7 +115,7 @@ fn map(v: f64, r: (f64, f64), a: f64, b: f64) -> f64 {
 }
 
 /// A line plot as an SVG element; `shade` are x-intervals drawn as red bands.
-pub fn line_plot(title: &str, xlabel: &str, series: &[Series<'_>], shade: &[(f64, f64)]) -> String {
+fn line_plot(title: &str, xlabel: &str, series: &[LineSeries<'_>], shade: &[(f64, f64)]) -> String {
     let xr = {
         let (lo, hi) = range(series.iter().flat_map(|s| s.x.iter().copied()));
         let pad = (hi - lo) / 1.1 * 0.05;
@@ -165,7 +165,7 @@ pub fn line_plot(title: &str, xlabel: &str, series: &[Series<'_>], shade: &[(f64
 }
 
 /// A scatter plot as an SVG element.
-pub fn scatter_plot(title: &str, xlabel: &str, x: &[f64], y: &[f64], color: &str) -> String {
+fn scatter_plot(title: &str, xlabel: &str, x: &[f64], y: &[f64], color: &str) -> String {
     let xr = range(x.iter().copied());
     let yr = range(y.iter().copied());
     let mut out = String::new();
@@ -189,7 +189,7 @@ pub fn scatter_plot(title: &str, xlabel: &str, x: &[f64], y: &[f64], color: &str
 }
 
 /// Horizontal bar chart of `(label, value)` in percent.
-pub fn bar_chart(title: &str, bars: &[(String, f64, bool)]) -> String {
+fn bar_chart(title: &str, bars: &[(String, f64, bool)]) -> String {
     let h = MT + 22.0 * bars.len().max(1) as f64 + 20.0;
     let mut out = format!(
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" class="plot"><rect width="{W}" height="{h}" fill="white"/><text x="{}" y="16" font-size="13" text-anchor="middle" font-family="sans-serif">{}</text>"#,
@@ -291,13 +291,13 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
             &format!("{} [{}]", CHANNEL_NAMES[c], CHANNEL_UNITS[c]),
             "time [s]",
             &[
-                Series {
+                LineSeries {
                     label: "measured",
                     color: "#222",
                     x: &d.t,
                     y: &m,
                 },
-                Series {
+                LineSeries {
                     label: "predicted",
                     color: "#d60",
                     x: &d.t,
@@ -321,7 +321,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         html.push_str(&line_plot(
             &format!("residual {} [{}]", CHANNEL_NAMES[c], CHANNEL_UNITS[c]),
             "time [s]",
-            &[Series {
+            &[LineSeries {
                 label: "residual",
                 color: "#c22",
                 x: &d.t,
@@ -437,13 +437,13 @@ pub fn render(report: &Report) -> String {
                 &format!("residual {} before/after", CHANNEL_NAMES[c]),
                 "time [s]",
                 &[
-                    Series {
+                    LineSeries {
                         label: "before",
                         color: "#c22",
                         x: &report.before.t,
                         y: &rb,
                     },
-                    Series {
+                    LineSeries {
                         label: "after",
                         color: "#2a7",
                         x: &after.t,
@@ -473,7 +473,7 @@ pub fn render(report: &Report) -> String {
         html.push_str(&line_plot(
             "TAG-K mass estimate [kg]",
             "update",
-            &[Series {
+            &[LineSeries {
                 label: "mass",
                 color: "#36c",
                 x: &t,

@@ -3,30 +3,37 @@
 // indices than with zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-pub mod cli;
-pub mod deriv;
-pub mod diagnose;
+mod deriv;
+mod diagnose;
 pub mod effects;
 mod error;
-pub mod fit;
+mod fit;
 pub mod html;
 pub mod log;
-pub mod online;
+mod online;
 pub mod report;
-pub mod signals;
-pub mod stats;
+mod signals;
+mod stats;
 
-pub use diagnose::{Candidate, DiagnoseOptions, Diagnosis, diagnose};
+pub use diagnose::{
+    Candidate, DiagnoseOptions, Diagnosis, FailureWindow, Parameter, RegimeStat, Unavailable,
+    Whiteness, diagnose,
+};
 pub use effects::{
-    BodyBias, CustomEffect, Effect, EffectColumn, EffectRef, GroundEffect, LinearDrag, MotorLag,
-    Plausibility, QuadraticDrag, RotorDrag, ScanSpec, ThrustGain, TimeDelay, Wind, builtin_by_name,
-    builtin_effects,
+    BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,
+    builtin_by_name, builtin_effects, builtin_with,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, fit_model};
 pub use log::{FlightLog, LogSample};
-pub use report::{Report, add_recommended, run_loop};
-pub use signals::Signals;
+pub use online::{OnlineSummary, online_pass};
+pub use report::{
+    ChannelChange, RankingEntry, Report, add_recommended, diagnosis_table, report_table, run_loop,
+};
+pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, Signals};
+/// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
+/// built-in candidates are keyed by it ([`builtin`]).
+pub use tagk_dynamics::EffectKind;
 
 #[cfg(test)]
 pub(crate) mod testdata;

@@ -7,15 +7,15 @@ use crate::error::DiagnoseError;
 use crate::fit::{Fit, rigid_columns};
 use crate::signals::Signals;
 
-/// Frames per TAG-K window (CONVENTIONS §5: the 5 most recent frames, 30 rows).
-pub const WINDOW_FRAMES: usize = 5;
+/// Frames per TAG-K window (the 5 most recent frames, 30 rows).
+pub(crate) const WINDOW_FRAMES: usize = 5;
 
 /// Summary of the online pass.
 #[derive(Debug, Clone, Serialize)]
 pub struct OnlineSummary {
     /// Windows processed.
     pub updates: usize,
-    /// Estimate after the last window (CONVENTIONS order).
+    /// Estimate after the last window (order of `tagk_dynamics::InertialParams`).
     pub final_estimate: [f64; 10],
     /// Tail average of the estimates over the second half of the log.
     pub tail_average: [f64; 10],
@@ -27,13 +27,20 @@ pub struct OnlineSummary {
     pub mass_history: Vec<f64>,
 }
 
-/// Runs TAG-K over the log with windows of [`WINDOW_FRAMES`] frames every `stride` samples,
+/// Runs TAG-K over the log with windows of 5 frames (30 rows) every `stride` samples,
 /// rows weighted like the batch fit `fit` and columns equilibrated (so that the mass and the
 /// inertia, five orders of magnitude apart, converge alike), warm-started from zero.
 ///
 /// # Errors
-/// [`DiagnoseError::Online`] if the estimator rejects a window.
+/// [`DiagnoseError::InvalidOption`] for `stride == 0`; [`DiagnoseError::Online`] if the
+/// estimator rejects a window.
 pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummary, DiagnoseError> {
+    if stride == 0 {
+        return Err(DiagnoseError::InvalidOption {
+            field: "stride",
+            reason: "0 samples between windows: the stride must be at least 1".into(),
+        });
+    }
     let n = s.len();
     let cols = rigid_columns(s);
     let w = fit.weights;
@@ -56,7 +63,6 @@ pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummar
         .map_err(|e| DiagnoseError::Online(e.to_string()))?;
     let mut a = vec![0.0; rows * 10];
     let mut b = vec![0.0; rows];
-    let stride = stride.max(1);
     let mut updates = 0;
     let mut tail = [0.0; 10];
     let mut tail_n = 0usize;

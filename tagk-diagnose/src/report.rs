@@ -122,10 +122,13 @@ pub fn add_recommended(
     opts: &DiagnoseOptions,
 ) -> Result<Report, DiagnoseError> {
     let before = diagnose(base, s, opts)?;
-    let with = match &before.recommended {
-        Some(name) => vec![crate::effects::builtin_by_name(name)?],
-        None => Vec::new(),
-    };
+    // The recommendation is one of the candidates (built-in or the user's own).
+    let with: Vec<EffectRef> = before
+        .recommended
+        .iter()
+        .filter_map(|name| opts.candidates.iter().find(|c| c.name() == name))
+        .cloned()
+        .collect();
     loop_from(before, s, base, &with, opts)
 }
 

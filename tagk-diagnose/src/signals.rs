@@ -7,7 +7,7 @@ use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
 use crate::error::LogError;
 use crate::log::FlightLog;
 
-/// Names of the six wrench channels, in CONVENTIONS order.
+/// Names of the six wrench channels: body-frame force, then torque about the body origin.
 pub const CHANNEL_NAMES: [&str; 6] = ["fx", "fy", "fz", "tx", "ty", "tz"];
 /// Units of the six wrench channels.
 pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];
@@ -16,7 +16,7 @@ pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];
 pub type Channel = usize;
 
 /// Half-width of the Savitzky–Golay smoothing of the velocity used by the drag effects.
-pub const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
+pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
@@ -28,7 +28,7 @@ pub struct Signals {
     /// World position \[m\].
     pub position: Vec<Vector3<f64>>,
     /// Body-frame velocity `Rᵀ v` \[m/s\], from the logged velocity smoothed by a
-    /// Savitzky–Golay filter of half-width [`VELOCITY_SMOOTHING_HALF_WIDTH`] (velocity noise
+    /// Savitzky–Golay filter of half-width 7 (15 samples; velocity noise
     /// in a regressor column would bias drag coefficients towards zero).
     pub velocity_body: Vec<Vector3<f64>>,
     /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame \[m/s²\].
@@ -51,7 +51,7 @@ pub struct Signals {
 
 impl Signals {
     /// Validates the log and derives the signals (missing accelerations by the
-    /// Savitzky–Golay differentiator of [`crate::deriv`]).
+    /// Savitzky–Golay differentiator: a local quadratic least-squares fit over 11 samples).
     ///
     /// # Errors
     /// The log's validation error.
@@ -129,8 +129,10 @@ impl Signals {
     }
 }
 
-/// Linear interpolation of a series `x(t)` at time `tq` (clamped at the ends).
-pub fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
+/// Linear interpolation of a series `x(t)` at time `tq` (clamped at the ends): the
+/// pointwise reference of the time-delay effect's sweep in the unit tests.
+#[cfg(test)]
+pub(crate) fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
     let n = t.len();
     if n == 0 {
         return 0.0;
@@ -145,9 +147,4 @@ pub fn interp(t: &[f64], x: &[f64], tq: f64) -> f64 {
     let (t0, t1) = (t[k - 1], t[k]);
     let f = (tq - t0) / (t1 - t0);
     x[k - 1] * (1.0 - f) + x[k] * f
-}
-
-/// Attitude as a unit quaternion helper for writers of synthetic logs: `(w, x, y, z)`.
-pub fn quaternion_array(q: &UnitQuaternion<f64>) -> [f64; 4] {
-    [q.w, q.i, q.j, q.k]
 }

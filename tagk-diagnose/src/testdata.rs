@@ -9,7 +9,7 @@ use tagk_dynamics::{GRAVITY_WORLD, InertialParams, newton_euler};
 
 use crate::log::{FlightLog, LogSample};
 
-/// The Crazyflie's nominal parameters (CONVENTIONS §4).
+/// The Crazyflie's nominal parameters.
 pub fn crazyflie() -> InertialParams {
     InertialParams::from_array([
         0.035, 0.0, 0.0, 0.0, 1.66e-5, 0.83e-6, 1.66e-5, 0.72e-6, 1.8e-6, 2.93e-5,

@@ -4,9 +4,10 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 use proptest::prelude::*;
 
+use crate::EffectKind;
 use crate::deriv::{savitzky_golay_derivative, savitzky_golay_smooth};
 use crate::diagnose::{DiagnoseOptions, diagnose};
-use crate::effects::{BodyBias, CustomEffect, Effect, LinearDrag, first_order_lag};
+use crate::effects::{CustomEffect, Effect, builtin, first_order_lag, shifted};
 use crate::fit::{
     ColData, GramEngine, Model, channel_stats, fit_model, rigid_columns, weighted_qr_solve,
 };
@@ -93,7 +94,8 @@ fn gram_cross_validation_matches_brute_force() {
     });
     let s = Signals::from_log(&log).unwrap();
     let base = rigid_columns(&s);
-    let cand: Vec<ColData> = crate::fit::effect_design(&LinearDrag, &s, None);
+    let cand: Vec<ColData> =
+        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None);
     let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
     let folds = 5;
     let engine = GramEngine::new(&s, &w, &base, None, folds);
@@ -148,7 +150,12 @@ fn hidden_linear_drag_in_synthetic_data_is_ranked_first_and_recovered() {
         "{:?}",
         diag.ranking[0].explanation
     );
-    let fit = fit_model(&Model::rigid_body().with(LinearDrag), &s, None).unwrap();
+    let fit = fit_model(
+        &Model::rigid_body().with_ref(builtin(EffectKind::LinearDrag).unwrap()),
+        &s,
+        None,
+    )
+    .unwrap();
     for c in &fit.effects[0].coefficients {
         assert!((c.value - d).abs() < 0.05 * d, "{c:?}");
     }
@@ -186,7 +193,7 @@ fn torque_bias_hidden_in_the_centre_of_mass_is_flagged() {
     );
     // Adding the bias brings the centre of mass back inside.
     let diag2 = diagnose(
-        &Model::rigid_body().with(BodyBias),
+        &Model::rigid_body().with_ref(builtin(EffectKind::BodyBias).unwrap()),
         &s,
         &DiagnoseOptions::default(),
     )
@@ -309,6 +316,11 @@ fn custom_effect_from_a_log_column_is_found() {
     ));
     let d = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
     assert_eq!(d.recommended.as_deref(), Some("gust"));
+    // The whole loop adds a recommended custom effect as well as a built-in one.
+    let report = crate::add_recommended(&s, &Model::rigid_body(), &opts).unwrap();
+    assert_eq!(report.with, vec!["gust".to_string()]);
+    let after = report.after.as_ref().unwrap();
+    assert!(after.channels[0].rms < 0.5 * report.before.channels[0].rms);
 }
 
 fn csv_text(rows: usize) -> String {
@@ -454,10 +466,252 @@ proptest! {
         let mut t = vec![0.0];
         for s in &steps { let last = *t.last().unwrap(); t.push(last + s); }
         let x: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + t * t).collect();
-        let fast = crate::effects::shifted_for_tests(&t, &x, d);
+        let fast = shifted(&t, &x, d);
         for (i, ti) in t.iter().enumerate() {
             let slow = crate::signals::interp(&t, &x, ti - d);
             prop_assert!((fast[i] - slow).abs() < 1e-12);
         }
     }
+}
+
+// ---------- validation, registry, vocabulary ----------
+
+fn invalid_field(r: Result<(), DiagnoseError>) -> &'static str {
+    match r {
+        Err(DiagnoseError::InvalidOption { field, .. }) => field,
+        other => panic!("expected InvalidOption, got {other:?}"),
+    }
+}
+
+#[test]
+fn every_option_field_is_validated() {
+    assert!(DiagnoseOptions::default().validate().is_ok());
+    let with = |f: &dyn Fn(&mut DiagnoseOptions)| {
+        let mut o = DiagnoseOptions::default();
+        f(&mut o);
+        o.validate()
+    };
+    assert_eq!(invalid_field(with(&|o| o.folds = 0)), "folds");
+    assert_eq!(invalid_field(with(&|o| o.folds = 1)), "folds");
+    assert_eq!(invalid_field(with(&|o| o.alpha = f64::NAN)), "alpha");
+    assert_eq!(invalid_field(with(&|o| o.alpha = 0.0)), "alpha");
+    assert_eq!(invalid_field(with(&|o| o.alpha = 1.0)), "alpha");
+    assert_eq!(
+        invalid_field(with(&|o| o.min_reduction = f64::INFINITY)),
+        "min_reduction"
+    );
+    assert_eq!(
+        invalid_field(with(&|o| o.airframe_radius = 0.0)),
+        "airframe_radius"
+    );
+    assert_eq!(
+        invalid_field(with(&|o| o.airframe_radius = f64::NAN)),
+        "airframe_radius"
+    );
+    assert_eq!(invalid_field(with(&|o| o.candidates.clear())), "candidates");
+    assert_eq!(
+        invalid_field(with(&|o| {
+            let first = o.candidates[0].clone();
+            o.candidates.push(first);
+        })),
+        "candidates"
+    );
+}
+
+#[test]
+fn diagnose_refuses_bad_options_instead_of_clamping() {
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 3, &none)).unwrap();
+    let zero = DiagnoseOptions {
+        folds: 0,
+        ..DiagnoseOptions::default()
+    };
+    assert!(matches!(
+        diagnose(&Model::rigid_body(), &s, &zero),
+        Err(DiagnoseError::InvalidOption { field: "folds", .. })
+    ));
+    // More blocks than the log can hold (4 samples each).
+    let many = DiagnoseOptions {
+        folds: 76,
+        ..DiagnoseOptions::default()
+    };
+    assert!(matches!(
+        diagnose(&Model::rigid_body(), &s, &many),
+        Err(DiagnoseError::InvalidOption { field: "folds", .. })
+    ));
+    let fit = Model::rigid_body().fit(&s).unwrap();
+    assert!(matches!(
+        crate::online_pass(&s, &fit, 0),
+        Err(DiagnoseError::InvalidOption {
+            field: "stride",
+            ..
+        })
+    ));
+    assert!(matches!(
+        fit_model(
+            &Model::rigid_body(),
+            &s,
+            Some([1.0, 1.0, 0.0, 1.0, 1.0, 1.0])
+        ),
+        Err(DiagnoseError::InvalidOption {
+            field: "weights",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn models_with_a_bad_mass_or_a_repeated_effect_are_refused() {
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 4, &none)).unwrap();
+    for m in [0.0, -0.035, f64::NAN, f64::INFINITY] {
+        let model = Model::rigid_body().with_known_mass(m);
+        assert!(
+            matches!(model.fit(&s), Err(DiagnoseError::InvalidModel(_))),
+            "{m}"
+        );
+    }
+    let drag = builtin(EffectKind::LinearDrag).unwrap();
+    let twice = Model::rigid_body().with_ref(drag.clone()).with_ref(drag);
+    assert!(matches!(
+        twice.validate(),
+        Err(DiagnoseError::InvalidModel(_))
+    ));
+}
+
+#[test]
+fn the_registry_is_keyed_by_the_shared_vocabulary() {
+    let all = crate::builtin_effects();
+    assert_eq!(all.len(), EffectKind::ALL.len());
+    for (kind, effect) in EffectKind::ALL.into_iter().zip(&all) {
+        assert_eq!(effect.name(), kind.name());
+        assert_eq!(builtin(kind).unwrap().name(), kind.name());
+        for alias in kind.aliases() {
+            assert_eq!(crate::builtin_by_name(alias).unwrap().name(), kind.name());
+        }
+    }
+    assert!(matches!(
+        crate::builtin_by_name("anti-gravity"),
+        Err(DiagnoseError::UnknownEffect(_))
+    ));
+    let text = crate::builtin_by_name("drag").unwrap_err().to_string();
+    for kind in EffectKind::ALL {
+        assert!(text.contains(kind.name()), "{text}");
+    }
+}
+
+#[test]
+fn builtin_tunables_are_validated_and_used() {
+    let mut o = crate::BuiltinOptions::default();
+    assert!(o.validate().is_ok());
+    o.time_delays = vec![0.01, 0.02];
+    let delay = crate::builtin_with(EffectKind::TimeDelay, &o).unwrap();
+    assert_eq!(delay.scan().unwrap().grid, vec![0.01, 0.02]);
+    o.motor_lag_time_constants = vec![0.02, -0.01];
+    assert_eq!(invalid_field(o.validate()), "motor_lag_time_constants");
+    let mut o = crate::BuiltinOptions::default();
+    o.time_delays.clear();
+    assert_eq!(invalid_field(o.validate()), "time_delays");
+    let o = crate::BuiltinOptions {
+        rotor_radius: -1.0,
+        ..Default::default()
+    };
+    assert_eq!(invalid_field(o.validate()), "rotor_radius");
+    let mut o = crate::BuiltinOptions::default();
+    o.ground_min_height = o.rotor_radius / 8.0;
+    assert_eq!(invalid_field(o.validate()), "ground_min_height");
+}
+
+#[test]
+fn custom_effects_check_their_channels_and_columns() {
+    assert!(matches!(
+        CustomEffect::new("x", vec!["fz".into()], vec![6]),
+        Err(DiagnoseError::BadCustomSpec { .. })
+    ));
+    assert!(matches!(
+        CustomEffect::new("x", vec![], vec![2]),
+        Err(DiagnoseError::BadCustomSpec { .. })
+    ));
+    assert!(matches!(
+        CustomEffect::new(" ", vec!["fz".into()], vec![2]),
+        Err(DiagnoseError::BadCustomSpec { .. })
+    ));
+    let c = CustomEffect::new("x", vec!["fz".into()], vec![2, 2, 5]).unwrap();
+    assert_eq!(c.channels(), vec![2, 5]);
+    let log = synthetic_log(&crazyflie(), 300, 0.0, 5, &none);
+    assert!(c.require_columns(&log).is_ok());
+    let v = CustomEffect::parse("v=vbat*fz@fz").unwrap();
+    assert_eq!(
+        v.require_columns(&log),
+        Err(DiagnoseError::UnknownColumn {
+            effect: "v".into(),
+            column: "vbat".into()
+        })
+    );
+}
+
+#[test]
+fn public_types_are_send_sync_debug_clone() {
+    fn check<T: Send + Sync + std::fmt::Debug + Clone>() {}
+    check::<DiagnoseOptions>();
+    check::<crate::Diagnosis>();
+    check::<crate::Report>();
+    check::<Model>();
+    check::<crate::Fit>();
+    check::<crate::EffectRef>();
+    check::<CustomEffect>();
+    check::<crate::BuiltinOptions>();
+    check::<DiagnoseError>();
+    check::<Signals>();
+}
+
+/// A user-defined effect whose columns are malformed (too short, or not finite).
+#[derive(Debug)]
+struct Faulty {
+    short: bool,
+}
+
+impl Effect for Faulty {
+    fn name(&self) -> &str {
+        if self.short { "short" } else { "nan" }
+    }
+    fn description(&self) -> &str {
+        "a malformed user effect"
+    }
+    fn channels(&self) -> Vec<crate::Channel> {
+        vec![0]
+    }
+    fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<crate::EffectColumn> {
+        let n = if self.short { s.len() - 1 } else { s.len() };
+        let mut v = vec![1.0; n];
+        if !self.short {
+            v[7] = f64::NAN;
+        }
+        vec![crate::EffectColumn::on("x", "N", 0, v)]
+    }
+    fn plausibility(&self, _c: &[f64], _se: &[f64], _p: Option<f64>) -> crate::Plausibility {
+        crate::Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        ("t".into(), s.t.clone())
+    }
+}
+
+#[test]
+fn malformed_user_effects_are_reported_not_panicked_on() {
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 6, &none)).unwrap();
+    let mut opts = DiagnoseOptions::default();
+    for short in [true, false] {
+        opts.candidates
+            .push(std::sync::Arc::new(Faulty { short }) as crate::EffectRef);
+        let model = Model::rigid_body().with(Faulty { short });
+        assert!(matches!(
+            model.fit(&s),
+            Err(DiagnoseError::EffectUnavailable { .. })
+        ));
+    }
+    let d = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
+    let skipped: Vec<&str> = d.unavailable.iter().map(|u| u.effect.as_str()).collect();
+    assert!(
+        skipped.contains(&"short") && skipped.contains(&"nan"),
+        "{skipped:?}"
+    );
 }

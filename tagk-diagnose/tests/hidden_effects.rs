@@ -7,7 +7,9 @@
 mod common;
 
 use tagk_diagnose::{DiagnoseOptions, Model, Signals, builtin_by_name, diagnose, run_loop};
-use tagk_sim::EffectKind;
+// One vocabulary: the simulator's plant effects and the diagnosis's candidates share these names.
+use tagk_dynamics::EffectKind;
+use tagk_dynamics::quadrotor::CRAZYFLIE_MASS;
 
 const SEED: u64 = 7;
 /// Seeds of the one-effect checks (trajectory size, phase, start state and noise differ).
@@ -17,7 +19,7 @@ fn model_for(kind: EffectKind) -> Model {
     // A thrust-gain error scales the whole regression like a mass error: it is identifiable
     // only with the vehicle weighed (the nominal 35 g).
     if kind == EffectKind::ThrustGain {
-        Model::rigid_body().with_known_mass(0.035)
+        Model::rigid_body().with_known_mass(CRAZYFLIE_MASS)
     } else {
         Model::rigid_body()
     }
@@ -47,18 +49,17 @@ fn check_seed(kind: EffectKind, seed: u64) {
     let s = Signals::from_log(&common::sim_log(Some(kind), seed)).unwrap();
     let base = model_for(kind);
     let d = diagnose(&base, &s, &opts).unwrap();
-    let expected = common::expected_name(kind);
-    // The simulator's "linear drag" is rotor drag K·Σω·v_b: with Σω near hover it is
-    // indistinguishable from a constant linear drag, so either name is the right answer.
+    // Rotor drag K·Σω·v_b with Σω near hover is indistinguishable from a constant linear
+    // drag, so either is the right answer.
     let ok_names: Vec<&str> = if kind == EffectKind::RotorDrag {
-        vec!["rotor-drag", "linear-drag"]
+        vec![EffectKind::RotorDrag.name(), EffectKind::LinearDrag.name()]
     } else {
-        vec![expected]
+        vec![kind.name()]
     };
     let top = &d.ranking[0];
     assert!(
         ok_names.contains(&top.effect.as_str()),
-        "{kind:?} seed {seed}: ranked first {} ({}), expected {expected}",
+        "{kind:?} seed {seed}: ranked first {} ({}), expected {kind}",
         top.effect,
         top.explanation
     );
@@ -131,17 +132,21 @@ fn hidden_wind_surfaces_after_drag() {
     let s = Signals::from_log(&common::sim_log(Some(EffectKind::Wind), SEED)).unwrap();
     let d0 = diagnose(&Model::rigid_body(), &s, &opts).unwrap();
     let first = d0.recommended.clone().expect("something is missing");
+    let drags = [EffectKind::LinearDrag.name(), EffectKind::RotorDrag.name()];
     assert!(
-        ["linear-drag", "rotor-drag", "wind"].contains(&first.as_str()),
+        drags.contains(&first.as_str()) || first == EffectKind::Wind.name(),
         "first: {first}"
     );
     let m1 = Model::rigid_body().with_ref(builtin_by_name(&first).unwrap());
     let d1 = diagnose(&m1, &s, &opts).unwrap();
     let second = d1.recommended.clone().expect("a second effect is missing");
     let pair = [first.as_str(), second.as_str()];
-    assert!(pair.contains(&"wind"), "wind never surfaced: {pair:?}");
     assert!(
-        pair.contains(&"linear-drag") || pair.contains(&"rotor-drag"),
+        pair.contains(&EffectKind::Wind.name()),
+        "wind never surfaced: {pair:?}"
+    );
+    assert!(
+        drags.iter().any(|d| pair.contains(d)),
         "drag never surfaced: {pair:?}"
     );
     let with = [
@@ -183,7 +188,12 @@ fn clean_logs_with_known_mass_raise_no_false_alarm() {
     let mut alarms = Vec::new();
     for seed in 0..20u64 {
         let s = Signals::from_log(&common::sim_log(None, 200 + seed)).unwrap();
-        let d = diagnose(&Model::rigid_body().with_known_mass(0.035), &s, &opts).unwrap();
+        let d = diagnose(
+            &Model::rigid_body().with_known_mass(CRAZYFLIE_MASS),
+            &s,
+            &opts,
+        )
+        .unwrap();
         if let Some(r) = d.recommended {
             alarms.push((seed, r));
         }

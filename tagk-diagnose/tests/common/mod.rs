@@ -55,8 +55,3 @@ pub fn sim_log(effect: Option<EffectKind>, seed: u64) -> FlightLog {
     );
     out.log
 }
-
-/// The name of the diagnosis effect that models a simulator effect: the shared vocabulary's.
-pub fn expected_name(kind: EffectKind) -> &'static str {
-    kind.name()
-}

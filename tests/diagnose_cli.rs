@@ -1,12 +1,14 @@
-//! The CLI entry point end to end on a simulator log written to CSV: terminal run, JSON keys,
-//! HTML report (opened in headless Chromium when it is installed).
-mod common;
+//! `tagk diagnose` end to end on a simulator log written to CSV: terminal run, JSON keys,
+//! HTML report (opened in headless Chromium when it is installed), typed errors, `--help`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use tagk_diagnose::cli::{DiagnoseArgs, run_diagnose};
-use tagk_sim::EffectKind;
+use tagk::cli::diagnose::{DiagnoseArgs, plan, run_diagnose};
+use tagk::diagnose::{DiagnoseError, EffectKind as Vocabulary, FlightLog};
+use tagk::sim::{
+    Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, TrajectoryKind,
+};
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tagk-diagnose-{name}-{}", std::process::id()));
@@ -15,11 +17,25 @@ fn tmpdir(name: &str) -> PathBuf {
     d
 }
 
+/// A 25 s figure-8 flight with quadratic drag hidden (seed 3, medium noise), written by the
+/// simulator's log writer.
 fn write_drag_log(dir: &Path) -> PathBuf {
-    let log = common::sim_log(Some(EffectKind::QuadraticDrag), 3);
+    let config = SimConfig {
+        trajectory: TrajectoryKind::Figure8,
+        duration: 25.0,
+        seed: 3,
+        noise: NoiseLevel::Medium,
+        payload: PayloadSchedule::None,
+        effects: PlantEffects::only(EffectKind::QuadraticDrag).unwrap(),
+        adaptation: Adaptation::Nominal,
+        record_log: true,
+        stop_on_abort: false,
+        ..SimConfig::default()
+    };
+    let out = tagk::sim::simulate(&config).expect("simulation runs");
+    assert!(!out.metrics.aborted);
     let path = dir.join("drag.csv");
-    let f = std::fs::File::create(&path).unwrap();
-    log.write_csv(std::io::BufWriter::new(f)).unwrap();
+    out.log.write_csv_path(&path).unwrap();
     path
 }
 
@@ -76,8 +92,73 @@ fn unknown_effect_is_a_typed_error() {
     args.quiet = true;
     assert!(matches!(
         run_diagnose(&args),
-        Err(tagk_diagnose::DiagnoseError::UnknownEffect(_))
+        Err(DiagnoseError::UnknownEffect(_))
     ));
+}
+
+/// `--with` takes the vocabulary's aliases; a `--custom` effect must name columns the log has;
+/// a mass must be positive; the same effect twice is refused.
+#[test]
+fn effect_names_aliases_and_custom_columns_are_checked() {
+    let dir = tmpdir("plan");
+    let path = write_drag_log(&dir);
+    let log = FlightLog::from_csv_path(&path).unwrap();
+    let mut args = DiagnoseArgs::new(&path);
+    args.with = vec!["Wrench_Bias".into(), "delay".into()];
+    let p = plan(&args, &log).unwrap();
+    let names: Vec<&str> = p.with.iter().map(|e| e.name()).collect();
+    assert_eq!(
+        names,
+        [Vocabulary::BodyBias.name(), Vocabulary::TimeDelay.name()]
+    );
+    args.with = vec!["body-bias".into(), "bias".into()];
+    let err = tagk::cli::diagnose::diagnose_log(&log, &args).unwrap_err();
+    assert!(matches!(err, DiagnoseError::InvalidModel(_)), "{err}");
+
+    let mut args = DiagnoseArgs::new(&path);
+    args.custom = vec!["vbat=vbat*fz@fz".into()];
+    assert_eq!(
+        plan(&args, &log).unwrap_err(),
+        DiagnoseError::UnknownColumn {
+            effect: "vbat".into(),
+            column: "vbat".into()
+        }
+    );
+    let mut args = DiagnoseArgs::new(&path);
+    args.custom = vec!["thrust=fz*fz@fz".into()];
+    args.with = vec!["thrust".into()];
+    assert_eq!(plan(&args, &log).unwrap().with[0].name(), "thrust");
+
+    let mut args = DiagnoseArgs::new(&path);
+    args.mass = Some(-0.035);
+    assert!(matches!(
+        plan(&args, &log),
+        Err(DiagnoseError::InvalidModel(_))
+    ));
+    let mut args = DiagnoseArgs::new(&path);
+    args.airframe_radius = 0.0;
+    assert!(matches!(
+        plan(&args, &log),
+        Err(DiagnoseError::InvalidOption {
+            field: "airframe_radius",
+            ..
+        })
+    ));
+}
+
+/// `tagk diagnose --help` lists every built-in effect with its summary.
+#[test]
+fn help_lists_the_effects_with_their_summaries() {
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(["diagnose", "--help"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    for kind in Vocabulary::ALL {
+        assert!(help.contains(kind.name()), "{help}");
+        assert!(help.contains(kind.summary()), "{help}");
+    }
 }
 
 /// Writes the HTML report and opens it in headless Chromium (`apt-get install -y chromium`).

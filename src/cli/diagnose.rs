@@ -1,24 +1,22 @@
-//! `tagk diagnose`: the command-line front end (the root binary wires [`DiagnoseArgs`] in).
+//! `tagk diagnose`: compare the rigid-body model with a flight log, find the missing effect,
+//! add effects with `--with` and print the before/after comparison.
 
 use std::path::PathBuf;
 
-use crate::diagnose::DiagnoseOptions;
-use crate::effects::{CustomEffect, EffectRef, builtin_by_name, builtin_effects};
-use crate::error::DiagnoseError;
-use crate::fit::Model;
-use crate::log::FlightLog;
-use crate::online::online_pass;
-use crate::report::{Report, report_table, run_loop};
-use crate::signals::Signals;
+use crate::diagnose::{
+    CustomEffect, DiagnoseError, DiagnoseOptions, EffectKind, EffectRef, FlightLog, Model, Report,
+    Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_loop,
+};
 
 /// Arguments of `tagk diagnose`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
-    /// Flight log (CSV, CONVENTIONS §6).
+    /// Flight log (CSV).
     #[arg(value_name = "LOG")]
     pub log: PathBuf,
-    /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`);
-    /// built-in names or the names of `--custom` effects.
+    /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
+    /// built-in names or aliases (listed below) or the names of `--custom` effects.
     #[arg(long = "with", value_delimiter = ',', value_name = "EFFECT")]
     pub with: Vec<String>,
     /// Write every number as JSON to this file.
@@ -34,15 +32,35 @@ pub struct DiagnoseArgs {
     /// (e.g. `vbat=vbat*fz@fz`); repeatable.
     #[arg(long = "custom", value_name = "SPEC")]
     pub custom: Vec<String>,
-    /// Known vehicle mass \[kg\] (fixes the mass; makes `thrust-gain` identifiable).
+    /// Known vehicle mass in kg (fixes the mass; makes `thrust-gain` identifiable).
     #[arg(long, value_name = "KG")]
     pub mass: Option<f64>,
-    /// Airframe radius \[m\] beyond which a fitted centre of mass is flagged.
-    #[arg(long, value_name = "M", default_value_t = tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET)]
+    /// Airframe radius in m beyond which a fitted centre of mass is flagged.
+    #[arg(long, value_name = "M", default_value_t = default_airframe_radius())]
     pub airframe_radius: f64,
     /// Do not print the terminal summary.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The default of `--airframe-radius`: the one of [`DiagnoseOptions::default`].
+fn default_airframe_radius() -> f64 {
+    DiagnoseOptions::default().airframe_radius
+}
+
+/// The built-in effects with their aliases and one-line summaries, for `--help`.
+fn effects_help() -> String {
+    let mut text = String::from("Built-in effects (--with NAME):\n");
+    for kind in EffectKind::ALL {
+        let aliases = kind.aliases();
+        let also = if aliases.is_empty() {
+            String::new()
+        } else {
+            format!(" (also: {})", aliases.join(", "))
+        };
+        text.push_str(&format!("  {:<15} {}{also}\n", kind.name(), kind.summary()));
+    }
+    text
 }
 
 impl DiagnoseArgs {
@@ -56,22 +74,35 @@ impl DiagnoseArgs {
             online: false,
             custom: Vec::new(),
             mass: None,
-            airframe_radius: tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET,
+            airframe_radius: default_airframe_radius(),
             quiet: false,
         }
     }
 }
 
-/// Builds the base model, the `--with` effects and the options from the arguments.
+/// What the arguments ask for on a given log: the starting model, the effects to add and the
+/// diagnosis options (built-in candidates plus the custom ones).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The starting model (rigid body, with the known mass if given).
+    pub base: Model,
+    /// The effects to add (`--with`).
+    pub with: Vec<EffectRef>,
+    /// The diagnosis options.
+    pub options: DiagnoseOptions,
+}
+
+/// Builds the [`Plan`] from the arguments, checked against the log.
 ///
 /// # Errors
-/// Unknown effect names, malformed custom specifications, a non-positive mass.
-pub fn plan(
-    args: &DiagnoseArgs,
-) -> Result<(Model, Vec<EffectRef>, DiagnoseOptions), DiagnoseError> {
+/// A malformed custom specification or one naming a column the log lacks, an unknown effect
+/// name, a mass that is not positive and finite, invalid options.
+pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<Plan, DiagnoseError> {
     let mut customs: Vec<EffectRef> = Vec::new();
     for spec in &args.custom {
-        customs.push(std::sync::Arc::new(CustomEffect::parse(spec)?));
+        let custom = CustomEffect::parse(spec)?;
+        custom.require_columns(log)?;
+        customs.push(std::sync::Arc::new(custom));
     }
     let mut with = Vec::new();
     for name in args.with.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
@@ -82,31 +113,32 @@ pub fn plan(
     }
     let mut base = Model::rigid_body();
     if let Some(m) = args.mass {
-        if !(m > 0.0 && m.is_finite()) {
-            return Err(DiagnoseError::Fit(format!(
-                "--mass must be positive, got {m}"
-            )));
-        }
         base = base.with_known_mass(m);
     }
+    base.validate()?;
     let mut candidates = builtin_effects();
     candidates.extend(customs);
-    let opts = DiagnoseOptions {
+    let options = DiagnoseOptions {
         airframe_radius: args.airframe_radius,
         candidates,
         ..DiagnoseOptions::default()
     };
-    Ok((base, with, opts))
+    options.validate()?;
+    Ok(Plan {
+        base,
+        with,
+        options,
+    })
 }
 
 /// Runs the whole loop on a log in memory (what [`run_diagnose`] does after reading the file).
 ///
 /// # Errors
-/// As [`run_loop`] and [`online_pass`].
+/// As [`plan`], [`run_loop`] and [`online_pass`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
-    let (base, with, opts) = plan(args)?;
+    let plan = plan(args, log)?;
     let s = Signals::from_log(log)?;
-    let mut report = run_loop(&s, &base, &with, &opts)?;
+    let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     if args.online {
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
     }
@@ -131,7 +163,7 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         })?;
     }
     if let Some(dir) = &args.report {
-        let file = crate::html::write_report(&report, dir)?;
+        let file = crate::diagnose::html::write_report(&report, dir)?;
         if !args.quiet {
             println!("report: {}", file.display());
         }

@@ -1,0 +1,239 @@
+//! The diagnosis workflow: compare, where it fails, what is missing.
+//!
+//! [`diagnose`] runs four named steps: fit the model ([`crate::fit_model`]), rank the missing
+//! candidates ([`ranking`]), find where the model fails ([`residual`]), judge the parameters
+//! ([`parameters`]); then it states a verdict.
+
+mod parameters;
+mod ranking;
+mod residual;
+
+use serde::Serialize;
+use tagk_dynamics::SafetyGate;
+
+use crate::effects::{EffectRef, builtin_effects, scan_problem};
+use crate::error::DiagnoseError;
+use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model};
+use crate::signals::Signals;
+
+pub use parameters::Parameter;
+pub use ranking::{Candidate, Unavailable};
+pub use residual::{FailureWindow, RegimeStat, Whiteness};
+
+/// Settings of [`diagnose`].
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Blocks of the blocked cross-validation over time (default 5).
+    pub folds: usize,
+    /// Family-wise significance level of the candidate tests (Bonferroni over the
+    /// candidates; default 0.01).
+    pub alpha: f64,
+    /// Smallest held-out residual reduction (fraction of the channel-normalised held-out SSE)
+    /// worth recommending (default 0.02).
+    pub min_reduction: f64,
+    /// Radius of the airframe \[m\]: a fitted centre of mass significantly farther from the
+    /// origin is flagged as evidence of an unmodelled force (default: the Crazyflie's
+    /// `L_arm` = 0.0325 m).
+    pub airframe_radius: f64,
+    /// Candidate effects to rank (default: every built-in).
+    pub candidates: Vec<EffectRef>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            folds: 5,
+            alpha: 0.01,
+            min_reduction: 0.02,
+            airframe_radius: SafetyGate::crazyflie().max_com_offset,
+            candidates: builtin_effects(),
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// Checks every field: `folds ≥ 2`, `alpha` in `(0, 1)`, `min_reduction` finite and below
+    /// 1, `airframe_radius` positive and finite, and a non-empty list of candidates with
+    /// unique names and usable scan grids. [`diagnose`] runs this first (and also needs
+    /// `folds ≤ samples / 4`).
+    ///
+    /// # Errors
+    /// [`DiagnoseError::InvalidOption`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(DiagnoseError::InvalidOption { field, reason })
+        };
+        if self.folds < 2 {
+            return bad(
+                "folds",
+                format!(
+                    "{} block(s): the blocked cross-validation needs at least 2",
+                    self.folds
+                ),
+            );
+        }
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return bad("alpha", format!("{} is not in (0, 1)", self.alpha));
+        }
+        if !(self.min_reduction.is_finite() && self.min_reduction < 1.0) {
+            return bad(
+                "min_reduction",
+                format!("{} is not a finite fraction below 1", self.min_reduction),
+            );
+        }
+        if !(self.airframe_radius.is_finite() && self.airframe_radius > 0.0) {
+            return bad(
+                "airframe_radius",
+                format!("{} m is not positive and finite", self.airframe_radius),
+            );
+        }
+        if self.candidates.is_empty() {
+            return bad("candidates", "no candidate effect to rank".into());
+        }
+        for (k, e) in self.candidates.iter().enumerate() {
+            if self.candidates[..k].iter().any(|f| f.name() == e.name()) {
+                return bad("candidates", format!("effect `{}` listed twice", e.name()));
+            }
+            if let Some(problem) = scan_problem(e.as_ref()) {
+                return bad("candidates", problem);
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Self::validate`] plus the checks that need the log's length: every one of the
+    /// `folds` blocks must hold at least 4 samples.
+    fn validate_for(&self, samples: usize) -> Result<(), DiagnoseError> {
+        self.validate()?;
+        if self.folds > samples / 4 {
+            return Err(DiagnoseError::InvalidOption {
+                field: "folds",
+                reason: format!(
+                    "{} blocks for {samples} samples: at most {} (4 samples per block)",
+                    self.folds,
+                    samples / 4
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Everything the diagnosis of one model on one log found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Model label.
+    pub model: String,
+    /// Samples.
+    pub samples: usize,
+    /// Duration \[s\].
+    pub duration: f64,
+    /// `true` if accelerations were derived by the Savitzky–Golay differentiator.
+    pub derived_accelerations: bool,
+    /// Per-channel fit.
+    pub channels: Vec<ChannelFit>,
+    /// Rigid-body parameter estimates (order of `tagk_dynamics::InertialParams`) with
+    /// standard errors.
+    pub parameters: Vec<Parameter>,
+    /// Centre of mass `h / m` \[m\].
+    pub com: [f64; 3],
+    /// Pseudo-inertia positive definite (Wensing et al.).
+    pub physically_consistent: bool,
+    /// Safety gate verdict (`pass` or the violation).
+    pub safety_gate: String,
+    /// Fitted effects of the model.
+    pub effects: Vec<FittedEffect>,
+    /// Implausible estimates and what they suggest.
+    pub warnings: Vec<String>,
+    /// Residual whiteness per channel.
+    pub whiteness: Vec<Whiteness>,
+    /// Windows of significantly large residual.
+    pub failure_windows: Vec<FailureWindow>,
+    /// Residual statistics by regime.
+    pub regimes: Vec<RegimeStat>,
+    /// Plain-language findings ("the fx/fy residual grows with body-frame speed").
+    pub findings: Vec<String>,
+    /// Candidate effects, best first.
+    pub ranking: Vec<Candidate>,
+    /// Candidates that could not be evaluated.
+    pub unavailable: Vec<Unavailable>,
+    /// The recommended effect, or `None` when the model is adequate.
+    pub recommended: Option<String>,
+    /// One-line verdict.
+    pub verdict: String,
+    /// The underlying fit (residual and prediction series, for plots).
+    #[serde(skip)]
+    pub fit: Fit,
+    /// Time stamps \[s\] (for plots).
+    #[serde(skip)]
+    pub t: Vec<f64>,
+    /// Measured wrench (for plots).
+    #[serde(skip)]
+    pub measured: Vec<[f64; 6]>,
+    /// Top candidate's driver signal (for plots).
+    #[serde(skip)]
+    pub top_driver: Option<(String, Vec<f64>)>,
+}
+
+/// Diagnoses `model` on a log: fit and compare, where it fails, and the ranking of the
+/// candidate effects not already in the model.
+///
+/// # Errors
+/// [`DiagnoseError::InvalidOption`] if `opts` does not validate
+/// ([`DiagnoseOptions::validate`]); as [`fit_model`]: an invalid model, an effect of `model`
+/// that cannot be used on this log, a failed solve.
+pub fn diagnose(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, DiagnoseError> {
+    opts.validate_for(s.len())?;
+    let fit = fit_model(model, s, None)?;
+    let missing = ranking::rank_candidates(model, s, &fit, opts);
+    let failures = residual::where_it_fails(s, &fit);
+    let params =
+        parameters::parameter_report(&fit, opts.airframe_radius, missing.recommended.as_deref());
+    let verdict = verdict(&missing.ranking, missing.recommended.as_deref());
+    let n = s.len();
+    Ok(Diagnosis {
+        model: fit.label.clone(),
+        samples: n,
+        duration: s.t[n - 1] - s.t[0],
+        derived_accelerations: s.derived_accel,
+        channels: fit.channels.clone(),
+        parameters: params.parameters,
+        com: params.com,
+        physically_consistent: params.physically_consistent,
+        safety_gate: params.safety_gate,
+        effects: fit.effects.clone(),
+        warnings: params.warnings,
+        whiteness: failures.whiteness,
+        failure_windows: failures.failure_windows,
+        regimes: failures.regimes,
+        findings: failures.findings,
+        ranking: missing.ranking,
+        unavailable: missing.unavailable,
+        recommended: missing.recommended,
+        verdict,
+        fit,
+        t: s.t.clone(),
+        measured: s.wrench.clone(),
+        top_driver: missing.top_driver,
+    })
+}
+
+/// The one-line verdict: the missing effect and its held-out gain, or "model adequate".
+fn verdict(ranking: &[Candidate], recommended: Option<&str>) -> String {
+    match recommended {
+        Some(r) => {
+            let c = ranking.iter().find(|c| c.effect == r);
+            format!(
+                "missing physics: `{r}` (held-out residual {:+.0} %)",
+                c.map_or(0.0, |c| -c.reduction * 100.0)
+            )
+        }
+        None => {
+            "model adequate: no candidate effect lowers the held-out residual significantly".into()
+        }
+    }
+}

@@ -1,0 +1,373 @@
+//! The actuator stream: first-order motor lag, a time delay between the actuator and motion
+//! streams, and a thrust-gain error.
+
+use tagk_dynamics::EffectKind;
+
+use crate::effects::{Effect, EffectColumn, Plausibility, ScanSpec};
+use crate::signals::{CHANNEL_NAMES, Channel, Signals};
+
+/// First-order actuator dynamics: the delivered thrust and torques follow the logged command
+/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz`, with `y` the exact response
+/// to the piecewise-constant command sampled in the middle of each sample interval (see
+/// [`first_order_lag`]); the coefficient is ≈ 1 for that sampling, between `e^{−Δt/2τ}` and
+/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible. Four nuisance
+/// columns `e^{−(t − t₀)/τ}` (one per channel) absorb the unknown actuator state at the start
+/// of the log.
+#[derive(Debug, Clone)]
+pub(crate) struct MotorLag {
+    /// Time constants scanned \[s\].
+    pub grid: Vec<f64>,
+}
+
+impl Default for MotorLag {
+    fn default() -> Self {
+        // 5 ms .. 200 ms, log-spaced.
+        let grid = (0..16)
+            .map(|k| 0.005 * (40.0f64).powf(k as f64 / 15.0))
+            .collect();
+        Self { grid }
+    }
+}
+
+/// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` \[s\]) to a command
+/// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)` and sampled at
+/// its middle `t_k` (the convention of logs whose rows describe one control interval):
+/// with `Y_k` the state at the end of interval `k`,
+/// `y_k = u_k + e^{−Δt/2τ} (Y_{k−1} − u_k)`, `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`,
+/// starting at rest on the first command (`Y_0 = u_0`).
+pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
+    let mut y = Vec::with_capacity(u.len());
+    if u.is_empty() {
+        return y;
+    }
+    y.push(u[0]);
+    let mut end = u[0];
+    let (mut last_dt, mut a_half, mut a_full) = (f64::NAN, 0.0, 0.0);
+    for k in 1..u.len() {
+        let dt = t[k] - t[k - 1];
+        // Uniformly sampled logs reuse the factors (exp is the cost of a 1-D scan).
+        if dt != last_dt {
+            last_dt = dt;
+            (a_half, a_full) = if tau > 0.0 {
+                ((-0.5 * dt / tau).exp(), (-dt / tau).exp())
+            } else {
+                (0.0, 0.0)
+            };
+        }
+        y.push(u[k] + a_half * (end - u[k]));
+        end = u[k] + a_full * (end - u[k]);
+    }
+    y
+}
+
+/// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
+/// through the squares: the mixer `[fz, tx, ty, tz]ᵀ = M [ω₁², …, ω₄²]ᵀ` is identified from the
+/// log itself (least squares; it must reproduce the logged wrench to 1e-3 relative on at least
+/// 90 % of the samples — saturated samples may disagree — otherwise
+/// `None` and the lag is applied to the wrench directly), and the delivered wrench is
+/// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` per sample.
+fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
+    let w = s.rotor_speeds.as_ref()?;
+    let sq: Vec<[f64; 4]> = w.iter().map(|x| x.map(|v| v * v)).collect();
+    let mut g = nalgebra::Matrix4::<f64>::zeros();
+    let mut rhs = nalgebra::Matrix4::<f64>::zeros();
+    for (x, b) in sq.iter().zip(&s.wrench) {
+        let xv = nalgebra::Vector4::from(*x);
+        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
+        g += xv * xv.transpose();
+        rhs += xv * bv.transpose();
+    }
+    let mt = g.cholesky()?.solve(&rhs); // (4 rotors × 4 channels) = Mᵀ
+    let mut good = 0usize;
+    for (x, b) in sq.iter().zip(&s.wrench) {
+        let pred = mt.transpose() * nalgebra::Vector4::from(*x);
+        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
+        if (pred - bv).norm() <= 1e-3 * bv.norm() {
+            good += 1;
+        }
+    }
+    if good * 10 < s.len() * 9 {
+        return None;
+    }
+    // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
+    // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
+    let n = s.len();
+    let mut mid = vec![[0.0; 4]; n];
+    let mut mean = vec![[0.0; 4]; n];
+    let mut factors = (f64::NAN, (0.0, 0.0, 0.0, 0.0));
+    for r in 0..4 {
+        let mut end = w[0][r];
+        mid[0][r] = end * end;
+        mean[0][r] = end * end;
+        for i in 1..n {
+            let dt = s.t[i] - s.t[i - 1];
+            let u = w[i][r];
+            let e = end - u;
+            // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
+            if dt != factors.0 {
+                factors = (
+                    dt,
+                    if tau > 0.0 {
+                        let x = dt / tau;
+                        (
+                            (-0.5 * x).exp(),
+                            (-x).exp(),
+                            (1.0 - (-x).exp()) / x,
+                            (1.0 - (-2.0 * x).exp()) / (2.0 * x),
+                        )
+                    } else {
+                        (0.0, 0.0, 0.0, 0.0)
+                    },
+                );
+            }
+            let (a_half, a_full, m1, m2) = factors.1;
+            let ym = u + a_half * e;
+            mid[i][r] = ym * ym;
+            mean[i][r] = u * u + 2.0 * u * e * m1 + e * e * m2;
+            end = u + a_full * e;
+        }
+    }
+    Some(
+        (0..n)
+            .map(|i| {
+                let ym = mt.transpose() * nalgebra::Vector4::from(mid[i]);
+                let ya = mt.transpose() * nalgebra::Vector4::from(mean[i]);
+                [ym[0], ya[1], ya[2], ya[3]]
+            })
+            .collect(),
+    )
+}
+
+impl Effect for MotorLag {
+    fn name(&self) -> &str {
+        EffectKind::MotorLag.name()
+    }
+    fn description(&self) -> &str {
+        "first-order motor dynamics: delivered thrust/torque lags the logged command by a time constant"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![2, 3, 4, 5]
+    }
+    fn scan(&self) -> Option<ScanSpec> {
+        Some(ScanSpec {
+            name: "tau".into(),
+            unit: "s".into(),
+            grid: self.grid.clone(),
+        })
+    }
+    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        if let Some(lagged) = lagged_wrench_from_rotors(s, tau) {
+            for (c, d) in data.iter_mut().enumerate().skip(2) {
+                *d = Some(
+                    lagged
+                        .iter()
+                        .zip(&s.wrench)
+                        .map(|(y, b)| y[c - 2] - b[c])
+                        .collect(),
+                );
+            }
+        } else {
+            for (c, d) in data.iter_mut().enumerate().skip(2) {
+                let u = s.channel(c);
+                let y = first_order_lag(&s.t, &u, tau);
+                *d = Some(y.iter().zip(&u).map(|(y, u)| y - u).collect());
+            }
+        }
+        let mut cols = vec![EffectColumn {
+            name: "g_lag".into(),
+            unit: "1".into(),
+            data,
+        }];
+        // The actuators' state when the log starts is unknown: its effect decays like
+        // e^{−(t − t₀)/τ}, a nuisance column per channel.
+        let decay: Vec<f64> =
+            s.t.iter()
+                .map(|t| {
+                    let x = if tau > 0.0 {
+                        (-(t - s.t[0]) / tau).exp()
+                    } else {
+                        0.0
+                    };
+                    if x < 1e-12 { 0.0 } else { x }
+                })
+                .collect();
+        for c in 2..6 {
+            cols.push(EffectColumn::on(
+                &format!("start_{}", CHANNEL_NAMES[c]),
+                if c == 2 { "N" } else { "N m" },
+                c,
+                decay.clone(),
+            ));
+        }
+        cols
+    }
+    fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
+        if !(0.4..=2.5).contains(&coef[0]) {
+            return Plausibility::bad(format!(
+                "lag gain {:.2} far from 1: the lag shape does not match",
+                coef[0]
+            ));
+        }
+        if let Some(tau) = p
+            && tau >= *self.grid.last().unwrap_or(&f64::INFINITY)
+        {
+            return Plausibility::bad(format!("time constant {tau:.3} s at the end of the scan"));
+        }
+        Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        let fz = s.channel(2);
+        (
+            "thrust rate |dfz/dt| [N/s]".into(),
+            crate::deriv::savitzky_golay_derivative(&s.t, &fz, 2)
+                .iter()
+                .map(|x| x.abs())
+                .collect(),
+        )
+    }
+}
+
+/// A constant time offset `d` between the actuator stream and the motion stream: the wrench
+/// acting at `t` is the logged `b(t − d)`. Column `b(t − d) − b(t)` on all six channels
+/// (coefficient ≈ 1, plausible in `[0.8, 1.25]`); `d` scanned.
+#[derive(Debug, Clone)]
+pub(crate) struct TimeDelay {
+    /// Delays scanned \[s\] (positive: the actuator log is early).
+    pub grid: Vec<f64>,
+}
+
+impl Default for TimeDelay {
+    fn default() -> Self {
+        let mut grid: Vec<f64> = (1..=12).map(|k| 0.01 * k as f64).collect();
+        grid.extend((1..=12).map(|k| -0.01 * k as f64));
+        Self { grid }
+    }
+}
+
+/// `x(t − d)` at every sample by linear interpolation (clamped at the ends), in one
+/// monotone sweep.
+pub(crate) fn shifted(t: &[f64], x: &[f64], d: f64) -> Vec<f64> {
+    let n = t.len();
+    let mut out = Vec::with_capacity(n);
+    let mut k = 0usize;
+    for &ti in t {
+        let tq = ti - d;
+        if tq <= t[0] {
+            out.push(x[0]);
+            continue;
+        }
+        if tq >= t[n - 1] {
+            out.push(x[n - 1]);
+            continue;
+        }
+        while k + 1 < n && t[k + 1] <= tq {
+            k += 1;
+        }
+        let f = (tq - t[k]) / (t[k + 1] - t[k]);
+        out.push(x[k] * (1.0 - f) + x[k + 1] * f);
+    }
+    out
+}
+
+impl Effect for TimeDelay {
+    fn name(&self) -> &str {
+        EffectKind::TimeDelay.name()
+    }
+    fn description(&self) -> &str {
+        "constant time offset between the actuator stream and the motion stream"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        (0..6).collect()
+    }
+    fn scan(&self) -> Option<ScanSpec> {
+        Some(ScanSpec {
+            name: "delay".into(),
+            unit: "s".into(),
+            grid: self.grid.clone(),
+        })
+    }
+    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        let d = p.unwrap_or(0.02);
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for (c, dd) in data.iter_mut().enumerate() {
+            let u = s.channel(c);
+            if u.iter().all(|x| *x == 0.0) {
+                continue;
+            }
+            *dd = Some(
+                shifted(&s.t, &u, d)
+                    .iter()
+                    .zip(&u)
+                    .map(|(a, b)| a - b)
+                    .collect(),
+            );
+        }
+        vec![EffectColumn {
+            name: "g_delay".into(),
+            unit: "1".into(),
+            data,
+        }]
+    }
+    fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
+        if !(0.8..=1.25).contains(&coef[0]) {
+            return Plausibility::bad(format!(
+                "delay gain {:.2} far from 1: not a pure time shift",
+                coef[0]
+            ));
+        }
+        if let Some(d) = p {
+            let max = self.grid.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if d.abs() >= max {
+                return Plausibility::bad(format!("delay {d:.3} s at the end of the scan"));
+            }
+        }
+        Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        MotorLag::default().driver(s)
+    }
+}
+
+/// Thrust-gain error: the delivered collective thrust is `(1 + κ)` times the logged one
+/// (a wrong thrust coefficient, battery sag), and so are the rotor torques. Column
+/// `[0, 0, f_z, τ_x, τ_y, τ_z]`. Identifiable only with a known mass.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ThrustGain;
+
+impl Effect for ThrustGain {
+    fn name(&self) -> &str {
+        EffectKind::ThrustGain.name()
+    }
+    fn description(&self) -> &str {
+        "delivered thrust is a constant factor (1 + kappa) times the logged thrust"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![2, 3, 4, 5]
+    }
+    fn needs_known_mass(&self) -> bool {
+        true
+    }
+    fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for (c, d) in data.iter_mut().enumerate().skip(2) {
+            *d = Some(s.channel(c));
+        }
+        vec![EffectColumn {
+            name: "kappa".into(),
+            unit: "1".into(),
+            data,
+        }]
+    }
+    fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
+        if coef[0].abs() > 0.5 {
+            Plausibility::bad(format!("thrust gain error {:.2} beyond ±50 %", coef[0]))
+        } else {
+            Plausibility::ok()
+        }
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        ("thrust fz [N]".into(), s.channel(2))
+    }
+}

@@ -1,0 +1,73 @@
+//! Ground effect: extra rotor thrust close to the ground.
+
+use tagk_dynamics::EffectKind;
+
+use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
+use crate::signals::{Channel, Signals};
+
+/// Ground effect: extra rotor thrust (and rotor torques) near the ground after Cheeseman and
+/// Bennett: `T_IGE/T_OGE = 1/(1 − (R/4z)²)`, so the external wrench is
+/// `c · [0, 0, f_z, τ_x, τ_y, τ_z] · ((1/(1 − (R/4z)²)) − 1)` with `c ≈ 1`, `z` the height of
+/// the body origin above the ground plane `z = 0` (clamped to `z ≥ R`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct GroundEffect {
+    /// Rotor radius `R` \[m\] (Crazyflie: 0.0225 m).
+    pub rotor_radius: f64,
+    /// Heights below this are clamped \[m\] (avoids the singularity at `z = R/4`).
+    pub min_height: f64,
+}
+
+impl Default for GroundEffect {
+    fn default() -> Self {
+        Self {
+            rotor_radius: 0.0225,
+            min_height: 0.0225,
+        }
+    }
+}
+
+impl GroundEffect {
+    fn shape(&self, z: f64) -> f64 {
+        let z = z.max(self.min_height);
+        let r = self.rotor_radius / (4.0 * z);
+        1.0 / (1.0 - r * r) - 1.0
+    }
+}
+
+impl Effect for GroundEffect {
+    fn name(&self) -> &str {
+        EffectKind::GroundEffect.name()
+    }
+    fn description(&self) -> &str {
+        "extra rotor thrust near the ground, growing like (R/4z)^2 as the height z falls"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![2, 3, 4, 5]
+    }
+    fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for (c, d) in data.iter_mut().enumerate().skip(2) {
+            *d = Some(
+                s.position
+                    .iter()
+                    .zip(&s.wrench)
+                    .map(|(p, w)| w[c] * self.shape(p.z))
+                    .collect(),
+            );
+        }
+        vec![EffectColumn {
+            name: "c_ge".into(),
+            unit: "1".into(),
+            data,
+        }]
+    }
+    fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
+        nonneg(&["c_ge"], coef, se, "ground-effect gain")
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        (
+            "height [m]".into(),
+            s.position.iter().map(|p| p.z).collect(),
+        )
+    }
+}

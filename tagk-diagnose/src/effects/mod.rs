@@ -1,0 +1,336 @@
+//! Physical effects that can be added to the rigid-body model.
+//!
+//! An effect is an **external wrench** `w_ext = Φ β` acting on the body that the rigid-body
+//! model does not know about: the actuators' wrench then satisfies `b = Y θ − Φ β`. Each effect
+//! contributes named columns of `Φ` (the external wrench per unit coefficient, body frame,
+//! about the origin) and may have one nonlinear parameter (a time constant, a delay) found by
+//! a 1-D scan. Coefficients have physical signs: a drag coefficient must come out positive.
+//!
+//! The built-in candidates, one per [`EffectKind`] (the effect vocabulary shared with the
+//! simulator), are reached through the registry: [`builtin`], [`builtin_with`] (tunables in
+//! [`BuiltinOptions`]), [`builtin_effects`] and [`builtin_by_name`]. Your own effect implements
+//! [`Effect`]; a product of log columns is a [`CustomEffect`].
+
+mod actuator;
+mod custom;
+mod drag;
+mod external;
+mod ground;
+
+#[cfg(test)]
+pub(crate) use actuator::{first_order_lag, shifted};
+pub use custom::CustomEffect;
+
+use std::sync::Arc;
+
+use tagk_dynamics::EffectKind;
+
+use crate::error::DiagnoseError;
+use crate::signals::{Channel, Signals};
+
+/// One column of an effect: the external wrench per unit coefficient on each channel it
+/// touches (`None`: zero on that channel).
+#[derive(Debug, Clone)]
+pub struct EffectColumn {
+    /// Coefficient name, e.g. `d_x`.
+    pub name: String,
+    /// Coefficient unit, e.g. `N s/m`.
+    pub unit: String,
+    /// External wrench per unit coefficient, per channel, one value per sample.
+    pub data: [Option<Vec<f64>>; 6],
+}
+
+impl EffectColumn {
+    /// A column acting on one channel.
+    pub fn on(name: &str, unit: &str, channel: Channel, values: Vec<f64>) -> Self {
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        data[channel] = Some(values);
+        Self {
+            name: name.to_string(),
+            unit: unit.to_string(),
+            data,
+        }
+    }
+}
+
+/// A nonlinear parameter found by a 1-D grid scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanSpec {
+    /// Parameter name.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Values tried (the one with the smallest residual wins).
+    pub grid: Vec<f64>,
+}
+
+/// Verdict on the physical plausibility of fitted coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plausibility {
+    /// `true` if the coefficients are physically possible.
+    pub plausible: bool,
+    /// Why (empty when plausible and nothing to add).
+    pub note: String,
+}
+
+impl Plausibility {
+    /// Plausible, no note.
+    pub fn ok() -> Self {
+        Self {
+            plausible: true,
+            note: String::new(),
+        }
+    }
+    /// Implausible, with a reason.
+    pub fn bad(note: impl Into<String>) -> Self {
+        Self {
+            plausible: false,
+            note: note.into(),
+        }
+    }
+}
+
+/// A physical effect: named regressor columns with units, the channels it acts on, a
+/// plausibility check and an optional nonlinear parameter. Implement it to add your own and
+/// push it onto [`crate::DiagnoseOptions::candidates`] (to rank it) or add it to a
+/// [`crate::Model`] (to fit it); `examples/custom_effect.rs` implements an elastic tether.
+///
+/// The name must differ from the other candidates' names. An effect that cannot be used on a
+/// log (its [`Effect::check`] fails, or its columns are empty, of the wrong length or not
+/// finite) is listed as unavailable, or refused by [`crate::fit_model`].
+pub trait Effect: Send + Sync + std::fmt::Debug {
+    /// Short name, e.g. `linear-drag`.
+    fn name(&self) -> &str;
+    /// One-line physical description.
+    fn description(&self) -> &str;
+    /// Channels the effect acts on.
+    fn channels(&self) -> Vec<Channel>;
+    /// `Err(reason)` if the log lacks what the effect needs (e.g. rotor speeds).
+    fn check(&self, _signals: &Signals) -> Result<(), String> {
+        Ok(())
+    }
+    /// `true` if the effect is only identifiable with a known mass ([`crate::Model::with_known_mass`]).
+    fn needs_known_mass(&self) -> bool {
+        false
+    }
+    /// The nonlinear parameter to scan, if any.
+    fn scan(&self) -> Option<ScanSpec> {
+        None
+    }
+    /// The columns of `Φ` on this log (`param` is the scanned parameter, if any): at least
+    /// one, each with one finite value per sample on the channels it touches.
+    fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;
+    /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
+    /// column of [`Effect::columns`], in that order).
+    fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
+    /// A scalar signal the effect is driven by (for regime plots), with its name and unit.
+    fn driver(&self, signals: &Signals) -> (String, Vec<f64>);
+}
+
+/// Shared handle on an effect.
+pub type EffectRef = Arc<dyn Effect>;
+
+/// Plausible unless a coefficient is significantly negative (beyond 3 standard errors).
+pub(crate) fn nonneg(names: &[&str], coef: &[f64], se: &[f64], what: &str) -> Plausibility {
+    for (k, n) in names.iter().enumerate() {
+        if coef[k] < -3.0 * se[k].max(1e-300) {
+            return Plausibility::bad(format!(
+                "{what} {n} = {:.3e} is significantly negative (would push the vehicle along its motion)",
+                coef[k]
+            ));
+        }
+    }
+    Plausibility::ok()
+}
+
+/// Tunables of the built-in candidates (the defaults suit a Crazyflie-class quadrotor).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuiltinOptions {
+    /// `motor-lag`: time constants scanned \[s\] (default: 16 values log-spaced over
+    /// 5 ms … 200 ms); each positive and finite.
+    pub motor_lag_time_constants: Vec<f64>,
+    /// `time-delay`: delays scanned \[s\] (positive: the actuator log is early; default
+    /// ±10 ms … ±120 ms in 10 ms steps); each finite.
+    pub time_delays: Vec<f64>,
+    /// `ground-effect`: rotor radius `R` \[m\] (default: the Crazyflie's 0.0225 m).
+    pub rotor_radius: f64,
+    /// `ground-effect`: heights below this are clamped \[m\] (avoids the singularity at
+    /// `z = R/4`; must exceed `R/4`; default 0.0225 m).
+    pub ground_min_height: f64,
+}
+
+impl Default for BuiltinOptions {
+    fn default() -> Self {
+        let ground = ground::GroundEffect::default();
+        Self {
+            motor_lag_time_constants: actuator::MotorLag::default().grid,
+            time_delays: actuator::TimeDelay::default().grid,
+            rotor_radius: ground.rotor_radius,
+            ground_min_height: ground.min_height,
+        }
+    }
+}
+
+impl BuiltinOptions {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::InvalidOption`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(DiagnoseError::InvalidOption { field, reason })
+        };
+        if self.motor_lag_time_constants.is_empty() {
+            return bad("motor_lag_time_constants", "empty scan grid".into());
+        }
+        if let Some(t) = self
+            .motor_lag_time_constants
+            .iter()
+            .find(|t| !(t.is_finite() && **t > 0.0))
+        {
+            return bad(
+                "motor_lag_time_constants",
+                format!("time constant {t} s is not positive and finite"),
+            );
+        }
+        if self.time_delays.is_empty() {
+            return bad("time_delays", "empty scan grid".into());
+        }
+        if let Some(d) = self.time_delays.iter().find(|d| !d.is_finite()) {
+            return bad("time_delays", format!("delay {d} s is not finite"));
+        }
+        if !(self.rotor_radius.is_finite() && self.rotor_radius > 0.0) {
+            return bad(
+                "rotor_radius",
+                format!("{} m is not positive and finite", self.rotor_radius),
+            );
+        }
+        if !(self.ground_min_height.is_finite() && self.ground_min_height > self.rotor_radius / 4.0)
+        {
+            return bad(
+                "ground_min_height",
+                format!(
+                    "{} m must be finite and above R/4 = {} m",
+                    self.ground_min_height,
+                    self.rotor_radius / 4.0
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The built-in candidate for an effect, with default tunables.
+///
+/// # Errors
+/// [`DiagnoseError::NoCandidate`] for an effect of the vocabulary that has no diagnosis
+/// candidate (every effect of this version has one).
+pub fn builtin(kind: EffectKind) -> Result<EffectRef, DiagnoseError> {
+    builtin_with(kind, &BuiltinOptions::default())
+}
+
+/// The built-in candidate for an effect, with the tunables of `options`.
+///
+/// # Errors
+/// [`DiagnoseError::InvalidOption`] if `options` does not validate;
+/// [`DiagnoseError::NoCandidate`] as [`builtin`].
+pub fn builtin_with(
+    kind: EffectKind,
+    options: &BuiltinOptions,
+) -> Result<EffectRef, DiagnoseError> {
+    options.validate()?;
+    let effect: EffectRef = match kind {
+        EffectKind::LinearDrag => Arc::new(drag::LinearDrag),
+        EffectKind::QuadraticDrag => Arc::new(drag::QuadraticDrag),
+        EffectKind::RotorDrag => Arc::new(drag::RotorDrag),
+        EffectKind::MotorLag => Arc::new(actuator::MotorLag {
+            grid: options.motor_lag_time_constants.clone(),
+        }),
+        EffectKind::TimeDelay => Arc::new(actuator::TimeDelay {
+            grid: options.time_delays.clone(),
+        }),
+        EffectKind::GroundEffect => Arc::new(ground::GroundEffect {
+            rotor_radius: options.rotor_radius,
+            min_height: options.ground_min_height,
+        }),
+        EffectKind::BodyBias => Arc::new(external::BodyBias),
+        EffectKind::Wind => Arc::new(external::Wind),
+        EffectKind::ThrustGain => Arc::new(actuator::ThrustGain),
+        other => return Err(DiagnoseError::NoCandidate(other)),
+    };
+    Ok(effect)
+}
+
+/// Every built-in candidate with default tunables, in [`EffectKind::ALL`] order.
+pub fn builtin_effects() -> Vec<EffectRef> {
+    EffectKind::ALL
+        .into_iter()
+        .filter_map(|kind| builtin(kind).ok())
+        .collect()
+}
+
+/// A built-in candidate by name: a canonical name of [`EffectKind`] or one of its aliases
+/// (ASCII case-insensitive, `_` read as `-`).
+///
+/// # Errors
+/// [`DiagnoseError::UnknownEffect`] for a name outside the vocabulary.
+pub fn builtin_by_name(name: &str) -> Result<EffectRef, DiagnoseError> {
+    let kind = EffectKind::from_name(name)
+        .ok_or_else(|| DiagnoseError::UnknownEffect(name.trim().to_string()))?;
+    builtin(kind)
+}
+
+/// What is wrong with an effect's scan specification (an empty grid or a non-finite value),
+/// or `None` when it has no scan or a usable one.
+pub(crate) fn scan_problem(effect: &dyn Effect) -> Option<String> {
+    let spec = effect.scan()?;
+    if spec.grid.is_empty() {
+        return Some(format!(
+            "effect `{}`: the scan grid of `{}` is empty",
+            effect.name(),
+            spec.name
+        ));
+    }
+    spec.grid.iter().find(|g| !g.is_finite()).map(|g| {
+        format!(
+            "effect `{}`: the scan grid of `{}` holds the non-finite value {g}",
+            effect.name(),
+            spec.name
+        )
+    })
+}
+
+/// Whether an effect can be used on this log: its own [`Effect::check`], then its columns at
+/// the start of its scan (the middle of the grid) must be at least one, each with one finite
+/// value per sample on the channels it touches. `Err(reason)` otherwise — so that a faulty
+/// user-defined effect gets a clear message instead of a panic in the regression.
+pub(crate) fn usable(effect: &dyn Effect, s: &Signals) -> Result<(), String> {
+    effect.check(s)?;
+    let param = effect
+        .scan()
+        .and_then(|spec| spec.grid.get(spec.grid.len() / 2).copied());
+    let columns = effect.columns(s, param);
+    if columns.is_empty() {
+        return Err("it has no regressor column on this log".into());
+    }
+    for column in &columns {
+        for (c, data) in column.data.iter().enumerate() {
+            let Some(values) = data else { continue };
+            if values.len() != s.len() {
+                return Err(format!(
+                    "column `{}` has {} values on channel {c}, the log {} samples",
+                    column.name,
+                    values.len(),
+                    s.len()
+                ));
+            }
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                return Err(format!(
+                    "column `{}` is not finite at sample {i} (t = {} s)",
+                    column.name, s.t[i]
+                ));
+            }
+        }
+    }
+    Ok(())
+}

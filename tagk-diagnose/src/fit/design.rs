@@ -1,0 +1,122 @@
+//! The regression design: the rigid-body columns, the effects' columns, the known-mass
+//! target and the channel weights.
+
+use tagk_dynamics::write_rigid_body_regressor;
+
+use crate::effects::Effect;
+use crate::fit::Model;
+use crate::signals::Signals;
+use crate::stats;
+
+/// A regressor column: one value per sample on each channel it touches.
+pub(crate) type ColData = [Option<Vec<f64>>; 6];
+
+/// The ten rigid-body columns on a log.
+pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
+    let n = s.len();
+    let mut cols: Vec<ColData> = (0..10)
+        .map(|j| {
+            let mut d: ColData = Default::default();
+            let chans: &[usize] = match j {
+                0 => &[0, 1, 2],
+                1..=3 => &[0, 1, 2, 3, 4, 5],
+                _ => &[3, 4, 5],
+            };
+            for &c in chans {
+                d[c] = Some(vec![0.0; n]);
+            }
+            d
+        })
+        .collect();
+    let mut buf = [0.0; 60];
+    for i in 0..n {
+        // Infallible: the buffer has 60 entries.
+        let _ =
+            write_rigid_body_regressor(&s.accel_proper[i], &s.omega[i], &s.omega_dot[i], &mut buf);
+        for (j, col) in cols.iter_mut().enumerate() {
+            for (c, d) in col.iter_mut().enumerate() {
+                if let Some(v) = d {
+                    v[i] = buf[10 * c + j];
+                }
+            }
+        }
+    }
+    cols
+}
+
+/// The rigid-body design of a model and its regression target: with a known mass the mass
+/// column moves to the target (`b − m·Y₀`) and only nine columns remain.
+pub(crate) fn rigid_design(model: &Model, s: &Signals) -> (Vec<ColData>, Vec<[f64; 6]>) {
+    let mut cols = rigid_columns(s);
+    match model.known_mass() {
+        None => (cols, s.wrench.clone()),
+        Some(m) => {
+            let c0 = cols.remove(0);
+            let mut target = s.wrench.clone();
+            for (c, d) in c0.iter().enumerate() {
+                if let Some(v) = d {
+                    for (t, x) in target.iter_mut().zip(v) {
+                        t[c] -= m * x;
+                    }
+                }
+            }
+            (cols, target)
+        }
+    }
+}
+
+/// Adds the known mass times the mass column back to a prediction made without it.
+pub(crate) fn add_known_mass(model: &Model, s: &Signals, pred: &mut [[f64; 6]]) {
+    if let Some(m) = model.known_mass() {
+        for (p, a) in pred.iter_mut().zip(&s.accel_proper) {
+            for c in 0..3 {
+                p[c] += m * a[c];
+            }
+        }
+    }
+}
+
+/// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped).
+pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> Vec<ColData> {
+    effect
+        .columns(s, p)
+        .into_iter()
+        .map(|c| {
+            c.data
+                .map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()))
+        })
+        .collect()
+}
+
+/// Initial channel weights from the measurement scale per unit group (forces, torques).
+pub(crate) fn initial_weights(s: &Signals) -> [f64; 6] {
+    let mut w = [1.0; 6];
+    for group in [[0usize, 1, 2], [3, 4, 5]] {
+        let scale = group
+            .iter()
+            .map(|&c| stats::rms(&s.channel(c)))
+            .fold(0.0f64, f64::max);
+        let scale = if scale > 0.0 { scale } else { 1.0 };
+        for c in group {
+            w[c] = 1.0 / scale;
+        }
+    }
+    w
+}
+
+/// Weights `1 / rms` from a residual, floored at `1e-6` of each unit group's largest RMS.
+pub(crate) fn weights_from_residual(res: &[[f64; 6]]) -> [f64; 6] {
+    let mut r = [0.0; 6];
+    for (c, rc) in r.iter_mut().enumerate() {
+        *rc = stats::rms(&res.iter().map(|x| x[c]).collect::<Vec<_>>());
+    }
+    let mut w = [1.0; 6];
+    for group in [[0usize, 1, 2], [3, 4, 5]] {
+        let top = group.iter().map(|&c| r[c]).fold(0.0f64, f64::max);
+        let floor = if top > 0.0 { top * 1e-6 } else { 1.0 };
+        for c in group {
+            w[c] = 1.0 / r[c].max(floor);
+        }
+    }
+    w
+}

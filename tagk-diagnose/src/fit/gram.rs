@@ -1,0 +1,290 @@
+//! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::fit::design::ColData;
+use crate::signals::Signals;
+
+/// Evaluation of a candidate set of extra columns by the [`GramEngine`].
+#[derive(Debug, Clone)]
+pub(crate) struct Evaluation {
+    /// Weighted in-sample SSE with the candidate.
+    pub sse_full: f64,
+    /// Held-out (blocked CV) weighted SSE.
+    pub sse_cv: f64,
+    /// Held-out SSE per channel.
+    pub sse_cv_ch: [f64; 6],
+    /// Full-data coefficients (base deltas then candidate).
+    pub beta: Vec<f64>,
+    /// Diagonal of the (pseudo-)inverse weighted Gram matrix: `σ² κ ·` this is the variance.
+    pub cov_diag: Vec<f64>,
+}
+
+/// Gram-matrix engine: the weighted target `y` and the base columns are reduced once to
+/// per-piece, per-channel cross-product matrices; each candidate only adds its own cross
+/// products. Pieces implement blocked K-fold cross-validation over time with a buffer of
+/// `buffer` samples on each side of the held-out block removed from training (so that
+/// autocorrelated neighbours do not leak).
+pub(crate) struct GramEngine<'a> {
+    s: &'a Signals,
+    w: [f64; 6],
+    /// Weighted target.
+    y: ColData,
+    /// Weighted base columns.
+    base: Vec<ColData>,
+    pieces: Vec<(usize, usize)>,
+    folds: usize,
+    /// Per piece, per channel: (1+p0)² cross products of [y, base…].
+    base_gram: Vec<f64>,
+}
+
+impl<'a> GramEngine<'a> {
+    /// `target`: the unweighted target (the measured wrench when `None`).
+    pub fn new(
+        s: &'a Signals,
+        w: &[f64; 6],
+        base: &[ColData],
+        target: Option<&[[f64; 6]]>,
+        folds: usize,
+    ) -> Self {
+        let n = s.len();
+        let tgt = target.unwrap_or(&s.wrench);
+        let y: ColData =
+            std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
+        let weigh = |col: &ColData| -> ColData {
+            std::array::from_fn(|c| {
+                col[c]
+                    .as_ref()
+                    .map(|v| v.iter().map(|x| x * w[c]).collect())
+            })
+        };
+        let base: Vec<ColData> = base.iter().map(weigh).collect();
+        let folds = folds.max(1);
+        let mut pieces = Vec::new();
+        if folds == 1 {
+            pieces.push((0, n));
+        } else {
+            let dt = s.mean_dt().max(1e-9);
+            let buffer = ((1.0 / dt).round() as usize).min(n / (4 * folds)).max(1);
+            for k in 0..folds {
+                let a = k * n / folds;
+                let b = (k + 1) * n / folds;
+                pieces.push((a, a + buffer));
+                pieces.push((a + buffer, b - buffer));
+                pieces.push((b - buffer, b));
+            }
+        }
+        let mut all: Vec<&ColData> = vec![&y];
+        all.extend(base.iter());
+        let base_gram = cross_tensor(&all, &all, &pieces);
+        Self {
+            s,
+            w: *w,
+            y,
+            base,
+            pieces,
+            folds,
+            base_gram,
+        }
+    }
+
+    /// Weighted version of unweighted candidate columns.
+    fn weigh(&self, cols: &[ColData]) -> Vec<ColData> {
+        cols.iter()
+            .map(|col| {
+                std::array::from_fn(|c| {
+                    col[c]
+                        .as_ref()
+                        .map(|v| v.iter().map(|x| x * self.w[c]).collect())
+                })
+            })
+            .collect()
+    }
+
+    /// Evaluates base + `cand` (unweighted extra columns; may be empty).
+    pub fn evaluate(&self, cand: &[ColData]) -> Evaluation {
+        let cand = self.weigh(cand);
+        let p0 = 1 + self.base.len();
+        let q = cand.len();
+        let pp = p0 + q;
+        let np = self.pieces.len();
+        let mut left: Vec<&ColData> = vec![&self.y];
+        left.extend(self.base.iter());
+        left.extend(cand.iter());
+        let candr: Vec<&ColData> = cand.iter().collect();
+        let cross = cross_tensor(&left, &candr, &self.pieces);
+        // Assemble the full (pp × pp) matrices per piece and channel.
+        let mut g = vec![0.0; np * 6 * pp * pp];
+        for pc in 0..np * 6 {
+            let dst = &mut g[pc * pp * pp..(pc + 1) * pp * pp];
+            let src = &self.base_gram[pc * p0 * p0..(pc + 1) * p0 * p0];
+            for i in 0..p0 {
+                for j in 0..p0 {
+                    dst[i * pp + j] = src[i * p0 + j];
+                }
+            }
+            let cs = &cross[pc * pp * q..(pc + 1) * pp * q];
+            for i in 0..pp {
+                for j in 0..q {
+                    dst[i * pp + p0 + j] = cs[i * q + j];
+                    dst[(p0 + j) * pp + i] = cs[i * q + j];
+                }
+            }
+        }
+        let sum_pieces = |sel: &dyn Fn(usize) -> bool, ch: Option<usize>| -> Vec<f64> {
+            let mut out = vec![0.0; pp * pp];
+            for pi in 0..np {
+                if !sel(pi) {
+                    continue;
+                }
+                for c in 0..6 {
+                    if ch.is_some_and(|x| x != c) {
+                        continue;
+                    }
+                    let m = &g[(pi * 6 + c) * pp * pp..(pi * 6 + c + 1) * pp * pp];
+                    for (o, x) in out.iter_mut().zip(m) {
+                        *o += x;
+                    }
+                }
+            }
+            out
+        };
+        let total = sum_pieces(&|_| true, None);
+        let (beta, cov_diag) = solve_gram(&total, pp, None);
+        let sse_full = sse_of(&total, pp, &beta);
+        let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
+        if self.folds > 1 {
+            let k_of = |pi: usize| pi / 3;
+            for k in 0..self.folds {
+                let excluded = |pi: usize| {
+                    k_of(pi) == k
+                        || (k > 0 && pi == 3 * (k - 1) + 2)
+                        || (k + 1 < self.folds && pi == 3 * (k + 1))
+                };
+                let train = sum_pieces(&|pi| !excluded(pi), None);
+                let (bk, _) = solve_gram(&train, pp, Some(&total));
+                for c in 0..6 {
+                    let test = sum_pieces(&|pi| k_of(pi) == k, Some(c));
+                    let e = sse_of(&test, pp, &bk);
+                    sse_cv_ch[c] += e;
+                    sse_cv += e;
+                }
+            }
+        } else {
+            sse_cv = sse_full;
+            for (c, o) in sse_cv_ch.iter_mut().enumerate() {
+                *o = sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta);
+            }
+        }
+        Evaluation {
+            sse_full,
+            sse_cv,
+            sse_cv_ch,
+            beta,
+            cov_diag,
+        }
+    }
+
+    /// Weighted residual of base + `cand` at coefficients `beta` (from [`Self::evaluate`]).
+    pub fn residual(&self, cand: &[ColData], beta: &[f64]) -> Vec<[f64; 6]> {
+        let cand = self.weigh(cand);
+        let n = self.s.len();
+        let mut r: Vec<[f64; 6]> = (0..n)
+            .map(|i| std::array::from_fn(|c| self.y[c].as_ref().map_or(0.0, |v| v[i])))
+            .collect();
+        for (col, &b) in self.base.iter().chain(cand.iter()).zip(beta) {
+            for (c, d) in col.iter().enumerate() {
+                if let Some(v) = d {
+                    for i in 0..n {
+                        r[i][c] -= b * v[i];
+                    }
+                }
+            }
+        }
+        r
+    }
+}
+
+/// Cross products `Σ_{i ∈ piece} a_j[c][i] b_k[c][i]` for every piece, channel, `j`, `k`;
+/// layout `[piece][channel][j][k]`.
+fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Vec<f64> {
+    let (pa, pb) = (a.len(), b.len());
+    let mut out = vec![0.0; pieces.len() * 6 * pa * pb];
+    for (j, aj) in a.iter().enumerate() {
+        for (k, bk) in b.iter().enumerate() {
+            for c in 0..6 {
+                let (Some(x), Some(y)) = (&aj[c], &bk[c]) else {
+                    continue;
+                };
+                for (pi, &(lo, hi)) in pieces.iter().enumerate() {
+                    let mut s = 0.0;
+                    for i in lo..hi {
+                        s += x[i] * y[i];
+                    }
+                    out[((pi * 6 + c) * pa + j) * pb + k] = s;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Solves the normal equations of a Gram matrix laid out as `[y, x…]²`: returns β for the
+/// `x` part (pseudo-inverse via a symmetric eigendecomposition of the equilibrated matrix,
+/// eigenvalues below 1e-12 of the largest dropped).
+///
+/// With `reference` (the Gram matrix of all the data), a column whose diagonal here is below
+/// 1e-10 of its reference diagonal — a column that (almost) vanishes on these samples, like a
+/// start-of-log transient in a training set without the start — is left out (coefficient 0).
+fn solve_gram(gm: &[f64], pp: usize, reference: Option<&[f64]>) -> (Vec<f64>, Vec<f64>) {
+    let p = pp - 1;
+    let mut d = vec![0.0; p];
+    for j in 0..p {
+        let g = gm[(j + 1) * pp + j + 1];
+        let vanishes = reference.is_some_and(|r| g <= 1e-10 * r[(j + 1) * pp + j + 1]);
+        d[j] = if g > 0.0 && !vanishes {
+            1.0 / g.sqrt()
+        } else {
+            0.0
+        };
+    }
+    let a = DMatrix::<f64>::from_fn(p, p, |i, j| gm[(i + 1) * pp + j + 1] * d[i] * d[j]);
+    let rhs = DVector::<f64>::from_fn(p, |i, _| gm[(i + 1) * pp] * d[i]);
+    let eig = a.symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().fold(0.0f64, |m, x| m.max(*x));
+    let mut x = DVector::<f64>::zeros(p);
+    let mut diag = vec![0.0; p];
+    for k in 0..p {
+        let l = eig.eigenvalues[k];
+        let v = eig.eigenvectors.column(k);
+        if l > lmax * 1e-12 && l > 0.0 {
+            x += v * (v.dot(&rhs) / l);
+            for j in 0..p {
+                diag[j] += v[j] * v[j] / l;
+            }
+        } else {
+            for j in 0..p {
+                if v[j] * v[j] > 1e-6 {
+                    diag[j] = f64::INFINITY;
+                }
+            }
+        }
+    }
+    (
+        (0..p).map(|j| x[j] * d[j]).collect(),
+        (0..p).map(|j| diag[j] * d[j] * d[j]).collect(),
+    )
+}
+
+/// `yᵀy − 2 βᵀ g + βᵀ G β` from a `[y, x…]²` Gram matrix.
+fn sse_of(gm: &[f64], pp: usize, beta: &[f64]) -> f64 {
+    let p = pp - 1;
+    let mut s = gm[0];
+    for i in 0..p {
+        s -= 2.0 * beta[i] * gm[(i + 1) * pp];
+        for j in 0..p {
+            s += beta[i] * beta[j] * gm[(i + 1) * pp + j + 1];
+        }
+    }
+    s.max(0.0)
+}

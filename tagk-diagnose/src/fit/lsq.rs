@@ -1,0 +1,215 @@
+//! The weighted least-squares solve (faer QR, SVD of `R`), predictions, per-channel
+//! statistics and the 1-D scan of a nonlinear parameter.
+
+use faer::Mat;
+use nalgebra::{DMatrix, DVector};
+
+use crate::error::DiagnoseError;
+use crate::fit::ChannelFit;
+use crate::fit::design::ColData;
+use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS};
+use crate::stats;
+
+/// Result of the QR least-squares solve.
+pub(crate) struct LsSolution {
+    pub beta: Vec<f64>,
+    pub se: Vec<Option<f64>>,
+}
+
+/// Weighted least squares `min Σ_c w_c² ‖b_c − X_c β‖²` with a Householder QR of
+/// `[A | b]` (faer; columns equilibrated), then an SVD of the small `R` (truncated at a
+/// relative 1e-11 so collinear columns get a minimum-norm solution and no standard error).
+/// `kappa` inflates the covariance for autocorrelated residuals.
+pub(crate) fn weighted_qr_solve(
+    cols: &[ColData],
+    b: &[[f64; 6]],
+    w: &[f64; 6],
+    kappa: f64,
+) -> Result<LsSolution, DiagnoseError> {
+    let n = b.len();
+    let p = cols.len();
+    let rows = 6 * n;
+    let mut scale = vec![0.0; p];
+    for (j, col) in cols.iter().enumerate() {
+        let mut s2 = 0.0;
+        for (c, d) in col.iter().enumerate() {
+            if let Some(v) = d {
+                s2 += w[c] * w[c] * v.iter().map(|x| x * x).sum::<f64>();
+            }
+        }
+        scale[j] = if s2 > 0.0 { 1.0 / s2.sqrt() } else { 0.0 };
+    }
+    let mut a = Mat::<f64>::zeros(rows, p + 1);
+    for (j, col) in cols.iter().enumerate() {
+        for (c, d) in col.iter().enumerate() {
+            if let Some(v) = d {
+                let f = w[c] * scale[j];
+                for i in 0..n {
+                    a[(6 * i + c, j)] = v[i] * f;
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        for c in 0..6 {
+            a[(6 * i + c, p)] = b[i][c] * w[c];
+        }
+    }
+    let qr = a.qr();
+    let r = qr.thin_R();
+    let mut r11 = DMatrix::<f64>::zeros(p, p);
+    let mut z = DVector::<f64>::zeros(p);
+    for i in 0..p {
+        for j in i..p {
+            r11[(i, j)] = r[(i, j)];
+        }
+        z[i] = r[(i, p)];
+    }
+    let rss = r[(p, p)] * r[(p, p)];
+    if !rss.is_finite() || r11.iter().any(|x| !x.is_finite()) {
+        return Err(DiagnoseError::Fit(
+            "non-finite values in the QR factor".into(),
+        ));
+    }
+    let svd = r11.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
+        return Err(DiagnoseError::Fit("SVD of R failed".into()));
+    };
+    let smax = svd.singular_values.iter().fold(0.0f64, |m, x| m.max(*x));
+    let cut = smax * 1e-11;
+    let rank = svd.singular_values.iter().filter(|s| **s > cut).count();
+    let utz = u.transpose() * &z;
+    let mut beta_s = DVector::<f64>::zeros(p);
+    let mut cov = DMatrix::<f64>::zeros(p, p);
+    for k in 0..p {
+        let s = svd.singular_values[k];
+        if s > cut {
+            let vk = vt.row(k).transpose();
+            beta_s += &vk * (utz[k] / s);
+            cov += &vk * vk.transpose() / (s * s);
+        }
+    }
+    let dof = (rows as f64 - rank as f64).max(1.0);
+    let sigma2 = rss / dof * kappa;
+    // A coefficient is identifiable if its direction is not (numerically) in the null space.
+    let mut beta = vec![0.0; p];
+    let mut se = vec![None; p];
+    for j in 0..p {
+        beta[j] = beta_s[j] * scale[j];
+        let mut null_part = 0.0;
+        for k in 0..p {
+            if svd.singular_values[k] <= cut {
+                null_part += vt[(k, j)] * vt[(k, j)];
+            }
+        }
+        if scale[j] > 0.0 && null_part < 1e-6 {
+            se[j] = Some((cov[(j, j)] * sigma2).sqrt() * scale[j]);
+        }
+    }
+    if beta.iter().any(|x| !x.is_finite()) {
+        return Err(DiagnoseError::Fit("non-finite coefficients".into()));
+    }
+    Ok(LsSolution { beta, se })
+}
+
+/// Prediction `X β` per sample.
+pub(crate) fn predict(cols: &[ColData], beta: &[f64], n: usize) -> Vec<[f64; 6]> {
+    let mut out = vec![[0.0; 6]; n];
+    for (col, &bj) in cols.iter().zip(beta) {
+        if bj == 0.0 {
+            continue;
+        }
+        for (c, d) in col.iter().enumerate() {
+            if let Some(v) = d {
+                for i in 0..n {
+                    out[i][c] += v[i] * bj;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Per-channel fit % and RMS.
+pub(crate) fn channel_stats(b: &[[f64; 6]], res: &[[f64; 6]]) -> Vec<ChannelFit> {
+    let n = b.len() as f64;
+    (0..6)
+        .map(|c| {
+            let mean = b.iter().map(|x| x[c]).sum::<f64>() / n;
+            let dev = b.iter().map(|x| (x[c] - mean).powi(2)).sum::<f64>().sqrt();
+            let rn = res.iter().map(|x| x[c] * x[c]).sum::<f64>().sqrt();
+            let scale = b.iter().map(|x| x[c].abs()).fold(0.0f64, f64::max);
+            let fit_percent = if dev > 1e-12 * scale.max(f64::MIN_POSITIVE) && dev > 0.0 {
+                Some(100.0 * (1.0 - rn / dev))
+            } else {
+                None
+            };
+            ChannelFit {
+                name: CHANNEL_NAMES[c].into(),
+                unit: CHANNEL_UNITS[c].into(),
+                fit_percent,
+                rms: rn / n.sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// Mean long-run variance factor κ (batch means) of the weighted residual over the channels.
+pub(crate) fn residual_kappa(res: &[[f64; 6]], w: &[f64; 6]) -> f64 {
+    let mut k = 0.0;
+    for c in 0..6 {
+        let r: Vec<f64> = res.iter().map(|x| x[c] * w[c]).collect();
+        k += stats::batch_means_factor(&r);
+    }
+    k / 6.0
+}
+
+/// 1-D minimisation of `f` over a scan grid: every grid value first, then a golden-section
+/// search (12 steps) between the best value's neighbours in the sorted grid.
+pub(crate) fn scan_min(grid: &[f64], mut f: impl FnMut(f64) -> f64) -> (f64, f64) {
+    let mut g: Vec<f64> = grid.iter().copied().filter(|x| x.is_finite()).collect();
+    g.sort_by(|a, b| a.total_cmp(b));
+    g.dedup();
+    if g.is_empty() {
+        return (0.0, f(0.0));
+    }
+    let vals: Vec<f64> = g.iter().map(|&x| f(x)).collect();
+    let (mut bi, mut bv) = (0, f64::INFINITY);
+    for (i, &v) in vals.iter().enumerate() {
+        if v < bv {
+            bi = i;
+            bv = v;
+        }
+    }
+    let mut best = (g[bi], bv);
+    if g.len() < 3 {
+        return best;
+    }
+    let (mut a, mut b) = (g[bi.saturating_sub(1)], g[(bi + 1).min(g.len() - 1)]);
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut x1 = b - r * (b - a);
+    let mut x2 = a + r * (b - a);
+    let mut f1 = f(x1);
+    let mut f2 = f(x2);
+    for _ in 0..12 {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - r * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + r * (b - a);
+            f2 = f(x2);
+        }
+    }
+    for (x, v) in [(x1, f1), (x2, f2)] {
+        if v < best.1 {
+            best = (x, v);
+        }
+    }
+    best
+}

@@ -1,0 +1,337 @@
+//! The model (rigid body plus effects) and its batch least-squares fit: the design
+//! ([`design`]), the weighted QR solve ([`lsq`]) and the Gram-matrix engine behind the blocked
+//! cross-validation and the 1-D scans ([`gram`]).
+
+mod design;
+mod gram;
+mod lsq;
+mod model;
+
+use serde::Serialize;
+use tagk_dynamics::InertialParams;
+
+use crate::effects::{Plausibility, usable};
+use crate::error::DiagnoseError;
+use crate::signals::Signals;
+
+pub(crate) use design::{ColData, effect_design, rigid_columns, rigid_design};
+pub(crate) use gram::{Evaluation, GramEngine};
+pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
+pub use model::Model;
+
+use design::{add_known_mass, initial_weights, weights_from_residual};
+use lsq::{LsSolution, predict, residual_kappa};
+
+/// Names of the ten rigid-body parameters, in the order of `tagk_dynamics::InertialParams`.
+pub(crate) const THETA_NAMES: [&str; 10] = [
+    "m", "h_x", "h_y", "h_z", "I_xx", "I_xy", "I_yy", "I_xz", "I_yz", "I_zz",
+];
+/// Units of the ten rigid-body parameters.
+pub(crate) const THETA_UNITS: [&str; 10] = [
+    "kg", "kg m", "kg m", "kg m", "kg m²", "kg m²", "kg m²", "kg m²", "kg m²", "kg m²",
+];
+
+/// A fitted coefficient with its standard error.
+#[derive(Debug, Clone, Serialize)]
+pub struct Coefficient {
+    /// Name.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Estimate.
+    pub value: f64,
+    /// Standard error (inflated for residual autocorrelation); `null` if unidentifiable.
+    pub std_error: Option<f64>,
+}
+
+/// An effect's fitted coefficients.
+#[derive(Debug, Clone, Serialize)]
+pub struct FittedEffect {
+    /// Effect name.
+    pub effect: String,
+    /// One-line description.
+    pub description: String,
+    /// Scanned nonlinear parameter `(name, value, unit)`, if any.
+    pub scanned: Option<(String, f64, String)>,
+    /// Coefficients.
+    pub coefficients: Vec<Coefficient>,
+    /// Physical plausibility verdict.
+    pub plausible: bool,
+    /// Plausibility note.
+    pub plausibility_note: String,
+}
+
+/// Per-channel agreement between measurement and model.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelFit {
+    /// Channel name (`fx` … `tz`).
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// MATLAB `compare` fit `100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖)` \[%\]; `null` for a constant
+    /// measurement (e.g. a quadrotor's `fx`, always 0), where it is undefined.
+    pub fit_percent: Option<f64>,
+    /// Residual RMS \[channel unit\].
+    pub rms: f64,
+}
+
+/// Result of fitting a [`Model`].
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Model label.
+    pub label: String,
+    /// Fitted rigid-body parameters.
+    pub theta: InertialParams,
+    /// Their standard errors.
+    pub theta_se: [Option<f64>; 10],
+    /// Fitted effects.
+    pub effects: Vec<FittedEffect>,
+    /// Predicted wrench per sample.
+    pub predicted: Vec<[f64; 6]>,
+    /// Residual `b − b̂` per sample.
+    pub residual: Vec<[f64; 6]>,
+    /// Per-channel statistics.
+    pub channels: Vec<ChannelFit>,
+    /// Channel weights used (1 / residual scale).
+    pub weights: [f64; 6],
+    /// Residual autocorrelation factor κ (effective sample size = n / κ).
+    pub kappa: f64,
+    /// Chosen scanned parameters, one per model effect (`None` if not scanned).
+    pub params: Vec<Option<f64>>,
+}
+
+impl Fit {
+    /// Residual of one channel as a series.
+    pub fn residual_channel(&self, c: usize) -> Vec<f64> {
+        self.residual.iter().map(|r| r[c]).collect()
+    }
+}
+
+/// Fits `model` to the log: scanned effect parameters first (grid search on the weighted
+/// residual, one coordinate pass), then the weighted batch least squares by QR. Channel
+/// weights are `weights` if given, otherwise two passes: measurement scale, then
+/// `1 / residual RMS` of the first pass.
+///
+/// # Errors
+/// [`DiagnoseError::InvalidModel`] if the model does not validate ([`Model::validate`]),
+/// [`DiagnoseError::EffectUnavailable`] if an effect cannot be used on this log,
+/// [`DiagnoseError::InvalidOption`] for non-positive or non-finite `weights`,
+/// [`DiagnoseError::Fit`] if the solve fails.
+pub fn fit_model(
+    model: &Model,
+    s: &Signals,
+    weights: Option<[f64; 6]>,
+) -> Result<Fit, DiagnoseError> {
+    model.validate()?;
+    check_effects_usable(model, s)?;
+    if let Some(w) = weights
+        && w.iter().any(|x| !(x.is_finite() && *x > 0.0))
+    {
+        return Err(DiagnoseError::InvalidOption {
+            field: "weights",
+            reason: format!("channel weights {w:?} must be positive and finite"),
+        });
+    }
+    let (rigid, target) = rigid_design(model, s);
+    let mut w = weights.unwrap_or_else(|| initial_weights(s));
+    let passes = if weights.is_some() { 1 } else { 2 };
+    let mut params = initial_scan_parameters(model);
+    let mut last: Option<Pass> = None;
+    for pass in 0..passes {
+        if let Some(previous) = &last {
+            w = weights_from_residual(&previous.residual);
+        }
+        scan_parameters(model, s, &rigid, &target, &w, &mut params);
+        last = Some(solve_pass(
+            model,
+            s,
+            &rigid,
+            &target,
+            &w,
+            &params,
+            pass + 1 == passes,
+        )?);
+    }
+    let Some(Pass {
+        predicted,
+        residual,
+        solution: Some(mut sol),
+    }) = last
+    else {
+        return Err(DiagnoseError::Fit("no pass ran".into()));
+    };
+    // Standard errors inflated for the residual's autocorrelation (σ² → κ σ²).
+    let kappa = residual_kappa(&residual, &w);
+    for se in sol.se.iter_mut().flatten() {
+        *se *= kappa.sqrt();
+    }
+    let (theta, theta_se) = rigid_parameters(model, &sol, rigid.len());
+    let effects = fitted_effects(model, s, &params, &sol, rigid.len());
+    Ok(Fit {
+        label: model.label(),
+        theta,
+        theta_se,
+        effects,
+        channels: channel_stats(&s.wrench, &residual),
+        predicted,
+        residual,
+        weights: w,
+        kappa,
+        params,
+    })
+}
+
+/// Step 1 of [`fit_model`]: every effect of the model must be usable on this log (e.g. rotor
+/// drag needs rotor speeds; a user's effect must give finite columns of the log's length).
+fn check_effects_usable(model: &Model, s: &Signals) -> Result<(), DiagnoseError> {
+    for e in model.effects() {
+        usable(e.as_ref(), s).map_err(|reason| DiagnoseError::EffectUnavailable {
+            effect: e.name().to_string(),
+            reason,
+        })?;
+    }
+    Ok(())
+}
+
+/// The starting value of each effect's scanned parameter: the middle of its grid (`None`
+/// for an effect without a scan). Grids are non-empty ([`Model::validate`]).
+fn initial_scan_parameters(model: &Model) -> Vec<Option<f64>> {
+    model
+        .effects()
+        .iter()
+        .map(|e| e.scan().map(|sc| sc.grid[sc.grid.len() / 2]))
+        .collect()
+}
+
+/// Step 2 (each pass): the scanned parameters, one coordinate at a time, each minimising the
+/// weighted in-sample residual with the other effects at their current parameters.
+fn scan_parameters(
+    model: &Model,
+    s: &Signals,
+    rigid: &[ColData],
+    target: &[[f64; 6]],
+    w: &[f64; 6],
+    params: &mut [Option<f64>],
+) {
+    for (k, e) in model.effects().iter().enumerate() {
+        let Some(spec) = e.scan() else { continue };
+        let mut fixed: Vec<ColData> = rigid.to_vec();
+        for (j, f) in model.effects().iter().enumerate() {
+            if j != k {
+                fixed.extend(effect_design(f.as_ref(), s, params[j]));
+            }
+        }
+        let engine = GramEngine::new(s, w, &fixed, Some(target), 1);
+        let (best, _) = scan_min(&spec.grid, |g| {
+            engine
+                .evaluate(&effect_design(e.as_ref(), s, Some(g)))
+                .sse_full
+        });
+        params[k] = Some(best);
+    }
+}
+
+/// One pass's solution: prediction and residual (and the QR solution on the final pass).
+struct Pass {
+    predicted: Vec<[f64; 6]>,
+    residual: Vec<[f64; 6]>,
+    solution: Option<LsSolution>,
+}
+
+/// Step 3 (each pass): the linear solve at the current parameters. Intermediate passes only
+/// set the weights, so normal equations suffice; the final pass is the QR solve.
+fn solve_pass(
+    model: &Model,
+    s: &Signals,
+    rigid: &[ColData],
+    target: &[[f64; 6]],
+    w: &[f64; 6],
+    params: &[Option<f64>],
+    last_pass: bool,
+) -> Result<Pass, DiagnoseError> {
+    let mut cols = rigid.to_vec();
+    for (k, e) in model.effects().iter().enumerate() {
+        cols.extend(effect_design(e.as_ref(), s, params[k]));
+    }
+    let (beta, solution) = if last_pass {
+        let sol = weighted_qr_solve(&cols, target, w, 1.0)?;
+        (sol.beta.clone(), Some(sol))
+    } else {
+        let engine = GramEngine::new(s, w, &cols, Some(target), 1);
+        (engine.evaluate(&[]).beta, None)
+    };
+    let mut predicted = predict(&cols, &beta, s.len());
+    add_known_mass(model, s, &mut predicted);
+    let residual: Vec<[f64; 6]> = s
+        .wrench
+        .iter()
+        .zip(&predicted)
+        .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
+        .collect();
+    Ok(Pass {
+        predicted,
+        residual,
+        solution,
+    })
+}
+
+/// Step 4: the ten rigid-body parameters and their standard errors from the solution's first
+/// `nr` coefficients (nine with a known mass, which is put back in place).
+fn rigid_parameters(
+    model: &Model,
+    sol: &LsSolution,
+    nr: usize,
+) -> (InertialParams, [Option<f64>; 10]) {
+    let mut theta = [0.0; 10];
+    let mut theta_se = [None; 10];
+    theta[10 - nr..].copy_from_slice(&sol.beta[..nr]);
+    theta_se[10 - nr..].copy_from_slice(&sol.se[..nr]);
+    if let Some(m) = model.known_mass() {
+        theta[0] = m;
+    }
+    (InertialParams::from_array(theta), theta_se)
+}
+
+/// Step 5: each effect's coefficients (after the first `nr` rigid-body ones), named by its
+/// columns, with the effect's plausibility verdict.
+fn fitted_effects(
+    model: &Model,
+    s: &Signals,
+    params: &[Option<f64>],
+    sol: &LsSolution,
+    nr: usize,
+) -> Vec<FittedEffect> {
+    let mut effects = Vec::new();
+    let mut j = nr;
+    for (k, e) in model.effects().iter().enumerate() {
+        let ecols = e.columns(s, params[k]);
+        let q = ecols.len();
+        let coef: Vec<f64> = sol.beta[j..j + q].to_vec();
+        let se: Vec<f64> = sol.se[j..j + q]
+            .iter()
+            .map(|x| x.unwrap_or(f64::INFINITY))
+            .collect();
+        let pl: Plausibility = e.plausibility(&coef, &se, params[k]);
+        effects.push(FittedEffect {
+            effect: e.name().to_string(),
+            description: e.description().to_string(),
+            scanned: e
+                .scan()
+                .and_then(|sp| params[k].map(|v| (sp.name, v, sp.unit))),
+            coefficients: ecols
+                .iter()
+                .enumerate()
+                .map(|(i, c)| Coefficient {
+                    name: c.name.clone(),
+                    unit: c.unit.clone(),
+                    value: coef[i],
+                    std_error: sol.se[j + i],
+                })
+                .collect(),
+            plausible: pl.plausible,
+            plausibility_note: pl.note,
+        });
+        j += q;
+    }
+    effects
+}
