@@ -19,9 +19,7 @@ mod common;
 
 use clap::Parser;
 use tagk::sim::experiments::{ExperimentOptions, run_noise_sweep};
-use tagk::sim::{
-    Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
-};
+use tagk::sim::{EffectKind, simulate};
 
 /// Options of the demo.
 #[derive(clap::Parser)]
@@ -49,29 +47,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         threads: None,
     };
     let flights = run_noise_sweep(&options, false, &mut common::Progress::new(true))?;
-    let r = &flights.result;
-    println!(
-        "Table II: {} trials per cell, {} cells, {:.1} s on {} threads",
-        r.trials,
-        r.cells.len(),
-        r.elapsed_s,
-        r.threads
-    );
-    common::print_table(&flights);
-    common::print_results_dir(&flights);
+    common::print_sweep_summary(&flights);
 
     println!("\n== 2. Model diagnosis on a flight with a hidden effect ==\n");
-    let flight = simulate(&SimConfig {
-        duration: 25.0,
-        seed: 42,
-        noise: NoiseLevel::Medium,
-        payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::QuadraticDrag)?,
-        adaptation: Adaptation::Nominal,
-        record_log: true,
-        stop_on_abort: false,
-        ..SimConfig::default()
-    })?;
+    let flight = simulate(&common::hidden_effect_flight(
+        EffectKind::QuadraticDrag,
+        42,
+    )?)?;
     // The simulator and the diagnosis tool meet where a user's own data would: a flight log.
     let log_path = args.out.join("flight.csv");
     flight.log.write_csv_path(&log_path)?;

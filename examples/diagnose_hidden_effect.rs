@@ -12,25 +12,15 @@
 use tagk::diagnose::{
     DiagnoseOptions, FlightLog, Model, Signals, add_recommended, diagnosis_table, report_table,
 };
-use tagk::sim::{
-    Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, simulate,
-};
+mod common;
+
+use tagk::sim::{EffectKind, simulate};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out_dir = std::env::args().nth(1);
 
     // 1. A flight with a hidden effect.
-    let config = SimConfig {
-        duration: 25.0,
-        seed: 42,
-        noise: NoiseLevel::Medium,
-        payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::QuadraticDrag)?,
-        adaptation: Adaptation::Nominal,
-        record_log: true,
-        stop_on_abort: false,
-        ..SimConfig::default()
-    };
+    let config = common::hidden_effect_flight(EffectKind::QuadraticDrag, 42)?;
     let flight = simulate(&config)?;
     // The simulator hands its samples over as a user's data would arrive: a CSV flight log.
     let mut csv = Vec::new();

@@ -26,16 +26,7 @@ fn main() {
     let mut progress = args.common.progress();
     match run_noise_sweep(&args.common.options(), args.paper_only, &mut progress) {
         Ok(report) => {
-            let r = &report.result;
-            println!(
-                "Table II: {} trials per cell, {} cells, {:.1} s on {} threads",
-                r.trials,
-                r.cells.len(),
-                r.elapsed_s,
-                r.threads
-            );
-            common::print_table(&report);
-            common::print_results_dir(&report);
+            common::print_sweep_summary(&report);
         }
         Err(e) => {
             eprintln!("noise_sweep: {e}");

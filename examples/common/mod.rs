@@ -6,8 +6,11 @@
 use std::path::PathBuf;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use tagk::sim::SweepObserver;
 use tagk::sim::experiments::{ExperimentOptions, ExperimentReport};
+use tagk::sim::{
+    Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, SimError,
+    SweepObserver,
+};
 
 /// Options every experiment takes.
 #[derive(Debug, Clone, clap::Args)]
@@ -90,4 +93,34 @@ pub fn print_table(report: &ExperimentReport) {
 /// Prints `results in DIR`.
 pub fn print_results_dir(report: &ExperimentReport) {
     println!("results in {}", report.dir.display());
+}
+
+/// Prints a Table II sweep: its size and run time, the table, and where its files went.
+pub fn print_sweep_summary(report: &ExperimentReport) {
+    let r = &report.result;
+    println!(
+        "Table II: {} trials per cell, {} cells, {:.1} s on {} threads",
+        r.trials,
+        r.cells.len(),
+        r.elapsed_s,
+        r.threads
+    );
+    print_table(report);
+    print_results_dir(report);
+}
+
+/// The flight of the diagnosis demos: 25 s on the default trajectory with one plant effect
+/// hidden, the paper's medium noise, no payload, no adaptation, logged.
+pub fn hidden_effect_flight(effect: EffectKind, seed: u64) -> Result<SimConfig, SimError> {
+    Ok(SimConfig {
+        duration: 25.0,
+        seed,
+        noise: NoiseLevel::Medium,
+        payload: PayloadSchedule::None,
+        effects: PlantEffects::only(effect)?,
+        adaptation: Adaptation::Nominal,
+        record_log: true,
+        stop_on_abort: false,
+        ..SimConfig::default()
+    })
 }

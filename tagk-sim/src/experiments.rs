@@ -153,8 +153,15 @@ fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec
         .collect()
 }
 
-fn cdf_series(result: &SweepResult, noise: NoiseLevel) -> Vec<ChartSeries> {
-    result
+/// The position-error CDF of every cell at one noise level, as a figure at `path` (`.svg`
+/// and `.png` added by [`line_chart`]).
+fn cdf_chart(
+    path: &Path,
+    title: String,
+    result: &SweepResult,
+    noise: NoiseLevel,
+) -> Result<(), SimError> {
+    let series = result
         .cells
         .iter()
         .filter(|c| c.noise == noise)
@@ -162,7 +169,18 @@ fn cdf_series(result: &SweepResult, noise: NoiseLevel) -> Vec<ChartSeries> {
             label: c.label.clone(),
             points: cdf(&c.position_errors),
         })
-        .collect()
+        .collect();
+    line_chart(
+        path,
+        &LineChart {
+            title,
+            x_label: "mean position error of a trial [cm]".into(),
+            y_label: "fraction of trials (aborted excluded)".into(),
+            log_y: false,
+            series,
+            markers: vec![],
+        },
+    )
 }
 
 /// One cell of `results.json`: the cell's summary and its mean error curve (empty when the
@@ -274,16 +292,11 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
         )?;
     }
     for noise in NoiseLevel::ALL {
-        line_chart(
+        cdf_chart(
             &dir.join(format!("cdf_{}", noise.name())),
-            &LineChart {
-                title: format!("Position-error CDF, noise {}", noise.name()),
-                x_label: "mean position error of a trial [cm]".into(),
-                y_label: "fraction of trials (aborted excluded)".into(),
-                log_y: false,
-                series: cdf_series(&result, noise),
-                markers: vec![],
-            },
+            format!("Position-error CDF, noise {}", noise.name()),
+            &result,
+            noise,
         )?;
     }
     Ok(ExperimentReport { result, dir })
@@ -387,16 +400,11 @@ pub fn run_single_trial<O: SweepObserver + ?Sized>(
         result.cells.len(),
         sweep.base.control_dt,
     )?;
-    line_chart(
+    cdf_chart(
         &dir.join("position_error_cdf"),
-        &LineChart {
-            title: "Position-error CDF".into(),
-            x_label: "mean position error of a trial [cm]".into(),
-            y_label: "fraction of trials (aborted excluded)".into(),
-            log_y: false,
-            series: cdf_series(&result, noise),
-            markers: vec![],
-        },
+        "Position-error CDF".into(),
+        &result,
+        noise,
     )?;
     Ok(SingleTrialReport {
         trials,
@@ -433,16 +441,11 @@ pub fn run_early_adaptation<O: SweepObserver + ?Sized>(
     sweep.noise_levels = vec![noise];
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
-    line_chart(
+    cdf_chart(
         &dir.join("position_error_cdf"),
-        &LineChart {
-            title: "Position-error CDF: baselines alone and with early TAG-K".into(),
-            x_label: "mean position error of a trial [cm]".into(),
-            y_label: "fraction of trials (aborted excluded)".into(),
-            log_y: false,
-            series: cdf_series(&result, noise),
-            markers: vec![],
-        },
+        "Position-error CDF: baselines alone and with early TAG-K".into(),
+        &result,
+        noise,
     )?;
     Ok(ExperimentReport { result, dir })
 }
