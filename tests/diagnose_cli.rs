@@ -191,25 +191,7 @@ fn html_report_renders_in_headless_chromium() {
         return;
     };
     let profile = dir.join("profile");
-    let out = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--no-first-run",
-            &format!("--user-data-dir={}", profile.display()),
-            "--dump-dom",
-            &format!("file://{}", file.display()),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = headless(chromium, &profile, &["--dump-dom".into()], &file);
     let dom = String::from_utf8_lossy(&out.stdout);
     // The browser parsed the document: its DOM carries our title, the SVG plots and the table.
     assert!(dom.contains("id=\"title\""), "no title in the rendered DOM");
@@ -219,29 +201,42 @@ fn html_report_renders_in_headless_chromium() {
     );
     assert!(dom.contains("before-after"));
     let shot = dir.join("shot.png");
-    let out = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--no-first-run",
-            &format!("--user-data-dir={}", profile.display()),
-            "--window-size=1400,2000",
-            &format!("--screenshot={}", shot.display()),
-            &format!("file://{}", file.display()),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = headless(
+        chromium,
+        &profile,
+        &[
+            "--window-size=1400,2000".into(),
+            format!("--screenshot={}", shot.display()),
+        ],
+        &file,
     );
     let png = std::fs::read(&shot).unwrap();
     assert!(
         png.len() > 10_000 && png.starts_with(b"\x89PNG"),
         "screenshot too small"
     );
+}
+
+/// Runs headless Chromium on `file` with `extra` flags; panics with its stderr if it fails.
+fn headless(chromium: &str, profile: &Path, extra: &[String], file: &Path) -> std::process::Output {
+    let mut args: Vec<String> = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--no-first-run",
+    ]
+    .map(String::from)
+    .to_vec();
+    args.push(format!("--user-data-dir={}", profile.display()));
+    args.extend_from_slice(extra);
+    args.push(format!("file://{}", file.display()));
+    let out = Command::new(chromium).args(&args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
