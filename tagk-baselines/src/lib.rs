@@ -44,13 +44,35 @@
 //! and the new `θ` and `P` are finite with a positive diagonal. On any error the estimate and
 //! covariance are exactly what they were.
 
-mod config;
-mod kalman;
-mod kernel;
-mod rls;
-mod state;
+#![no_std]
 
-pub use config::{Backend, KalmanConfig, RlsConfig, WindupGuard};
+#[cfg(feature = "alloc")]
+extern crate alloc;
+#[cfg(feature = "std")]
+extern crate std;
+
+mod config;
+#[cfg(feature = "faer")]
+mod faer_kernel;
+mod filter;
+mod kalman;
+mod kind;
+mod rls;
+
+pub use config::{Backend, KalmanConfig, PAPER_P0, RlsConfig, WindupGuard};
+pub use filter::covariance_buffer_len;
 pub use kalman::KalmanFilter;
+pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;
-pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, UpdateInfo};
+pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
+
+/// The storage of [`Rls`] and [`KalmanFilter`] when none is named: a `Vec<T>` with the
+/// `alloc` feature (on by default, through `std`), else a `&'static mut [T]` (a static
+/// buffer on a microcontroller).
+#[cfg(feature = "alloc")]
+pub type DefaultStorage<T> = alloc::vec::Vec<T>;
+/// The storage of [`Rls`] and [`KalmanFilter`] when none is named: a `Vec<T>` with the
+/// `alloc` feature (on by default, through `std`), else a `&'static mut [T]` (a static
+/// buffer on a microcontroller).
+#[cfg(not(feature = "alloc"))]
+pub type DefaultStorage<T> = &'static mut [T];
