@@ -46,6 +46,17 @@ pub const fn covariance_buffer_len(n: usize, m_max: usize) -> usize {
     3 * n * n + 4 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
 }
 
+/// [`covariance_buffer_len`] without overflow.
+pub(crate) fn checked_buffer_len(n: usize, m: usize) -> Option<usize> {
+    let nn = n.checked_mul(n)?.checked_mul(3)?;
+    let mn = m.checked_mul(n)?.checked_mul(2)?;
+    let mm = m.checked_mul(m)?;
+    nn.checked_add(mn)?
+        .checked_add(mm)?
+        .checked_add(n.checked_mul(4)?)?
+        .checked_add(m.checked_mul(3)?)
+}
+
 /// The fallback threshold (see the module docs): `P⁺_kk ≤ CANCELLATION · P̃_kk` means fewer
 /// than ~4 significant digits of `P⁺_kk` survived in `f64`.
 const CANCELLATION: f64 = 1e4 * f64::EPSILON;
@@ -120,8 +131,9 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
         buf: S,
     ) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
-        let needed = covariance_buffer_len(n, m_max);
         let found = buf.as_ref().len();
+        // Overflowing sizes can never be satisfied: report them as `usize::MAX`.
+        let needed = checked_buffer_len(n, m_max).unwrap_or(usize::MAX);
         if found < needed {
             return Err(ConfigError::BufferTooSmall { needed, found });
         }

@@ -55,11 +55,12 @@ impl KalmanFilter {
     /// and `P = p₀·I`. Its [`name`](OnlineEstimator::name) is `"KF"`.
     pub fn new(n: usize, m_max: usize, config: KalmanConfig) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
+        config.validate()?;
         Self::with_storage(
             n,
             m_max,
             config,
-            alloc::vec![0.0; crate::covariance_buffer_len(n, m_max)],
+            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
         )
     }
 

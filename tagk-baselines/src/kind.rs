@@ -15,6 +15,7 @@ use crate::{KalmanConfig, RlsConfig};
 /// half). Names parse back ([`FromStr`]) from either the display name (`"RLS-low"`, `"TAG-K"`)
 /// or the command-line spelling (`"rls-low"`, `"tagk"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum EstimatorKind {
     /// RLS, `λ = 0.99`, `P₀ = 10³·I` ([`RlsConfig::LOW`]).
     RlsLow,

@@ -44,11 +44,12 @@ impl Rls {
     /// `θ = 0` and `P = p₀·I`. Its [`name`](OnlineEstimator::name) is `"RLS"`.
     pub fn new(n: usize, m_max: usize, config: RlsConfig) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
+        config.validate()?;
         Self::with_storage(
             n,
             m_max,
             config,
-            alloc::vec![0.0; crate::covariance_buffer_len(n, m_max)],
+            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
         )
     }
 

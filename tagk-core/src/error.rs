@@ -121,6 +121,7 @@ pub enum ConfigError {
 #[error(
     "the matrix is not numerically positive definite (pivot {pivot} is not positive and finite)"
 )]
+#[non_exhaustive]
 pub struct NotPositiveDefinite {
     /// Index of the failed pivot (0-based).
     pub pivot: usize,
