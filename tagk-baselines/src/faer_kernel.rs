@@ -17,11 +17,9 @@ use tagk_core::EstimatorError;
 use tagk_core::linalg::cholesky_in_place;
 
 use crate::filter::{
-    CHOLESKY_FAILED, Fallback, Model, Parts, finish_covariance, residual, windup_guard,
+    CANCELLATION, CHOLESKY_FAILED, Fallback, Model, Parts, finish_covariance, residual,
+    windup_guard,
 };
-
-/// The fallback threshold (see the filter module): as in the portable kernel.
-const CANCELLATION: f64 = 1e4 * f64::EPSILON;
 
 /// Runs one update on a dummy full-size window so that faer's per-thread packing buffers
 /// (sized by the L3 cache, allocated on first use in a thread) exist before the first real

@@ -25,7 +25,7 @@
 //! `P⁺ = (P̃⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, with Cholesky factorisations of `n × n`
 //! matrices (about `n³ + m n²`, on such windows only). The threshold is the same number in
 //! `f32`, where it catches only a complete cancellation (a diagonal entry that is zero or
-//! negative), so `f32` filters take the fallback instead of failing but otherwise run the
+//! negative): `f32` filters then try the fallback before they fail, and otherwise run the
 //! block update.
 
 use core::fmt;
@@ -59,7 +59,7 @@ pub(crate) fn checked_buffer_len(n: usize, m: usize) -> Option<usize> {
 
 /// The fallback threshold (see the module docs): `P⁺_kk ≤ CANCELLATION · P̃_kk` means fewer
 /// than ~4 significant digits of `P⁺_kk` survived in `f64`.
-const CANCELLATION: f64 = 1e4 * f64::EPSILON;
+pub(crate) const CANCELLATION: f64 = 1e4 * f64::EPSILON;
 
 pub(crate) const CHOLESKY_FAILED: &str =
     "the innovation covariance A P Aᵀ + D is not numerically positive definite";
