@@ -11,9 +11,10 @@ use tagk_core::{ConfigError, Real};
 /// the triangular solve are executed, so results agree to round-off, not bit for bit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Backend {
-    /// The backend measured fastest: currently [`Backend::Faer`] at every dimension (it
-    /// measured faster than the hand-written loops, and than nalgebra's fixed-size and dynamic
-    /// matrices, at `n = 10, 20, 30, 40, 80, 120` with `m = 30`; figures in the README).
+    /// The backend measured fastest: [`Backend::Faer`] for `f64` with the `faer` feature (it
+    /// measured faster than the portable kernel, and than nalgebra's fixed-size and dynamic
+    /// matrices, at every `n` measured with `m = 30`; figures in the README), else
+    /// [`Backend::Loops`].
     #[default]
     Auto,
     /// The portable kernel: hand-written dot products with a fixed summation order, generic
