@@ -10,11 +10,12 @@ use common::{M, bench_updates, windows};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use tagk::baselines::{KalmanFilter, Rls};
 use tagk::core::{
-    GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
+    GreedyKaczmarz, OnlineEstimator, RandomizedKaczmarz, TagK, TailAveragedKaczmarz,
+    tagk_paper_config,
 };
 
 fn estimators(n: usize) -> Vec<Box<dyn OnlineEstimator<f64>>> {
-    let cfg = KaczmarzConfig::default().with_seed(1);
+    let cfg = tagk_paper_config().with_seed(1);
     vec![
         Box::new(TagK::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),
         Box::new(GreedyKaczmarz::<f64, Vec<f64>>::new(n, M, cfg).unwrap()),

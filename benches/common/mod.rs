@@ -5,14 +5,14 @@ use std::hint::black_box;
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, BenchmarkId};
 use tagk::core::OnlineEstimator;
-use tagk::mcu::SyntheticWindows;
+use tagk::core::SyntheticWindows;
 
 /// Rows per window (the paper's `m`).
 pub const M: usize = 30;
 /// Windows in the stream each estimator cycles through.
 pub const STREAM: usize = 64;
 
-/// The Table III stream of the microcontroller harness (`θ, A ~ U[−1, 1]`,
+/// The Table III stream (tagk-core's `SyntheticWindows`, also run by the microcontroller harness) (`θ, A ~ U[−1, 1]`,
 /// `b = Aθ + 10⁻³·U[−1, 1]`), so host and firmware time the same windows.
 pub fn windows(n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
     SyntheticWindows::for_table(n, M).take_windows(STREAM)

@@ -1,6 +1,8 @@
 //! Configurations of the two filters, validated by the constructors.
 
-use tagk_core::ConfigError;
+use core::any::TypeId;
+
+use tagk_core::{ConfigError, Real};
 
 /// Which dense-algebra code runs the block update.
 ///
@@ -9,30 +11,47 @@ use tagk_core::ConfigError;
 /// the triangular solve are executed, so results agree to round-off, not bit for bit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Backend {
-    /// The backend measured fastest: currently [`Backend::Faer`] at every dimension (it
-    /// measured faster than the hand-written loops, and than nalgebra's fixed-size and dynamic
-    /// matrices, at `n = 10, 20, 30, 40, 80, 120` with `m = 30`; figures in the README).
+    /// The backend measured fastest: [`Backend::Faer`] for `f64` with the `faer` feature (it
+    /// measured faster than the portable kernel, and than nalgebra's fixed-size and dynamic
+    /// matrices, at every `n` measured with `m = 30`; figures in the README), else
+    /// [`Backend::Loops`].
     #[default]
     Auto,
-    /// Hand-written loops over the row-major buffers (dot products and `axpy`s with a fixed
-    /// summation order, compiled for the baseline target without run-time SIMD dispatch).
-    /// A portable reference implementation; slower than [`Backend::Faer`].
+    /// The portable kernel: hand-written dot products with a fixed summation order, generic
+    /// over the scalar, `no_std`, the code the Cortex-M7 firmware runs. Slower than
+    /// [`Backend::Faer`] on a host.
     Loops,
-    /// `faer`'s matrix products (SIMD with run-time CPU dispatch) and triangular solve on
+    /// `faer`'s matrix products (feature `faer`, `f64` only) (SIMD with run-time CPU dispatch) and triangular solve on
     /// views of the buffers, with the hand-written Cholesky factorisation, which is faster
     /// than faer's for the small `m × m` innovation covariance.
     Faer,
 }
 
 impl Backend {
-    /// The concrete backend this choice runs ([`Backend::Auto`] resolved).
-    pub fn resolve(self) -> Backend {
+    /// The concrete backend this choice runs for scalars `T` ([`Backend::Auto`] resolved:
+    /// [`Backend::Faer`] for `f64` when the `faer` feature is on, [`Backend::Loops`]
+    /// otherwise).
+    ///
+    /// # Errors
+    /// [`ConfigError::InvalidParameter`] for [`Backend::Faer`] with `f32` or without the
+    /// `faer` feature.
+    pub fn resolve<T: Real>(self) -> Result<Backend, ConfigError> {
+        let faer = cfg!(feature = "faer") && TypeId::of::<T>() == TypeId::of::<f64>();
         match self {
-            Backend::Auto => Backend::Faer,
-            other => other,
+            Backend::Auto if faer => Ok(Backend::Faer),
+            Backend::Auto => Ok(Backend::Loops),
+            Backend::Faer if !faer => Err(ConfigError::InvalidParameter {
+                name: "backend",
+                value: f64::NAN,
+                reason: "the faer backend needs f64 scalars and the `faer` feature",
+            }),
+            other => Ok(other),
         }
     }
 }
+
+/// The prior covariance scale of every paper preset: `P₀ = 10³·I`.
+pub const PAPER_P0: f64 = 1e3;
 
 /// Covariance wind-up guard of [`Rls`](crate::Rls).
 ///
@@ -72,7 +91,7 @@ impl Default for RlsConfig {
     fn default() -> Self {
         Self {
             lambda: 1.0,
-            p0: 1e3,
+            p0: PAPER_P0,
             windup_guard: WindupGuard::None,
             backend: Backend::Auto,
         }
@@ -83,14 +102,14 @@ impl RlsConfig {
     /// The TAG-K paper's "RLS-low": `λ = 0.99`, `P₀ = 10³·I`.
     pub const LOW: RlsConfig = RlsConfig {
         lambda: 0.99,
-        p0: 1e3,
+        p0: PAPER_P0,
         windup_guard: WindupGuard::None,
         backend: Backend::Auto,
     };
     /// The TAG-K paper's "RLS-high": `λ = 0.96`, `P₀ = 10³·I`.
     pub const HIGH: RlsConfig = RlsConfig {
         lambda: 0.96,
-        p0: 1e3,
+        p0: PAPER_P0,
         windup_guard: WindupGuard::None,
         backend: Backend::Auto,
     };
@@ -163,14 +182,14 @@ impl KalmanConfig {
     pub const LOW: KalmanConfig = KalmanConfig {
         sigma_q: 1e-3,
         sigma_r: 1e-5,
-        p0: 1e3,
+        p0: PAPER_P0,
         backend: Backend::Auto,
     };
     /// The TAG-K paper's "KF-high": `σ_Q = 10⁻¹`, `σ_R = 10⁻³`, `P₀ = 10³·I`.
     pub const HIGH: KalmanConfig = KalmanConfig {
         sigma_q: 1e-1,
         sigma_r: 1e-3,
-        p0: 1e3,
+        p0: PAPER_P0,
         backend: Backend::Auto,
     };
 

@@ -1,9 +1,11 @@
 //! Kalman filter with the parameters as a random walk.
 
-use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, UpdateInfo, validate_window};
+use core::fmt;
 
-use crate::state::FilterState;
-use crate::{Backend, KalmanConfig};
+use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
+
+use crate::filter::{BlockFilter, Model, trace};
+use crate::{Backend, DefaultStorage, KalmanConfig};
 
 /// Kalman filter for `θ` modelled as a random walk observed through the windows.
 ///
@@ -37,50 +39,84 @@ use crate::{Backend, KalmanConfig};
 /// The cost per update is `O(m n²)` (see the crate docs); nothing is allocated after
 /// construction. Zero rows of a window carry no information and change nothing (a window of
 /// only zero rows is refused with [`EstimatorError::NoUsableRow`], without a predict step).
-pub struct KalmanFilter {
+///
+/// Generic over the scalar and the storage like [`Rls`](crate::Rls): `f64` in a `Vec` by
+/// default, `f32` or caller storage with [`KalmanFilter::with_storage`].
+#[derive(Clone)]
+pub struct KalmanFilter<T: Real = f64, S: Storage<T> = DefaultStorage<T>> {
     config: KalmanConfig,
     name: &'static str,
-    /// `σ_Q²`.
-    q: f64,
-    /// `σ_R²`.
-    r: f64,
-    state: FilterState,
+    filter: BlockFilter<T, S>,
 }
 
+#[cfg(feature = "alloc")]
 impl KalmanFilter {
     /// Builds a filter of dimension `n` for windows of at most `m_max` rows, with `θ = 0`
     /// and `P = p₀·I`. Its [`name`](OnlineEstimator::name) is `"KF"`.
     pub fn new(n: usize, m_max: usize, config: KalmanConfig) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, config, "KF")
+        tagk_core::check_dimensions(n, m_max)?;
+        config.validate()?;
+        Self::with_storage(
+            n,
+            m_max,
+            config,
+            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
+        )
     }
 
     /// The TAG-K paper's "KF-low" baseline ([`KalmanConfig::LOW`]: `σ_Q = 10⁻³`,
     /// `σ_R = 10⁻⁵`, `P₀ = 10³·I`).
     pub fn kf_low(n: usize, m_max: usize) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, KalmanConfig::LOW, "KF-low")
+        Ok(Self::new(n, m_max, KalmanConfig::LOW)?.with_name("KF-low"))
     }
 
     /// The TAG-K paper's "KF-high" baseline ([`KalmanConfig::HIGH`]: `σ_Q = 10⁻¹`,
     /// `σ_R = 10⁻³`, `P₀ = 10³·I`).
     pub fn kf_high(n: usize, m_max: usize) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, KalmanConfig::HIGH, "KF-high")
+        Ok(Self::new(n, m_max, KalmanConfig::HIGH)?.with_name("KF-high"))
     }
+}
 
-    fn named(
+impl<T: Real, S: Storage<T>> KalmanFilter<T, S> {
+    /// Builds a filter of dimension `n` for windows of at most `m_max` rows in `buf` (at
+    /// least [`covariance_buffer_len`](crate::covariance_buffer_len)`(n, m_max)` scalars; its
+    /// contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"KF"`.
+    ///
+    /// ```
+    /// use tagk_baselines::{covariance_buffer_len, KalmanConfig, KalmanFilter, OnlineEstimator};
+    /// const LEN: usize = covariance_buffer_len(2, 2);
+    /// let mut kf =
+    ///     KalmanFilter::<f32, [f32; LEN]>::with_storage(2, 2, KalmanConfig::HIGH, [0.0; LEN])?;
+    /// kf.update(&[1.0, 0.0, 0.0, 1.0], &[3.0, -1.0])?;
+    /// assert!((kf.estimate()[1] + 1.0).abs() < 1e-4);
+    /// # Ok::<(), Box<dyn core::error::Error>>(())
+    /// ```
+    pub fn with_storage(
         n: usize,
         m_max: usize,
         config: KalmanConfig,
-        name: &'static str,
+        buf: S,
     ) -> Result<Self, ConfigError> {
-        tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
+        let backend = config.backend.resolve::<T>()?;
+        let model = Model {
+            q: T::cast(config.sigma_q * config.sigma_q),
+            d: T::cast(config.sigma_r * config.sigma_r),
+            scale: T::one(),
+            p0: T::cast(config.p0),
+            max_trace: None,
+        };
         Ok(Self {
             config,
-            name,
-            q: config.sigma_q * config.sigma_q,
-            r: config.sigma_r * config.sigma_r,
-            state: FilterState::new(n, m_max, config.p0, config.backend),
+            name: "KF",
+            filter: BlockFilter::new(n, m_max, backend, model, buf)?,
         })
+    }
+
+    /// Renames the filter (its [`name`](OnlineEstimator::name), e.g. a preset's name).
+    pub fn with_name(mut self, name: &'static str) -> Self {
+        self.name = name;
+        self
     }
 
     /// The configuration this filter was built with.
@@ -90,60 +126,58 @@ impl KalmanFilter {
 
     /// The posterior covariance `P` of the last update (`n × n`, row-major, symmetric;
     /// squared units of `θ`).
-    pub fn covariance(&self) -> &[f64] {
-        &self.state.p
+    pub fn covariance(&self) -> &[T] {
+        self.filter.covariance()
     }
 
     /// `trace(P)`.
-    pub fn covariance_trace(&self) -> f64 {
-        self.state.trace()
+    pub fn covariance_trace(&self) -> T {
+        trace(self.filter.covariance(), self.filter.n)
     }
 
     /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
-        self.state.ws.backend()
+        self.filter.backend
+    }
+
+    /// The storage, handed back.
+    pub fn into_storage(self) -> S {
+        self.filter.into_storage()
     }
 }
 
-impl OnlineEstimator<f64> for KalmanFilter {
+impl<T: Real, S: Storage<T>> fmt::Debug for KalmanFilter<T, S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("KalmanFilter")
+            .field("name", &self.name)
+            .field("config", &self.config)
+            .field("filter", &self.filter)
+            .finish()
+    }
+}
+
+impl<T: Real, S: Storage<T>> OnlineEstimator<T> for KalmanFilter<T, S> {
     fn name(&self) -> &str {
         self.name
     }
 
     fn dim(&self) -> usize {
-        self.state.n
+        self.filter.n
     }
 
     fn capacity(&self) -> usize {
-        self.state.m_max
+        self.filter.m_max
     }
 
-    fn estimate(&self) -> &[f64] {
-        &self.state.theta
+    fn estimate(&self) -> &[T] {
+        self.filter.estimate()
     }
 
-    fn update(&mut self, a: &[f64], b: &[f64]) -> Result<UpdateInfo, EstimatorError> {
-        let st = &mut self.state;
-        let n = st.n;
-        let m = validate_window(n, st.m_max, a, b)?;
-        let prior_residual_norm = st.ws.residual(a, b, &st.theta)?;
-        // Predict: P⁻ = P + Q.
-        st.p_next.copy_from_slice(&st.p);
-        for k in 0..n {
-            st.p_next[k * n + k] += self.q;
-        }
-        st.ws
-            .update(a, m, self.r, 1.0, &st.p, self.q, &mut st.p_next)?;
-        st.commit()?;
-        Ok(UpdateInfo {
-            rows: m,
-            iterations: 1,
-            prior_residual_norm,
-            converged: false,
-        })
+    fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+        self.filter.update(a, b)
     }
 
-    fn reset(&mut self, estimate: &[f64]) -> Result<(), EstimatorError> {
-        self.state.reset(estimate)
+    fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
+        self.filter.reset(estimate)
     }
 }

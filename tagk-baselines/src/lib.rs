@@ -19,18 +19,26 @@
 //! In total about `1.5 m n² + m² n + m³/6` multiply-adds: `O(m n²)` for `m ≤ n`, never
 //! `O(n³)`, and no inverse or gain matrix is formed. The Kalman filter adds `P ← P + σ_Q²·I`
 //! (`n`) before step 1; RLS scales by `s = 1/λ` in step 6. Measured per-update times are in
-//! the README.
+//! the README. The faer backend runs these steps as written; the portable kernel
+//! ([`Backend::Loops`], the firmware's) computes the same quantities with dot products only
+//! (`W = A P`, `Z = Wᵀ L⁻ᵀ` so that `Gᵀ w = Z L⁻¹ r` and `Gᵀ G = Z Zᵀ`), updates `P` in place
+//! after checking a bound on every new entry, and keeps `‖z_i‖²` for the checks below. The
+//! Cholesky factorisation is tagk-core's
+//! [`cholesky_in_place`](tagk_core::linalg::cholesky_in_place).
 //!
 //! **Extreme dynamic range.** When a window pins a direction far below the rounding level of
 //! the prior (`p₀ ‖a‖² / d ≳ 10¹²` with `d = λ` or `σ_R²`; in practice the first window of
 //! "KF-low", `P₀ = 10³`, `σ_R² = 10⁻¹⁰`), `S` is numerically singular or step 6 cancels to
 //! no correct digits. This is detected (a failed Cholesky pivot, or a diagonal entry
-//! `P⁺_kk < 10⁴ ε P_kk`) and that window is redone in information form,
+//! `P⁺_kk ≤ 10⁴ ε P_kk`, `ε` of `f64` also for `f32`, where it thus catches only a complete
+//! cancellation) and that window is redone in information form,
 //! `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, by Cholesky factorisations of `n × n`
 //! matrices: about `n³ + m n²`, on such windows only.
 //!
-//! **Memory.** All buffers (`4n² + m(n+1) + m² + 4n` values) are allocated by the
-//! constructor and `update` does not allocate. With [`Backend::Faer`], faer additionally keeps
+//! **Memory.** One buffer of [`covariance_buffer_len`]`(n, m)` = `3n² + 4n + 2mn + m² + 3m`
+//! scalars (two copies of `θ` and `P`, committed by switching; the fallback's scratch; the
+//! workspace), allocated by [`Rls::new`] / [`KalmanFilter::new`] or provided by the caller
+//! (`with_storage`); `update` does not allocate. With [`Backend::Faer`], faer additionally keeps
 //! per-thread packing buffers (sized by the L3 cache) that it allocates on first use in a
 //! thread; the constructor runs one dummy update so they exist for the constructing thread (an
 //! estimator moved to another thread triggers that one-time allocation there on its first
@@ -39,18 +47,50 @@
 //! # Failure handling
 //!
 //! Every update validates the window first (shape, capacity, finiteness: the same typed
-//! [`EstimatorError`](tagk_core::EstimatorError)s as the Kaczmarz estimators), then works on
-//! scratch copies of `θ` and `P` and commits them only if the Cholesky factorisation succeeded
-//! and the new `θ` and `P` are finite with a positive diagonal. On any error the estimate and
-//! covariance are exactly what they were.
+//! [`EstimatorError`](tagk_core::EstimatorError)s as the Kaczmarz estimators), then computes
+//! the new `θ` and `P` in scratch space (or checks a bound on every new entry before updating
+//! `P` in place) and commits them only if they are finite with a positive diagonal. On any
+//! error the estimate and covariance are exactly what they were.
+
+#![no_std]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+#[cfg(feature = "std")]
+extern crate std;
 
 mod config;
+#[cfg(feature = "faer")]
+mod faer_kernel;
+mod filter;
 mod kalman;
-mod kernel;
+mod kind;
 mod rls;
-mod state;
 
-pub use config::{Backend, KalmanConfig, RlsConfig, WindupGuard};
+pub use config::{Backend, KalmanConfig, PAPER_P0, RlsConfig, WindupGuard};
+pub use filter::covariance_buffer_len;
 pub use kalman::KalmanFilter;
+pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;
-pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, UpdateInfo};
+pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
+
+/// The length of the buffer the `Vec` constructors allocate, or a typed error for sizes that
+/// overflow `usize`.
+#[cfg(feature = "alloc")]
+fn owned_buffer_len(n: usize, m_max: usize) -> Result<usize, ConfigError> {
+    filter::checked_buffer_len(n, m_max).ok_or(ConfigError::BufferTooSmall {
+        needed: usize::MAX,
+        found: 0,
+    })
+}
+
+/// The storage of [`Rls`] and [`KalmanFilter`] when none is named: a `Vec<T>` with the
+/// `alloc` feature (on by default, through `std`), else a `&'static mut [T]` (a static
+/// buffer on a microcontroller).
+#[cfg(feature = "alloc")]
+pub type DefaultStorage<T> = alloc::vec::Vec<T>;
+/// The storage of [`Rls`] and [`KalmanFilter`] when none is named: a `Vec<T>` with the
+/// `alloc` feature (on by default, through `std`), else a `&'static mut [T]` (a static
+/// buffer on a microcontroller).
+#[cfg(not(feature = "alloc"))]
+pub type DefaultStorage<T> = &'static mut [T];

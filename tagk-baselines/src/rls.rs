@@ -1,9 +1,11 @@
 //! Block recursive least squares with exponential forgetting.
 
-use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, UpdateInfo, validate_window};
+use core::fmt;
 
-use crate::state::{FilterState, trace};
-use crate::{Backend, RlsConfig, WindupGuard};
+use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
+
+use crate::filter::{BlockFilter, Model, trace};
+use crate::{Backend, DefaultStorage, RlsConfig, WindupGuard};
 
 /// Block recursive least squares with forgetting factor `λ` and prior `P₀ = p₀·I`.
 ///
@@ -22,44 +24,88 @@ use crate::{Backend, RlsConfig, WindupGuard};
 /// The cost per update is `O(m n²)` (see the crate docs); nothing is allocated after
 /// construction. Zero rows of a window carry no information and change nothing.
 ///
+/// Generic over the scalar `T` (`f64` by default, or `f32`) and the storage `S` of its one
+/// buffer ([`covariance_buffer_len`](crate::covariance_buffer_len) scalars): a `Vec` for
+/// [`Rls::new`], or an array or a `&mut [T]` for [`Rls::with_storage`] (no allocator needed).
+/// `Clone` when the storage is (owned storage; a borrowed `&mut [T]` cannot be duplicated).
+///
 /// With `λ < 1` and poorly exciting windows the covariance winds up (grows without bound);
 /// see [`WindupGuard`].
-pub struct Rls {
+#[derive(Clone)]
+pub struct Rls<T: Real = f64, S: Storage<T> = DefaultStorage<T>> {
     config: RlsConfig,
     name: &'static str,
-    state: FilterState,
+    filter: BlockFilter<T, S>,
 }
 
+#[cfg(feature = "alloc")]
 impl Rls {
     /// Builds an estimator of dimension `n` for windows of at most `m_max` rows, with
     /// `θ = 0` and `P = p₀·I`. Its [`name`](OnlineEstimator::name) is `"RLS"`.
     pub fn new(n: usize, m_max: usize, config: RlsConfig) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, config, "RLS")
+        tagk_core::check_dimensions(n, m_max)?;
+        config.validate()?;
+        Self::with_storage(
+            n,
+            m_max,
+            config,
+            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
+        )
     }
 
     /// The TAG-K paper's "RLS-low" baseline ([`RlsConfig::LOW`]: `λ = 0.99`, `P₀ = 10³·I`).
     pub fn rls_low(n: usize, m_max: usize) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, RlsConfig::LOW, "RLS-low")
+        Ok(Self::new(n, m_max, RlsConfig::LOW)?.with_name("RLS-low"))
     }
 
     /// The TAG-K paper's "RLS-high" baseline ([`RlsConfig::HIGH`]: `λ = 0.96`, `P₀ = 10³·I`).
     pub fn rls_high(n: usize, m_max: usize) -> Result<Self, ConfigError> {
-        Self::named(n, m_max, RlsConfig::HIGH, "RLS-high")
+        Ok(Self::new(n, m_max, RlsConfig::HIGH)?.with_name("RLS-high"))
     }
+}
 
-    fn named(
+impl<T: Real, S: Storage<T>> Rls<T, S> {
+    /// Builds an estimator of dimension `n` for windows of at most `m_max` rows in `buf`
+    /// (at least [`covariance_buffer_len`](crate::covariance_buffer_len)`(n, m_max)` scalars;
+    /// its contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"RLS"`.
+    ///
+    /// ```
+    /// use tagk_baselines::{covariance_buffer_len, OnlineEstimator, Rls, RlsConfig};
+    /// const LEN: usize = covariance_buffer_len(2, 2);
+    /// let mut rls = Rls::<f32, [f32; LEN]>::with_storage(2, 2, RlsConfig::LOW, [0.0; LEN])?;
+    /// rls.update(&[1.0, 0.0, 0.0, 1.0], &[3.0, -1.0])?;
+    /// assert!((rls.estimate()[0] - 3.0).abs() < 1e-2);
+    /// # Ok::<(), Box<dyn core::error::Error>>(())
+    /// ```
+    pub fn with_storage(
         n: usize,
         m_max: usize,
         config: RlsConfig,
-        name: &'static str,
+        buf: S,
     ) -> Result<Self, ConfigError> {
-        tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
+        let backend = config.backend.resolve::<T>()?;
+        let model = Model {
+            q: T::zero(),
+            d: T::cast(config.lambda),
+            scale: T::cast(1.0 / config.lambda),
+            p0: T::cast(config.p0),
+            max_trace: match config.windup_guard {
+                WindupGuard::None => None,
+                WindupGuard::MaxTrace(t) => Some(T::cast(t)),
+            },
+        };
         Ok(Self {
             config,
-            name,
-            state: FilterState::new(n, m_max, config.p0, config.backend),
+            name: "RLS",
+            filter: BlockFilter::new(n, m_max, backend, model, buf)?,
         })
+    }
+
+    /// Renames the estimator (its [`name`](OnlineEstimator::name), e.g. a preset's name).
+    pub fn with_name(mut self, name: &'static str) -> Self {
+        self.name = name;
+        self
     }
 
     /// The configuration this estimator was built with.
@@ -68,66 +114,58 @@ impl Rls {
     }
 
     /// The covariance `P` (`n × n`, row-major, symmetric; squared units of `θ`).
-    pub fn covariance(&self) -> &[f64] {
-        &self.state.p
+    pub fn covariance(&self) -> &[T] {
+        self.filter.covariance()
     }
 
     /// `trace(P)`, the quantity the [`WindupGuard::MaxTrace`] bound acts on.
-    pub fn covariance_trace(&self) -> f64 {
-        self.state.trace()
+    pub fn covariance_trace(&self) -> T {
+        trace(self.filter.covariance(), self.filter.n)
     }
 
     /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
-        self.state.ws.backend()
+        self.filter.backend
+    }
+
+    /// The storage, handed back.
+    pub fn into_storage(self) -> S {
+        self.filter.into_storage()
     }
 }
 
-impl OnlineEstimator<f64> for Rls {
+impl<T: Real, S: Storage<T>> fmt::Debug for Rls<T, S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Rls")
+            .field("name", &self.name)
+            .field("config", &self.config)
+            .field("filter", &self.filter)
+            .finish()
+    }
+}
+
+impl<T: Real, S: Storage<T>> OnlineEstimator<T> for Rls<T, S> {
     fn name(&self) -> &str {
         self.name
     }
 
     fn dim(&self) -> usize {
-        self.state.n
+        self.filter.n
     }
 
     fn capacity(&self) -> usize {
-        self.state.m_max
+        self.filter.m_max
     }
 
-    fn estimate(&self) -> &[f64] {
-        &self.state.theta
+    fn estimate(&self) -> &[T] {
+        self.filter.estimate()
     }
 
-    fn update(&mut self, a: &[f64], b: &[f64]) -> Result<UpdateInfo, EstimatorError> {
-        let st = &mut self.state;
-        let n = st.n;
-        let m = validate_window(n, st.m_max, a, b)?;
-        let prior_residual_norm = st.ws.residual(a, b, &st.theta)?;
-        let lambda = self.config.lambda;
-        st.p_next.copy_from_slice(&st.p);
-        st.ws
-            .update(a, m, lambda, 1.0 / lambda, &st.p, 0.0, &mut st.p_next)?;
-        if let WindupGuard::MaxTrace(max_trace) = self.config.windup_guard {
-            let tr = trace(&st.p_next, n);
-            if tr > max_trace {
-                let shrink = max_trace / tr;
-                for v in st.p_next.iter_mut() {
-                    *v *= shrink;
-                }
-            }
-        }
-        st.commit()?;
-        Ok(UpdateInfo {
-            rows: m,
-            iterations: 1,
-            prior_residual_norm,
-            converged: false,
-        })
+    fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+        self.filter.update(a, b)
     }
 
-    fn reset(&mut self, estimate: &[f64]) -> Result<(), EstimatorError> {
-        self.state.reset(estimate)
+    fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
+        self.filter.reset(estimate)
     }
 }

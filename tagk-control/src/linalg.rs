@@ -1,9 +1,15 @@
 //! Small dense kernels on contiguous column-major slices, so that the Riccati solvers
 //! neither allocate inside their loops (nalgebra's `Cholesky` and `LU` consume their
 //! argument, which allocates for `DMatrix`) nor pay for bounds checks in the inner loops:
-//! every inner loop is an `axpy` or a dot product over contiguous memory.
+//! every inner loop is an `axpy` or a dot product over contiguous memory. The Cholesky
+//! factorisation and its solves are tagk-core's (`tagk_core::linalg`), the one implementation
+//! of the workspace.
 
 use nalgebra::{Dim, Matrix, RawStorage, StorageMut};
+use tagk_core::linalg::{
+    cholesky_solve_in_place as cholesky_solve, reciprocal_diagonal, solve_lower_in_place,
+    solve_lower_transpose_in_place,
+};
 
 /// `y[i] -= a[i] * s` over equal-length slices.
 #[inline(always)]
@@ -13,68 +19,59 @@ fn axpy_neg(y: &mut [f64], a: &[f64], s: f64) {
     }
 }
 
+/// Runs `f` with an `n`-long scratch slice: on the stack for the small systems of this crate
+/// (`n ≤ 32`), on the heap otherwise.
 #[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+fn with_scratch<R>(n: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
+    let mut small = [0.0; 32];
+    if n <= small.len() {
+        f(&mut small[..n])
+    } else {
+        f(&mut vec![0.0; n])
+    }
 }
 
-/// Cholesky factorisation in place of the `n×n` column-major `a`: on success its lower
-/// triangle holds `L` with `a = L Lᵀ`. Only the lower triangle is read; the strict upper
-/// triangle is left as it was. Returns `false` if `a` is not (numerically) positive
-/// definite or holds non-finite values.
+/// Cholesky factorisation in place of the `n×n` symmetric column-major `a` by the
+/// workspace's one factorisation, [`tagk_core::linalg::cholesky_in_place`]. That routine is
+/// row-major: it reads the lower triangle of the row-major view, which is the **upper**
+/// triangle of the column-major `a` (the same values for a symmetric `a`), and writes the
+/// factor `L` there, so on success the column-major upper triangle holds `Lᵀ` with
+/// `a = L Lᵀ`; the strict lower triangle is left as it was. Returns `false` if `a` is not
+/// (numerically) positive definite or holds non-finite values.
 pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     debug_assert_eq!(a.len(), n * n);
-    for j in 0..n {
-        let (left, right) = a.split_at_mut(j * n);
-        let col_j = &mut right[..n];
-        // col_j[j..] -= Σ_k L[j,k] · L[j.., k]
-        for k in 0..j {
-            let col_k = &left[k * n..(k + 1) * n];
-            axpy_neg(&mut col_j[j..], &col_k[j..], col_k[j]);
-        }
-        let d = col_j[j];
-        // `!(d > 0)` also rejects NaN.
-        if !(d > 0.0 && d.is_finite()) {
-            return false;
-        }
-        let ljj = d.sqrt();
-        col_j[j] = ljj;
-        let inv = 1.0 / ljj;
-        for v in &mut col_j[j + 1..] {
-            *v *= inv;
-        }
-    }
-    true
+    tagk_core::linalg::cholesky_in_place(a, n).is_ok()
 }
 
 /// Solves `L Y = B` in place (`B` is `n×ncols`, column-major) with the factor of
 /// [`cholesky_in_place`].
 pub(crate) fn forward_lower_in_place(l: &[f64], n: usize, b: &mut [f64]) {
-    for col in b.chunks_exact_mut(n) {
-        for k in 0..n {
-            let lk = &l[k * n..(k + 1) * n];
-            let yk = col[k] / lk[k];
-            col[k] = yk;
-            axpy_neg(&mut col[k + 1..], &lk[k + 1..], yk);
+    with_scratch(n, |inv| {
+        reciprocal_diagonal(l, n, inv);
+        for col in b.chunks_exact_mut(n) {
+            solve_lower_in_place(l, n, inv, col);
         }
-    }
+    });
 }
 
 /// Solves `Lᵀ X = Y` in place (`Y` is `n×ncols`, column-major).
 pub(crate) fn backward_lower_t_in_place(l: &[f64], n: usize, b: &mut [f64]) {
-    for col in b.chunks_exact_mut(n) {
-        for i in (0..n).rev() {
-            let li = &l[i * n..(i + 1) * n];
-            let s = dot(&li[i + 1..], &col[i + 1..]);
-            col[i] = (col[i] - s) / li[i];
+    with_scratch(n, |inv| {
+        reciprocal_diagonal(l, n, inv);
+        for col in b.chunks_exact_mut(n) {
+            solve_lower_transpose_in_place(l, n, inv, col);
         }
-    }
+    });
 }
 
 /// Solves `L Lᵀ X = B` in place.
 pub(crate) fn cholesky_solve_in_place(l: &[f64], n: usize, b: &mut [f64]) {
-    forward_lower_in_place(l, n, b);
-    backward_lower_t_in_place(l, n, b);
+    with_scratch(n, |inv| {
+        reciprocal_diagonal(l, n, inv);
+        for col in b.chunks_exact_mut(n) {
+            cholesky_solve(l, n, inv, col);
+        }
+    });
 }
 
 /// LU factorisation with partial pivoting in place (`P a = L U`; unit lower `L` below the
@@ -236,7 +233,8 @@ mod tests {
         let a = Matrix3::new(4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0);
         let mut l = a;
         assert!(cholesky_in_place(l.as_mut_slice(), 3));
-        let lower = l.lower_triangle();
+        // The factor is in the upper triangle (as Lᵀ, see `cholesky_in_place`).
+        let lower = l.upper_triangle().transpose();
         assert!((lower * lower.transpose() - a).norm() < 1e-14);
         let x_true = Matrix3x2::new(1.0, -2.0, 0.5, 3.0, -1.5, 0.25);
         let mut b = a * x_true;

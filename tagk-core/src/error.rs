@@ -113,3 +113,16 @@ pub enum ConfigError {
         reason: &'static str,
     },
 }
+
+/// A Cholesky factorisation met a pivot that is not positive and finite
+/// ([`linalg::cholesky_in_place`](crate::linalg::cholesky_in_place)): the matrix is not
+/// numerically positive definite, or holds a NaN or an infinity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the matrix is not numerically positive definite (pivot {pivot} is not positive and finite)"
+)]
+#[non_exhaustive]
+pub struct NotPositiveDefinite {
+    /// Index of the failed pivot (0-based).
+    pub pivot: usize,
+}

@@ -120,6 +120,14 @@ impl Default for KaczmarzConfig {
     }
 }
 
+/// TAG-K as the paper runs it (its Table II/III configuration, used by the firmware and the
+/// experiments): `T = m` projections per window, tail average over the last half
+/// (`t_b = ⌊m/2⌋`), warm start from the previous average, zero tolerance, seed 0. The same
+/// value as [`KaczmarzConfig::default`], named so that the paper's setting has one home.
+pub fn tagk_paper_config() -> KaczmarzConfig {
+    KaczmarzConfig::default()
+}
+
 impl KaczmarzConfig {
     /// Sets the iteration count.
     pub fn with_iterations(mut self, iterations: Iterations) -> Self {
@@ -221,6 +229,12 @@ impl<T, S: AsRef<[T]> + AsMut<[T]>> Storage<T> for S {}
 ///
 /// `GREEDY` selects rows by Bai & Wu's rule instead of by row norm; `AVERAGE` reports the tail
 /// average instead of the last iterate. Both are resolved at compile time.
+///
+/// `Clone` when the storage is (a `Vec` or an array: the clone continues with the same
+/// estimate and the same random stream; a borrowed `&mut [T]` cannot be duplicated). Only the
+/// estimate and the generator persist between updates; the rest of the buffer is per-update
+/// scratch, so a clone whose buffer lands at another alignment behaves identically.
+#[derive(Clone)]
 pub struct Kaczmarz<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> {
     config: KaczmarzConfig,
     n: usize,
@@ -228,6 +242,21 @@ pub struct Kaczmarz<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: b
     buf: S,
     rng: ChaCha8Rng,
     _scalar: PhantomData<T>,
+}
+
+impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> core::fmt::Debug
+    for Kaczmarz<T, S, GREEDY, AVERAGE>
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Kaczmarz")
+            .field("greedy", &GREEDY)
+            .field("average", &AVERAGE)
+            .field("config", &self.config)
+            .field("n", &self.n)
+            .field("m_max", &self.m_max)
+            .field("estimate", &&self.buf.as_ref()[..self.n])
+            .finish_non_exhaustive()
+    }
 }
 
 /// Randomised Kaczmarz (Strohmer & Vershynin 2009): rows drawn with probability `‖a_i‖²/‖A‖_F²`.

@@ -12,16 +12,18 @@ mod greedy;
 pub mod kaczmarz;
 pub mod linalg;
 mod real;
+pub mod synthetic;
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 mod x86;
 
-pub use error::{ConfigError, EstimatorError};
+pub use error::{ConfigError, EstimatorError, NotPositiveDefinite};
 pub use estimator::{
     OnlineEstimator, UpdateInfo, check_dimensions, check_window_finite, check_window_shape,
     validate_estimate, validate_window,
 };
 pub use kaczmarz::{
     BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
-    TagK, TailAveragedKaczmarz, kaczmarz_buffer_len,
+    TagK, TailAveragedKaczmarz, kaczmarz_buffer_len, tagk_paper_config,
 };
 pub use real::Real;
+pub use synthetic::SyntheticWindows;

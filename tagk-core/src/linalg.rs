@@ -6,12 +6,13 @@
 //! The summation order is fixed, so results are bit-identical from run to run.
 
 use crate::Real;
+pub use crate::error::NotPositiveDefinite;
 
 /// `xᵀy` for equal-length slices (extra entries of the longer slice are ignored).
 ///
 /// Summation order: four interleaved partial sums over the first `4⌊len/4⌋` entries, combined
 /// as `(s₀ + s₂) + (s₁ + s₃)`, then the remaining entries added in order — the same order as
-/// [`dot4`], so a value does not depend on which kernel computed it.
+/// `dot4`, so a value does not depend on which kernel computed it.
 #[inline(always)]
 pub fn dot<T: Real>(x: &[T], y: &[T]) -> T {
     let len = x.len().min(y.len());
@@ -39,7 +40,8 @@ pub fn dot<T: Real>(x: &[T], y: &[T]) -> T {
 /// on one accumulator; the result is bit-identical to four calls of [`dot`]. All slices must
 /// have at least `x.len()` entries.
 #[inline]
-pub fn dot4<T: Real>(x: &[T], rows: [&[T]; 4]) -> [T; 4] {
+#[cfg(test)]
+pub(crate) fn dot4<T: Real>(x: &[T], rows: [&[T]; 4]) -> [T; 4] {
     let len = x.len();
     let r = rows.map(|row| &row[..len]);
     let mut acc = [[T::zero(); 4]; 4];
@@ -67,9 +69,10 @@ pub fn dot4<T: Real>(x: &[T], rows: [&[T]; 4]) -> [T; 4] {
 }
 
 /// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, written as a full symmetric
-/// `m × m` row-major matrix into `gram` (at least `m²` entries), using [`dot4`] tiles on the
+/// `m × m` row-major matrix into `gram` (at least `m²` entries), using `dot4` tiles on the
 /// upper triangle: `m(m+1)/2` dot products of length `n`.
-pub fn gram<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
+#[cfg(test)]
+pub(crate) fn gram<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
     for i in 0..m {
         let ai = &a[i * n..(i + 1) * n];
         let mut j = i;
@@ -99,7 +102,8 @@ pub fn gram<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
 }
 
 /// `out[i] = a_iᵀx` for the `m` rows of a row-major `m × n` matrix (`x` has `n` entries).
-pub fn mat_vec<T: Real>(a: &[T], n: usize, m: usize, x: &[T], out: &mut [T]) {
+#[cfg(test)]
+pub(crate) fn mat_vec<T: Real>(a: &[T], n: usize, m: usize, x: &[T], out: &mut [T]) {
     let mut i = 0;
     while i + 4 <= m {
         let v = dot4(
@@ -122,7 +126,7 @@ pub fn mat_vec<T: Real>(a: &[T], n: usize, m: usize, x: &[T], out: &mut [T]) {
 
 /// `(xᵀx, xᵀy)` in one pass over `x`: a row's squared norm and its product with an estimate.
 #[inline(always)]
-pub fn norm2_and_dot<T: Real>(x: &[T], y: &[T]) -> (T, T) {
+pub(crate) fn norm2_and_dot<T: Real>(x: &[T], y: &[T]) -> (T, T) {
     let len = x.len().min(y.len());
     let (x, y) = (&x[..len], &y[..len]);
     let mut nn = [T::zero(); 4];
@@ -148,14 +152,14 @@ pub fn norm2_and_dot<T: Real>(x: &[T], y: &[T]) -> (T, T) {
 }
 
 /// `m` rounded up to a multiple of 8: the row stride of the transposed, padded regressor.
-pub const fn padded(m: usize) -> usize {
+pub(crate) const fn padded(m: usize) -> usize {
     m.div_ceil(8) * 8
 }
 
 /// Writes `Aᵀ` of a row-major `m × n` matrix into `at` as an `n × stride` row-major matrix
 /// (`stride = padded(m)`), zero in the padding columns.
 #[inline(always)]
-pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
+pub(crate) fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
     let stride = padded(m);
     let (m4, n4) = (m - m % 4, n - n % 4);
     // 4 × 4 tiles: four loads of four, four stores of four.
@@ -190,7 +194,7 @@ pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
 }
 
 /// The Gram matrix `G = A Aᵀ` from the transposed, padded regressor `at` of
-/// [`transpose_padded`], written full and symmetric into `gram` as a `p × p` row-major matrix
+/// `transpose_padded`, written full and symmetric into `gram` as a `p × p` row-major matrix
 /// with `p = padded(m)` (zero outside the leading `m × m` block).
 ///
 /// A 4 × 8 register-blocked outer-product kernel over the upper-triangle blocks: each step
@@ -198,7 +202,7 @@ pub fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
 /// independent accumulator vectors, with no horizontal reductions. `G_ij = Σ_k a_ik a_jk` is
 /// summed in order of `k`; `G_ij` and `G_ji` are the same value.
 #[inline(always)]
-pub fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
+pub(crate) fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
     let p = padded(m);
     let (at, gram) = (&at[..n * p], &mut gram[..p * p]);
     let mut bi = 0;
@@ -238,7 +242,7 @@ pub fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
 /// sixteen double registers of a Cortex-M7 FPU without spilling).
 ///
 /// Every entry is `Σ_k a_ik a_jk` accumulated in order of `k`, exactly as in
-/// [`gram_transposed`]: the two kernels return the same bits, so a microcontroller and a host
+/// `gram_transposed`: the two kernels return the same bits, so a microcontroller and a host
 /// agree to the last bit.
 pub fn gram_rows<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
     let p = padded(m);
@@ -302,7 +306,7 @@ fn gram_tile<T: Real, const P: usize, const Q: usize>(
 /// `out[j] = b_j − a_jᵀx` for the `m` rows of a row-major `m × n` matrix, each product
 /// summed as [`dot`] does; `out` needs `padded(m)` entries, and the padding ones are set to
 /// zero.
-pub fn residual_rows<T: Real>(a: &[T], n: usize, m: usize, x: &[T], b: &[T], out: &mut [T]) {
+pub(crate) fn residual_rows<T: Real>(a: &[T], n: usize, m: usize, x: &[T], b: &[T], out: &mut [T]) {
     for j in 0..m {
         out[j] = b[j] - dot(&a[j * n..(j + 1) * n], x);
     }
@@ -315,7 +319,7 @@ pub fn residual_rows<T: Real>(a: &[T], n: usize, m: usize, x: &[T], b: &[T], out
 /// `x` stays in registers instead of making a round trip through memory per row. The rows
 /// used are found through bit masks (one branch per 64 rows and block, not per row).
 #[inline(always)]
-pub fn add_combination<T: Real>(x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
+pub(crate) fn add_combination<T: Real>(x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
     let (x, a, coef) = (&mut x[..n], &a[..m * n], &coef[..m]);
     let mut k = 0;
     // Blocks of 32 entries (independent chains to overlap), then of 8, then single entries.
@@ -369,6 +373,98 @@ pub fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
     }
 }
 
+/// In-place Cholesky factorisation `A = L Lᵀ` of the `n × n` symmetric positive definite
+/// matrix in the leading `n²` entries of `a` (row-major): the one factorisation of the
+/// workspace (the RLS/Kalman block update, its information-form fallback and the Riccati
+/// solvers of `tagk-control` all use it).
+///
+/// Only the lower triangle is read, and `L` overwrites it; the strict upper triangle is left
+/// as it was. Cholesky–Crout, column by column: `l_jj = √(a_jj − Σ_{k<j} l_jk²)`, then
+/// `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj` for the rows below (multiplied by the reciprocal
+/// `1 / l_jj`). The diagonal's sums use [`dot`]; rows below the pivot are processed four at a
+/// time with one in-order accumulator each, so they share the loads of row `j` (the last
+/// `(n − j − 1) mod 4` rows use [`dot`]). The order is fixed: the result is the same bits on
+/// every machine. Cost: `n³/6` multiply-adds, no allocation.
+///
+/// # Errors
+/// [`NotPositiveDefinite`] if a pivot `a_jj − Σ l_jk²` is not positive and finite: the matrix
+/// is indefinite or singular to working precision, or holds a NaN or an infinity (a non-finite
+/// entry reaches some later pivot). `a` is then partly overwritten.
+pub fn cholesky_in_place<T: Real>(a: &mut [T], n: usize) -> Result<(), NotPositiveDefinite> {
+    let a = &mut a[..n * n];
+    for j in 0..n {
+        let (head, tail) = a.split_at_mut((j + 1) * n);
+        let rowj = &mut head[j * n..];
+        let djj = rowj[j] - dot(&rowj[..j], &rowj[..j]);
+        if !(djj > T::zero() && djj.is_finite()) {
+            return Err(NotPositiveDefinite { pivot: j });
+        }
+        let ljj = djj.sqrt();
+        rowj[j] = ljj;
+        let inv = T::one() / ljj;
+        let lj = &head[j * n..j * n + j];
+        let mut rows = tail.chunks_exact_mut(4 * n);
+        for quad in &mut rows {
+            let (r0, rest) = quad.split_at_mut(n);
+            let (r1, rest) = rest.split_at_mut(n);
+            let (r2, r3) = rest.split_at_mut(n);
+            let (mut a0, mut a1, mut a2, mut a3) = (T::zero(), T::zero(), T::zero(), T::zero());
+            for (k, &l) in lj.iter().enumerate() {
+                a0 += r0[k] * l;
+                a1 += r1[k] * l;
+                a2 += r2[k] * l;
+                a3 += r3[k] * l;
+            }
+            r0[j] = (r0[j] - a0) * inv;
+            r1[j] = (r1[j] - a1) * inv;
+            r2[j] = (r2[j] - a2) * inv;
+            r3[j] = (r3[j] - a3) * inv;
+        }
+        for r in rows.into_remainder().chunks_exact_mut(n) {
+            r[j] = (r[j] - dot(&r[..j], lj)) * inv;
+        }
+    }
+    Ok(())
+}
+
+/// `inv_diag[j] = 1 / l_jj` for the factor `L` of [`cholesky_in_place`] (`n × n`,
+/// row-major): the reciprocals the triangular solves multiply by.
+pub fn reciprocal_diagonal<T: Real>(l: &[T], n: usize, inv_diag: &mut [T]) {
+    for (j, inv) in inv_diag[..n].iter_mut().enumerate() {
+        *inv = T::one() / l[j * n + j];
+    }
+}
+
+/// Solves `L y = x` in place (forward substitution): `y_j = (x_j − Σ_{k<j} l_jk y_k) / l_jj`,
+/// one [`dot`] per row, for the factor `L` of [`cholesky_in_place`] (`n × n`, row-major
+/// lower triangle) and its [`reciprocal_diagonal`] `inv_diag`. `x` has `n` entries.
+#[inline]
+pub fn solve_lower_in_place<T: Real>(l: &[T], n: usize, inv_diag: &[T], x: &mut [T]) {
+    for j in 0..n {
+        let acc = x[j] - dot(&l[j * n..j * n + j], &x[..j]);
+        x[j] = acc * inv_diag[j];
+    }
+}
+
+/// Solves `Lᵀ z = y` in place (back substitution, column-oriented so that it reads rows of
+/// `L`): `z_i = y_i / l_ii`, then `y_k −= l_ik z_i` for `k < i`. Same arguments as
+/// [`solve_lower_in_place`].
+#[inline]
+pub fn solve_lower_transpose_in_place<T: Real>(l: &[T], n: usize, inv_diag: &[T], x: &mut [T]) {
+    for i in (0..n).rev() {
+        let zi = x[i] * inv_diag[i];
+        x[i] = zi;
+        axpy(-zi, &l[i * n..i * n + i], &mut x[..i]);
+    }
+}
+
+/// Solves `A z = x` in place with `A = L Lᵀ` from [`cholesky_in_place`]: both triangular
+/// solves. Same arguments as [`solve_lower_in_place`].
+pub fn cholesky_solve_in_place<T: Real>(l: &[T], n: usize, inv_diag: &[T], x: &mut [T]) {
+    solve_lower_in_place(l, n, inv_diag, x);
+    solve_lower_transpose_in_place(l, n, inv_diag, x);
+}
+
 /// Multiply-add written as `a * b + c`.
 ///
 /// Not `f64::mul_add`: without a hardware FMA target feature that call becomes a slow library
@@ -390,6 +486,98 @@ mod tests {
     extern crate std;
     use std::vec;
     use std::vec::Vec;
+
+    /// `A = M Mᵀ + n I` for a deterministic `M`: symmetric positive definite.
+    fn spd(n: usize) -> Vec<f64> {
+        let mdat: Vec<f64> = (0..n * n)
+            .map(|k| ((k * 7919 % 113) as f64 / 56.5) - 1.0)
+            .collect();
+        let mut a = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let s: f64 = (0..n).map(|k| mdat[i * n + k] * mdat[j * n + k]).sum();
+                a[i * n + j] = s + if i == j { n as f64 } else { 0.0 };
+            }
+        }
+        a
+    }
+
+    #[test]
+    fn cholesky_reconstructs_the_matrix() {
+        for n in [1, 2, 3, 4, 5, 8, 9, 30] {
+            let a = spd(n);
+            let mut l = a.clone();
+            cholesky_in_place(&mut l, n).unwrap();
+            // L L^T against A, computed independently (plain triple loop, lower triangle of L).
+            let mut worst = 0.0f64;
+            for i in 0..n {
+                for j in 0..=i {
+                    let s: f64 = (0..=j).map(|k| l[i * n + k] * l[j * n + k]).sum();
+                    worst = worst.max((s - a[i * n + j]).abs() / a[i * n + i]);
+                }
+                // The strict upper triangle is untouched.
+                for j in i + 1..n {
+                    assert_eq!(l[i * n + j], a[i * n + j]);
+                }
+            }
+            assert!(worst < 1e-13, "n = {n}: relative error {worst}");
+        }
+    }
+
+    #[test]
+    fn cholesky_solves_a_known_system() {
+        let n = 9;
+        let a = spd(n);
+        let x_true: Vec<f64> = (0..n).map(|i| i as f64 * 0.5 - 2.0).collect();
+        let mut x: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|k| a[i * n + k] * x_true[k]).sum())
+            .collect();
+        let mut l = a.clone();
+        cholesky_in_place(&mut l, n).unwrap();
+        let mut inv = vec![0.0; n];
+        reciprocal_diagonal(&l, n, &mut inv);
+        cholesky_solve_in_place(&l, n, &inv, &mut x);
+        for (x, t) in x.iter().zip(&x_true) {
+            assert!((x - t).abs() < 1e-12, "{x} vs {t}");
+        }
+        // In f32 too, to single-precision accuracy.
+        let mut l32: Vec<f32> = a.iter().map(|&v| v as f32).collect();
+        let mut x32: Vec<f32> = (0..n)
+            .map(|i| (0..n).map(|k| a[i * n + k] * x_true[k]).sum::<f64>() as f32)
+            .collect();
+        cholesky_in_place(&mut l32, n).unwrap();
+        let mut inv32 = vec![0.0f32; n];
+        reciprocal_diagonal(&l32, n, &mut inv32);
+        cholesky_solve_in_place(&l32, n, &inv32, &mut x32);
+        for (x, t) in x32.iter().zip(&x_true) {
+            assert!((f64::from(*x) - t).abs() < 1e-4, "{x} vs {t}");
+        }
+    }
+
+    #[test]
+    fn cholesky_rejects_indefinite_and_non_finite() {
+        let mut indefinite = vec![1.0, 0.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        assert_eq!(
+            cholesky_in_place(&mut indefinite, 3),
+            Err(NotPositiveDefinite { pivot: 1 })
+        );
+        let mut singular = vec![1.0, 0.0, 1.0, 1.0];
+        assert_eq!(
+            cholesky_in_place(&mut singular, 2),
+            Err(NotPositiveDefinite { pivot: 1 })
+        );
+        for bad in [f64::NAN, f64::INFINITY] {
+            let mut a = spd(6);
+            a[5 * 6 + 2] = bad;
+            assert_eq!(
+                cholesky_in_place(&mut a, 6),
+                Err(NotPositiveDefinite { pivot: 5 })
+            );
+            let mut a = spd(6);
+            a[0] = bad;
+            assert!(cholesky_in_place(&mut a, 6).is_err());
+        }
+    }
 
     #[test]
     fn dot_matches_naive_sum_for_every_length() {

@@ -528,3 +528,16 @@ fn early_stop_counts_as_remaining_iterates() {
         "{x:?}"
     );
 }
+
+/// Estimators with owned storage can move between and be shared across threads, and clone.
+#[test]
+fn owned_estimators_are_send_sync_clone_debug() {
+    fn check<E: Send + Sync + Clone + core::fmt::Debug + 'static>() {}
+    check::<tagk_core::TagK<f64, Vec<f64>>>();
+    check::<tagk_core::TagK<f32, [f32; tagk_core::kaczmarz_buffer_len(4, 2)]>>();
+    check::<tagk_core::GreedyKaczmarz<f64, Vec<f64>>>();
+    check::<tagk_core::TailAveragedKaczmarz<f64, Vec<f64>>>();
+    check::<tagk_core::RandomizedKaczmarz<f64, Vec<f64>>>();
+    check::<tagk_core::KaczmarzConfig>();
+    check::<tagk_core::SyntheticWindows>();
+}

@@ -27,7 +27,7 @@ fn main() {
             "    tagk_mcu::Checksum {{ hash: {:#018x}, sum: f64::from_bits({:#018x}) }}, // {} n={} {}",
             report.checksum.hash,
             report.checksum.sum.to_bits(),
-            case.kind.label(),
+            case.kind.name(),
             case.n,
             case.precision.label()
         )

@@ -20,18 +20,16 @@
 
 use core::fmt;
 
-use rand_chacha::ChaCha8Rng;
-use rand_core::{Rng, SeedableRng};
 use tagk_core::{OnlineEstimator, Real};
 
 use crate::counter::CycleCounter;
 use crate::error::HarnessError;
-use crate::estimators::EstimatorKind;
+use crate::estimators::{McuEstimator, buffer_len, state_bytes};
+use tagk_baselines::EstimatorKind;
 
-/// The seed of every synthetic window (plus `n`).
-pub const SEED: u64 = 0x7461_676b_2d6d_6375;
-/// Half-width of the uniform measurement noise added to `b` (units of `b`).
-pub const NOISE: f64 = 1e-3;
+// The workload lives in tagk-core (the host benches and the simulator use it too).
+pub use tagk_core::synthetic::{NOISE, SEED, SyntheticWindows};
+
 /// The parameter dimensions of Table III.
 pub const TABLE_N: [usize; 5] = [40, 60, 80, 100, 120];
 /// Rows per window in Table III.
@@ -78,7 +76,8 @@ pub struct Case {
 }
 
 /// Every Table III case, `f64` first, then by `n`, then RLS, KF, TAG-K. The `f64` Kalman
-/// filter is KF-low, the `f32` one KF-high (see [`EstimatorKind::KfHigh`]).
+/// filter is KF-low, the `f32` one KF-high (KF-low's `P₀/σ_R² = 10¹³` is beyond `f32`: its covariance loses positive definiteness
+/// within a few windows; KF-high runs the same instructions per update).
 pub const CASES: [Case; 30] = {
     let mut cases = [Case {
         kind: EstimatorKind::RlsLow,
@@ -128,14 +127,14 @@ impl Case {
 
     /// Scalars of arena [`run_case`] needs: the window pool plus the estimator's buffer.
     pub const fn arena_len(&self) -> usize {
-        Self::POOL * self.window_len() + self.kind.buffer_len(self.n, self.m)
+        Self::POOL * self.window_len() + buffer_len(self.kind, self.n, self.m)
     }
 
-    /// Bytes of RAM the estimator's state occupies (see [`EstimatorKind::state_bytes`]).
+    /// Bytes of RAM the estimator's state occupies (see [`state_bytes`]).
     pub const fn state_bytes(&self) -> usize {
         match self.precision {
-            Precision::F32 => self.kind.state_bytes::<f32>(self.n, self.m),
-            Precision::F64 => self.kind.state_bytes::<f64>(self.n, self.m),
+            Precision::F32 => state_bytes::<f32>(self.kind, self.n, self.m),
+            Precision::F64 => state_bytes::<f64>(self.kind, self.n, self.m),
         }
     }
 }
@@ -154,83 +153,6 @@ pub const ARENA_LEN: usize = {
     }
     max
 };
-
-/// A uniform draw in `[−1, 1)` with 53 random bits.
-fn symmetric_unit(rng: &mut ChaCha8Rng) -> f64 {
-    ((rng.next_u64() >> 11) as f64) * (2.0 / (1u64 << 53) as f64) - 1.0
-}
-
-/// A seeded stream of synthetic windows `b = A θ* + v` (see the [module docs](self)).
-#[derive(Debug, Clone)]
-pub struct SyntheticWindows {
-    n: usize,
-    m: usize,
-    data: ChaCha8Rng,
-    theta: ChaCha8Rng,
-}
-
-impl SyntheticWindows {
-    /// A stream of `m × n` windows. `θ*` comes from stream 1 of ChaCha8 seeded with `seed`,
-    /// the windows from stream 0.
-    pub fn new(seed: u64, n: usize, m: usize) -> Self {
-        let data = ChaCha8Rng::seed_from_u64(seed);
-        let mut theta = data.clone();
-        theta.set_stream(1);
-        Self { n, m, data, theta }
-    }
-
-    /// The stream used by Table III for dimension `n` and `m` rows: seed [`SEED`]` + n`.
-    pub fn for_table(n: usize, m: usize) -> Self {
-        Self::new(SEED.wrapping_add(n as u64), n, m)
-    }
-
-    /// The true parameters `θ*` (length `n`; extra entries of `out` are left alone).
-    pub fn theta(&self, out: &mut [f64]) {
-        let mut rng = self.theta.clone();
-        for t in out.iter_mut().take(self.n) {
-            *t = symmetric_unit(&mut rng);
-        }
-    }
-
-    /// The next `count` windows as owned `(A, b)` pairs (`A` row-major `m × n`): the workload of
-    /// the host benchmarks and of the `dimension_sweep` experiment, so that they time the same
-    /// windows as the microcontroller harness.
-    #[cfg(feature = "std")]
-    pub fn take_windows(
-        &mut self,
-        count: usize,
-    ) -> std::vec::Vec<(std::vec::Vec<f64>, std::vec::Vec<f64>)> {
-        (0..count)
-            .map(|_| {
-                let mut a = std::vec![0.0; self.m * self.n];
-                let mut b = std::vec![0.0; self.m];
-                self.next_window(&mut a, &mut b);
-                (a, b)
-            })
-            .collect()
-    }
-
-    /// Draws the next window into `a` (`m n` values, row-major) and `b` (`m` values).
-    /// Extra entries are left alone; shorter slices receive a prefix of the window.
-    pub fn next_window<T: Real>(&mut self, a: &mut [T], b: &mut [T]) {
-        let n = self.n;
-        for i in 0..self.m {
-            let mut theta = self.theta.clone();
-            let mut bi = 0.0;
-            for j in 0..n {
-                let aij = symmetric_unit(&mut self.data);
-                bi += aij * symmetric_unit(&mut theta);
-                if let Some(slot) = a.get_mut(i * n + j) {
-                    *slot = T::cast(aij);
-                }
-            }
-            bi += NOISE * symmetric_unit(&mut self.data);
-            if let Some(slot) = b.get_mut(i) {
-                *slot = T::cast(bi);
-            }
-        }
-    }
-}
 
 /// A fingerprint of a run's estimates: a hash of their bit patterns and the final sum.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -308,7 +230,7 @@ impl fmt::Display for CaseReport {
         write!(
             f,
             "{:<9} {:>3} {:>3} {:>4} {:>9} {:>5} {:>12.0} {:>12} {:>12}  {:016x}  {:+.12e}",
-            c.kind.label(),
+            c.kind.name(),
             c.n,
             c.m,
             c.precision.label(),
@@ -356,7 +278,7 @@ pub fn run_case<T: Real, C: CycleCounter>(
         w.split_at(m * n)
     };
 
-    let mut est = case.kind.build(n, m, rest)?;
+    let mut est = McuEstimator::build(case.kind, n, m, rest)?;
     let mut hash = Checksum::START;
     for k in 0..Case::POOL {
         let (a, b) = window(k);

@@ -5,7 +5,6 @@
 extern crate std;
 
 pub mod counter;
-pub mod covariance;
 mod error;
 pub mod estimators;
 pub mod harness;
@@ -15,16 +14,19 @@ pub use counter::DwtCycleCounter;
 #[cfg(feature = "std")]
 pub use counter::StdClock;
 pub use counter::{CycleCounter, NullCounter};
-pub use covariance::{KalmanFilter, KfConfig, Rls, RlsConfig, covariance_buffer_len};
 pub use error::HarnessError;
-pub use estimators::{EstimatorKind, McuEstimator, tagk_paper_config};
+pub use estimators::{McuEstimator, buffer_len, state_bytes};
 pub use harness::{
     ARENA_LEN, CASES, Case, CaseReport, Checksum, Precision, SyntheticWindows, run_case,
     run_case_in,
 };
 
-// The kernels this crate runs, re-exported so firmware needs only one dependency.
+// The kernels this crate runs, re-exported so firmware needs only one dependency: TAG-K from
+// tagk-core, RLS and the Kalman filter from tagk-baselines (its portable `no_std` kernel).
+pub use tagk_baselines::{
+    EstimatorKind, KalmanConfig, KalmanFilter, Rls, RlsConfig, WindupGuard, covariance_buffer_len,
+};
 pub use tagk_core::{
     ConfigError, EstimatorError, KaczmarzConfig, OnlineEstimator, Real, TagK, UpdateInfo,
-    kaczmarz_buffer_len,
+    kaczmarz_buffer_len, tagk_paper_config,
 };

@@ -1,11 +1,12 @@
-//! This crate's allocation-free RLS and Kalman filter against tagk-baselines' (heap, faer or
-//! hand-written loops): the same math, so the same estimates and covariances up to round-off,
-//! on the same Table III windows.
+//! The firmware's RLS and Kalman filter (tagk-baselines' portable kernel over a borrowed
+//! buffer, as `McuEstimator::build` makes them) against the host presets (faer backend): the
+//! same math, so the same estimates and covariances up to round-off, on the same Table III
+//! windows.
 
-use tagk_baselines::{KalmanFilter as HostKf, Rls as HostRls};
+use tagk_baselines::{Backend, KalmanFilter as HostKf, Rls as HostRls};
 use tagk_mcu::{
-    KalmanFilter, KfConfig, OnlineEstimator, Rls, RlsConfig, SyntheticWindows,
-    covariance_buffer_len,
+    EstimatorKind, KalmanConfig, KalmanFilter, McuEstimator, OnlineEstimator, Rls, RlsConfig,
+    SyntheticWindows, buffer_len,
 };
 
 /// `max |x − y|`.
@@ -46,12 +47,12 @@ where
 trait Covariance {
     fn cov(&self) -> &[f64];
 }
-impl Covariance for Rls<f64, Vec<f64>> {
+impl Covariance for Rls<f64, &mut [f64]> {
     fn cov(&self) -> &[f64] {
         self.covariance()
     }
 }
-impl Covariance for KalmanFilter<f64, Vec<f64>> {
+impl Covariance for KalmanFilter<f64, &mut [f64]> {
     fn cov(&self) -> &[f64] {
         self.covariance()
     }
@@ -77,51 +78,59 @@ const WINDOWS: usize = 8;
 
 #[test]
 fn rls_agrees_with_tagk_baselines() {
-    for (config, n) in [
-        (RlsConfig::low(), 10),
-        (RlsConfig::low(), 40),
-        (RlsConfig::high(), 120),
+    for (kind, n) in [
+        (EstimatorKind::RlsLow, 10),
+        (EstimatorKind::RlsLow, 40),
+        (EstimatorKind::RlsHigh, 120),
     ] {
         let m = 30;
-        let mut ours =
-            Rls::with_storage(n, m, config, vec![0.0; covariance_buffer_len(n, m)]).unwrap();
-        let mut theirs = match config.label {
-            "RLS-low" => HostRls::rls_low(n, m),
+        let mut buf = vec![0.0; buffer_len(kind, n, m)];
+        let McuEstimator::Rls(mut ours) = McuEstimator::build(kind, n, m, &mut buf).unwrap() else {
+            panic!("{kind} is not RLS");
+        };
+        assert_eq!(ours.backend(), Backend::Loops);
+        assert_eq!(
+            ours.config(),
+            &kind.rls_config().unwrap().with_backend(Backend::Loops)
+        );
+        let mut theirs = match kind {
+            EstimatorKind::RlsLow => HostRls::rls_low(n, m),
             _ => HostRls::rls_high(n, m),
         }
         .unwrap();
+        assert_eq!(theirs.backend(), Backend::Faer);
         let (de, dp) = worst_differences(n, m, WINDOWS, &mut ours, &mut theirs);
-        println!("{} n={n}: |Δθ| ≤ {de:.1e}, |ΔP| ≤ {dp:.1e}", config.label);
-        assert!(
-            de < 1e-12 && dp < 1e-9,
-            "{} n={n}: {de:e} {dp:e}",
-            config.label
-        );
+        println!("{kind} n={n}: |Δθ| ≤ {de:.1e}, |ΔP| ≤ {dp:.1e}");
+        assert!(de < 1e-12 && dp < 1e-9, "{kind} n={n}: {de:e} {dp:e}");
     }
+    // The presets are tagk-baselines' own.
+    assert_eq!(EstimatorKind::RlsLow.rls_config(), Some(RlsConfig::LOW));
 }
 
 #[test]
 fn kalman_filter_agrees_with_tagk_baselines() {
-    for (config, n, theta_tol) in [
-        (KfConfig::low(), 10, 1e-5),
-        (KfConfig::low(), 40, 1e-7),
-        (KfConfig::high(), 120, 1e-12),
+    for (kind, n, theta_tol) in [
+        (EstimatorKind::KfLow, 10, 1e-5),
+        (EstimatorKind::KfLow, 40, 1e-7),
+        (EstimatorKind::KfHigh, 120, 1e-12),
     ] {
         let m = 30;
-        let mut ours =
-            KalmanFilter::with_storage(n, m, config, vec![0.0; covariance_buffer_len(n, m)])
-                .unwrap();
-        let mut theirs = match config.label {
-            "KF-low" => HostKf::kf_low(n, m),
+        let mut buf = vec![0.0; buffer_len(kind, n, m)];
+        let McuEstimator::Kf(mut ours) = McuEstimator::build(kind, n, m, &mut buf).unwrap() else {
+            panic!("{kind} is not a Kalman filter");
+        };
+        assert_eq!(ours.backend(), Backend::Loops);
+        let mut theirs = match kind {
+            EstimatorKind::KfLow => HostKf::kf_low(n, m),
             _ => HostKf::kf_high(n, m),
         }
         .unwrap();
         let (de, dp) = worst_differences(n, m, WINDOWS, &mut ours, &mut theirs);
-        println!("{} n={n}: |Δθ| ≤ {de:.1e}, |ΔP| ≤ {dp:.1e}", config.label);
-        assert!(
-            de < theta_tol && dp < 1e-9,
-            "{} n={n}: {de:e} {dp:e}",
-            config.label
-        );
+        println!("{kind} n={n}: |Δθ| ≤ {de:.1e}, |ΔP| ≤ {dp:.1e}");
+        assert!(de < theta_tol && dp < 1e-9, "{kind} n={n}: {de:e} {dp:e}");
     }
+    assert_eq!(
+        EstimatorKind::KfHigh.kalman_config(),
+        Some(KalmanConfig::HIGH)
+    );
 }

@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use rand_chacha::ChaCha8Rng;
 use rand_core::{Rng, SeedableRng};
 use tagk_mcu::{
-    ConfigError, EstimatorError, KalmanFilter, KfConfig, OnlineEstimator, Rls, RlsConfig,
+    ConfigError, EstimatorError, KalmanConfig, KalmanFilter, OnlineEstimator, Rls, RlsConfig,
     covariance_buffer_len,
 };
 
@@ -72,9 +72,9 @@ fn batch_rls(
 fn rls_equals_batch_weighted_least_squares() {
     let (n, m) = (7, 4);
     let config = RlsConfig {
-        forgetting: 0.9,
+        lambda: 0.9,
         p0: 10.0,
-        label: "RLS",
+        ..RlsConfig::LOW
     };
     let ws = windows(1, n, m, 6);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
@@ -98,7 +98,7 @@ fn rls_in_f32_tracks_the_f64_batch_solution() {
     let (n, m) = (7, 4);
     let ws = windows(2, n, m, 6);
     let mut buf = vec![0.0f32; covariance_buffer_len(n, m)];
-    let mut rls = Rls::with_storage(n, m, RlsConfig::low(), &mut buf[..]).unwrap();
+    let mut rls = Rls::with_storage(n, m, RlsConfig::LOW, &mut buf[..]).unwrap();
     for (a, b) in &ws {
         let a: Vec<f32> = a.iter().map(|&v| v as f32).collect();
         let b: Vec<f32> = b.iter().map(|&v| v as f32).collect();
@@ -136,11 +136,11 @@ fn textbook_kf(
 #[test]
 fn kalman_filter_equals_the_textbook_filter() {
     let (n, m) = (6, 3);
-    let config = KfConfig {
-        process_std: 0.05,
-        measurement_std: 0.1,
+    let config = KalmanConfig {
+        sigma_q: 0.05,
+        sigma_r: 0.1,
         p0: 5.0,
-        label: "KF",
+        ..KalmanConfig::LOW
     };
     let ws = windows(3, n, m, 8);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
@@ -164,7 +164,7 @@ fn kf_low_matches_the_textbook_filter_in_f64() {
     let (n, m) = (10, 5);
     let ws = windows(4, n, m, 5);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
-    let mut kf = KalmanFilter::with_storage(n, m, KfConfig::low(), &mut buf[..]).unwrap();
+    let mut kf = KalmanFilter::with_storage(n, m, KalmanConfig::LOW, &mut buf[..]).unwrap();
     for (a, b) in &ws {
         kf.update(a, b).unwrap();
     }
@@ -183,7 +183,7 @@ fn kf_low_in_f32_is_refused_with_a_typed_error_and_keeps_its_state() {
     let (n, m) = (8, 6);
     let ws = windows(5, n, m, 6);
     let mut buf = vec![0.0f32; covariance_buffer_len(n, m)];
-    let mut kf = KalmanFilter::with_storage(n, m, KfConfig::low(), &mut buf[..]).unwrap();
+    let mut kf = KalmanFilter::with_storage(n, m, KalmanConfig::LOW, &mut buf[..]).unwrap();
     let mut failure = None;
     for (a, b) in &ws {
         let a: Vec<f32> = a.iter().map(|&v| v as f32).collect();
@@ -207,7 +207,7 @@ fn reset_restores_the_prior() {
     let (n, m) = (4, 3);
     let ws = windows(6, n, m, 2);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
-    let mut rls = Rls::with_storage(n, m, RlsConfig::low(), &mut buf[..]).unwrap();
+    let mut rls = Rls::with_storage(n, m, RlsConfig::LOW, &mut buf[..]).unwrap();
     rls.update(&ws[0].0, &ws[0].1).unwrap();
     rls.reset(&[1.0, 2.0, 3.0, 4.0]).unwrap();
     assert_eq!(rls.estimate(), &[1.0, 2.0, 3.0, 4.0]);
@@ -234,7 +234,7 @@ fn reset_restores_the_prior() {
 fn bad_windows_are_typed_errors() {
     let (n, m) = (3, 2);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
-    let mut kf = KalmanFilter::with_storage(n, m, KfConfig::low(), &mut buf[..]).unwrap();
+    let mut kf = KalmanFilter::with_storage(n, m, KalmanConfig::LOW, &mut buf[..]).unwrap();
     assert_eq!(kf.update(&[], &[]), Err(EstimatorError::EmptyWindow));
     assert_eq!(
         kf.update(&[0.0; 9], &[0.0; 3]),
@@ -262,7 +262,7 @@ fn bad_windows_are_typed_errors() {
 fn an_overflowing_update_is_refused_and_changes_nothing() {
     let (n, m) = (2, 1);
     let mut buf = vec![0.0; covariance_buffer_len(n, m)];
-    let mut rls = Rls::with_storage(n, m, RlsConfig::low(), &mut buf[..]).unwrap();
+    let mut rls = Rls::with_storage(n, m, RlsConfig::LOW, &mut buf[..]).unwrap();
     rls.update(&[1.0, 0.0], &[2.0]).unwrap();
     let (theta, p) = (rls.estimate().to_vec(), rls.covariance().to_vec());
     let err = rls.update(&[1e300, 1e300], &[1e300]).unwrap_err();
@@ -284,15 +284,15 @@ fn invalid_configurations_are_typed_errors() {
         Rls::<f64, Vec<f64>>::with_storage(n, m, cfg, vec![0.0; len]).err()
     };
     assert_eq!(
-        rls(RlsConfig::low(), 0, 2, ok),
+        rls(RlsConfig::LOW, 0, 2, ok),
         Some(ConfigError::ZeroDimension)
     );
     assert_eq!(
-        rls(RlsConfig::low(), 3, 0, ok),
+        rls(RlsConfig::LOW, 3, 0, ok),
         Some(ConfigError::ZeroCapacity)
     );
     assert_eq!(
-        rls(RlsConfig::low(), 3, 2, ok - 1),
+        rls(RlsConfig::LOW, 3, 2, ok - 1),
         Some(ConfigError::BufferTooSmall {
             needed: ok,
             found: ok - 1
@@ -300,50 +300,48 @@ fn invalid_configurations_are_typed_errors() {
     );
     for bad in [0.0, -0.5, 1.5, f64::NAN] {
         let cfg = RlsConfig {
-            forgetting: bad,
-            ..RlsConfig::low()
+            lambda: bad,
+            ..RlsConfig::LOW
         };
         assert!(matches!(
             rls(cfg, 3, 2, ok),
-            Some(ConfigError::InvalidParameter {
-                name: "forgetting",
-                ..
-            })
+            Some(ConfigError::InvalidParameter { name: "lambda", .. })
         ));
     }
     let cfg = RlsConfig {
         p0: 0.0,
-        ..RlsConfig::low()
+        ..RlsConfig::LOW
     };
     assert!(matches!(
         rls(cfg, 3, 2, ok),
         Some(ConfigError::InvalidParameter { name: "p0", .. })
     ));
-    let kf =
-        |cfg: KfConfig| KalmanFilter::<f64, Vec<f64>>::with_storage(3, 2, cfg, vec![0.0; ok]).err();
-    let cfg = KfConfig {
-        measurement_std: 0.0,
-        ..KfConfig::low()
+    let kf = |cfg: KalmanConfig| {
+        KalmanFilter::<f64, Vec<f64>>::with_storage(3, 2, cfg, vec![0.0; ok]).err()
+    };
+    let cfg = KalmanConfig {
+        sigma_r: 0.0,
+        ..KalmanConfig::LOW
     };
     assert!(matches!(
         kf(cfg),
         Some(ConfigError::InvalidParameter {
-            name: "measurement_std",
+            name: "sigma_r",
             ..
         })
     ));
-    let cfg = KfConfig {
-        process_std: f64::INFINITY,
-        ..KfConfig::low()
+    let cfg = KalmanConfig {
+        sigma_q: f64::INFINITY,
+        ..KalmanConfig::LOW
     };
     assert!(matches!(
         kf(cfg),
         Some(ConfigError::InvalidParameter {
-            name: "process_std",
+            name: "sigma_q",
             ..
         })
     ));
-    assert_eq!(kf(KfConfig::high()), None);
+    assert_eq!(kf(KalmanConfig::HIGH), None);
 }
 
 fn window(n: usize, m_max: usize) -> impl Strategy<Value = (Vec<f64>, Vec<f64>)> {
@@ -379,11 +377,11 @@ proptest! {
             Ok(())
         };
         let p = if kalman {
-            let mut kf = KalmanFilter::with_storage(n, m, KfConfig::high(), &mut buf[..]).unwrap();
+            let mut kf = KalmanFilter::with_storage(n, m, KalmanConfig::HIGH, &mut buf[..]).unwrap();
             check(&mut kf)?;
             kf.covariance().to_vec()
         } else {
-            let mut rls = Rls::with_storage(n, m, RlsConfig::low(), &mut buf[..]).unwrap();
+            let mut rls = Rls::with_storage(n, m, RlsConfig::LOW, &mut buf[..]).unwrap();
             check(&mut rls)?;
             rls.covariance().to_vec()
         };

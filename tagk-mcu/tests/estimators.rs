@@ -5,16 +5,16 @@
 use nalgebra::{DMatrix, DVector};
 use tagk_mcu::harness::{TABLE_M, TABLE_N};
 use tagk_mcu::{
-    ConfigError, EstimatorKind, OnlineEstimator, SyntheticWindows, TagK, kaczmarz_buffer_len,
-    tagk_paper_config,
+    ConfigError, EstimatorKind, McuEstimator, OnlineEstimator, SyntheticWindows, TagK, buffer_len,
+    kaczmarz_buffer_len, state_bytes, tagk_paper_config,
 };
 
 #[test]
 fn tagk_is_tagk_core_bit_for_bit() {
     let (n, m) = (12, 6);
     let mut stream = SyntheticWindows::new(9, n, m);
-    let mut buf = vec![0.0; EstimatorKind::TagK.buffer_len(n, m)];
-    let mut ours = EstimatorKind::TagK.build(n, m, &mut buf).unwrap();
+    let mut buf = vec![0.0; buffer_len(EstimatorKind::TagK, n, m)];
+    let mut ours = McuEstimator::build(EstimatorKind::TagK, n, m, &mut buf).unwrap();
     let mut direct = TagK::<f64, Vec<f64>>::with_storage(
         n,
         m,
@@ -63,8 +63,8 @@ fn tagk_converges_to_the_batch_least_squares_solution() {
                 .to_vec()
         })
         .collect();
-    let mut buf = vec![0.0; EstimatorKind::TagK.buffer_len(n, m)];
-    let mut est = EstimatorKind::TagK.build(n, m, &mut buf).unwrap();
+    let mut buf = vec![0.0; buffer_len(EstimatorKind::TagK, n, m)];
+    let mut est = McuEstimator::build(EstimatorKind::TagK, n, m, &mut buf).unwrap();
     for k in 0..600 {
         est.update(&windows[k % 3].0, &consistent[k % 3]).unwrap();
     }
@@ -76,26 +76,46 @@ fn tagk_converges_to_the_batch_least_squares_solution() {
     assert!(err < 1e-8, "max error {err:e}");
 }
 
+/// The kinds the microcontroller runs.
+const MCU_KINDS: [EstimatorKind; 5] = [
+    EstimatorKind::RlsLow,
+    EstimatorKind::RlsHigh,
+    EstimatorKind::KfLow,
+    EstimatorKind::KfHigh,
+    EstimatorKind::TagK,
+];
+
+#[test]
+fn the_other_kaczmarz_variants_are_typed_errors() {
+    for kind in [EstimatorKind::Grk, EstimatorKind::Tark, EstimatorKind::Rk] {
+        let mut buf = vec![0.0f64; buffer_len(kind, 10, 4)];
+        assert!(matches!(
+            McuEstimator::build(kind, 10, 4, &mut buf).err(),
+            Some(ConfigError::InvalidParameter { name: "kind", .. })
+        ));
+    }
+}
+
 #[test]
 fn every_kind_builds_in_exactly_its_buffer_length() {
-    for kind in EstimatorKind::ALL {
+    for kind in MCU_KINDS {
         for n in TABLE_N {
-            let len = kind.buffer_len(n, TABLE_M);
+            let len = buffer_len(kind, n, TABLE_M);
             let mut buf = vec![0.0f32; len];
-            let est = kind.build(n, TABLE_M, &mut buf).unwrap();
-            assert_eq!(est.name(), kind.label());
+            let est = McuEstimator::build(kind, n, TABLE_M, &mut buf).unwrap();
+            assert_eq!(est.name(), kind.name());
             assert_eq!((est.dim(), est.capacity()), (n, TABLE_M));
             assert!(est.estimate().iter().all(|v| *v == 0.0));
             drop(est);
             let mut short = vec![0.0f64; len - 1];
             assert_eq!(
-                kind.build(n, TABLE_M, &mut short).err(),
+                McuEstimator::build(kind, n, TABLE_M, &mut short).err(),
                 Some(ConfigError::BufferTooSmall {
                     needed: len,
                     found: len - 1
                 })
             );
-            let bytes = kind.state_bytes::<f64>(n, TABLE_M);
+            let bytes = state_bytes::<f64>(kind, n, TABLE_M);
             assert!(
                 bytes >= len * 8 && bytes < len * 8 + 1024,
                 "{kind:?} {n}: {bytes}"
@@ -108,9 +128,9 @@ fn every_kind_builds_in_exactly_its_buffer_length() {
 fn every_estimator_fits_a_teensy_at_n_120() {
     // 512 KB of tightly coupled RAM, with room for the window (m n + m values).
     let window = (120 * 30 + 30) * 8;
-    for kind in EstimatorKind::ALL {
+    for kind in MCU_KINDS {
         assert!(
-            kind.state_bytes::<f64>(120, 30) + window < 512 * 1024,
+            state_bytes::<f64>(kind, 120, 30) + window < 512 * 1024,
             "{kind:?}"
         );
     }

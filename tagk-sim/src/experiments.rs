@@ -597,7 +597,7 @@ pub fn run_dimension_sweep(
     ];
     let mut rows = Vec::new();
     for n in [40, 60, 80, 100, 120] {
-        let stream = tagk_mcu::SyntheticWindows::for_table(n, m).take_windows(64);
+        let stream = tagk_core::SyntheticWindows::for_table(n, m).take_windows(64);
         for kind in kinds {
             let mut est = build_n(kind, n, m)?;
             let mut times = crate::metrics::UpdateTimes::new();
