@@ -201,7 +201,7 @@ fn html_report_renders_in_headless_chromium() {
     );
     assert!(dom.contains("before-after"));
     let shot = dir.join("shot.png");
-    let out = headless(
+    headless(
         chromium,
         &profile,
         &[
