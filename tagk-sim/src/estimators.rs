@@ -12,93 +12,9 @@ use crate::SimError;
 /// Parameter dimension of one rigid body.
 pub(crate) const N_PARAMS: usize = 10;
 
-/// An estimator algorithm with the TAG-K paper's settings (CONVENTIONS §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum EstimatorKind {
-    /// RLS, forgetting factor 0.99, `P₀ = 10³·I`.
-    RlsLow,
-    /// RLS, forgetting factor 0.96, `P₀ = 10³·I`.
-    RlsHigh,
-    /// Random-walk Kalman filter, `σ_Q = 1e-3`, `σ_R = 1e-5`.
-    KfLow,
-    /// Random-walk Kalman filter, `σ_Q = 1e-1`, `σ_R = 1e-3`.
-    KfHigh,
-    /// Tail-averaged greedy Kaczmarz, `T = m`.
-    TagK,
-    /// Greedy Kaczmarz (no averaging).
-    Grk,
-    /// Tail-averaged randomised Kaczmarz.
-    Tark,
-    /// Randomised Kaczmarz.
-    Rk,
-}
-
-impl EstimatorKind {
-    /// The five estimators of the paper's Table II, in its order.
-    pub const TABLE_II: [EstimatorKind; 5] = [
-        EstimatorKind::RlsLow,
-        EstimatorKind::RlsHigh,
-        EstimatorKind::KfLow,
-        EstimatorKind::KfHigh,
-        EstimatorKind::TagK,
-    ];
-    /// The Kaczmarz family of the ablation (Fig. 4b).
-    pub const KACZMARZ: [EstimatorKind; 4] = [
-        EstimatorKind::Rk,
-        EstimatorKind::Tark,
-        EstimatorKind::Grk,
-        EstimatorKind::TagK,
-    ];
-
-    /// Display name (as in the paper).
-    pub fn name(self) -> &'static str {
-        match self {
-            EstimatorKind::RlsLow => "RLS-low",
-            EstimatorKind::RlsHigh => "RLS-high",
-            EstimatorKind::KfLow => "KF-low",
-            EstimatorKind::KfHigh => "KF-high",
-            EstimatorKind::TagK => "TAG-K",
-            EstimatorKind::Grk => "GRK",
-            EstimatorKind::Tark => "TARK",
-            EstimatorKind::Rk => "RK",
-        }
-    }
-
-    /// Every estimator, in declaration order.
-    pub const ALL: [EstimatorKind; 8] = [
-        EstimatorKind::RlsLow,
-        EstimatorKind::RlsHigh,
-        EstimatorKind::KfLow,
-        EstimatorKind::KfHigh,
-        EstimatorKind::TagK,
-        EstimatorKind::Grk,
-        EstimatorKind::Tark,
-        EstimatorKind::Rk,
-    ];
-
-    /// Command-line name (`rls-low`, `rls-high`, `kf-low`, `kf-high`, `tagk`, `grk`, `tark`,
-    /// `rk`), parsed back by `FromStr`.
-    pub fn cli_name(self) -> &'static str {
-        match self {
-            EstimatorKind::RlsLow => "rls-low",
-            EstimatorKind::RlsHigh => "rls-high",
-            EstimatorKind::KfLow => "kf-low",
-            EstimatorKind::KfHigh => "kf-high",
-            EstimatorKind::TagK => "tagk",
-            EstimatorKind::Grk => "grk",
-            EstimatorKind::Tark => "tark",
-            EstimatorKind::Rk => "rk",
-        }
-    }
-
-    /// `true` for the Kaczmarz family (which uses a burn-in and a seed).
-    pub fn is_kaczmarz(self) -> bool {
-        matches!(
-            self,
-            EstimatorKind::TagK | EstimatorKind::Grk | EstimatorKind::Tark | EstimatorKind::Rk
-        )
-    }
-}
+/// The estimator algorithms with the TAG-K paper's settings: one list for the whole
+/// workspace, defined with the presets in `tagk-baselines`.
+pub use tagk_baselines::EstimatorKind;
 
 /// An estimator with its experiment options.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -232,22 +148,22 @@ impl EstimatorSpec {
         seed: u64,
         tolerance: f64,
     ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
-        build_kind(self.kind, self.burn_in, m_max, seed, tolerance)
+        build_kind(self.kind, N_PARAMS, self.burn_in, m_max, seed, tolerance)
     }
 }
 
-/// Builds one estimator (see [`EstimatorSpec::build`]).
+/// Builds one estimator of dimension `n` (see [`EstimatorSpec::build`]).
 ///
 /// # Errors
 /// As [`EstimatorSpec::build`].
 pub(crate) fn build_kind(
     kind: EstimatorKind,
+    n: usize,
     burn_in: f64,
     m_max: usize,
     seed: u64,
     tolerance: f64,
 ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
-    let n = N_PARAMS;
     let cfg = KaczmarzConfig::default()
         .with_seed(seed)
         .with_tolerance(tolerance)
@@ -262,22 +178,6 @@ pub(crate) fn build_kind(
         EstimatorKind::Tark => Box::new(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
         EstimatorKind::Rk => Box::new(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg)?),
     })
-}
-
-impl std::str::FromStr for EstimatorKind {
-    type Err = SimError;
-
-    /// Parses [`EstimatorKind::cli_name`].
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        EstimatorKind::ALL
-            .into_iter()
-            .find(|k| k.cli_name() == s)
-            .ok_or_else(|| SimError::Unknown {
-                what: "estimator",
-                value: s.to_string(),
-                expected: "rls-low, rls-high, kf-low, kf-high, tagk, grk, tark, rk",
-            })
-    }
 }
 
 /// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware

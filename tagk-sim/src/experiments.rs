@@ -553,26 +553,6 @@ pub struct TimingRow {
     pub p95_us: f64,
 }
 
-fn build_n(
-    kind: EstimatorKind,
-    n: usize,
-    m: usize,
-) -> Result<Box<dyn tagk_core::OnlineEstimator<f64> + Send>, SimError> {
-    use tagk_baselines::{KalmanFilter, Rls};
-    use tagk_core::{KaczmarzConfig, TagK};
-    Ok(match kind {
-        EstimatorKind::RlsLow => Box::new(Rls::rls_low(n, m)?),
-        EstimatorKind::RlsHigh => Box::new(Rls::rls_high(n, m)?),
-        EstimatorKind::KfLow => Box::new(KalmanFilter::kf_low(n, m)?),
-        EstimatorKind::KfHigh => Box::new(KalmanFilter::kf_high(n, m)?),
-        _ => Box::new(TagK::<f64, Vec<f64>>::new(
-            n,
-            m,
-            KaczmarzConfig::default().with_seed(1),
-        )?),
-    })
-}
-
 /// Runs Table III on this machine: per-update wall-clock time (median, P95) of RLS, KF and
 /// TAG-K for `n ∈ {40, 60, 80, 100, 120}`, `m = 30`, on the bench's synthetic windows (one
 /// thread), `updates` timed updates per (estimator, n). Writes `table.csv`, `table.json` and
@@ -599,7 +579,14 @@ pub fn run_dimension_sweep(
     for n in [40, 60, 80, 100, 120] {
         let stream = tagk_core::SyntheticWindows::for_table(n, m).take_windows(64);
         for kind in kinds {
-            let mut est = build_n(kind, n, m)?;
+            let mut est = crate::estimators::build_kind(
+                kind,
+                n,
+                crate::estimators::DEFAULT_BURN_IN,
+                m,
+                1,
+                0.0,
+            )?;
             let mut times = crate::metrics::UpdateTimes::new();
             for i in 0..updates.max(1) {
                 let (a, b) = &stream[i % stream.len()];

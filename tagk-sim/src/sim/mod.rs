@@ -189,7 +189,14 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     let mut main = spec.build(m_max, seed, tol)?;
     main.reset(&prior)?;
     let early = if spec.early_tagk {
-        let mut e = build_kind(EstimatorKind::TagK, spec.burn_in, m_max, seed, tol)?;
+        let mut e = build_kind(
+            EstimatorKind::TagK,
+            N_PARAMS,
+            spec.burn_in,
+            m_max,
+            seed,
+            tol,
+        )?;
         e.reset(&prior)?;
         Some(e)
     } else {
