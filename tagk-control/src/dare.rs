@@ -38,6 +38,7 @@ pub const SYMMETRY_TOL: f64 = 1e-10;
 
 /// Errors of the Riccati solvers.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DareError {
     /// An input matrix has the wrong shape (A must be n×n, B n×m, Q n×n, R m×m, P₀ n×n).
     #[error("shape mismatch: {what} is {found:?}, expected {expected:?} (rows, columns)")]
