@@ -9,6 +9,9 @@
 //! - with the correct vehicle, nothing is recommended and the fitted θ equals the fit of the
 //!   original log (with its wrench columns) to 1e-9 relative (the simulator logs the wrench of
 //!   its rotor speeds with the same formula, so the wrench is recomputed bit for bit);
+//! - a log with a hidden 20 ms motor lag, written without the wrench, read with the preset:
+//!   `motor-lag` is ranked first and recommended, acting on the rotor speeds (thrust ∝ lagged
+//!   ω²) with a fitted time constant within a factor 1.5 of 20 ms;
 //! - without a vehicle, the log is refused with an error naming the body wrench and the
 //!   columns that could provide it.
 
@@ -40,13 +43,18 @@ fn tmpdir(name: &str) -> PathBuf {
 /// A 25 s figure-8 flight, no payload, no plant effect, medium noise (seed 3): the original
 /// log (with `fx..tz` and `w1..w4`) and the same log written without the wrench columns.
 fn write_logs(dir: &Path) -> (PathBuf, PathBuf) {
+    write_logs_with(dir, PlantEffects::none())
+}
+
+/// As [`write_logs`], with the given plant effects.
+fn write_logs_with(dir: &Path, effects: PlantEffects) -> (PathBuf, PathBuf) {
     let config = SimConfig {
         trajectory: TrajectoryKind::Figure8,
         duration: 25.0,
         seed: 3,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
-        effects: PlantEffects::none(),
+        effects,
         adaptation: Adaptation::Nominal,
         record_log: true,
         stop_on_abort: false,
@@ -160,6 +168,27 @@ fn wrong_thrust_coefficient_is_named_and_the_right_one_gives_the_same_fit() {
     args.vehicle = Some("crazyflie-2.1".into());
     let by_name = diagnose_log(&FlightLog::from_csv_path(&rotors_only).unwrap(), &args).unwrap();
     assert_eq!(theta(&by_name), a);
+}
+
+#[test]
+fn motor_lag_acts_on_the_rotor_speeds() {
+    let dir = tmpdir("lag");
+    let mut effects = PlantEffects::none();
+    effects.motor_lag = Some(tagk::sim::plant_effects::MotorLag {
+        time_constant: 0.02,
+    });
+    let (_, rotors_only) = write_logs_with(&dir, effects);
+    let mut args = DiagnoseArgs::new(&rotors_only);
+    args.vehicle = Some("crazyflie-2.1".into());
+    args.quiet = true;
+    let r = diagnose_log(&FlightLog::from_csv_path(&rotors_only).unwrap(), &args).unwrap();
+    let top = &r.before.ranking[0];
+    let lag = EffectKind::MotorLag.name();
+    assert_eq!(top.effect, lag, "{}", top.explanation);
+    assert_eq!(r.before.recommended.as_deref(), Some(lag));
+    let (_, tau, _) = top.scanned.clone().expect("time constant scanned");
+    eprintln!("hidden 20 ms motor lag: fitted tau {:.1} ms", 1e3 * tau);
+    assert!((0.02 / 1.5..=0.02 * 1.5).contains(&tau), "tau {tau}");
 }
 
 #[test]
