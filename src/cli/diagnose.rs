@@ -273,6 +273,15 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     let log = FlightLog::from_csv_path(&args.log)?;
     // Argument errors first, then the wrench (its errors name the file).
     plan_with_vehicle(args, &log, vehicle.as_ref())?;
+    if let Some(v) = vehicle
+        .as_ref()
+        .filter(|_| !log.has_wrench() && !args.quiet)
+    {
+        println!(
+            "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
+            v.name
+        );
+    }
     let log = log_with_wrench(log, vehicle.as_ref()).map_err(|e| match e {
         DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
             path: args.log.display().to_string(),

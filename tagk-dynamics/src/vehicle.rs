@@ -853,6 +853,59 @@ mod tests {
     }
 
     #[test]
+    fn csv_without_wrench_needs_rotor_speeds() {
+        let mut log = FlightLog::new();
+        for i in 0..crate::log::MIN_ROWS {
+            log.push(&crate::log::LogSample {
+                t: 0.01 * i as f64,
+                attitude: [1.0, 0.0, 0.0, 0.0],
+                rotor_speeds: Some([1900.0, 2000.0, 2100.0, 2000.0 + i as f64]),
+                ..Default::default()
+            });
+        }
+        log.wrench.clear();
+        let mut csv = Vec::new();
+        log.write_csv(&mut csv).unwrap();
+        let text = String::from_utf8(csv).unwrap();
+        let header = text.lines().next().unwrap();
+        assert!(
+            !header.contains("fx") && header.ends_with("w1,w2,w3,w4"),
+            "{header}"
+        );
+        let mut back = FlightLog::from_csv_reader(text.as_bytes()).unwrap();
+        assert_eq!(back, log);
+        assert_eq!(back.signal("fz"), None);
+        assert_eq!(
+            back.validate(),
+            Err(LogError::MissingWrench {
+                has_rotor_speeds: true
+            })
+        );
+        back.compute_wrench_from_rotor_speeds(&Vehicle::crazyflie_2_1())
+            .unwrap();
+        back.validate().unwrap();
+        assert_eq!(back.sample(7).unwrap().wrench, back.wrench[7]);
+        // Neither the wrench nor the rotor speeds: the error names both ways.
+        let no_rotors: String = text
+            .lines()
+            .map(|l| l.rsplitn(5, ',').last().unwrap().to_string() + "\n")
+            .collect();
+        let e = FlightLog::from_csv_reader(no_rotors.as_bytes()).unwrap_err();
+        assert_eq!(
+            e,
+            LogError::MissingWrench {
+                has_rotor_speeds: false
+            }
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("fx,fy,fz,tx,ty,tz") && msg.contains("w1,w2,w3,w4"),
+            "{msg}"
+        );
+        assert_eq!(e.line(), Some(1));
+    }
+
+    #[test]
     fn log_wrench_from_rotor_speeds() {
         let v = Vehicle::crazyflie_2_1();
         let mut log = FlightLog::new();
