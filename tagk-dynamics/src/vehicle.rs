@@ -310,7 +310,7 @@ impl Vehicle {
     /// [`VehicleError::UnknownVehicle`] for another name.
     pub fn preset(name: &str) -> Result<Self, VehicleError> {
         match name {
-            "crazyflie-2.1" | "crazyflie" | "cf2.1" => Ok(Self::crazyflie_2_1()),
+            "crazyflie-2.1" => Ok(Self::crazyflie_2_1()),
             _ => Err(VehicleError::UnknownVehicle {
                 name: name.to_string(),
                 available: PRESETS.join(", "),
@@ -584,7 +584,7 @@ impl Vehicle {
             s,
             "# tagk vehicle file (docs/VEHICLE.md). Units: SI; body frame x forward, y left, z up."
         );
-        let _ = writeln!(s, "name = {:?}", self.name);
+        let _ = writeln!(s, "name = {}", toml::Value::from(self.name.as_str()));
         let _ = writeln!(
             s,
             "# Radius beyond which a fitted centre of mass is flagged [m]."
@@ -765,7 +765,7 @@ mod tests {
         let v = Vehicle::crazyflie_2_1();
         assert_eq!(Vehicle::from_toml_str(&v.to_toml_string()).unwrap(), v);
         let mut other = v.clone();
-        other.name = "curve".into();
+        other.name = "curve \"v2\" \\ \u{1b}".into();
         other.thrust = ThrustCurve::Polynomial {
             coefficients: vec![0.001, 1.0e-7, 2.2e-8],
         };
