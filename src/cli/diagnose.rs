@@ -12,7 +12,8 @@ use crate::diagnose::{
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
-    /// Flight log (CSV).
+    /// Flight log (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
+    /// repository).
     #[arg(value_name = "LOG")]
     pub log: PathBuf,
     /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
@@ -50,7 +51,7 @@ fn default_airframe_radius() -> f64 {
 
 /// The built-in effects with their aliases and one-line summaries, for `--help`.
 fn effects_help() -> String {
-    let mut text = String::from("Built-in effects (--with NAME):\n");
+    let mut text = String::from("Built-in effects (--with NAME; docs/CONVENTIONS.md §7):\n");
     for kind in EffectKind::ALL {
         let aliases = kind.aliases();
         let also = if aliases.is_empty() {
