@@ -4,7 +4,9 @@
 //!   `§N` cited next to it (or inside it) exists there;
 //! - no tracked file points to a folder outside the repository;
 //! - its table of effect names is exactly what `EffectKind::ALL` says (run with `TAGK_BLESS=1`
-//!   to rewrite the table from the code after changing the vocabulary).
+//!   to rewrite the table from the code after changing the vocabulary);
+//! - the numbers and names it states (Crazyflie constants, rotor spins, safety gate, metric
+//!   thresholds, log columns and limits) are the code's.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -242,4 +244,96 @@ fn the_checker_reads_section_citations() {
     assert!(cited_sections("as `§N`").is_empty());
     let s = sections("## 1. A\n### 2.1 B\n## Contents\n");
     assert_eq!(s.into_iter().collect::<Vec<_>>(), ["1", "2.1"]);
+}
+
+/// The text of section `## N.` of `docs/CONVENTIONS.md`, up to the next `## ` heading.
+fn section(doc: &str, n: u32) -> &str {
+    let heading = format!("\n## {n}. ");
+    let start = doc
+        .find(&heading)
+        .unwrap_or_else(|| panic!("no section {n}"))
+        + 1;
+    let end = doc[start + 3..]
+        .find("\n## ")
+        .map_or(doc.len(), |e| start + 3 + e);
+    &doc[start..end]
+}
+
+/// Every number written in `text` (tokens of digits, `.`, `e`, `+`, `-`).
+fn numbers(text: &str) -> Vec<f64> {
+    text.split(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
+        .filter_map(|t| {
+            t.trim_matches(|c| matches!(c, '.' | '-' | '+'))
+                .parse()
+                .ok()
+        })
+        .collect()
+}
+
+#[test]
+fn the_document_states_the_code_s_constants_and_columns() {
+    use tagk::dynamics::log::{
+        MIN_ROWS, OPTIONAL_COLUMNS, QUATERNION_NORM_TOLERANCE, REQUIRED_COLUMNS,
+    };
+    use tagk::dynamics::quadrotor::{
+        CRAZYFLIE_ARM_OFFSET, CRAZYFLIE_INERTIA, CRAZYFLIE_K_F, CRAZYFLIE_K_M, CRAZYFLIE_MASS,
+        CRAZYFLIE_MAX_ROTOR_SPEED, CRAZYFLIE_MOTOR_DISTANCE,
+    };
+    use tagk::sim::metrics::{ABORT_THRESHOLD, SUCCESS_DELAY_STEPS, SUCCESS_THRESHOLD};
+
+    let doc = std::fs::read_to_string(root().join(CONVENTIONS)).unwrap();
+    let states = |n: u32, what: &str, value: f64| {
+        let found = numbers(section(&doc, n));
+        assert!(
+            found
+                .iter()
+                .any(|x| (x - value).abs() <= 1e-12 * value.abs()),
+            "{CONVENTIONS} §{n} should state {what} = {value} (numbers found: {found:?})"
+        );
+    };
+    let gate = tagk::dynamics::SafetyGate::crazyflie();
+    states(1, "L_arm", gate.max_com_offset);
+    states(1, "alpha", gate.max_inertia_eigenvalue);
+    states(2, "g", -tagk::dynamics::GRAVITY_WORLD.z);
+    states(4, "mass", CRAZYFLIE_MASS);
+    states(4, "L_arm", CRAZYFLIE_ARM_OFFSET);
+    states(4, "motor distance", CRAZYFLIE_MOTOR_DISTANCE);
+    states(4, "k_f", CRAZYFLIE_K_F);
+    states(4, "k_m", CRAZYFLIE_K_M);
+    states(4, "largest rotor speed", CRAZYFLIE_MAX_ROTOR_SPEED);
+    for (k, i) in CRAZYFLIE_INERTIA.iter().enumerate() {
+        states(4, &format!("inertia entry {k}"), *i);
+    }
+    let spins = tagk::dynamics::QuadrotorModel::crazyflie_2_1().spin_directions;
+    let rotor_rows: Vec<&str> = section(&doc, 4)
+        .lines()
+        .filter(|l| l.starts_with("| M"))
+        .collect();
+    assert_eq!(rotor_rows.len(), 4, "{rotor_rows:?}");
+    for (row, s) in rotor_rows.iter().zip(spins) {
+        let sign = if s > 0.0 { "`+1`" } else { "`−1`" };
+        assert!(
+            row.trim_end()
+                .trim_end_matches('|')
+                .trim_end()
+                .ends_with(sign),
+            "{row}"
+        );
+    }
+    states(5, "abort threshold [cm]", 100.0 * ABORT_THRESHOLD);
+    states(5, "success threshold [cm]", 100.0 * SUCCESS_THRESHOLD);
+    states(
+        5,
+        "success delay [control steps]",
+        SUCCESS_DELAY_STEPS as f64,
+    );
+    states(6, "quaternion norm tolerance", QUATERNION_NORM_TOLERANCE);
+    states(6, "fewest rows", MIN_ROWS as f64);
+    let log_section = section(&doc, 6);
+    for column in REQUIRED_COLUMNS.iter().chain(&OPTIONAL_COLUMNS) {
+        assert!(
+            log_section.contains(&format!("`{column}`")),
+            "{CONVENTIONS} §6 should list the column `{column}`"
+        );
+    }
 }
