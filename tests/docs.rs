@@ -337,3 +337,26 @@ fn the_document_states_the_code_s_constants_and_columns() {
         );
     }
 }
+
+#[test]
+fn the_example_log_rows_are_read_by_the_reader() {
+    use tagk::dynamics::log::{FlightLog, LogError, REQUIRED_COLUMNS};
+    let doc = std::fs::read_to_string(root().join(CONVENTIONS)).unwrap();
+    let log_section = section(&doc, 6);
+    let start = log_section
+        .find("```text\n")
+        .expect("§6 shows an example log")
+        + "```text\n".len();
+    let end = start + log_section[start..].find("```").unwrap();
+    let example = &log_section[start..end];
+    assert_eq!(
+        example.lines().next(),
+        Some(REQUIRED_COLUMNS.join(",").as_str())
+    );
+    // Every row is valid; only the length (fewer than MIN_ROWS samples) is refused.
+    let rows = example.lines().count() - 1;
+    assert!(matches!(
+        FlightLog::from_csv_reader(example.as_bytes()),
+        Err(LogError::TooShort { rows: r, .. }) if r == rows
+    ));
+}
