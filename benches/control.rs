@@ -1,7 +1,7 @@
 //! LQR design costs for the 12-state Crazyflie model (tagk-control).
 //!
 //! - `dare/*`: Riccati solves of the 50 Hz hover model with a 50 % payload at 30 % of the arm
-//!   (CONVENTIONS §5 worst case): cold plain iteration (P₀ = Q), warm plain iteration
+//!   (docs/CONVENTIONS.md §5 worst case): cold plain iteration (P₀ = Q), warm plain iteration
 //!   (P₀ = the nominal vehicle's solution — what `Lqr::redesign` does after a payload
 //!   event), the doubling algorithm (SDA), and the same solvers on `DMatrix` to compare the
 //!   statically sized fast path with the general one.

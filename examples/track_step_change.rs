@@ -2,9 +2,9 @@
 //! with every estimator in tagk, and print the error and the per-update time of each.
 //!
 //! Windows are built exactly as in the TAG-K paper's estimator: 5 frames of the rigid-body
-//! Newton–Euler regressor (CONVENTIONS §3), `A` 30 × 10. The kinematics are random excitation
-//! about hover; the measured wrench is `Y θ_true` plus sensor noise. A payload of 40 % of the
-//! vehicle mass at 25 % of the arm length is attached at window 20 and dropped at window 40.
+//! Newton–Euler regressor (docs/CONVENTIONS.md §3), `A` 30 × 10. The kinematics are random
+//! excitation about hover; the measured wrench is `Y θ_true` plus sensor noise. A payload of 40 %
+//! of the vehicle mass at 25 % of the arm length is attached at window 20 and dropped at window 40.
 //!
 //! ```text
 //! cargo run --release --example track_step_change [-- --seed 7 --windows 60]

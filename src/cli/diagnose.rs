@@ -13,7 +13,8 @@ use crate::dynamics::vehicle::Vehicle;
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
-    /// Flight log (CSV).
+    /// Flight log (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
+    /// repository).
     #[arg(value_name = "LOG")]
     pub log: PathBuf,
     /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
@@ -81,7 +82,7 @@ impl From<f64> for KnownMass {
 
 /// The built-in effects with their aliases and one-line summaries, for `--help`.
 fn effects_help() -> String {
-    let mut text = String::from("Built-in effects (--with NAME):\n");
+    let mut text = String::from("Built-in effects (--with NAME; docs/CONVENTIONS.md §7):\n");
     for kind in EffectKind::ALL {
         let aliases = kind.aliases();
         let also = if aliases.is_empty() {

@@ -69,7 +69,7 @@ pub struct SimulateArgs {
     /// Height of the trajectory centre [m] (default: random 0.8–1.5 m).
     #[arg(long)]
     pub altitude: Option<f64>,
-    /// Output CSV path.
+    /// Output CSV path (the flight-log format of docs/CONVENTIONS.md §6).
     #[arg(long, short, default_value = "flight.csv")]
     pub output: PathBuf,
 }

@@ -1,6 +1,6 @@
 //! The paper presets on quadrotor-shaped windows (the Newton–Euler regressor of
-//! CONVENTIONS §3, Crazyflie parameters of §4, windows of 5 frames → A is 30 × 10), with a
-//! payload attached part-way through.
+//! docs/CONVENTIONS.md §3, Crazyflie parameters of §4, windows of 5 frames → A is 30 × 10), with
+//! a payload attached part-way through.
 
 mod common;
 

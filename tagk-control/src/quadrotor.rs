@@ -1,12 +1,12 @@
 //! Quadrotor error model, hover trim, linearisation and zero-order-hold discretisation.
 //!
-//! # Nonlinear model (CONVENTIONS §2–§4)
+//! # Nonlinear model (docs/CONVENTIONS.md §2–§4)
 //!
 //! State: world position `p` \[m\], world velocity `v` \[m/s\], attitude `R` (unit quaternion,
 //! body → world), body rate `ω` \[rad/s\]. Input: the four rotor thrusts `u` \[N\], mapped by the
 //! mixer to the actuator wrench `w(u) = [0, 0, f_z; τ]` (body frame, about the origin).
 //! With the inertial parameters `θ` (mass `m`, first moment `h = m c`, inertia `I` about the
-//! origin) the Newton–Euler equations of §3 are the symmetric 6×6 system
+//! origin) the Newton–Euler equations (docs/CONVENTIONS.md §3) are the symmetric 6×6 system
 //!
 //! ```text
 //! [ m·1   −S(h) ] [ a ]   [ f − ω×(ω×h) ]
@@ -48,8 +48,8 @@
 //! # Hover trim
 //!
 //! Hovering means `p̈ = 0`, `ω = ω̇ = 0`, so `a = −Rᵀ g_w` and the required actuator wrench
-//! is `f = m a`, `τ = h × a` (§3). A quadrotor can push only along body `z`, so `f ∥ e_z`
-//! forces a level attitude (any yaw): `a = (0, 0, g)`, `f_z = m g`,
+//! is `f = m a`, `τ = h × a` (docs/CONVENTIONS.md §3). A quadrotor can push only along body
+//! `z`, so `f ∥ e_z` forces a level attitude (any yaw): `a = (0, 0, g)`, `f_z = m g`,
 //! `τ = h × (0, 0, g) = g (h_y, −h_x, 0)`: the rotors must cancel the gravity torque about
 //! the origin `c × m g_b`, so with a centre-of-mass offset the four trim thrusts differ.
 //! They are `M_mix⁻¹ [m g, g h_y, −g h_x, 0]`.
@@ -95,7 +95,7 @@ pub struct QuadrotorState {
     pub position: Vector3<f64>,
     /// Velocity of the body origin, world frame \[m/s\].
     pub velocity: Vector3<f64>,
-    /// Attitude, body → world (CONVENTIONS §2).
+    /// Attitude, body → world (docs/CONVENTIONS.md §2).
     pub attitude: UnitQuaternion<f64>,
     /// Angular velocity, body frame \[rad/s\].
     pub body_rate: Vector3<f64>,
@@ -218,8 +218,8 @@ pub fn hover_trim(
 }
 
 /// Rotor thrusts \[N\] that realise world acceleration `accel_world` \[m/s²\] and body angular
-/// acceleration `omega_dot` \[rad/s²\] at `state` (inverse dynamics `newton_euler` of §3,
-/// then the inverse mixer). For hover pass zeros.
+/// acceleration `omega_dot` \[rad/s²\] at `state` (inverse dynamics `newton_euler`,
+/// docs/CONVENTIONS.md §3, then the inverse mixer). For hover pass zeros.
 ///
 /// # Errors
 /// [`ControlError::TrimInfeasible`] if the required force has a component across body `z`

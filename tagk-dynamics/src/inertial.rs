@@ -1,4 +1,4 @@
-//! Inertial parameters of one rigid body (CONVENTIONS §1): construction, conversions,
+//! Inertial parameters of one rigid body (docs/CONVENTIONS.md §1): construction, conversions,
 //! payloads, frame changes and physical-consistency checks.
 
 use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
@@ -22,7 +22,7 @@ use crate::math::parallel_axis;
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct InertialParams([f64; 10]);
 
-/// Thresholds of the TAG-K paper's safety gate (CONVENTIONS §1).
+/// Thresholds of the TAG-K paper's safety gate (docs/CONVENTIONS.md §1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SafetyGate {
@@ -79,7 +79,7 @@ pub enum GateViolation {
     },
 }
 
-/// Packs a symmetric matrix's six independent entries in CONVENTIONS order
+/// Packs a symmetric matrix's six independent entries in the order of θ
 /// `[I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]`.
 #[inline]
 fn pack_inertia(i: &Matrix3<f64>) -> [f64; 6] {
@@ -97,7 +97,8 @@ impl InertialParams {
     /// All ten parameters zero (a massless body).
     pub const ZERO: Self = Self([0.0; 10]);
 
-    /// Wraps a 10-vector in CONVENTIONS order (no checks: estimates may be inconsistent).
+    /// Wraps a 10-vector in the order of `θ` (docs/CONVENTIONS.md §1); no checks: estimates
+    /// may be inconsistent.
     pub const fn from_array(theta: [f64; 10]) -> Self {
         Self(theta)
     }
@@ -117,7 +118,7 @@ impl InertialParams {
         Ok(Self(arr))
     }
 
-    /// The 10-vector in CONVENTIONS order.
+    /// The 10-vector in the order of `θ` (docs/CONVENTIONS.md §1).
     pub const fn to_array(&self) -> [f64; 10] {
         self.0
     }

@@ -1,5 +1,5 @@
 //! Quadrotor actuator model: rotor layout, thrust/torque coefficients and the mixer
-//! (CONVENTIONS §4).
+//! (docs/CONVENTIONS.md §4).
 //!
 //! Rotor numbering follows the Crazyflie: M1 front-right `(+x, −y)`, M2 back-right
 //! `(−x, −y)`, M3 back-left `(−x, +y)`, M4 front-left `(+x, +y)` (body frame: x forward,
@@ -35,7 +35,7 @@ pub const CRAZYFLIE_MAX_ROTOR_SPEED: f64 = 2500.0;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct QuadrotorModel {
-    /// Inertial parameters of the vehicle about the body origin (CONVENTIONS §1).
+    /// Inertial parameters of the vehicle about the body origin (docs/CONVENTIONS.md §1).
     pub params: InertialParams,
     /// Distance from the body origin to each motor axis \[m\].
     pub arm: f64,

@@ -1,4 +1,4 @@
-//! Newton–Euler equations of one rigid body and their 6×10 regressor (CONVENTIONS §3).
+//! Newton–Euler equations of one rigid body and their 6×10 regressor (docs/CONVENTIONS.md §3).
 
 use core::ops::{Add, AddAssign, Sub};
 
@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
 use crate::{DynamicsError, InertialParams};
 
-/// World-frame gravity `g_w = (0, 0, −9.81) m/s²` (CONVENTIONS §2, z up).
+/// World-frame gravity `g_w = (0, 0, −9.81) m/s²` (docs/CONVENTIONS.md §2, z up).
 pub const GRAVITY_WORLD: Vector3<f64> = Vector3::new(0.0, 0.0, -9.81);
 
 /// The 6×10 rigid-body regressor type: `[f; τ] = Y θ`.
@@ -265,7 +265,8 @@ fn fill_regressor(a: &Vector3<f64>, w: &Vector3<f64>, wd: &Vector3<f64>, out: &m
     ];
 }
 
-/// The 6×10 Newton–Euler regressor `Y(a, ω, ω̇)` with `[f; τ] = Y θ` (CONVENTIONS §3):
+/// The 6×10 Newton–Euler regressor `Y(a, ω, ω̇)` with `[f; τ] = Y θ`
+/// (docs/CONVENTIONS.md §3):
 ///
 /// ```text
 /// rows f:  [ a | S(ω̇) + S(ω)S(ω) | 0₃ₓ₆ ]

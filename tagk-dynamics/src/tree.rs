@@ -2,9 +2,9 @@
 //! prismatic joints: forward kinematics, recursive Newton–Euler inverse dynamics, the
 //! joint-torque regressor `τ = Y(q, q̇, q̈) θ`, mass matrix, forward dynamics and energies.
 //!
-//! Each moving body is the rigid union of the URDF link attached by a movable joint and every
-//! link welded to it by fixed joints. Its frame is that child link's frame (= the joint frame),
-//! its inertial parameters are in that frame about its origin (CONVENTIONS §1), and bodies are
+//! Each moving body is the rigid union of the URDF link attached by a movable joint and every link
+//! welded to it by fixed joints. Its frame is that child link's frame (= the joint frame), its
+//! inertial parameters are in that frame about its origin (docs/CONVENTIONS.md §1), and bodies are
 //! numbered in depth-first preorder (a parent before its children, each subtree contiguous).
 //! `q[i]`, `τ[i]` belong to the joint of body `i`. Gravity is a vector in the base frame.
 

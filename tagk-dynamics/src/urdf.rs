@@ -1,11 +1,11 @@
 //! Loading a [`KinematicTree`] from URDF (through `urdf-rs`).
 //!
-//! Supported joints: revolute, continuous, prismatic (one coordinate each) and fixed (the
-//! child link is welded to its parent and their inertials are merged). Joint origins
-//! (`xyz`, fixed-axis `rpy`, i.e. `R = Rz(yaw) Ry(pitch) Rx(roll)`) and axes are honoured.
-//! A link's `<inertial>` gives the mass and the inertia about the centre of mass in the
-//! inertial frame (`<origin>` of the inertial); it is rotated and shifted into the link frame,
-//! about the link origin (CONVENTIONS §1). `<mimic>` couplings are recorded but not enforced.
+//! Supported joints: revolute, continuous, prismatic (one coordinate each) and fixed (the child
+//! link is welded to its parent and their inertials are merged). Joint origins (`xyz`, fixed-axis
+//! `rpy`, i.e. `R = Rz(yaw) Ry(pitch) Rx(roll)`) and axes are honoured. A link's `<inertial>` gives
+//! the mass and the inertia about the centre of mass in the inertial frame (`<origin>` of the
+//! inertial); it is rotated and shifted into the link frame, about the link origin
+//! (docs/CONVENTIONS.md §1). `<mimic>` couplings are recorded but not enforced.
 //!
 //! urdf-rs fills a missing `<inertial>` with zeros, so "no inertial" and "an inertial with
 //! zero mass and zero inertia" are the same here: a massless link. Massless links are fine

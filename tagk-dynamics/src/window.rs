@@ -1,5 +1,5 @@
 //! Sliding windows of rigid-body regressor rows: the stacked `A θ ≈ b` an online estimator
-//! consumes (CONVENTIONS §3: a window of `k` frames stacks `k` 6-row blocks).
+//! consumes (docs/CONVENTIONS.md §3: a window of `k` frames stacks `k` 6-row blocks).
 
 use nalgebra::Vector3;
 
@@ -50,9 +50,10 @@ impl WindowBuilder {
         })
     }
 
-    /// Appends one frame, dropping the oldest when full: the proper acceleration of the body
-    /// origin `a` \[m/s²\], angular velocity `ω` \[rad/s\] and acceleration `ω̇` \[rad/s²\] (all body
-    /// frame, CONVENTIONS §3) and the measured actuator wrench (body frame, about the origin).
+    /// Appends one frame, dropping the oldest when full: the proper acceleration of the body origin
+    /// `a` \[m/s²\], angular velocity `ω` \[rad/s\] and acceleration `ω̇` \[rad/s²\] (all body
+    /// frame, docs/CONVENTIONS.md §3) and the measured actuator wrench (body frame, about the
+    /// origin).
     ///
     /// # Errors
     /// [`DynamicsError::NonFinite`] if any input is NaN/∞; the window is then unchanged.

@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Table III on an emulated Cortex-M7: installs Debian's Rust, QEMU and LLVM if missing, builds
 # the firmware, runs every case on QEMU's mps2-an500 (checking each case's estimates against
-# the host's, bit for bit), counts executed instructions per update with the shared QEMU
-# plugin (../shared/tools/cortex-m7/measure.sh beside the repository), converts them to an
+# the host's, bit for bit), counts executed instructions per update with an instruction-counting
+# QEMU plugin (its measure.sh wrapper, not part of the repository), converts them to an
 # ESTIMATE of cycles with llvm-mca's Cortex-M7 model, and prints the table.
 #
 # Exit status: non-zero if the build fails, a case fails or its checksum differs from the
 # host's. Writes the final table to firmware/target/table3.md. Environment:
 #   TAGK_MCU_SKIP_INSTALL=1   do not call apt-get (everything must already be installed)
-#   TAGK_MCU_MEASURE=path     measure.sh to use (default: found beside the repository)
+#   TAGK_MCU_MEASURE=path     measure.sh to use (unset: instruction counts are skipped)
 set -euo pipefail
 
 FW=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -47,10 +47,6 @@ rm -rf "$OUT"; mkdir -p "$OUT"
 
 # --- 3. The instruction-counting plugin ------------------------------------------------------
 MEASURE=${TAGK_MCU_MEASURE:-}
-if [[ -z $MEASURE ]]; then
-  ROOT=$(git -C "$FW" rev-parse --show-toplevel 2>/dev/null || (cd "$FW/../.." && pwd))
-  MEASURE=$ROOT/../shared/tools/cortex-m7/measure.sh
-fi
 QEMU=(qemu-system-arm -cpu cortex-m7 -machine mps2-an500 -nographic
       -semihosting-config enable=on,target=native -kernel "$ELF")
 
@@ -61,9 +57,9 @@ status=0
 if ((status != 0)); then
   log "the firmware reported a failure (exit status $status)"; exit "$status"
 fi
-if [[ ! -f $MEASURE ]]; then
-  log "instruction counts skipped: $MEASURE is absent (the shared/ directory beside the"
-  log "repository holds it; set TAGK_MCU_MEASURE=/path/to/measure.sh). Checksums passed."
+if [[ -z $MEASURE || ! -f $MEASURE ]]; then
+  log "instruction counts skipped: no measure.sh (set TAGK_MCU_MEASURE=/path/to/measure.sh,"
+  log "the instruction-counting plugin's wrapper, not part of the repository). Checksums passed."
   exit 0
 fi
 

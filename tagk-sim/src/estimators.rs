@@ -52,9 +52,9 @@ pub(crate) fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
     mass * sigma_accel * ((3 * frames) as f64).sqrt()
 }
 
-/// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal`
-/// (CONVENTIONS order) and arm length `arm` \[m\]: typical magnitudes of each parameter, so
-/// that every column of `A D` has the units of the measurement.
+/// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal` (the order
+/// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\]: typical magnitudes of each parameter,
+/// so that every column of `A D` has the units of the measurement.
 pub(crate) fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
     let m = nominal[0];
     let i = (nominal[4] + nominal[6] + nominal[9]) / 3.0;

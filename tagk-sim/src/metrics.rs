@@ -1,4 +1,4 @@
-//! The experiment metrics of CONVENTIONS §5, each defined once here.
+//! The experiment metrics of docs/CONVENTIONS.md §5, each defined once here.
 
 use serde::{Deserialize, Serialize};
 use tagk_dynamics::InertialParams;

@@ -1,6 +1,6 @@
 //! The simulated vehicle: a 6-DoF rigid body with the full Newton–Euler dynamics of
-//! CONVENTIONS §3, quaternion attitude, four rotors with speed limits, optional motor lag and
-//! the other [`PlantEffects`], integrated by classical fourth-order Runge–Kutta.
+//! docs/CONVENTIONS.md §3, quaternion attitude, four rotors with speed limits, optional motor lag
+//! and the other [`PlantEffects`], integrated by classical fourth-order Runge–Kutta.
 //!
 //! State: world position `p` and velocity `v` of the body origin [m, m/s], attitude `q`
 //! (body → world, Hamilton, scalar first), body rate `ω` [rad/s] and, with motor lag, the four

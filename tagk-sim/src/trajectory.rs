@@ -1,6 +1,6 @@
 //! The five reference trajectories of the protocol (figure-8, circle, spiral, helix,
 //! ellipse), with randomised size, centre and phase within the peak-speed limits
-//! (0.5 m/s and 0.5 rad/s of the path's angular rate, CONVENTIONS §5).
+//! (0.5 m/s and 0.5 rad/s of the path's angular rate, docs/CONVENTIONS.md §5).
 //!
 //! Every path is `p(t) = c + shape(s(t), λ(t))` with the phase `s(t) = φ + Ω g(t)` and the
 //! progress `λ(t) = g(t) / g(T*)` (used by the spiral's growing radius and the helix's climb).
@@ -17,9 +17,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::SimError;
 
-/// Peak reference speed [m/s] (CONVENTIONS §5).
+/// Peak reference speed [m/s] (docs/CONVENTIONS.md §5).
 pub const PEAK_SPEED: f64 = 0.5;
-/// Peak angular rate of the path parameter [rad/s] (CONVENTIONS §5).
+/// Peak angular rate of the path parameter [rad/s] (docs/CONVENTIONS.md §5).
 pub const PEAK_RATE: f64 = 0.5;
 /// Duration of the smooth start from rest \[s\].
 pub const RAMP_TIME: f64 = 1.5;

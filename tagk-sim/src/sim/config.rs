@@ -16,7 +16,7 @@ use crate::trajectory::TrajectoryKind;
 use crate::{EstimatorKind, PlantEffects, SimError};
 
 /// Noise on the velocity and acceleration fed to the controller and the estimator
-/// (CONVENTIONS §5).
+/// (docs/CONVENTIONS.md §5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum NoiseLevel {
     /// σ_v = 0, σ_a = 0.
@@ -125,10 +125,10 @@ impl Payload {
         }
     }
 
-    /// The protocol's random payload (CONVENTIONS §5) for a vehicle of mass `vehicle_mass`:
-    /// a point mass of `U[0.3, 0.5]·m`, at `U[0.2, 0.3]·L_arm` (the Crazyflie's
-    /// [`CRAZYFLIE_ARM_OFFSET`]) from the origin in a direction
-    /// uniform on the sphere, attached at `U[4, 6] s`, removed at `U[12, 14] s`.
+    /// The protocol's random payload (docs/CONVENTIONS.md §5) for a vehicle of mass
+    /// `vehicle_mass`: a point mass of `U[0.3, 0.5]·m`, at `U[0.2, 0.3]·L_arm` (the Crazyflie's
+    /// [`CRAZYFLIE_ARM_OFFSET`]) from the origin in a direction uniform on the sphere, attached at
+    /// `U[4, 6] s`, removed at `U[12, 14] s`.
     pub fn random_protocol<R: rand::Rng + ?Sized>(vehicle_mass: f64, rng: &mut R) -> Self {
         let mass = vehicle_mass * rng.random_range(0.3..0.5);
         let dist = CRAZYFLIE_ARM_OFFSET * rng.random_range(0.2..0.3);

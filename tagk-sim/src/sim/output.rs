@@ -62,7 +62,7 @@ pub struct TrialMetrics {
     pub group_errors: GroupErrors,
     /// (t+1) error (NaN without an event followed by an update).
     pub t1_error: f64,
-    /// Success (CONVENTIONS §5: judged 10 control steps after each payload event).
+    /// Success (docs/CONVENTIONS.md §5: judged 10 control steps after each payload event).
     pub success: bool,
     /// Success judged instead 10 control steps after the first estimator update following
     /// each payload event (the window in which an estimator can act; equals the controller's
