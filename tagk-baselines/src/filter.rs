@@ -27,6 +27,13 @@
 //! `f32`, where it catches only a complete cancellation (a diagonal entry that is zero or
 //! negative): `f32` filters then try the fallback before they fail, and otherwise run the
 //! block update.
+//!
+//! **Layouts.** The full buffer ([`covariance_buffer_len`]) holds a second `n × n` copy of
+//! `P`: the faer backend's posterior, and the fallback's `P⁺`, factorised and inverted in
+//! place (LAPACK's `potrf`/`trtri`/`lauum` order), committed by switching copies. The compact
+//! buffer ([`compact_covariance_buffer_len`], portable kernel only) has none: the kernel
+//! decides on the fallback before it writes `P`, so it refuses those windows with a typed
+//! `NumericalFailure` and the state is kept.
 
 use core::fmt;
 
