@@ -56,7 +56,6 @@ pub(crate) fn update(
         theta_next,
         p,
         p_next,
-        fb,
         atr,
         dtheta,
         work,
@@ -82,21 +81,13 @@ pub(crate) fn update(
                 pkk.is_nan() || pkk <= CANCELLATION * (p[k * n + k] + q)
             });
             if cancelled {
-                let fallback = Fallback {
-                    p_out: p_next,
-                    fb,
-                    atr,
-                };
+                let fallback = Fallback { p_out: p_next, atr };
                 fallback.run(n, m, model, a, p, &work[n..], n1, None)?;
             }
         }
         // The Cholesky factorisation of S failed, before `r` was overwritten by `w`.
         Err(_) => {
-            let fallback = Fallback {
-                p_out: p_next,
-                fb,
-                atr,
-            };
+            let fallback = Fallback { p_out: p_next, atr };
             fallback.run(n, m, model, a, p, &work[n..], n1, Some(dtheta))?;
         }
     }

@@ -27,6 +27,13 @@
 //! `f32`, where it catches only a complete cancellation (a diagonal entry that is zero or
 //! negative): `f32` filters then try the fallback before they fail, and otherwise run the
 //! block update.
+//!
+//! **Layouts.** The full buffer ([`covariance_buffer_len`]) holds a second `n × n` copy of
+//! `P`: the faer backend's posterior, and the fallback's `P⁺`, factorised and inverted in
+//! place (LAPACK's `potrf`/`trtri`/`lauum` order), committed by switching copies. The compact
+//! buffer ([`compact_covariance_buffer_len`], portable kernel only) has none: the kernel
+//! decides on the fallback before it writes `P`, so it refuses those windows with a typed
+//! `NumericalFailure` and the state is kept.
 
 use core::fmt;
 
@@ -36,24 +43,43 @@ use tagk_core::{ConfigError, EstimatorError, Real, Storage, UpdateInfo, validate
 use crate::Backend;
 
 /// Length of the buffer an [`Rls`](crate::Rls) or [`KalmanFilter`](crate::KalmanFilter) of
-/// dimension `n` and window capacity `m_max` needs:
-/// `3n² + 4n + 2·m_max·n + m_max² + 3·m_max` scalars (the estimate and the covariance, each
-/// twice so that an update commits by switching copies, the information-form fallback's
-/// `n × n` scratch, and the block update's workspace).
+/// dimension `n` and window capacity `m_max` needs with every feature:
+/// `2n² + 4n + 2·m_max·n + m_max² + 3·m_max` scalars (the estimate twice, so that an update
+/// commits by switching copies; the covariance and an `n × n` second copy, where the faer
+/// backend computes its posterior and the information-form fallback its `P⁺`; the block
+/// update's workspace). The `Vec` constructors allocate this much.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; covariance_buffer_len(120, 30)]`.
+/// [`compact_covariance_buffer_len`] is about `n²` scalars less, without the fallback.
 pub const fn covariance_buffer_len(n: usize, m_max: usize) -> usize {
-    3 * n * n + 4 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
+    2 * n * n + 4 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
 }
 
-/// [`covariance_buffer_len`] without overflow.
-pub(crate) fn checked_buffer_len(n: usize, m: usize) -> Option<usize> {
-    let nn = n.checked_mul(n)?.checked_mul(3)?;
+/// Length of the smallest buffer an [`Rls`](crate::Rls) or
+/// [`KalmanFilter`](crate::KalmanFilter) on the portable kernel ([`Backend::Loops`]) accepts:
+/// `n² + 3n + 2·m_max·n + m_max² + 3·m_max` scalars (one covariance, updated in place).
+///
+/// A filter built in a buffer shorter than [`covariance_buffer_len`] has **no
+/// information-form fallback**: a window that the fallback would redo (a Cholesky
+/// factorisation of `S` that fails, or a covariance update that cancels to fewer than ~4
+/// digits on the diagonal; see the crate docs) is refused with
+/// [`EstimatorError::NumericalFailure`] and leaves the filter as it was. Every other window
+/// gives the same bits as with the full buffer. For memory-bound targets (the Cortex-M7
+/// firmware of `tagk-mcu`); [`Backend::Faer`] needs the full buffer.
+pub const fn compact_covariance_buffer_len(n: usize, m_max: usize) -> usize {
+    n * n + 3 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
+}
+
+/// [`covariance_buffer_len`] (with the fallback) or [`compact_covariance_buffer_len`]
+/// (without) without overflow.
+pub(crate) fn checked_buffer_len(n: usize, m: usize, fallback: bool) -> Option<usize> {
+    let extra = usize::from(fallback);
+    let nn = n.checked_mul(n)?.checked_mul(1 + extra)?;
     let mn = m.checked_mul(n)?.checked_mul(2)?;
     let mm = m.checked_mul(m)?;
     nn.checked_add(mn)?
         .checked_add(mm)?
-        .checked_add(n.checked_mul(4)?)?
+        .checked_add(n.checked_mul(3 + extra)?)?
         .checked_add(m.checked_mul(3)?)
 }
 
@@ -65,6 +91,8 @@ pub(crate) const CHOLESKY_FAILED: &str =
     "the innovation covariance A P Aᵀ + D is not numerically positive definite";
 const COVARIANCE_INDEFINITE: &str =
     "the updated covariance has a non-positive diagonal entry (lost positive definiteness)";
+const CANCELLED_WITHOUT_FALLBACK: &str = "the covariance update cancels (a diagonal entry keeps \
+     fewer than ~4 digits) and this filter's compact buffer has no information-form fallback";
 
 /// The constants that turn the shared block update into RLS or the Kalman filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,6 +116,9 @@ pub(crate) struct BlockFilter<T: Real, S: Storage<T>> {
     pub(crate) m_max: usize,
     pub(crate) backend: Backend,
     pub(crate) model: Model<T>,
+    /// Whether the buffer holds the second `P` and the fallback's `Aᵀ r` (the full layout,
+    /// [`covariance_buffer_len`]) or not ([`compact_covariance_buffer_len`]).
+    pub(crate) fallback: bool,
     /// Which of the two copies of `θ` (0 or 1) is current.
     theta_slot: usize,
     /// Which of the two copies of `P` (0 or 1) is current.
@@ -103,11 +134,10 @@ pub(crate) struct Parts<'a, T> {
     pub(crate) theta_next: &'a mut [T],
     /// Current `P` (`n × n`, row-major, symmetric).
     pub(crate) p: &'a mut [T],
-    /// The other copy of `P`: the faer backend's posterior, the fallback's `P⁺`.
+    /// The other copy of `P`: the faer backend's posterior, the fallback's `P⁺` and its
+    /// scratch (empty in the compact layout).
     pub(crate) p_next: &'a mut [T],
-    /// `n × n` scratch of the fallback.
-    pub(crate) fb: &'a mut [T],
-    /// `Aᵀ r` of the fallback (`n`).
+    /// `Aᵀ r` of the fallback (`n`; empty in the compact layout).
     pub(crate) atr: &'a mut [T],
     /// `Δθ` (`n`); the portable kernel keeps `‖z_i‖²` here.
     pub(crate) dtheta: &'a mut [T],
@@ -122,7 +152,9 @@ pub(crate) struct Parts<'a, T> {
 }
 
 impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
-    /// `θ = 0`, `P = p₀·I` in `buf` (at least [`covariance_buffer_len`] scalars).
+    /// `θ = 0`, `P = p₀·I` in `buf`: the full layout if it holds [`covariance_buffer_len`]
+    /// scalars, else the compact one (portable kernel only, no fallback) if it holds
+    /// [`compact_covariance_buffer_len`].
     pub(crate) fn new(
         n: usize,
         m_max: usize,
@@ -133,15 +165,26 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
         tagk_core::check_dimensions(n, m_max)?;
         let found = buf.as_ref().len();
         // Overflowing sizes can never be satisfied: report them as `usize::MAX`.
-        let needed = checked_buffer_len(n, m_max).unwrap_or(usize::MAX);
-        if found < needed {
-            return Err(ConfigError::BufferTooSmall { needed, found });
+        let full = checked_buffer_len(n, m_max, true).unwrap_or(usize::MAX);
+        let compact = checked_buffer_len(n, m_max, false).unwrap_or(usize::MAX);
+        let fallback = found >= full;
+        if !fallback {
+            // The compact layout serves the portable kernel only; report the least that works.
+            let needed = if backend == Backend::Loops {
+                compact
+            } else {
+                full
+            };
+            if found < needed {
+                return Err(ConfigError::BufferTooSmall { needed, found });
+            }
         }
         let mut filter = Self {
             n,
             m_max,
             backend,
             model,
+            fallback,
             theta_slot: 0,
             p_slot: 0,
             buf,
@@ -159,30 +202,30 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
 
     pub(crate) fn parts(&mut self) -> Parts<'_, T> {
         let (n, m) = (self.n, self.m_max);
+        // The compact layout's slices first, in both layouts (same offsets and lengths, so
+        // the kernel compiles the same), then the full layout's second `P` and `Aᵀ r`.
         let rest = self.buf.as_mut();
         let (thetas, rest) = rest.split_at_mut(2 * n);
-        let (ps, rest) = rest.split_at_mut(2 * n * n);
-        let (fb, rest) = rest.split_at_mut(n * n);
-        let (atr, rest) = rest.split_at_mut(n);
+        let (p0, rest) = rest.split_at_mut(n * n);
         let (dtheta, rest) = rest.split_at_mut(n);
         let (work, rest) = rest.split_at_mut(m * (2 * n + 1));
         let (s, rest) = rest.split_at_mut(m * m);
         let (y, rest) = rest.split_at_mut(m);
-        let inv_diag = &mut rest[..m];
+        let (inv_diag, rest) = rest.split_at_mut(m);
+        let (p1, rest) = rest.split_at_mut(if self.fallback { n * n } else { 0 });
+        let atr = &mut rest[..if self.fallback { n } else { 0 }];
         let (t0, t1) = thetas.split_at_mut(n);
         let (theta, theta_next) = if self.theta_slot == 0 {
             (t0, t1)
         } else {
             (t1, t0)
         };
-        let (p0, p1) = ps.split_at_mut(n * n);
         let (p, p_next) = if self.p_slot == 0 { (p0, p1) } else { (p1, p0) };
         Parts {
             theta,
             theta_next,
             p,
             p_next,
-            fb,
             atr,
             dtheta,
             work,
@@ -199,8 +242,14 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
 
     /// The covariance `P`, row-major `n × n`.
     pub(crate) fn covariance(&self) -> &[T] {
-        let (n, start) = (self.n, 2 * self.n);
-        &self.buf.as_ref()[start + self.p_slot * n * n..start + (self.p_slot + 1) * n * n]
+        let (n, m) = (self.n, self.m_max);
+        // See `parts`: the second copy follows the compact layout.
+        let start = if self.p_slot == 0 {
+            2 * n
+        } else {
+            compact_covariance_buffer_len(n, m)
+        };
+        &self.buf.as_ref()[start..start + n * n]
     }
 
     pub(crate) fn into_storage(self) -> S {
@@ -252,8 +301,11 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
             return Ok(info(m, norm));
         }
         let model = self.model;
-        let (norm, new_p) = update_portable(n, m, &model, a, b, self.parts())?;
-        self.switch(new_p);
+        let (norm, outcome) = update_portable(n, m, &model, a, b, self.parts())?;
+        if let Some(redo) = outcome {
+            redo_in_information_form(n, m, &model, a, redo, self.parts())?;
+        }
+        self.switch(outcome.is_some());
         Ok(info(m, norm))
     }
 }
@@ -264,6 +316,7 @@ impl<T: Real, S: Storage<T>> fmt::Debug for BlockFilter<T, S> {
             .field("n", &self.n)
             .field("m_max", &self.m_max)
             .field("backend", &self.backend)
+            .field("fallback", &self.fallback)
             .field("estimate", &self.estimate())
             .finish_non_exhaustive()
     }
@@ -287,7 +340,6 @@ impl<'a, T: Real> Parts<'a, T> {
             theta_next: cast_slice_mut(self.theta_next),
             p: cast_slice_mut(self.p),
             p_next: cast_slice_mut(self.p_next),
-            fb: cast_slice_mut(self.fb),
             atr: cast_slice_mut(self.atr),
             dtheta: cast_slice_mut(self.dtheta),
             work: cast_slice_mut(self.work),
@@ -345,9 +397,19 @@ pub(crate) fn residual<T: Real>(
     Ok(norm2.sqrt().as_f64())
 }
 
-/// The portable block update (module docs). Returns the prior residual norm and whether the
-/// new covariance is in the other copy (`true` after the fallback; otherwise `P` was updated
-/// in place). The candidate `θ` is always in `theta_next`.
+/// Why the portable kernel hands a window to the information-form fallback.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Redo {
+    /// The Cholesky factorisation of `S` failed; `y` still holds `r`.
+    CholeskyFailed,
+    /// The covariance update would cancel; the candidate `θ` is in `theta_next`.
+    Cancelled,
+}
+
+/// The portable block update (module docs). Returns the prior residual norm and `None` when
+/// `P` was updated in place, or the reason the window must be redone in information form
+/// (`P` untouched). The candidate `θ` is in `theta_next` unless the Cholesky factorisation
+/// failed.
 fn update_portable<T: Real>(
     n: usize,
     m: usize,
@@ -355,19 +417,17 @@ fn update_portable<T: Real>(
     a: &[T],
     b: &[T],
     parts: Parts<'_, T>,
-) -> Result<(f64, bool), EstimatorError> {
+) -> Result<(f64, Option<Redo>), EstimatorError> {
     let Parts {
         theta,
         theta_next: candidate,
         p,
-        p_next,
-        fb,
-        atr,
         dtheta: zz,
         work,
         s,
         y,
         inv_diag,
+        ..
     } = parts;
     let Model { q, d, scale, .. } = *model;
     let norm = residual(n, a, b, theta, y, 1)?;
@@ -377,8 +437,8 @@ fn update_portable<T: Real>(
 
     // W = A P̃ with P̃ = P + qI: row j of W is P̃ a_j (P is symmetric).
     for (aj, wj) in a.chunks_exact(n).zip(w.chunks_exact_mut(n)) {
-        for (i, wji) in wj.iter_mut().enumerate() {
-            *wji = dot(&p[i * n..(i + 1) * n], aj);
+        for (wji, pi) in wj.iter_mut().zip(p.chunks_exact(n)) {
+            *wji = dot(pi, aj);
         }
         if q != T::zero() {
             axpy(q, aj, wj);
@@ -393,18 +453,7 @@ fn update_portable<T: Real>(
         s[j * m + j] += d;
     }
     if cholesky_in_place(s, m).is_err() {
-        // `y` still holds r: redo the window in information form.
-        let fallback = Fallback {
-            p_out: p_next,
-            fb,
-            atr,
-        };
-        fallback.run(n, m, model, a, p, y, 1, Some(zz))?;
-        for ((c, &t), &dt) in candidate.iter_mut().zip(&*theta).zip(&*zz) {
-            *c = t + dt;
-        }
-        finish_fallback(p_next, n, model)?;
-        return finite_candidate(candidate).map(|()| (norm, true));
+        return Ok((norm, Some(Redo::CholeskyFailed)));
     }
     reciprocal_diagonal(s, m, inv_diag);
     solve_lower_in_place(s, m, inv_diag, &mut y[..m]);
@@ -430,16 +479,7 @@ fn update_portable<T: Real>(
         cancelled |= posterior.is_nan() || posterior <= threshold * prior;
     }
     if cancelled {
-        // Δθ of the block update is kept (its error is bounded by the conditioning of S, not
-        // by the cancellation); only P is recomputed.
-        let fallback = Fallback {
-            p_out: p_next,
-            fb,
-            atr,
-        };
-        fallback.run(n, m, model, a, p, y, 1, None)?;
-        finish_fallback(p_next, n, model)?;
-        return finite_candidate(candidate).map(|()| (norm, true));
+        return Ok((norm, Some(Redo::Cancelled)));
     }
     finite_candidate(candidate)?;
     // |(Z Zᵀ)_il| ≤ max_i ‖z_i‖², so (|P| + q + max ‖z_i‖²)·scale bounds every new entry.
@@ -455,6 +495,18 @@ fn update_portable<T: Real>(
     }
     // Commit: P ← (P̃ − Z Zᵀ)·scale on the upper triangle, mirrored (the diagonal is positive:
     // it passed the cancellation check).
+    commit_covariance(n, m, q, scale, z, zz, p);
+    if let Some(max_trace) = model.max_trace {
+        windup_guard(p, n, max_trace);
+    }
+    Ok((norm, None))
+}
+
+/// `P ← (P + q·I − Z Zᵀ)·scale` on the upper triangle, mirrored, with `‖z_i‖²` from `zz`.
+/// Out of line: a loop nest with few live values, compiled the same whatever the caller
+/// keeps in registers (the Cortex-M7's instruction counts depend on it).
+#[inline(never)]
+fn commit_covariance<T: Real>(n: usize, m: usize, q: T, scale: T, z: &[T], zz: &[T], p: &mut [T]) {
     for i in 0..n {
         let zi = &z[i * m..(i + 1) * m];
         p[i * n + i] = (p[i * n + i] + q - zz[i]) * scale;
@@ -464,10 +516,57 @@ fn update_portable<T: Real>(
             p[l * n + i] = v;
         }
     }
-    if let Some(max_trace) = model.max_trace {
-        windup_guard(p, n, max_trace);
+}
+
+/// The window `update_portable` handed back, redone in information form into the other copy
+/// of `P` (the caller switches copies on success), or refused with a typed
+/// [`EstimatorError::NumericalFailure`] in the compact layout, which has no fallback. Kept
+/// out of line so that the hot kernel does not carry the fallback's buffers.
+#[cold]
+#[inline(never)]
+fn redo_in_information_form<T: Real>(
+    n: usize,
+    m: usize,
+    model: &Model<T>,
+    a: &[T],
+    redo: Redo,
+    parts: Parts<'_, T>,
+) -> Result<(), EstimatorError> {
+    let Parts {
+        theta,
+        theta_next: candidate,
+        p,
+        p_next,
+        atr,
+        dtheta: zz,
+        y,
+        ..
+    } = parts;
+    if p_next.is_empty() {
+        // The compact layout: no fallback (P is still untouched).
+        return Err(EstimatorError::NumericalFailure(match redo {
+            Redo::CholeskyFailed => CHOLESKY_FAILED,
+            Redo::Cancelled => CANCELLED_WITHOUT_FALLBACK,
+        }));
     }
-    Ok((norm, false))
+    let fallback = Fallback {
+        p_out: &mut *p_next,
+        atr,
+    };
+    match redo {
+        // `y` still holds r: Δθ comes from the fallback too.
+        Redo::CholeskyFailed => {
+            fallback.run(n, m, model, a, p, y, 1, Some(&mut *zz))?;
+            for ((c, &t), &dt) in candidate.iter_mut().zip(&*theta).zip(&*zz) {
+                *c = t + dt;
+            }
+        }
+        // Δθ of the block update is kept (its error is bounded by the conditioning of S, not
+        // by the cancellation); only P is recomputed.
+        Redo::Cancelled => fallback.run(n, m, model, a, p, y, 1, None)?,
+    }
+    finish_fallback(p_next, n, model)?;
+    finite_candidate(candidate)
 }
 
 /// Scales, mirrors and checks the fallback's `P⁺`, then applies the wind-up guard.
@@ -505,10 +604,8 @@ pub(crate) fn windup_guard<T: Real>(p: &mut [T], n: usize, max_trace: T) {
 
 /// Buffers of the information-form fallback.
 pub(crate) struct Fallback<'a, T> {
-    /// Receives `P⁺` (`n × n`, full).
+    /// Receives `P⁺` (`n × n`, full); also the fallback's only `n × n` scratch.
     pub(crate) p_out: &'a mut [T],
-    /// `n × n` scratch.
-    pub(crate) fb: &'a mut [T],
     /// `Aᵀ r` (`n`).
     pub(crate) atr: &'a mut [T],
 }
@@ -530,8 +627,8 @@ impl<T: Real> Fallback<'_, T> {
         stride: usize,
         dtheta: Option<&mut [T]>,
     ) -> Result<(), EstimatorError> {
-        let Self { p_out: fa, fb, atr } = self;
-        let (fa, fb) = (&mut fa[..n * n], &mut fb[..n * n]);
+        let Self { p_out: fa, atr } = self;
+        let fa = &mut fa[..n * n];
         let chol = |x: &mut [T]| {
             cholesky_in_place(x, n).map_err(|_| EstimatorError::NumericalFailure(CHOLESKY_FAILED))
         };
@@ -541,8 +638,8 @@ impl<T: Real> Fallback<'_, T> {
             fa[k * n + k] += model.q;
         }
         chol(fa)?;
-        invert_lower(fa, fb, n);
-        gram_lower_inverse(fb, fa, n);
+        invert_lower_in_place(fa, n);
+        gram_lower_inverse_in_place(fa, n);
         // Information matrix P̃⁻¹ + Aᵀ A / d (lower triangle) and Aᵀ r.
         let inv_d = T::one() / model.d;
         let atr = &mut atr[..n];
@@ -558,8 +655,8 @@ impl<T: Real> Fallback<'_, T> {
         }
         // P⁺ = (C' C'ᵀ)⁻¹ (full: the Gram product writes both triangles).
         chol(fa)?;
-        invert_lower(fa, fb, n);
-        gram_lower_inverse(fb, fa, n);
+        invert_lower_in_place(fa, n);
+        gram_lower_inverse_in_place(fa, n);
         if let Some(dtheta) = dtheta {
             for k in 0..n {
                 dtheta[k] = dot(&fa[k * n..(k + 1) * n], atr) * inv_d;
@@ -569,34 +666,47 @@ impl<T: Real> Fallback<'_, T> {
     }
 }
 
-/// `inv ← L⁻¹` for the lower-triangular `L` in the lower triangle of `l` (`n × n`,
-/// row-major); the strict upper triangle of `inv` is zeroed.
-fn invert_lower<T: Real>(l: &[T], inv: &mut [T], n: usize) {
-    inv.fill(T::zero());
-    // Column j of L⁻¹ by forward substitution on e_j, written row-wise.
+/// `x ← L⁻¹` in place for the lower-triangular `L` in the lower triangle of `x` (`n × n`,
+/// row-major; the strict upper triangle is neither read nor written). Column `j` of `L⁻¹`
+/// by forward substitution on `e_j`, written over column `j` of `L`, which no later column
+/// reads (LAPACK's `trtri` order; the same operations as an out-of-place inverse).
+fn invert_lower_in_place<T: Real>(x: &mut [T], n: usize) {
     for j in 0..n {
-        inv[j * n + j] = T::one() / l[j * n + j];
+        x[j * n + j] = T::one() / x[j * n + j];
         for i in j + 1..n {
+            // Row i of L from column j on (not yet overwritten), column j of L⁻¹ above row i.
             let mut s = T::zero();
             for k in j..i {
-                s += l[i * n + k] * inv[k * n + j];
+                s += x[i * n + k] * x[k * n + j];
             }
-            inv[i * n + j] = -s / l[i * n + i];
+            x[i * n + j] = -s / x[i * n + i];
         }
     }
 }
 
-/// `out ← Xᵀ X` (full, symmetric) for the lower-triangular `X` in `x` (`n × n`, row-major):
-/// with `X = L⁻¹`, `Xᵀ X = (L Lᵀ)⁻¹`.
-fn gram_lower_inverse<T: Real>(x: &[T], out: &mut [T], n: usize) {
+/// `x ← Xᵀ X` (full, symmetric) in place for the lower-triangular `X` in the lower triangle
+/// of `x` (`n × n`, row-major): with `X = L⁻¹`, `Xᵀ X = (L Lᵀ)⁻¹`. The strict upper
+/// triangle (free) takes the off-diagonal entries first, then the diagonal (entry `j` reads
+/// only column `j`), then the mirror: LAPACK's `lauum`.
+fn gram_lower_inverse_in_place<T: Real>(x: &mut [T], n: usize) {
+    let entry = |x: &[T], j: usize, l: usize| {
+        let mut s = T::zero();
+        for k in l..n {
+            s += x[k * n + j] * x[k * n + l];
+        }
+        s
+    };
     for j in 0..n {
-        for l in j..n {
-            let mut s = T::zero();
-            for k in l..n {
-                s += x[k * n + j] * x[k * n + l];
-            }
-            out[j * n + l] = s;
-            out[l * n + j] = s;
+        for l in j + 1..n {
+            x[j * n + l] = entry(x, j, l);
+        }
+    }
+    for j in 0..n {
+        x[j * n + j] = entry(x, j, j);
+    }
+    for j in 0..n {
+        for l in j + 1..n {
+            x[l * n + j] = x[j * n + l];
         }
     }
 }

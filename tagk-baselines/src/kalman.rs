@@ -80,7 +80,11 @@ impl KalmanFilter {
 impl<T: Real, S: Storage<T>> KalmanFilter<T, S> {
     /// Builds a filter of dimension `n` for windows of at most `m_max` rows in `buf` (at
     /// least [`covariance_buffer_len`](crate::covariance_buffer_len)`(n, m_max)` scalars; its
-    /// contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"KF"`.
+    /// contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"KF"`. With the
+    /// portable kernel ([`Backend::Loops`]) a buffer of only
+    /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) scalars is
+    /// accepted too, without the information-form fallback (see
+    /// [`has_information_fallback`](Self::has_information_fallback)).
     ///
     /// ```
     /// use tagk_baselines::{covariance_buffer_len, KalmanConfig, KalmanFilter, OnlineEstimator};
@@ -138,6 +142,16 @@ impl<T: Real, S: Storage<T>> KalmanFilter<T, S> {
     /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
         self.filter.backend
+    }
+
+    /// Whether this filter redoes extreme windows in information form: `true` when its buffer
+    /// holds [`covariance_buffer_len`](crate::covariance_buffer_len) scalars (always with
+    /// the `Vec` constructors), `false` in a
+    /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) buffer,
+    /// where such windows are refused with
+    /// [`EstimatorError::NumericalFailure`](tagk_core::EstimatorError::NumericalFailure).
+    pub fn has_information_fallback(&self) -> bool {
+        self.filter.fallback
     }
 
     /// The storage, handed back.

@@ -35,10 +35,16 @@
 //! `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, by Cholesky factorisations of `n × n`
 //! matrices: about `n³ + m n²`, on such windows only.
 //!
-//! **Memory.** One buffer of [`covariance_buffer_len`]`(n, m)` = `3n² + 4n + 2mn + m² + 3m`
-//! scalars (two copies of `θ` and `P`, committed by switching; the fallback's scratch; the
-//! workspace), allocated by [`Rls::new`] / [`KalmanFilter::new`] or provided by the caller
-//! (`with_storage`); `update` does not allocate. With [`Backend::Faer`], faer additionally keeps
+//! **Memory.** One buffer of [`covariance_buffer_len`]`(n, m)` = `2n² + 4n + 2mn + m² + 3m`
+//! scalars (two copies of `θ`, committed by switching; `P` and a second `n × n` copy, where
+//! the faer backend computes its posterior and the fallback its `P⁺`, with its factorisations
+//! in place; the workspace), allocated by [`Rls::new`] / [`KalmanFilter::new`] or provided by
+//! the caller (`with_storage`); `update` does not allocate. The portable kernel updates `P` in
+//! place (after every check), so with `with_storage` it also runs in a buffer of only
+//! [`compact_covariance_buffer_len`]`(n, m)` = `n² + 3n + 2mn + m² + 3m` scalars, **without the
+//! fallback**: the windows it would redo are then refused with
+//! [`EstimatorError::NumericalFailure`] (the
+//! state is kept), all others give the same bits ([`Rls::has_information_fallback`]). With [`Backend::Faer`], faer additionally keeps
 //! per-thread packing buffers (sized by the L3 cache) that it allocates on first use in a
 //! thread; the constructor runs one dummy update so they exist for the constructing thread (an
 //! estimator moved to another thread triggers that one-time allocation there on its first
@@ -68,7 +74,7 @@ mod kind;
 mod rls;
 
 pub use config::{Backend, KalmanConfig, PAPER_P0, RlsConfig, WindupGuard};
-pub use filter::covariance_buffer_len;
+pub use filter::{compact_covariance_buffer_len, covariance_buffer_len};
 pub use kalman::KalmanFilter;
 pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;
@@ -78,7 +84,7 @@ pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage,
 /// overflow `usize`.
 #[cfg(feature = "alloc")]
 fn owned_buffer_len(n: usize, m_max: usize) -> Result<usize, ConfigError> {
-    filter::checked_buffer_len(n, m_max).ok_or(ConfigError::BufferTooSmall {
+    filter::checked_buffer_len(n, m_max, true).ok_or(ConfigError::BufferTooSmall {
         needed: usize::MAX,
         found: 0,
     })

@@ -67,7 +67,11 @@ impl Rls {
 impl<T: Real, S: Storage<T>> Rls<T, S> {
     /// Builds an estimator of dimension `n` for windows of at most `m_max` rows in `buf`
     /// (at least [`covariance_buffer_len`](crate::covariance_buffer_len)`(n, m_max)` scalars;
-    /// its contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"RLS"`.
+    /// its contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"RLS"`. With the
+    /// portable kernel ([`Backend::Loops`]) a buffer of only
+    /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) scalars is
+    /// accepted too, without the information-form fallback (see
+    /// [`has_information_fallback`](Self::has_information_fallback)).
     ///
     /// ```
     /// use tagk_baselines::{covariance_buffer_len, OnlineEstimator, Rls, RlsConfig};
@@ -126,6 +130,16 @@ impl<T: Real, S: Storage<T>> Rls<T, S> {
     /// The backend in use ([`Backend::Auto`] resolved).
     pub fn backend(&self) -> Backend {
         self.filter.backend
+    }
+
+    /// Whether this estimator redoes extreme windows in information form: `true` when its buffer
+    /// holds [`covariance_buffer_len`](crate::covariance_buffer_len) scalars (always with
+    /// the `Vec` constructors), `false` in a
+    /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) buffer,
+    /// where such windows are refused with
+    /// [`EstimatorError::NumericalFailure`](tagk_core::EstimatorError::NumericalFailure).
+    pub fn has_information_fallback(&self) -> bool {
+        self.filter.fallback
     }
 
     /// The storage, handed back.

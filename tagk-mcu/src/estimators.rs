@@ -8,22 +8,34 @@
 //! [`HIGH`](tagk_baselines::KalmanConfig::HIGH) and tagk-core's [`tagk_paper_config`].
 //!
 //! Each estimator can also live in a const-generic array (`TagK<f32, [f32; LEN]>`,
-//! `Rls<f64, [f64; LEN]>`, with `LEN` from [`kaczmarz_buffer_len`] or
-//! [`covariance_buffer_len`]); [`McuEstimator`] is the borrowed-slice form the harness uses.
+//! `Rls<f64, [f64; LEN]>`, with `LEN` from [`kaczmarz_buffer_len`],
+//! [`compact_covariance_buffer_len`] or [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len)); [`McuEstimator`] is the
+//! borrowed-slice form the harness uses.
+//!
+//! RLS and the Kalman filter get the **compact** buffer here
+//! ([`compact_covariance_buffer_len`], `n² + 3n + 2mn + m² + 3m` scalars, about half of
+//! [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len)): the covariance is updated in place and there is no
+//! information-form fallback, so a window that would need it (one that pins a direction far
+//! below the rounding level of the prior, `p₀ ‖a‖² / d ≳ 10¹²`: KF-low's first window on
+//! quadrotor data is one) is refused with a typed
+//! [`EstimatorError::NumericalFailure`] and changes nothing. It fires on none of the Table III
+//! updates, whose bits are those of the full buffer. Build [`Rls`] / [`KalmanFilter`] in a
+//! [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len) buffer to keep the fallback.
 
-use tagk_baselines::{Backend, EstimatorKind, KalmanFilter, Rls, covariance_buffer_len};
+use tagk_baselines::{Backend, EstimatorKind, KalmanFilter, Rls, compact_covariance_buffer_len};
 use tagk_core::{
     ConfigError, EstimatorError, OnlineEstimator, Real, TagK, UpdateInfo, kaczmarz_buffer_len,
     tagk_paper_config,
 };
 
 /// Scalars of storage the estimator `kind` needs for dimension `n` and windows of up to `m`
-/// rows ([`covariance_buffer_len`] or [`kaczmarz_buffer_len`]).
+/// rows ([`compact_covariance_buffer_len`]: no information-form fallback, see the
+/// [module docs](self); or [`kaczmarz_buffer_len`]).
 pub const fn buffer_len(kind: EstimatorKind, n: usize, m: usize) -> usize {
     if kind.is_kaczmarz() {
         kaczmarz_buffer_len(n, m)
     } else {
-        covariance_buffer_len(n, m)
+        compact_covariance_buffer_len(n, m)
     }
 }
 

@@ -24,7 +24,8 @@ pub use harness::{
 // The kernels this crate runs, re-exported so firmware needs only one dependency: TAG-K from
 // tagk-core, RLS and the Kalman filter from tagk-baselines (its portable `no_std` kernel).
 pub use tagk_baselines::{
-    EstimatorKind, KalmanConfig, KalmanFilter, Rls, RlsConfig, WindupGuard, covariance_buffer_len,
+    EstimatorKind, KalmanConfig, KalmanFilter, Rls, RlsConfig, WindupGuard,
+    compact_covariance_buffer_len, covariance_buffer_len,
 };
 pub use tagk_core::{
     ConfigError, EstimatorError, KaczmarzConfig, OnlineEstimator, Real, TagK, UpdateInfo,

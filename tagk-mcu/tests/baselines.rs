@@ -6,7 +6,7 @@
 use tagk_baselines::{Backend, KalmanFilter as HostKf, Rls as HostRls};
 use tagk_mcu::{
     EstimatorKind, KalmanConfig, KalmanFilter, McuEstimator, OnlineEstimator, Rls, RlsConfig,
-    SyntheticWindows, buffer_len,
+    SyntheticWindows, buffer_len, covariance_buffer_len,
 };
 
 /// `max |x − y|`.
@@ -109,13 +109,31 @@ fn rls_agrees_with_tagk_baselines() {
 
 #[test]
 fn kalman_filter_agrees_with_tagk_baselines() {
-    for (kind, n, theta_tol) in [
-        (EstimatorKind::KfLow, 10, 1e-5),
-        (EstimatorKind::KfLow, 40, 1e-7),
-        (EstimatorKind::KfHigh, 120, 1e-12),
+    // KF-low at n = 10 needs the information-form fallback (30 rows pin all 10 directions
+    // far below P₀'s rounding level): it runs in a full buffer, which `build` accepts too;
+    // `buffer_len`'s compact one refuses those windows (next test).
+    for (kind, n, theta_tol, len) in [
+        (
+            EstimatorKind::KfLow,
+            10,
+            1e-5,
+            covariance_buffer_len(10, 30),
+        ),
+        (
+            EstimatorKind::KfLow,
+            40,
+            1e-7,
+            buffer_len(EstimatorKind::KfLow, 40, 30),
+        ),
+        (
+            EstimatorKind::KfHigh,
+            120,
+            1e-12,
+            buffer_len(EstimatorKind::KfHigh, 120, 30),
+        ),
     ] {
         let m = 30;
-        let mut buf = vec![0.0; buffer_len(kind, n, m)];
+        let mut buf = vec![0.0; len];
         let McuEstimator::Kf(mut ours) = McuEstimator::build(kind, n, m, &mut buf).unwrap() else {
             panic!("{kind} is not a Kalman filter");
         };
@@ -133,4 +151,27 @@ fn kalman_filter_agrees_with_tagk_baselines() {
         EstimatorKind::KfHigh.kalman_config(),
         Some(KalmanConfig::HIGH)
     );
+}
+
+#[test]
+fn the_compact_buffer_refuses_windows_that_need_the_fallback_and_keeps_its_state() {
+    let (kind, n, m) = (EstimatorKind::KfLow, 10, 30);
+    let mut buf = vec![0.0; buffer_len(kind, n, m)];
+    let McuEstimator::Kf(mut ours) = McuEstimator::build(kind, n, m, &mut buf).unwrap() else {
+        panic!("{kind} is not a Kalman filter");
+    };
+    assert!(!ours.has_information_fallback());
+    let mut full = HostKf::new(n, m, KalmanConfig::LOW.with_backend(Backend::Loops)).unwrap();
+    assert!(full.has_information_fallback());
+    let mut stream = SyntheticWindows::for_table(n, m);
+    let (mut a, mut b) = (vec![0.0; m * n], vec![0.0; m]);
+    stream.next_window(&mut a, &mut b);
+    let (theta, p) = (ours.estimate().to_vec(), ours.covariance().to_vec());
+    assert!(matches!(
+        ours.update(&a, &b),
+        Err(tagk_mcu::EstimatorError::NumericalFailure(_))
+    ));
+    assert_eq!(ours.estimate(), &theta[..]);
+    assert_eq!(ours.covariance(), &p[..]);
+    full.update(&a, &b).unwrap();
 }
