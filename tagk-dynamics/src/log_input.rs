@@ -166,7 +166,11 @@ const UNITS: [(&str, f64, Quantity); 25] = [
     ("deg/s", std::f64::consts::PI / 180.0, Quantity::AngularRate),
     ("rpm", std::f64::consts::PI / 30.0, Quantity::AngularRate),
     ("rad/s2", 1.0, Quantity::AngularAcceleration),
-    ("deg/s2", std::f64::consts::PI / 180.0, Quantity::AngularAcceleration),
+    (
+        "deg/s2",
+        std::f64::consts::PI / 180.0,
+        Quantity::AngularAcceleration,
+    ),
     ("N", 1.0, Quantity::Force),
     ("mN", 1e-3, Quantity::Force),
     ("Nm", 1.0, Quantity::Torque),
@@ -307,7 +311,9 @@ pub enum InputError {
         candidates: String,
     },
     /// A mapping names a column the stream does not have.
-    #[error("{path}, line 1: no column `{column}` (mapped to `{target}`); the header has: {header}")]
+    #[error(
+        "{path}, line 1: no column `{column}` (mapped to `{target}`); the header has: {header}"
+    )]
     UnmappedColumn {
         /// The stream file.
         path: String,
@@ -371,7 +377,8 @@ fn str_list(v: &toml::Value, what: &str) -> Result<Vec<String>, String> {
 }
 
 fn table<'a>(v: &'a toml::Value, what: &str) -> Result<&'a toml::Table, String> {
-    v.as_table().ok_or_else(|| format!("`{what}` must be a table"))
+    v.as_table()
+        .ok_or_else(|| format!("`{what}` must be a table"))
 }
 
 fn parse_columns(t: &toml::Table, allow_q: bool) -> Result<ColumnsParsed, String> {
@@ -384,7 +391,8 @@ fn parse_columns(t: &toml::Table, allow_q: bool) -> Result<ColumnsParsed, String
                 .map_err(|_| "columns.q: expected the four quaternion columns".to_string())?;
             out.quaternion = Some(arr);
         } else {
-            out.columns.insert(k.clone(), str_list(v, &format!("columns.{k}"))?);
+            out.columns
+                .insert(k.clone(), str_list(v, &format!("columns.{k}"))?);
         }
     }
     Ok(out)
@@ -404,7 +412,10 @@ fn parse_units(t: &toml::Table, what: &str) -> Result<BTreeMap<String, String>, 
             .ok_or_else(|| format!("{what}.{k}: expected a unit name"))?;
         let (_, _, q) = unit_entry(u).ok_or_else(|| {
             let known: Vec<&str> = UNITS.iter().map(|x| x.0).collect();
-            format!("{what}.{k}: unknown unit `{u}` (known: {})", known.join(", "))
+            format!(
+                "{what}.{k}: unknown unit `{u}` (known: {})",
+                known.join(", ")
+            )
         })?;
         if let Some(expected) = key_quantity(k)
             && expected != q
@@ -525,11 +536,9 @@ impl ColumnMapping {
                                                 })?;
                                         }
                                         "columns" => {
-                                            s.columns = parse_columns(
-                                                table(sv, "columns")?,
-                                                false,
-                                            )?
-                                            .columns;
+                                            s.columns =
+                                                parse_columns(table(sv, "columns")?, false)?
+                                                    .columns;
                                         }
                                         "units" => {
                                             s.units = parse_units(
@@ -583,7 +592,10 @@ impl ColumnMapping {
 
     /// Adds a time offset \[s\] to the stream whose file name is `file_name`.
     pub fn set_offset(&mut self, file_name: &str, offset: f64) -> &mut Self {
-        self.streams.entry(file_name.to_string()).or_default().offset = offset;
+        self.streams
+            .entry(file_name.to_string())
+            .or_default()
+            .offset = offset;
         self
     }
 }
@@ -652,8 +664,10 @@ struct Stream {
 }
 
 fn file_name(path: &Path) -> String {
-    path.file_name()
-        .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned())
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    )
 }
 
 /// Reads the header and every cell (as numbers) of a CSV stream.
@@ -865,12 +879,10 @@ pub fn convert_attitude(q: [f64; 4], world: WorldFrame, body: BodyFrame) -> [f64
     }
     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     let r = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]));
-    let cw = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
-        world.to_project(),
-    ));
-    let cb = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
-        body.to_project(),
-    ));
+    let cw =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(world.to_project()));
+    let cb =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(body.to_project()));
     let out = cw * r * cb.inverse();
     let mut o = [out.w, out.i, out.j, out.k];
     // Keep the scalar part's sign of the input where possible (continuity) and the norm.
@@ -957,8 +969,11 @@ fn close_names(streams: &[Stream], g: Group) -> String {
             let l = h.to_ascii_lowercase();
             let hit = g.hints().iter().any(|k| {
                 if k.len() <= 2 {
-                    l == *k || l.starts_with(&format!("{k}_")) || l.starts_with(&format!("{k}."))
-                        || l.starts_with(&format!("{k}[")) || l.ends_with(&format!("_{k}"))
+                    l == *k
+                        || l.starts_with(&format!("{k}_"))
+                        || l.starts_with(&format!("{k}."))
+                        || l.starts_with(&format!("{k}["))
+                        || l.ends_with(&format!("_{k}"))
                         || l.ends_with(&format!(".{k}"))
                 } else {
                     l.contains(k)
