@@ -327,7 +327,7 @@ fn errors_name_file_line_column_and_close_names() {
     let rot: Vec<Vec<f64>> = rows.iter().map(|r| r[..18].to_vec()).collect();
     let rotors = write(&dir, "rotors.csv", &header[..18], &rot);
     let msg = read_streams(
-        &[rotors.clone()],
+        std::slice::from_ref(&rotors),
         &ColumnMapping::default(),
         &ReadOptions::default(),
     )
