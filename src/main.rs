@@ -3,6 +3,7 @@
 //! ```text
 //! tagk simulate --help     write a realistic flight log (CSV) from the simulator
 //! tagk diagnose LOG.csv    compare the rigid-body model with a log, find what is missing
+//! tagk vehicle show NAME   print a vehicle preset as a vehicle-file template
 //! ```
 
 use std::process::ExitCode;
@@ -25,6 +26,9 @@ enum Command {
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (`--with`).
     Diagnose(tagk::cli::diagnose::DiagnoseArgs),
+    /// List the vehicle presets or print one as a vehicle file (TOML) to edit
+    /// (`--vehicle` of `diagnose`).
+    Vehicle(tagk::cli::vehicle::VehicleArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +38,9 @@ fn main() -> ExitCode {
             .map(|summary| println!("{summary}"))
             .map_err(Into::into),
         Command::Diagnose(args) => tagk::cli::diagnose::run_diagnose(args).map_err(Into::into),
+        Command::Vehicle(args) => tagk::cli::vehicle::run_vehicle(args)
+            .map(|text| print!("{text}"))
+            .map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -130,13 +130,13 @@ fn effect_names_aliases_and_custom_columns_are_checked() {
     assert_eq!(plan(&args, &log).unwrap().with[0].name(), "thrust");
 
     let mut args = DiagnoseArgs::new(&path);
-    args.mass = Some(-0.035);
+    args.mass = Some((-0.035).into());
     assert!(matches!(
         plan(&args, &log),
         Err(DiagnoseError::InvalidModel(_))
     ));
     let mut args = DiagnoseArgs::new(&path);
-    args.airframe_radius = 0.0;
+    args.airframe_radius = Some(0.0);
     assert!(matches!(
         plan(&args, &log),
         Err(DiagnoseError::InvalidOption {

@@ -7,6 +7,7 @@ use crate::diagnose::{
     CustomEffect, DiagnoseError, DiagnoseOptions, EffectKind, EffectRef, FlightLog, Model, Report,
     Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_loop,
 };
+use crate::dynamics::vehicle::Vehicle;
 
 /// Arguments of `tagk diagnose`.
 #[derive(Debug, Clone, clap::Args)]
@@ -32,20 +33,50 @@ pub struct DiagnoseArgs {
     /// (e.g. `vbat=vbat*fz@fz`); repeatable.
     #[arg(long = "custom", value_name = "SPEC")]
     pub custom: Vec<String>,
-    /// Known vehicle mass in kg (fixes the mass; makes `thrust-gain` identifiable).
-    #[arg(long, value_name = "KG")]
-    pub mass: Option<f64>,
-    /// Airframe radius in m beyond which a fitted centre of mass is flagged.
-    #[arg(long, value_name = "M", default_value_t = default_airframe_radius())]
-    pub airframe_radius: f64,
+    /// Vehicle description: a preset (`crazyflie-2.1`; `tagk vehicle list`) or a vehicle file
+    /// (TOML, docs/VEHICLE.md). A log without the wrench `fx..tz` then gets it from its rotor
+    /// speeds `w1..w4` [rad/s] (a logged wrench is used as it is); the vehicle's airframe
+    /// radius becomes the default `--airframe-radius`.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub vehicle: Option<String>,
+    /// Known vehicle mass in kg, or `vehicle` for the mass prior of `--vehicle` (fixes the
+    /// mass; makes `thrust-gain` identifiable). Without it the mass is fitted.
+    #[arg(long, value_name = "KG|vehicle")]
+    pub mass: Option<KnownMass>,
+    /// Airframe radius in m beyond which a fitted centre of mass is flagged [default: the
+    /// vehicle's `airframe_radius` with `--vehicle`, else 0.0325].
+    #[arg(long, value_name = "M")]
+    pub airframe_radius: Option<f64>,
     /// Do not print the terminal summary.
     #[arg(long)]
     pub quiet: bool,
 }
 
-/// The default of `--airframe-radius`: the one of [`DiagnoseOptions::default`].
-fn default_airframe_radius() -> f64 {
-    DiagnoseOptions::default().airframe_radius
+/// The value of `--mass`: a mass in kg, or the vehicle's mass prior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KnownMass {
+    /// A mass \[kg\].
+    Kg(f64),
+    /// The `mass` of the `--vehicle` description.
+    Vehicle,
+}
+
+impl std::str::FromStr for KnownMass {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "vehicle" => Ok(KnownMass::Vehicle),
+            t => t.parse::<f64>().map(KnownMass::Kg).map_err(|_| {
+                format!("`{s}` is neither a mass in kg nor `vehicle` (the --vehicle mass prior)")
+            }),
+        }
+    }
+}
+
+impl From<f64> for KnownMass {
+    fn from(kg: f64) -> Self {
+        KnownMass::Kg(kg)
+    }
 }
 
 /// The built-in effects with their aliases and one-line summaries, for `--help`.
@@ -73,8 +104,9 @@ impl DiagnoseArgs {
             report: None,
             online: false,
             custom: Vec::new(),
+            vehicle: None,
             mass: None,
-            airframe_radius: default_airframe_radius(),
+            airframe_radius: None,
             quiet: false,
         }
     }
@@ -92,12 +124,64 @@ pub struct Plan {
     pub options: DiagnoseOptions,
 }
 
-/// Builds the [`Plan`] from the arguments, checked against the log.
+/// The vehicle of `--vehicle` (a preset or a file), if given.
+///
+/// # Errors
+/// [`DiagnoseError::Vehicle`]: neither a preset nor a file, or an invalid file (naming the
+/// file, and the line and column or the key).
+pub fn load_vehicle(args: &DiagnoseArgs) -> Result<Option<Vehicle>, DiagnoseError> {
+    Ok(args
+        .vehicle
+        .as_deref()
+        .map(Vehicle::from_name_or_path)
+        .transpose()?)
+}
+
+/// The log ready to fit: a log without the wrench gets it from its rotor speeds with the
+/// vehicle (a logged wrench is kept as it is).
+///
+/// # Errors
+/// [`DiagnoseError::Log`] with [`LogError::MissingWrench`](crate::diagnose::LogError) if the
+/// log has no wrench and no vehicle or no rotor speeds to compute it; a rotor speed out of
+/// range (line and column).
+pub fn log_with_wrench(
+    log: FlightLog,
+    vehicle: Option<&Vehicle>,
+) -> Result<FlightLog, DiagnoseError> {
+    let mut log = log;
+    if !log.has_wrench() && !log.is_empty() {
+        match vehicle {
+            Some(v) => log.compute_wrench_from_rotor_speeds(v)?,
+            None => {
+                return Err(crate::diagnose::LogError::MissingWrench {
+                    has_rotor_speeds: log.rotor_speeds.is_some(),
+                }
+                .into());
+            }
+        }
+    }
+    Ok(log)
+}
+
+/// Builds the [`Plan`] from the arguments, checked against the log (loads `--vehicle`).
 ///
 /// # Errors
 /// A malformed custom specification or one naming a column the log lacks, an unknown effect
-/// name, a mass that is not positive and finite, invalid options.
+/// name, a mass that is not positive and finite, `--mass vehicle` without a vehicle mass, an
+/// invalid vehicle, invalid options.
 pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<Plan, DiagnoseError> {
+    plan_with_vehicle(args, log, load_vehicle(args)?.as_ref())
+}
+
+/// [`plan`] with the vehicle already loaded.
+///
+/// # Errors
+/// As [`plan`].
+pub fn plan_with_vehicle(
+    args: &DiagnoseArgs,
+    log: &FlightLog,
+    vehicle: Option<&Vehicle>,
+) -> Result<Plan, DiagnoseError> {
     let mut customs: Vec<EffectRef> = Vec::new();
     for spec in &args.custom {
         let custom = CustomEffect::parse(spec)?;
@@ -112,16 +196,40 @@ pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<Plan, DiagnoseError>
         }
     }
     let mut base = Model::rigid_body();
-    if let Some(m) = args.mass {
+    let mass = match args.mass {
+        None => None,
+        Some(KnownMass::Kg(m)) => Some(m),
+        Some(KnownMass::Vehicle) => match vehicle {
+            Some(v) => Some(v.mass.ok_or_else(|| DiagnoseError::InvalidOption {
+                field: "mass",
+                reason: format!(
+                    "`--mass vehicle`: vehicle `{}` has no `mass` prior; give the mass in kg",
+                    v.name
+                ),
+            })?),
+            None => {
+                return Err(DiagnoseError::InvalidOption {
+                    field: "mass",
+                    reason: "`--mass vehicle` needs `--vehicle NAME|FILE`".into(),
+                });
+            }
+        },
+    };
+    if let Some(m) = mass {
         base = base.with_known_mass(m);
     }
     base.validate()?;
     let mut candidates = builtin_effects();
     candidates.extend(customs);
+    let defaults = DiagnoseOptions::default();
+    let airframe_radius = args
+        .airframe_radius
+        .or(vehicle.map(|v| v.airframe_radius))
+        .unwrap_or(defaults.airframe_radius);
     let options = DiagnoseOptions {
-        airframe_radius: args.airframe_radius,
+        airframe_radius,
         candidates,
-        ..DiagnoseOptions::default()
+        ..defaults
     };
     options.validate()?;
     Ok(Plan {
@@ -131,12 +239,21 @@ pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<Plan, DiagnoseError>
     })
 }
 
-/// Runs the whole loop on a log in memory (what [`run_diagnose`] does after reading the file).
+/// Runs the whole loop on a log in memory (what [`run_diagnose`] does after reading the file):
+/// a log without the wrench gets it from `--vehicle` ([`log_with_wrench`]).
 ///
 /// # Errors
-/// As [`plan`], [`run_loop`] and [`online_pass`].
+/// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
-    let plan = plan(args, log)?;
+    let vehicle = load_vehicle(args)?;
+    let computed;
+    let log = if log.has_wrench() {
+        log
+    } else {
+        computed = log_with_wrench(log.clone(), vehicle.as_ref())?;
+        &computed
+    };
+    let plan = plan_with_vehicle(args, log, vehicle.as_ref())?;
     let s = Signals::from_log(log)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     if args.online {
@@ -145,8 +262,9 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
     Ok(report)
 }
 
-/// `tagk diagnose LOG [--with ...] [--json FILE] [--report DIR] [--online] [--custom SPEC]`:
-/// reads the log, runs the loop, prints the summary and writes the requested files.
+/// `tagk diagnose LOG [--vehicle NAME|FILE] [--with ...] [--json FILE] [--report DIR]
+/// [--online] [--custom SPEC]`: reads the log (computing its wrench from the rotor speeds
+/// with the vehicle if it has none), runs the loop, prints the summary and writes the requested files.
 ///
 /// # Errors
 /// Log validation errors (naming line and column), fit failures, output failures.

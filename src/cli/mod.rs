@@ -1,9 +1,10 @@
-//! Command-line pieces shared by the `tagk` binary and the examples: the `simulate` and `diagnose`
-//! subcommand and clap parsers for the simulator's names (trajectories, noise levels,
+//! Command-line pieces shared by the `tagk` binary and the examples: the `simulate`, `diagnose`
+//! and `vehicle` subcommands and clap parsers for the simulator's names (trajectories, noise levels,
 //! estimators, effects) that list the accepted values in `--help`.
 
 pub mod diagnose;
 pub mod simulate;
+pub mod vehicle;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use tagk_dynamics::EffectKind;

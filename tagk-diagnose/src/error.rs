@@ -13,6 +13,9 @@ pub enum DiagnoseError {
     /// The flight log is invalid.
     #[error(transparent)]
     Log(#[from] LogError),
+    /// The vehicle description (`--vehicle`) is invalid or unknown.
+    #[error(transparent)]
+    Vehicle(#[from] tagk_dynamics::vehicle::VehicleError),
     /// An effect cannot be used on this log (e.g. it needs rotor speeds the log lacks).
     #[error("effect `{effect}` cannot be used on this log: {reason}")]
     EffectUnavailable {

@@ -11,6 +11,7 @@ pub mod quadrotor;
 mod rigid_body;
 pub mod tree;
 pub mod urdf;
+pub mod vehicle;
 mod window;
 
 /// The nalgebra version this crate's API uses (re-exported so callers match it).
@@ -27,4 +28,5 @@ pub use rigid_body::{
 };
 pub use tree::{Body, JointKind, KinematicTree, Pose, TreeWorkspace};
 pub use urdf::UrdfOptions;
+pub use vehicle::{Vehicle, VehicleError};
 pub use window::{A_FRAME_LEN, B_FRAME_LEN, WindowBuilder};

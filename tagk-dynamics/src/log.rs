@@ -11,7 +11,7 @@
 //! | `px,py,pz`, `vx,vy,vz` | world position \[m\], world velocity \[m/s\] | yes |
 //! | `qw,qx,qy,qz` | attitude quaternion, Hamilton, body → world | yes |
 //! | `wx,wy,wz` | body angular velocity \[rad/s\] | yes |
-//! | `fx,fy,fz`, `tx,ty,tz` | actuator wrench, body frame, about the origin \[N, N m\] | yes |
+//! | `fx,fy,fz`, `tx,ty,tz` | actuator wrench, body frame, about the origin \[N, N m\] | yes, unless `w1..w4` are given and a [vehicle](crate::vehicle) computes it |
 //! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] | no: derived from velocity if absent |
 //! | `dwx,dwy,dwz` | body angular acceleration \[rad/s²\] | no: derived from `w` if absent |
 //! | `w1..w4` | rotor speeds \[rad/s\] | no |
@@ -49,7 +49,8 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
 /// and the 5 blocks of the cross-validation need a few hundred samples).
 pub const MIN_ROWS: usize = 200;
 
-/// Required columns, in the order of the [format](self).
+/// Required columns, in the order of the [format](self) (the wrench, the last six, may be
+/// replaced by the rotor speeds [`ROTOR_SPEED_COLUMNS`] and a [vehicle](crate::vehicle)).
 pub const REQUIRED_COLUMNS: [&str; 20] = [
     "t", "px", "py", "pz", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz", "fx", "fy",
     "fz", "tx", "ty", "tz",
@@ -59,6 +60,11 @@ pub const REQUIRED_COLUMNS: [&str; 20] = [
 pub const OPTIONAL_COLUMNS: [&str; 10] = [
     "ax", "ay", "az", "dwx", "dwy", "dwz", "w1", "w2", "w3", "w4",
 ];
+
+/// The body-wrench group `fx..tz` (the last six [`REQUIRED_COLUMNS`]).
+pub const WRENCH_COLUMNS: [&str; 6] = ["fx", "fy", "fz", "tx", "ty", "tz"];
+/// Number of [`REQUIRED_COLUMNS`] before the wrench group.
+const MOTION_COLUMN_COUNT: usize = REQUIRED_COLUMNS.len() - WRENCH_COLUMNS.len();
 
 /// The optional world-acceleration group (all or none).
 pub const ACCEL_COLUMNS: [&str; 3] = ["ax", "ay", "az"];
@@ -85,6 +91,9 @@ pub struct FlightLog {
     /// Body angular velocity \[rad/s\].
     pub omega: Vec<[f64; 3]>,
     /// Actuator wrench `[fx, fy, fz, tx, ty, tz]`, body frame, about the origin [N, N m].
+    /// Empty for a log read without the wrench columns (it then has rotor speeds, from which
+    /// [`FlightLog::compute_wrench_from_rotor_speeds`] computes it; see
+    /// [`FlightLog::has_wrench`]).
     pub wrench: Vec<[f64; 6]>,
     /// World linear acceleration `p̈` \[m/s²\]; `None`: derived from the velocity.
     pub accel: Option<Vec<[f64; 3]>>,
@@ -150,7 +159,8 @@ impl FlightLog {
         push_opt(&mut self.rotor_speeds, s.rotor_speeds, first);
     }
 
-    /// Sample `i` (without the extra columns), `None` past the end.
+    /// Sample `i` (without the extra columns), `None` past the end or if the log has no
+    /// wrench ([`FlightLog::has_wrench`]).
     pub fn sample(&self, i: usize) -> Option<LogSample> {
         Some(LogSample {
             t: *self.t.get(i)?,
@@ -215,11 +225,10 @@ impl FlightLog {
         if let Some(k) = ["qw", "qx", "qy", "qz"].iter().position(|n| *n == name) {
             return Some(self.attitude.iter().map(|q| q[k]).collect());
         }
-        if let Some(k) = ["fx", "fy", "fz", "tx", "ty", "tz"]
-            .iter()
-            .position(|n| *n == name)
-        {
-            return Some(self.wrench.iter().map(|w| w[k]).collect());
+        if let Some(k) = WRENCH_COLUMNS.iter().position(|n| *n == name) {
+            return self
+                .has_wrench()
+                .then(|| self.wrench.iter().map(|w| w[k]).collect());
         }
         if let Some(k) = ["w1", "w2", "w3", "w4"].iter().position(|n| *n == name) {
             return self
@@ -251,7 +260,9 @@ impl FlightLog {
         check_len("velocity", self.velocity.len())?;
         check_len("attitude", self.attitude.len())?;
         check_len("omega", self.omega.len())?;
-        check_len("wrench", self.wrench.len())?;
+        if !(self.wrench.is_empty() && self.rotor_speeds.is_some()) {
+            check_len("wrench", self.wrench.len())?;
+        }
         if let Some(a) = &self.accel {
             check_len("accel", a.len())?;
         }
@@ -267,8 +278,9 @@ impl FlightLog {
         Ok(())
     }
 
-    /// Checks the log: equal signal lengths, finite values, strictly increasing time, unit
-    /// quaternions (within [`QUATERNION_NORM_TOLERANCE`]) and at least [`MIN_ROWS`] samples.
+    /// Checks the log: equal signal lengths, a body wrench, finite values, strictly increasing
+    /// time, unit quaternions (within [`QUATERNION_NORM_TOLERANCE`]) and at least
+    /// [`MIN_ROWS`] samples.
     /// Line numbers in the errors are those of the equivalent CSV file (sample `i` is line
     /// `i + 2`).
     ///
@@ -277,6 +289,11 @@ impl FlightLog {
     pub fn validate(&self) -> Result<(), LogError> {
         let n = self.t.len();
         self.check_lengths()?;
+        if n > 0 && self.wrench.is_empty() {
+            return Err(LogError::MissingWrench {
+                has_rotor_speeds: self.rotor_speeds.is_some(),
+            });
+        }
         for i in 0..n {
             let line = i + 2;
             let finite = |col: &str, x: f64| {
@@ -303,7 +320,7 @@ impl FlightLog {
             for (k, c) in ["wx", "wy", "wz"].iter().enumerate() {
                 finite(c, self.omega[i][k])?;
             }
-            for (k, c) in ["fx", "fy", "fz", "tx", "ty", "tz"].iter().enumerate() {
+            for (k, c) in WRENCH_COLUMNS.iter().enumerate() {
                 finite(c, self.wrench[i][k])?;
             }
             if let Some(a) = &self.accel {
@@ -369,7 +386,10 @@ impl FlightLog {
     }
 
     /// Reads and validates a CSV flight log (the [format](self)): one header row, then one row per
-    /// sample. Unknown columns are kept in [`FlightLog::extra`].
+    /// sample. Unknown columns are kept in [`FlightLog::extra`]. A log with the rotor speeds
+    /// `w1..w4` may omit the wrench `fx..tz`: it is then read with an empty
+    /// [`FlightLog::wrench`], to be computed with a vehicle
+    /// ([`FlightLog::compute_wrench_from_rotor_speeds`]).
     ///
     /// # Errors
     /// A [`LogError`] naming the line and column of the first problem.
@@ -397,7 +417,7 @@ impl FlightLog {
             }
         }
         let idx = |name: &str| header.iter().position(|h| h == name);
-        for c in REQUIRED_COLUMNS {
+        for c in &REQUIRED_COLUMNS[..MOTION_COLUMN_COUNT] {
             if idx(c).is_none() {
                 return Err(LogError::MissingColumn {
                     column: c.to_string(),
@@ -420,7 +440,20 @@ impl FlightLog {
         let acc_cols = group(&ACCEL_COLUMNS)?;
         let dw_cols = group(&OMEGA_DOT_COLUMNS)?;
         let rot_cols = group(&ROTOR_SPEED_COLUMNS)?;
-        let req: Vec<usize> = REQUIRED_COLUMNS.iter().filter_map(|c| idx(c)).collect();
+        // The wrench: all six columns, or none with the rotor speeds present.
+        let wrench_cols = if rot_cols.is_some() {
+            group(&WRENCH_COLUMNS)?
+        } else if WRENCH_COLUMNS.iter().all(|c| idx(c).is_none()) {
+            return Err(LogError::MissingWrench {
+                has_rotor_speeds: false,
+            });
+        } else {
+            group(&WRENCH_COLUMNS)?
+        };
+        let req: Vec<usize> = REQUIRED_COLUMNS[..MOTION_COLUMN_COUNT]
+            .iter()
+            .filter_map(|c| idx(c))
+            .collect();
         let extra_cols: Vec<usize> = (0..header.len())
             .filter(|j| {
                 let h = header[*j].as_str();
@@ -499,7 +532,9 @@ impl FlightLog {
             log.velocity.push([v(4), v(5), v(6)]);
             log.attitude.push(q);
             log.omega.push([v(11), v(12), v(13)]);
-            log.wrench.push([v(14), v(15), v(16), v(17), v(18), v(19)]);
+            if let Some(c) = &wrench_cols {
+                log.wrench.push(std::array::from_fn(|k| values[c[k]]));
+            }
             if let (Some(c), Some(a)) = (&acc_cols, &mut log.accel) {
                 a.push([values[c[0]], values[c[1]], values[c[2]]]);
             }
@@ -522,7 +557,8 @@ impl FlightLog {
         Ok(log)
     }
 
-    /// Checks what writing needs: equal signal lengths and strictly increasing time.
+    /// Checks what writing needs: equal signal lengths and strictly increasing time (a log
+    /// without a wrench must have rotor speeds).
     fn check_writable(&self) -> Result<(), LogError> {
         self.check_lengths()?;
         if let Some(i) = (1..self.t.len())
@@ -537,8 +573,9 @@ impl FlightLog {
         Ok(())
     }
 
-    /// Writes the log as CSV: the header (required columns, then the optional groups that are
-    /// present, then the extra columns), one row per sample; `t` in plain decimal, every other
+    /// Writes the log as CSV: the header (required columns — without `fx..tz` for a log that
+    /// has rotor speeds and no wrench —, then the optional groups that are present, then the
+    /// extra columns), one row per sample; `t` in plain decimal, every other
     /// value in Rust's shortest round-trip scientific notation (reading it back gives the same
     /// bits).
     ///
@@ -577,7 +614,13 @@ impl FlightLog {
             message,
         };
         let mut w = csv::Writer::from_writer(writer);
-        let mut header: Vec<String> = REQUIRED_COLUMNS.iter().map(|s| s.to_string()).collect();
+        let with_wrench = !self.wrench.is_empty() || self.rotor_speeds.is_none();
+        let required = if with_wrench {
+            &REQUIRED_COLUMNS[..]
+        } else {
+            &REQUIRED_COLUMNS[..MOTION_COLUMN_COUNT]
+        };
+        let mut header: Vec<String> = required.iter().map(|s| s.to_string()).collect();
         if self.accel.is_some() {
             header.extend(ACCEL_COLUMNS.map(String::from));
         }
@@ -598,7 +641,9 @@ impl FlightLog {
             self.velocity[i].iter().for_each(|x| put(*x));
             self.attitude[i].iter().for_each(|x| put(*x));
             self.omega[i].iter().for_each(|x| put(*x));
-            self.wrench[i].iter().for_each(|x| put(*x));
+            if with_wrench {
+                self.wrench[i].iter().for_each(|x| put(*x));
+            }
             if let Some(a) = &self.accel {
                 a[i].iter().for_each(|x| put(*x));
             }
@@ -707,6 +752,27 @@ pub enum LogError {
         /// The length of `t`.
         expected: usize,
     },
+    /// The log has no body wrench `fx..tz`, and nothing to compute it from.
+    #[error("{}", missing_wrench_message(*has_rotor_speeds))]
+    MissingWrench {
+        /// `true` if the log has the rotor speeds `w1..w4` (a vehicle description would turn
+        /// them into the wrench).
+        has_rotor_speeds: bool,
+    },
+    /// A rotor speed that is negative or far above the vehicle's largest speed.
+    #[error(
+        "line {line}, column `{column}`: rotor speed {value} rad/s outside [0, {max}] (rotor speeds are in rad/s; rpm must be converted)"
+    )]
+    RotorSpeedOutOfRange {
+        /// CSV line (1-based; the header is line 1).
+        line: usize,
+        /// Column name (`w1..w4`).
+        column: String,
+        /// The value \[rad/s\].
+        value: f64,
+        /// The largest accepted speed \[rad/s\].
+        max: f64,
+    },
     /// A problem in a log file: the file's name and the problem (which names line and
     /// column).
     #[error("{path}: {source}")]
@@ -731,11 +797,14 @@ impl LogError {
     /// The 1-based CSV line the error points at (the header is line 1), if any.
     pub fn line(&self) -> Option<usize> {
         match self {
-            LogError::MissingColumn { .. } | LogError::DuplicateColumn { .. } => Some(1),
+            LogError::MissingColumn { .. }
+            | LogError::DuplicateColumn { .. }
+            | LogError::MissingWrench { .. } => Some(1),
             LogError::NotANumber { line, .. }
             | LogError::NonFinite { line, .. }
             | LogError::NonIncreasingTime { line, .. }
             | LogError::QuaternionNorm { line, .. }
+            | LogError::RotorSpeedOutOfRange { line, .. }
             | LogError::Malformed { line, .. } => Some(*line),
             LogError::InFile { source, .. } => source.line(),
             _ => None,
@@ -749,6 +818,7 @@ impl LogError {
             | LogError::DuplicateColumn { column, .. }
             | LogError::NotANumber { column, .. }
             | LogError::NonFinite { column, .. }
+            | LogError::RotorSpeedOutOfRange { column, .. }
             | LogError::LengthMismatch { column, .. } => Some(column),
             LogError::NonIncreasingTime { .. } => Some("t"),
             LogError::QuaternionNorm { .. } => Some("qw"),
@@ -763,6 +833,22 @@ impl LogError {
             LogError::InFile { path, .. } | LogError::Io { path, .. } => Some(path),
             _ => None,
         }
+    }
+}
+
+/// The message of [`LogError::MissingWrench`]: the missing quantity and the columns that could
+/// provide it.
+fn missing_wrench_message(has_rotor_speeds: bool) -> String {
+    if has_rotor_speeds {
+        "line 1: the body wrench `fx,fy,fz,tx,ty,tz` is missing; the log has the rotor speeds \
+         `w1,w2,w3,w4`, which give it with a vehicle description (`tagk diagnose --vehicle \
+         NAME|FILE`, e.g. `--vehicle crazyflie-2.1`)"
+            .to_string()
+    } else {
+        "line 1: the body wrench is missing: the log needs the columns `fx,fy,fz,tx,ty,tz` \
+         [N, N m], or the rotor speeds `w1,w2,w3,w4` [rad/s] with a vehicle description \
+         (`tagk diagnose --vehicle NAME|FILE`)"
+            .to_string()
     }
 }
 

@@ -101,19 +101,12 @@ impl QuadrotorModel {
     /// force `(0, 0, ΣT_i)`, torque `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i (k_m/k_f) T_i)`.
     pub fn wrench_from_thrusts(&self, thrusts: &[f64; 4]) -> Wrench {
         let kappa = self.torque_coefficient();
-        let mut force = Vector3::zeros();
-        let mut torque = Vector3::zeros();
-        for ((t, r), s) in thrusts
-            .iter()
-            .zip(&self.rotor_positions)
-            .zip(&self.spin_directions)
-        {
-            let f = Vector3::new(0.0, 0.0, *t);
-            force += f;
-            torque += r.cross(&f);
-            torque.z += s * kappa * t;
-        }
-        Wrench { force, torque }
+        rotor_wrench(
+            &self.rotor_positions,
+            &self.spin_directions,
+            thrusts,
+            &thrusts.map(|t| kappa * t),
+        )
     }
 
     /// The actuator wrench of four rotor speeds \[rad/s\] (`T_i = k_f ω_i²`).
@@ -164,4 +157,32 @@ impl QuadrotorModel {
     pub fn rotor_speeds_from_thrusts(&self, thrusts: &[f64; 4]) -> [f64; 4] {
         thrusts.map(|t| (t.max(0.0) / self.k_f).sqrt())
     }
+}
+
+/// The body wrench (body frame, about the origin) of four rotors thrusting along body `+z`:
+/// force `(0, 0, ΣT_i)` \[N\], torque `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i Q_i)` \[N m\], with
+/// `r_i` the hub positions \[m\], `s_i` the spin directions (sign of each reaction torque about
+/// body `+z`), `T_i` the thrusts \[N\] and `Q_i ≥ 0` the magnitudes of the rotors' reaction
+/// torques \[N m\]. The one formula behind [`QuadrotorModel::wrench_from_thrusts`] and
+/// [`Vehicle::wrench_from_rotor_speeds`](crate::vehicle::Vehicle::wrench_from_rotor_speeds).
+pub fn rotor_wrench(
+    rotor_positions: &[Vector3<f64>; 4],
+    spin_directions: &[f64; 4],
+    thrusts: &[f64; 4],
+    reaction_torques: &[f64; 4],
+) -> Wrench {
+    let mut force = Vector3::zeros();
+    let mut torque = Vector3::zeros();
+    for (((t, q), r), s) in thrusts
+        .iter()
+        .zip(reaction_torques)
+        .zip(rotor_positions)
+        .zip(spin_directions)
+    {
+        let f = Vector3::new(0.0, 0.0, *t);
+        force += f;
+        torque += r.cross(&f);
+        torque.z += s * q;
+    }
+    Wrench { force, torque }
 }
