@@ -65,8 +65,8 @@
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
 //! on its own time base before the merge. Acceleration and angular acceleration, when absent,
 //! are derived by the diagnosis (see [`FlightLog::accel`]). A log without the wrench `fx..tz`
-//! but with rotor speeds `w1..w4` needs a vehicle model: pass its rotor-speeds-to-wrench map as
-//! [`ReadOptions::wrench_from_rotor_speeds`].
+//! but with rotor speeds `w1..w4` needs a [vehicle](crate::vehicle): pass it as
+//! [`ReadOptions::vehicle`] (the wrench is then computed after the merge, on the time base).
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -77,6 +77,7 @@ use thiserror::Error;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
 use crate::log::{FlightLog, LogError};
+use crate::vehicle::Vehicle;
 
 /// A step longer than `GAP_FACTOR` × the stream's median step is a gap.
 pub const GAP_FACTOR: f64 = 3.0;
@@ -628,30 +629,16 @@ pub struct MergeReport {
     pub dropped_outside: usize,
 }
 
-/// A vehicle's map from rotor speeds \[rad/s\] to the body wrench `[fx, fy, fz, tx, ty, tz]`
-/// \[N, N m\] (project body frame).
-pub type WrenchFromRotorSpeeds = dyn Fn(&[f64; 4]) -> [f64; 6];
-
 /// A stream's cells: header, one vector per column, the CSV line of each row.
 type Table = (Vec<String>, Vec<Vec<f64>>, Vec<usize>);
 
 /// Options of [`read_streams`] beyond the mapping.
-#[derive(Default)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct ReadOptions<'a> {
-    /// The vehicle's map from rotor speeds \[rad/s\] to the body wrench `[fx, fy, fz, tx, ty,
-    /// tz]` (project body frame), used when the streams have rotor speeds but no wrench.
-    pub wrench_from_rotor_speeds: Option<&'a WrenchFromRotorSpeeds>,
-}
-
-impl std::fmt::Debug for ReadOptions<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ReadOptions")
-            .field(
-                "wrench_from_rotor_speeds",
-                &self.wrench_from_rotor_speeds.is_some(),
-            )
-            .finish()
-    }
+    /// The vehicle that computes the body wrench from the rotor speeds
+    /// ([`FlightLog::compute_wrench_from_rotor_speeds`]) when the streams have rotor speeds but
+    /// no wrench.
+    pub vehicle: Option<&'a Vehicle>,
 }
 
 /// One stream read, in project units and frames.
@@ -1060,7 +1047,7 @@ pub fn read_streams(
     let has_wrench = source(Group::Force).is_some() && source(Group::Torque).is_some();
     if !has_wrench {
         let rotor = source(Group::RotorSpeeds);
-        if rotor.is_none() || options.wrench_from_rotor_speeds.is_none() {
+        if rotor.is_none() || options.vehicle.is_none() {
             let mut e = missing(Group::Force, "fx,fy,fz,tx,ty,tz".into());
             if let InputError::MissingQuantity {
                 quantity,
@@ -1149,25 +1136,24 @@ pub fn read_streams(
     log.rotor_speeds = rows
         .get(&Group::RotorSpeeds)
         .map(|r| r.iter().map(|v| [v[0], v[1], v[2], v[3]]).collect());
-    log.wrench = match (v3(Group::Force), v3(Group::Torque)) {
-        (Some(f), Some(t)) => f
+    if let (Some(f), Some(t)) = (v3(Group::Force), v3(Group::Torque)) {
+        log.wrench = f
             .iter()
             .zip(&t)
             .map(|(f, t)| [f[0], f[1], f[2], t[0], t[1], t[2]])
-            .collect(),
-        _ => {
-            let map = options
-                .wrench_from_rotor_speeds
-                .expect("checked above: rotor speeds and a vehicle");
-            report
-                .derived
-                .push("wrench (from rotor speeds, vehicle)".into());
-            log.rotor_speeds
-                .as_ref()
-                .map(|r| r.iter().map(map).collect())
-                .unwrap_or_default()
-        }
-    };
+            .collect();
+    } else if let Some(vehicle) = options.vehicle {
+        let named = |e: LogError| LogError::InFile {
+            path: format!("{} (merged onto its time base)", report.primary),
+            source: Box::new(e),
+        };
+        log.compute_wrench_from_rotor_speeds(vehicle)
+            .map_err(named)?;
+        report.derived.push(format!(
+            "wrench (from rotor speeds, vehicle `{}`)",
+            vehicle.name
+        ));
+    }
     // Extra columns: the primary stream's (others are not interpolated).
     for (name, v) in &streams[0].extra {
         log.add_extra(name, kept.iter().map(|&i| v[i]).collect());

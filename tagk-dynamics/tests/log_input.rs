@@ -10,6 +10,7 @@ use tagk_dynamics::log_input::{
     BodyFrame, ColumnMapping, GAP_FACTOR, InputError, ReadOptions, WorldFrame, convert_attitude,
     read_streams, unit_factor,
 };
+use tagk_dynamics::vehicle::Vehicle;
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tagk-log-input-{name}-{}", std::process::id()));
@@ -322,10 +323,14 @@ fn errors_name_file_line_column_and_close_names() {
     );
     assert!(msg.contains("quat_w (foreign.csv)"), "{msg}");
     // No wrench, rotor speeds present, no vehicle.
-    let mut header = PROJECT_HEADER;
-    header[14..18].copy_from_slice(&["w1", "w2", "w3", "w4"]);
-    let rot: Vec<Vec<f64>> = rows.iter().map(|r| r[..18].to_vec()).collect();
-    let rotors = write(&dir, "rotors.csv", &header[..18], &rot);
+    let mut header: Vec<&str> = PROJECT_HEADER[..14].to_vec();
+    header.extend(["w1", "w2", "w3", "w4"]);
+    let rot: Vec<Vec<f64>> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| [&r[..14], &[1000.0, 1100.0, 1200.0, 1300.0 + i as f64]].concat())
+        .collect();
+    let rotors = write(&dir, "rotors.csv", &header, &rot);
     let msg = read_streams(
         std::slice::from_ref(&rotors),
         &ColumnMapping::default(),
@@ -338,15 +343,16 @@ fn errors_name_file_line_column_and_close_names() {
         "{msg}"
     );
     assert!(msg.contains("give a vehicle file"), "{msg}");
-    // With a vehicle map the wrench is computed.
-    let map = |w: &[f64; 4]| [0.0, 0.0, w.iter().sum::<f64>(), 0.0, 0.0, 0.0];
+    // With a vehicle the wrench is computed from the rotor speeds.
+    let vehicle = Vehicle::crazyflie_2_1();
     let options = ReadOptions {
-        wrench_from_rotor_speeds: Some(&map),
+        vehicle: Some(&vehicle),
     };
     let (log, report) = read_streams(&[rotors], &ColumnMapping::default(), &options).unwrap();
     assert!(report.derived.iter().any(|d| d.starts_with("wrench")));
-    let w = log.rotor_speeds.as_ref().unwrap()[3];
-    assert_eq!(log.wrench[3][2], w.iter().sum::<f64>());
+    let b = vehicle.wrench_from_rotor_speeds(&log.rotor_speeds.as_ref().unwrap()[3]);
+    assert_eq!(log.wrench[3][2], b.force.z);
+    assert_eq!(log.wrench[3][5], b.torque.z);
     // A mapped time column that no stream has.
     let mut m = ColumnMapping::default();
     m.rename("t", "timestamp");
