@@ -313,7 +313,11 @@ pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>),
 /// dropped samples).
 pub fn merge_summary(m: &MergeReport) -> String {
     let mut text = format!("time base: {}", m.primary);
-    let sources: Vec<String> = m.sources.iter().map(|(q, s)| format!("{q} <- {s}")).collect();
+    let sources: Vec<String> = m
+        .sources
+        .iter()
+        .map(|(q, s)| format!("{q} <- {s}"))
+        .collect();
     text.push_str(&format!("\nquantities: {}", sources.join(", ")));
     if !m.derived.is_empty() {
         text.push_str(&format!("\nderived: {}", m.derived.join(", ")));
