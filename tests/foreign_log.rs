@@ -12,6 +12,7 @@
 //! on its own clock would record, up to the interpolation error).
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log, read_log};
 use tagk::diagnose::FlightLog;
@@ -354,4 +355,77 @@ fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     let (read, _) = read_log(&args).unwrap();
     let report = diagnose_log(&read, &args).unwrap();
     assert_ne!(report.recommended.as_deref(), Some("time-delay"));
+}
+
+#[test]
+fn the_mapping_of_the_docs_parses_and_is_the_one_tested_here() {
+    let doc = include_str!("../docs/COLUMN_MAPPING.md");
+    let blocks: Vec<&str> = doc
+        .split("```toml\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .collect();
+    assert!(!blocks.is_empty());
+    for b in &blocks {
+        tagk::dynamics::log_input::ColumnMapping::from_toml_str(b)
+            .unwrap_or_else(|e| panic!("docs/COLUMN_MAPPING.md: {e}\n{b}"));
+    }
+    let ours = tagk::dynamics::log_input::ColumnMapping::from_toml_str(MAPPING).unwrap();
+    let documented = tagk::dynamics::log_input::ColumnMapping::from_toml_str(blocks[0]).unwrap();
+    assert_eq!(ours.world, documented.world);
+    assert_eq!(ours.body, documented.body);
+    assert_eq!(ours.quaternion_order, documented.quaternion_order);
+}
+
+#[test]
+fn the_binary_reads_streams_and_keeps_streams_apart_from_logs() {
+    let dir = tmpdir("binary");
+    let original = without_accelerations(simulate(PlantEffects::none()));
+    let map = write_foreign(&original, &dir, 0.0);
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg("--columns")
+        .arg(&map)
+        .args(["--vehicle", "crazyflie-2.1"])
+        .arg("--stream")
+        .arg(dir.join("imu.csv"))
+        .arg("--stream")
+        .arg(dir.join("motors.csv"))
+        .arg("--stream")
+        .arg(dir.join("mocap.csv"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.starts_with("time base: imu.csv\n"), "{stdout}");
+    assert!(stdout.contains("rotor_speeds <- motors.csv"), "{stdout}");
+    assert!(
+        stdout.contains("derived: wrench (from rotor speeds"),
+        "{stdout}"
+    );
+    // A positional log and --stream do not mix: streams are one flight, a log is one flight.
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg(dir.join("imu.csv"))
+        .arg("--stream")
+        .arg(dir.join("mocap.csv"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot be used with"));
+    // Without the mapping the streams' columns are unknown: the error says which quantity is
+    // missing and what could provide it.
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg("--stream")
+        .arg(dir.join("mocap.csv"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("mocap.csv"), "{stderr}");
 }
