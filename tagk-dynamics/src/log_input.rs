@@ -778,12 +778,27 @@ impl ColumnMapping {
             header.iter().position(|h| h == project)
         };
         let Some(jt) = find("t") else {
-            return Err(in_file(LogError::MissingColumn {
-                column: match columns.get("t") {
+            let close: Vec<&str> = header
+                .iter()
+                .map(String::as_str)
+                .filter(|h| {
+                    let l = h.to_ascii_lowercase();
+                    l.contains("time") || l.contains("stamp") || l == "ts" || l.starts_with("t_")
+                })
+                .collect();
+            return Err(InputError::MissingQuantity {
+                quantity: "time".into(),
+                columns: match columns.get("t") {
                     Some(c) => format!("t (mapped to {})", c.join(" or ")),
                     None => "t".into(),
                 },
-            }));
+                streams: path.display().to_string(),
+                candidates: if close.is_empty() {
+                    String::new()
+                } else {
+                    format!("; columns that could provide it: {}", close.join(", "))
+                },
+            });
         };
         let kt = factor_of(&units, "t", None);
         let t: Vec<f64> = cols[jt].iter().map(|x| x * kt + per.offset).collect();

@@ -363,7 +363,9 @@ fn errors_name_file_line_column_and_close_names() {
         .unwrap_err()
         .to_string();
     assert!(
-        msg.contains("notime.csv") && msg.contains("t (mapped to timestamp)"),
+        msg.contains("time: no columns t (mapped to timestamp) in ")
+            && msg.contains("notime.csv; map them with [columns]")
+            && msg.ends_with("columns that could provide it: time"),
         "{msg}"
     );
     // A bad cell: file, line, column.
