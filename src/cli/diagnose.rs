@@ -260,6 +260,7 @@ pub fn plan_with_vehicle(
 /// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
     let vehicle = load_vehicle(args)?;
+    let plan = plan_with_vehicle(args, log, vehicle.as_ref())?;
     let computed;
     let log = if log.has_wrench() {
         log
@@ -267,7 +268,6 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
         computed = log_with_wrench(log.clone(), vehicle.as_ref())?;
         &computed
     };
-    let plan = plan_with_vehicle(args, log, vehicle.as_ref())?;
     let s = Signals::from_log(log)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     if args.online {
@@ -344,12 +344,34 @@ pub fn merge_summary(m: &MergeReport) -> String {
 /// # Errors
 /// Log validation errors (naming line and column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
+    let vehicle = load_vehicle(args)?;
     let (log, merge) = read_log(args)?;
+    // Argument errors first, then the wrench (its errors name the file).
+    plan_with_vehicle(args, &log, vehicle.as_ref())?;
     if !args.quiet
         && let Some(merge) = &merge
     {
         println!("{}", merge_summary(merge));
     }
+    if let Some(v) = vehicle
+        .as_ref()
+        .filter(|_| !log.has_wrench() && !args.quiet)
+    {
+        println!(
+            "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
+            v.name
+        );
+    }
+    let log = log_with_wrench(log, vehicle.as_ref()).map_err(|e| match e {
+        DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
+            path: args
+                .log
+                .as_ref()
+                .map_or_else(|| "<streams>".to_string(), |p| p.display().to_string()),
+            source: Box::new(source),
+        }),
+        other => other,
+    })?;
     let report = diagnose_log(&log, args)?;
     if !args.quiet {
         println!("{}", report_table(&report));

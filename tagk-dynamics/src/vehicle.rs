@@ -310,7 +310,7 @@ impl Vehicle {
     /// [`VehicleError::UnknownVehicle`] for another name.
     pub fn preset(name: &str) -> Result<Self, VehicleError> {
         match name {
-            "crazyflie-2.1" | "crazyflie" | "cf2.1" => Ok(Self::crazyflie_2_1()),
+            "crazyflie-2.1" => Ok(Self::crazyflie_2_1()),
             _ => Err(VehicleError::UnknownVehicle {
                 name: name.to_string(),
                 available: PRESETS.join(", "),
@@ -584,7 +584,7 @@ impl Vehicle {
             s,
             "# tagk vehicle file (docs/VEHICLE.md). Units: SI; body frame x forward, y left, z up."
         );
-        let _ = writeln!(s, "name = {:?}", self.name);
+        let _ = writeln!(s, "name = {}", toml::Value::from(self.name.as_str()));
         let _ = writeln!(
             s,
             "# Radius beyond which a fitted centre of mass is flagged [m]."
@@ -765,7 +765,7 @@ mod tests {
         let v = Vehicle::crazyflie_2_1();
         assert_eq!(Vehicle::from_toml_str(&v.to_toml_string()).unwrap(), v);
         let mut other = v.clone();
-        other.name = "curve".into();
+        other.name = "curve \"v2\" \\ \u{1b}".into();
         other.thrust = ThrustCurve::Polynomial {
             coefficients: vec![0.001, 1.0e-7, 2.2e-8],
         };
@@ -850,6 +850,59 @@ mod tests {
             Vehicle::from_name_or_path("no-such-vehicle"),
             Err(VehicleError::UnknownVehicle { .. })
         ));
+    }
+
+    #[test]
+    fn csv_without_wrench_needs_rotor_speeds() {
+        let mut log = FlightLog::new();
+        for i in 0..crate::log::MIN_ROWS {
+            log.push(&crate::log::LogSample {
+                t: 0.01 * i as f64,
+                attitude: [1.0, 0.0, 0.0, 0.0],
+                rotor_speeds: Some([1900.0, 2000.0, 2100.0, 2000.0 + i as f64]),
+                ..Default::default()
+            });
+        }
+        log.wrench.clear();
+        let mut csv = Vec::new();
+        log.write_csv(&mut csv).unwrap();
+        let text = String::from_utf8(csv).unwrap();
+        let header = text.lines().next().unwrap();
+        assert!(
+            !header.contains("fx") && header.ends_with("w1,w2,w3,w4"),
+            "{header}"
+        );
+        let mut back = FlightLog::from_csv_reader(text.as_bytes()).unwrap();
+        assert_eq!(back, log);
+        assert_eq!(back.signal("fz"), None);
+        assert_eq!(
+            back.validate(),
+            Err(LogError::MissingWrench {
+                has_rotor_speeds: true
+            })
+        );
+        back.compute_wrench_from_rotor_speeds(&Vehicle::crazyflie_2_1())
+            .unwrap();
+        back.validate().unwrap();
+        assert_eq!(back.sample(7).unwrap().wrench, back.wrench[7]);
+        // Neither the wrench nor the rotor speeds: the error names both ways.
+        let no_rotors: String = text
+            .lines()
+            .map(|l| l.rsplitn(5, ',').last().unwrap().to_string() + "\n")
+            .collect();
+        let e = FlightLog::from_csv_reader(no_rotors.as_bytes()).unwrap_err();
+        assert_eq!(
+            e,
+            LogError::MissingWrench {
+                has_rotor_speeds: false
+            }
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("fx,fy,fz,tx,ty,tz") && msg.contains("w1,w2,w3,w4"),
+            "{msg}"
+        );
+        assert_eq!(e.line(), Some(1));
     }
 
     #[test]
