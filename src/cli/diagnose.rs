@@ -7,6 +7,7 @@ use crate::diagnose::{
     CustomEffect, DiagnoseError, DiagnoseOptions, EffectKind, EffectRef, FlightLog, Model, Report,
     Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_loop,
 };
+use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
 
 /// Arguments of `tagk diagnose`.
@@ -14,9 +15,19 @@ use crate::dynamics::vehicle::Vehicle;
 #[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
     /// Flight log (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
-    /// repository).
-    #[arg(value_name = "LOG")]
-    pub log: PathBuf,
+    /// repository). With `--columns` it is read through the column mapping.
+    #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
+    pub log: Option<PathBuf>,
+    /// Column mapping (TOML, docs/COLUMN_MAPPING.md): column names, units, quaternion order,
+    /// NED/FRD frames, and the streams of the flight.
+    #[arg(long, value_name = "FILE")]
+    pub columns: Option<PathBuf>,
+    /// One stream of the flight (a CSV file per topic, each with its own time column);
+    /// repeatable. The streams are merged onto the first one's time base (or the mapping's
+    /// `primary`); gaps are reported, never interpolated over. Not several flights: one
+    /// flight in several files.
+    #[arg(long = "stream", value_name = "FILE", conflicts_with = "log")]
+    pub stream: Vec<PathBuf>,
     /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
     /// built-in names or aliases (listed below) or the names of `--custom` effects.
     #[arg(long = "with", value_delimiter = ',', value_name = "EFFECT")]
@@ -99,7 +110,9 @@ impl DiagnoseArgs {
     /// Arguments for a log with every option at its default.
     pub fn new(log: impl Into<PathBuf>) -> Self {
         Self {
-            log: log.into(),
+            log: Some(log.into()),
+            columns: None,
+            stream: Vec::new(),
             with: Vec::new(),
             json: None,
             report: None,
@@ -263,6 +276,67 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
     Ok(report)
 }
 
+/// Reads the flight: `LOG` as it is (the project's format), or with `--columns` and/or
+/// `--stream` through the column mapping and the merge of the streams
+/// ([`read_streams`](crate::dynamics::log_input::read_streams)), whose report is returned.
+///
+/// # Errors
+/// The log's or the mapping's errors (file, line, column; a missing quantity with the columns
+/// that could provide it); no file at all.
+pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>), DiagnoseError> {
+    if args.columns.is_none()
+        && args.stream.is_empty()
+        && let Some(path) = &args.log
+    {
+        return Ok((FlightLog::from_csv_path(path)?, None));
+    }
+    let mapping = match &args.columns {
+        Some(path) => ColumnMapping::from_path(path)?,
+        None => ColumnMapping::default(),
+    };
+    let files: Vec<PathBuf> = if !args.stream.is_empty() {
+        args.stream.clone()
+    } else if let Some(log) = &args.log {
+        vec![log.clone()]
+    } else {
+        mapping.files.clone()
+    };
+    let vehicle = load_vehicle(args)?;
+    let options = ReadOptions {
+        vehicle: vehicle.as_ref(),
+    };
+    let (log, merge) = read_streams(&files, &mapping, &options)?;
+    Ok((log, Some(merge)))
+}
+
+/// The merge report in a few lines (primary stream, sources, derived quantities, gaps,
+/// dropped samples).
+pub fn merge_summary(m: &MergeReport) -> String {
+    let mut text = format!("time base: {}", m.primary);
+    let sources: Vec<String> = m
+        .sources
+        .iter()
+        .map(|(q, s)| format!("{q} <- {s}"))
+        .collect();
+    text.push_str(&format!("\nquantities: {}", sources.join(", ")));
+    if !m.derived.is_empty() {
+        text.push_str(&format!("\nderived: {}", m.derived.join(", ")));
+    }
+    for g in &m.gaps {
+        text.push_str(&format!(
+            "\ngap in {}: {:.3} s long at t = {:.3} s",
+            g.stream, g.duration, g.start
+        ));
+    }
+    if m.dropped_in_gaps + m.dropped_outside > 0 {
+        text.push_str(&format!(
+            "\ndropped: {} samples inside gaps, {} outside another stream's time range",
+            m.dropped_in_gaps, m.dropped_outside
+        ));
+    }
+    text
+}
+
 /// `tagk diagnose LOG [--vehicle NAME|FILE] [--with ...] [--json FILE] [--report DIR]
 /// [--online] [--custom SPEC]`: reads the log (computing its wrench from the rotor speeds
 /// with the vehicle if it has none), runs the loop, prints the summary and writes the requested files.
@@ -271,9 +345,14 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
 /// Log validation errors (naming line and column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     let vehicle = load_vehicle(args)?;
-    let log = FlightLog::from_csv_path(&args.log)?;
+    let (log, merge) = read_log(args)?;
     // Argument errors first, then the wrench (its errors name the file).
     plan_with_vehicle(args, &log, vehicle.as_ref())?;
+    if !args.quiet
+        && let Some(merge) = &merge
+    {
+        println!("{}", merge_summary(merge));
+    }
     if let Some(v) = vehicle
         .as_ref()
         .filter(|_| !log.has_wrench() && !args.quiet)
@@ -285,7 +364,10 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     }
     let log = log_with_wrench(log, vehicle.as_ref()).map_err(|e| match e {
         DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
-            path: args.log.display().to_string(),
+            path: args
+                .log
+                .as_ref()
+                .map_or_else(|| "<streams>".to_string(), |p| p.display().to_string()),
             source: Box::new(source),
         }),
         other => other,

@@ -16,6 +16,9 @@ pub enum DiagnoseError {
     /// The vehicle description (`--vehicle`) is invalid or unknown.
     #[error(transparent)]
     Vehicle(#[from] tagk_dynamics::vehicle::VehicleError),
+    /// A column mapping (`--columns`) or the streams it maps (`--stream`) cannot be read.
+    #[error(transparent)]
+    Input(#[from] tagk_dynamics::log_input::InputError),
     /// An effect cannot be used on this log (e.g. it needs rotor speeds the log lacks).
     #[error("effect `{effect}` cannot be used on this log: {reason}")]
     EffectUnavailable {

@@ -1,9 +1,11 @@
 #![doc = include_str!("../README.md")]
 
+pub mod deriv;
 pub mod effect;
 mod error;
 mod inertial;
 pub mod log;
+pub mod log_input;
 pub mod math;
 pub mod quadrotor;
 mod rigid_body;
