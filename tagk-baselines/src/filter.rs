@@ -741,3 +741,93 @@ pub(crate) fn finish_covariance<T: Real>(
     }
     Ok(())
 }
+
+/// The part of the API that [`Rls`](crate::Rls) and [`KalmanFilter`](crate::KalmanFilter)
+/// share, written once: accessors of the block filter they wrap, `Debug`, and
+/// [`OnlineEstimator`].
+macro_rules! covariance_filter_api {
+    ($filter:ident, $config:ty) => {
+        impl<T: Real, S: Storage<T>> $filter<T, S> {
+            /// Renames the estimator (its [`name`](OnlineEstimator::name), e.g. a preset's
+            /// name).
+            pub fn with_name(mut self, name: &'static str) -> Self {
+                self.name = name;
+                self
+            }
+
+            /// The configuration this estimator was built with.
+            pub fn config(&self) -> &$config {
+                &self.config
+            }
+
+            /// The covariance `P` after the last accepted update (`n × n`, row-major,
+            /// symmetric; squared units of `θ`).
+            pub fn covariance(&self) -> &[T] {
+                self.filter.covariance()
+            }
+
+            /// `trace(P)` (for RLS, the quantity the
+            /// [`WindupGuard::MaxTrace`](crate::WindupGuard::MaxTrace) bound acts on).
+            pub fn covariance_trace(&self) -> T {
+                crate::filter::trace(self.filter.covariance(), self.filter.n)
+            }
+
+            /// The backend in use ([`Backend::Auto`](crate::Backend::Auto) resolved).
+            pub fn backend(&self) -> crate::Backend {
+                self.filter.backend
+            }
+
+            /// Whether this estimator redoes extreme windows in information form: `true` when
+            /// its buffer holds [`covariance_buffer_len`](crate::covariance_buffer_len)
+            /// scalars (always with the `Vec` constructors), `false` in a
+            /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len)
+            /// buffer, where such windows are refused with
+            /// [`EstimatorError::NumericalFailure`](tagk_core::EstimatorError::NumericalFailure).
+            pub fn has_information_fallback(&self) -> bool {
+                self.filter.fallback
+            }
+
+            /// The storage, handed back.
+            pub fn into_storage(self) -> S {
+                self.filter.into_storage()
+            }
+        }
+
+        impl<T: Real, S: Storage<T>> core::fmt::Debug for $filter<T, S> {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.debug_struct(stringify!($filter))
+                    .field("name", &self.name)
+                    .field("config", &self.config)
+                    .field("filter", &self.filter)
+                    .finish()
+            }
+        }
+
+        impl<T: Real, S: Storage<T>> OnlineEstimator<T> for $filter<T, S> {
+            fn name(&self) -> &str {
+                self.name
+            }
+
+            fn dim(&self) -> usize {
+                self.filter.n
+            }
+
+            fn capacity(&self) -> usize {
+                self.filter.m_max
+            }
+
+            fn estimate(&self) -> &[T] {
+                self.filter.estimate()
+            }
+
+            fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
+                self.filter.update(a, b)
+            }
+
+            fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
+                self.filter.reset(estimate)
+            }
+        }
+    };
+}
+pub(crate) use covariance_filter_api;

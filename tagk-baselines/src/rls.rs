@@ -1,11 +1,9 @@
 //! Block recursive least squares with exponential forgetting.
 
-use core::fmt;
-
 use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
 
-use crate::filter::{BlockFilter, Model, trace};
-use crate::{Backend, DefaultStorage, RlsConfig, WindupGuard};
+use crate::filter::{BlockFilter, Model};
+use crate::{DefaultStorage, RlsConfig, WindupGuard};
 
 /// Block recursive least squares with forgetting factor `λ` and prior `P₀ = p₀·I`.
 ///
@@ -68,7 +66,7 @@ impl<T: Real, S: Storage<T>> Rls<T, S> {
     /// Builds an estimator of dimension `n` for windows of at most `m_max` rows in `buf`
     /// (at least [`covariance_buffer_len`](crate::covariance_buffer_len)`(n, m_max)` scalars;
     /// its contents are overwritten), with `θ = 0` and `P = p₀·I`. Named `"RLS"`. With the
-    /// portable kernel ([`Backend::Loops`]) a buffer of only
+    /// portable kernel ([`Backend::Loops`](crate::Backend::Loops)) a buffer of only
     /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) scalars is
     /// accepted too, without the information-form fallback (see
     /// [`has_information_fallback`](Self::has_information_fallback)).
@@ -105,81 +103,6 @@ impl<T: Real, S: Storage<T>> Rls<T, S> {
             filter: BlockFilter::new(n, m_max, backend, model, buf)?,
         })
     }
-
-    /// Renames the estimator (its [`name`](OnlineEstimator::name), e.g. a preset's name).
-    pub fn with_name(mut self, name: &'static str) -> Self {
-        self.name = name;
-        self
-    }
-
-    /// The configuration this estimator was built with.
-    pub fn config(&self) -> &RlsConfig {
-        &self.config
-    }
-
-    /// The covariance `P` (`n × n`, row-major, symmetric; squared units of `θ`).
-    pub fn covariance(&self) -> &[T] {
-        self.filter.covariance()
-    }
-
-    /// `trace(P)`, the quantity the [`WindupGuard::MaxTrace`] bound acts on.
-    pub fn covariance_trace(&self) -> T {
-        trace(self.filter.covariance(), self.filter.n)
-    }
-
-    /// The backend in use ([`Backend::Auto`] resolved).
-    pub fn backend(&self) -> Backend {
-        self.filter.backend
-    }
-
-    /// Whether this estimator redoes extreme windows in information form: `true` when its buffer
-    /// holds [`covariance_buffer_len`](crate::covariance_buffer_len) scalars (always with
-    /// the `Vec` constructors), `false` in a
-    /// [`compact_covariance_buffer_len`](crate::compact_covariance_buffer_len) buffer,
-    /// where such windows are refused with
-    /// [`EstimatorError::NumericalFailure`](tagk_core::EstimatorError::NumericalFailure).
-    pub fn has_information_fallback(&self) -> bool {
-        self.filter.fallback
-    }
-
-    /// The storage, handed back.
-    pub fn into_storage(self) -> S {
-        self.filter.into_storage()
-    }
 }
 
-impl<T: Real, S: Storage<T>> fmt::Debug for Rls<T, S> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Rls")
-            .field("name", &self.name)
-            .field("config", &self.config)
-            .field("filter", &self.filter)
-            .finish()
-    }
-}
-
-impl<T: Real, S: Storage<T>> OnlineEstimator<T> for Rls<T, S> {
-    fn name(&self) -> &str {
-        self.name
-    }
-
-    fn dim(&self) -> usize {
-        self.filter.n
-    }
-
-    fn capacity(&self) -> usize {
-        self.filter.m_max
-    }
-
-    fn estimate(&self) -> &[T] {
-        self.filter.estimate()
-    }
-
-    fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
-        self.filter.update(a, b)
-    }
-
-    fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
-        self.filter.reset(estimate)
-    }
-}
+crate::filter::covariance_filter_api!(Rls, RlsConfig);

@@ -394,28 +394,8 @@ impl FlightLog {
     /// # Errors
     /// A [`LogError`] naming the line and column of the first problem.
     pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .trim(csv::Trim::All)
-            .from_reader(reader);
-        let header: Vec<String> = rdr
-            .headers()
-            .map_err(|e| LogError::Malformed {
-                line: 1,
-                message: e.to_string(),
-            })?
-            .iter()
-            .map(str::to_string)
-            .collect();
-        for (j, name) in header.iter().enumerate() {
-            if let Some(k) = header[..j].iter().position(|h| h == name) {
-                return Err(LogError::DuplicateColumn {
-                    column: name.clone(),
-                    first: k + 1,
-                    second: j + 1,
-                });
-            }
-        }
+        let mut rows = NumericRows::new(reader)?;
+        let header = rows.header.clone();
         let idx = |name: &str| header.iter().position(|h| h == name);
         for c in &REQUIRED_COLUMNS[..MOTION_COLUMN_COUNT] {
             if idx(c).is_none() {
@@ -470,43 +450,8 @@ impl FlightLog {
                 .collect(),
             ..FlightLog::default()
         };
-        let mut record = csv::StringRecord::new();
-        let mut line = 1usize;
         let mut values = vec![0.0; header.len()];
-        loop {
-            match rdr.read_record(&mut record) {
-                Ok(false) => break,
-                Ok(true) => {}
-                Err(e) => {
-                    let l = e.position().map_or(line + 1, |p| p.line() as usize);
-                    return Err(LogError::Malformed {
-                        line: l,
-                        message: e.to_string(),
-                    });
-                }
-            }
-            line = record.position().map_or(line + 1, |p| p.line() as usize);
-            if record.len() != header.len() {
-                return Err(LogError::Malformed {
-                    line,
-                    message: format!("{} fields, header has {}", record.len(), header.len()),
-                });
-            }
-            for (j, field) in record.iter().enumerate() {
-                let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
-                    line,
-                    column: header[j].clone(),
-                    value: field.to_string(),
-                })?;
-                if !x.is_finite() {
-                    return Err(LogError::NonFinite {
-                        line,
-                        column: header[j].clone(),
-                        value: x,
-                    });
-                }
-                values[j] = x;
-            }
+        while let Some(line) = rows.next_into(&mut values)? {
             let v = |k: usize| values[req[k]];
             let t = v(0);
             if let Some(&prev) = log.t.last()
@@ -862,5 +807,93 @@ fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
             }
         }
         (false, None) => *v = None,
+    }
+}
+
+/// A CSV table of numbers read row by row with the checks every log reader makes: a header
+/// without duplicate names, as many fields per row as the header has, and every cell a finite
+/// number. Errors name the 1-based line (the header is line 1) and the column.
+pub(crate) struct NumericRows<R: Read> {
+    rdr: csv::Reader<R>,
+    record: csv::StringRecord,
+    /// The column names, in file order.
+    pub(crate) header: Vec<String>,
+    line: usize,
+}
+
+impl<R: Read> NumericRows<R> {
+    /// Reads and checks the header.
+    pub(crate) fn new(reader: R) -> Result<Self, LogError> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(reader);
+        let header: Vec<String> = rdr
+            .headers()
+            .map_err(|e| LogError::Malformed {
+                line: 1,
+                message: e.to_string(),
+            })?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        for (j, name) in header.iter().enumerate() {
+            if let Some(k) = header[..j].iter().position(|h| h == name) {
+                return Err(LogError::DuplicateColumn {
+                    column: name.clone(),
+                    first: k + 1,
+                    second: j + 1,
+                });
+            }
+        }
+        Ok(Self {
+            rdr,
+            record: csv::StringRecord::new(),
+            header,
+            line: 1,
+        })
+    }
+
+    /// Reads the next row into `values` (one per header column) and returns its line, or
+    /// `None` at the end of the file.
+    pub(crate) fn next_into(&mut self, values: &mut [f64]) -> Result<Option<usize>, LogError> {
+        match self.rdr.read_record(&mut self.record) {
+            Ok(false) => return Ok(None),
+            Ok(true) => {}
+            Err(e) => {
+                return Err(LogError::Malformed {
+                    line: e.position().map_or(self.line + 1, |p| p.line() as usize),
+                    message: e.to_string(),
+                });
+            }
+        }
+        let line = self
+            .record
+            .position()
+            .map_or(self.line + 1, |p| p.line() as usize);
+        self.line = line;
+        let header = &self.header;
+        if self.record.len() != header.len() {
+            return Err(LogError::Malformed {
+                line,
+                message: format!("{} fields, header has {}", self.record.len(), header.len()),
+            });
+        }
+        for (j, field) in self.record.iter().enumerate() {
+            let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
+                line,
+                column: header[j].clone(),
+                value: field.to_string(),
+            })?;
+            if !x.is_finite() {
+                return Err(LogError::NonFinite {
+                    line,
+                    column: header[j].clone(),
+                    value: x,
+                });
+            }
+            values[j] = x;
+        }
+        Ok(Some(line))
     }
 }

@@ -76,7 +76,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use thiserror::Error;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
-use crate::log::{FlightLog, LogError};
+use crate::log::{FlightLog, LogError, NumericRows};
 use crate::vehicle::Vehicle;
 
 /// A step longer than `GAP_FACTOR` × the stream's median step is a gap.
@@ -659,64 +659,14 @@ fn file_name(path: &Path) -> String {
 
 /// Reads the header and every cell (as numbers) of a CSV stream.
 fn read_table<R: Read>(reader: R) -> Result<Table, LogError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .from_reader(reader);
-    let header: Vec<String> = rdr
-        .headers()
-        .map_err(|e| LogError::Malformed {
-            line: 1,
-            message: e.to_string(),
-        })?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    for (j, name) in header.iter().enumerate() {
-        if let Some(k) = header[..j].iter().position(|h| h == name) {
-            return Err(LogError::DuplicateColumn {
-                column: name.clone(),
-                first: k + 1,
-                second: j + 1,
-            });
-        }
-    }
+    let mut rows = NumericRows::new(reader)?;
+    let header = rows.header.clone();
     let mut cols = vec![Vec::new(); header.len()];
     let mut lines = Vec::new();
-    let mut record = csv::StringRecord::new();
-    let mut line = 1usize;
-    loop {
-        match rdr.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {}
-            Err(e) => {
-                return Err(LogError::Malformed {
-                    line: e.position().map_or(line + 1, |p| p.line() as usize),
-                    message: e.to_string(),
-                });
-            }
-        }
-        line = record.position().map_or(line + 1, |p| p.line() as usize);
-        if record.len() != header.len() {
-            return Err(LogError::Malformed {
-                line,
-                message: format!("{} fields, header has {}", record.len(), header.len()),
-            });
-        }
-        for (j, field) in record.iter().enumerate() {
-            let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
-                line,
-                column: header[j].clone(),
-                value: field.to_string(),
-            })?;
-            if !x.is_finite() {
-                return Err(LogError::NonFinite {
-                    line,
-                    column: header[j].clone(),
-                    value: x,
-                });
-            }
-            cols[j].push(x);
+    let mut values = vec![0.0; header.len()];
+    while let Some(line) = rows.next_into(&mut values)? {
+        for (col, &x) in cols.iter_mut().zip(&values) {
+            col.push(x);
         }
         lines.push(line);
     }
