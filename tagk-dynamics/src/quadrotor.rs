@@ -30,6 +30,8 @@ pub const CRAZYFLIE_K_F: f64 = 2.3e-8;
 pub const CRAZYFLIE_K_M: f64 = 7.8e-10;
 /// Crazyflie 2.1: largest rotor speed \[rad/s\].
 pub const CRAZYFLIE_MAX_ROTOR_SPEED: f64 = 2500.0;
+/// Propeller radius of the Crazyflie 2.x \[m\] (45 mm propellers), the `R` of ground effect.
+pub const CRAZYFLIE_ROTOR_RADIUS: f64 = 0.0225;
 
 /// Rigid-body and actuator parameters of a quadrotor with rotors thrusting along body `+z`.
 #[derive(Debug, Clone, Copy, PartialEq)]

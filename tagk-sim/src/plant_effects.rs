@@ -176,7 +176,7 @@ impl GroundEffect {
     /// Crazyflie 2.x propellers: 45 mm diameter, `R = 0.0225 m`.
     pub fn crazyflie() -> Self {
         Self {
-            rotor_radius: 0.0225,
+            rotor_radius: tagk_dynamics::quadrotor::CRAZYFLIE_ROTOR_RADIUS,
         }
     }
 

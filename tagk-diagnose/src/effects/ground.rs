@@ -20,7 +20,7 @@ pub(crate) struct GroundEffect {
 impl Default for GroundEffect {
     fn default() -> Self {
         Self {
-            rotor_radius: 0.0225,
+            rotor_radius: tagk_dynamics::quadrotor::CRAZYFLIE_ROTOR_RADIUS,
             min_height: 0.0225,
         }
     }
