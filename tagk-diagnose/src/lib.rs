@@ -16,19 +16,22 @@ mod signals;
 mod stats;
 
 pub use diagnose::{
-    Candidate, DiagnoseOptions, Diagnosis, FailureWindow, Parameter, RegimeStat, Unavailable,
-    Whiteness, diagnose,
+    Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, Discovery, FLOOR_MARGIN,
+    FLOOR_RESOLUTION, FailureWindow, FloorSource, MAX_CHANNEL_WORSENING,
+    MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MIN_GAIN_OF_FLOOR, NoiseFloor, Parameter,
+    RegimeStat, Step, StepChannel, Unavailable, Whiteness, diagnose, discover, discover_from,
 };
 pub use effects::{
     BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,
     builtin_by_name, builtin_effects, builtin_with,
 };
 pub use error::{DiagnoseError, LogError};
-pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, fit_model};
+pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineSummary, online_pass};
 pub use report::{
-    ChannelChange, RankingEntry, Report, add_recommended, diagnosis_table, report_table, run_loop,
+    ChannelChange, FinalModel, RankingEntry, Report, add_recommended, diagnosis_table,
+    report_table, run_loop, staircase_table,
 };
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, Signals};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the

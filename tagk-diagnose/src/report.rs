@@ -2,12 +2,16 @@
 
 use serde::Serialize;
 
-use crate::diagnose::{Candidate, DiagnoseOptions, Diagnosis, diagnose};
+use crate::diagnose::FloorSource;
+use crate::diagnose::{
+    Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, NoiseFloor, Step, diagnose,
+    diagnose_against, discover_from,
+};
 use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Model};
 use crate::online::OnlineSummary;
-use crate::signals::Signals;
+use crate::signals::{CHANNEL_NAMES, Signals};
 
 /// One entry of the JSON `ranking`.
 #[derive(Debug, Clone, Serialize)]
@@ -20,6 +24,8 @@ pub struct RankingEntry {
     pub p_value: f64,
     /// Physically plausible coefficients.
     pub plausible: bool,
+    /// Where the candidate stands (`recommended`, `worse`, `below-floor`, …).
+    pub status: CandidateStatus,
     /// One-line explanation.
     pub explanation: String,
 }
@@ -31,6 +37,7 @@ impl From<&Candidate> for RankingEntry {
             reduction: c.reduction,
             p_value: c.p_value,
             plausible: c.plausible,
+            status: c.status,
             explanation: c.explanation.clone(),
         }
     }
@@ -53,35 +60,69 @@ pub struct ChannelChange {
     pub fit_percent_after: Option<f64>,
 }
 
-/// The whole loop on one log: diagnose the rigid-body model (`before`), and if effects were
-/// added with `with`, diagnose the augmented model (`after`, ranking recomputed).
+/// The whole loop on one log: diagnose the rigid-body model (`before`); if effects were added
+/// with `with`, diagnose the augmented model (`after`); then the stepwise search from that
+/// model ([`crate::discover`]): the staircase of further effects down to the noise floor.
 ///
-/// The top-level `recommended`, `ranking` and `channels` describe the FINAL model (the
-/// `after` one when effects were added, otherwise `before`).
+/// The top-level `recommended`, `ranking` and `channels` describe the model the search
+/// started from (`after` when effects were added, otherwise `before`); `recommended` is the
+/// first step of the staircase.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
-    /// Recommended effect for the final model, or `null` when it is adequate.
+    /// The first step of the staircase: the effect to add next (`null` when the starting
+    /// model is adequate).
     pub recommended: Option<String>,
-    /// Ranking for the final model.
+    /// The staircase: the starting model, then one entry per added effect, each with the
+    /// held-out residual RMS per channel.
+    pub steps: Vec<Step>,
+    /// The final model of the staircase.
+    pub final_model: FinalModel,
+    /// The log's noise floor.
+    pub noise_floor: NoiseFloor,
+    /// Why the staircase stopped.
+    pub stopped: String,
+    /// Ranking for the starting model.
     pub ranking: Vec<RankingEntry>,
-    /// Channel fit of the final model.
+    /// Channel fit of the starting model.
     pub channels: Vec<ChannelFit>,
     /// Effects added (`--with`).
     pub with: Vec<String>,
-    /// Diagnosis of the starting model.
+    /// Diagnosis of the rigid-body model.
     pub before: Diagnosis,
     /// Diagnosis after adding `with` (absent if nothing was added).
     pub after: Option<Diagnosis>,
     /// Per-channel before/after (absent if nothing was added).
     pub change: Option<Vec<ChannelChange>>,
+    /// Diagnosis of the staircase's final model (absent when no step was added): its
+    /// "where it fails" is what remains.
+    pub final_diagnosis: Option<Diagnosis>,
     /// Online TAG-K pass, if requested.
     pub online: Option<OnlineSummary>,
 }
 
+/// The final model of the staircase.
+#[derive(Debug, Clone, Serialize)]
+pub struct FinalModel {
+    /// Model label (`rigid body + …`).
+    pub label: String,
+    /// Every effect of the final model (the `--with` list that reproduces it).
+    pub effects: Vec<String>,
+    /// The effects the staircase added.
+    pub added: Vec<String>,
+    /// The command that reproduces the final model (filled in by the command-line tool,
+    /// which knows the files and flags; `null` from the library).
+    pub command: Option<String>,
+}
+
 impl Report {
-    /// The final diagnosis (after, or before if nothing was added).
+    /// The starting model's diagnosis (after, or before if nothing was added).
     pub fn last(&self) -> &Diagnosis {
         self.after.as_ref().unwrap_or(&self.before)
+    }
+
+    /// The final model's diagnosis (the staircase's last step).
+    pub fn final_diagnosis(&self) -> &Diagnosis {
+        self.final_diagnosis.as_ref().unwrap_or_else(|| self.last())
     }
 
     /// The report as pretty JSON.
@@ -96,7 +137,8 @@ impl Report {
     }
 }
 
-/// Runs the loop: diagnose `base`, then `base + with` if `with` is not empty.
+/// Runs the loop: diagnose `base`, then `base + with` if `with` is not empty, then the
+/// staircase from there.
 ///
 /// # Errors
 /// As [`diagnose`].
@@ -110,9 +152,9 @@ pub fn run_loop(
     loop_from(before, s, base, with, opts)
 }
 
-/// The whole loop in one call: diagnose `base`; if an effect is recommended, add it and
-/// diagnose again (the ranking is recomputed for the new model, so a second missing effect
-/// shows up in `report.recommended`). `report.after` is `None` when `base` was adequate.
+/// The loop with the first recommendation applied: diagnose `base`; if an effect is
+/// recommended, add it and diagnose again (the staircase then continues from there).
+/// `report.after` is `None` when `base` was adequate.
 ///
 /// # Errors
 /// As [`diagnose`].
@@ -132,7 +174,7 @@ pub fn add_recommended(
     loop_from(before, s, base, &with, opts)
 }
 
-/// [`run_loop`] from an existing diagnosis of `base`.
+/// [`run_loop`] from an existing diagnosis of `base` (its noise floor is reused).
 fn loop_from(
     before: Diagnosis,
     s: &Signals,
@@ -140,14 +182,14 @@ fn loop_from(
     with: &[EffectRef],
     opts: &DiagnoseOptions,
 ) -> Result<Report, DiagnoseError> {
+    let mut start = base.clone();
+    for e in with {
+        start = start.with_ref(e.clone());
+    }
     let (after, change) = if with.is_empty() {
         (None, None)
     } else {
-        let mut m = base.clone();
-        for e in with {
-            m = m.with_ref(e.clone());
-        }
-        let after = diagnose(&m, s, opts)?;
+        let after = diagnose_against(&start, s, opts, &before.noise_floor)?;
         let change = before
             .channels
             .iter()
@@ -167,15 +209,31 @@ fn loop_from(
             .collect();
         (Some(after), Some(change))
     };
+    let first = after.clone().unwrap_or_else(|| before.clone());
+    let discovery = discover_from(&start, first, s, opts)?;
+    let final_diagnosis = (!discovery.added.is_empty()).then(|| discovery.last().clone());
     let last = after.as_ref().unwrap_or(&before);
+    let with_names: Vec<String> = with.iter().map(|e| e.name().to_string()).collect();
+    let mut effects = with_names.clone();
+    effects.extend(discovery.added.iter().cloned());
     Ok(Report {
-        recommended: last.recommended.clone(),
+        recommended: discovery.added.first().cloned(),
+        final_model: FinalModel {
+            label: discovery.final_model.clone(),
+            effects,
+            added: discovery.added.clone(),
+            command: None,
+        },
+        steps: discovery.steps,
+        noise_floor: discovery.noise_floor,
+        stopped: discovery.stopped,
         ranking: last.ranking.iter().map(RankingEntry::from).collect(),
         channels: last.channels.clone(),
-        with: with.iter().map(|e| e.name().to_string()).collect(),
+        with: with_names,
         before,
         after,
         change,
+        final_diagnosis,
         online: None,
     })
 }
@@ -260,14 +318,93 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
     s
 }
 
-/// Terminal summary of a whole report, with the before/after table.
+/// The staircase as a terminal table: per step, the held-out RMS per channel and its change,
+/// then the floor, why the search stopped and the final model.
+pub fn staircase_table(r: &Report) -> String {
+    let mut s = format!(
+        "=== stepwise: held-out residual RMS per channel (blocked CV), down to the noise floor ===\n{:<26}",
+        "step"
+    );
+    for c in CHANNEL_NAMES {
+        s.push_str(&format!(" {c:>17}"));
+    }
+    s.push('\n');
+    for (k, step) in r.steps.iter().enumerate() {
+        let label = match &step.effect {
+            None => format!("{k}. {}", step.model),
+            Some(e) => format!("{k}. + {e}"),
+        };
+        s.push_str(&format!("{label:<26}"));
+        for ch in &step.channels {
+            let change = if step.effect.is_some() {
+                format!("({:+.0}%)", 100.0 * ch.change)
+            } else {
+                String::new()
+            };
+            s.push_str(&format!(" {:>9.3e}{change:>8}", ch.held_out_rms));
+        }
+        s.push('\n');
+    }
+    let source = match r.noise_floor.source {
+        FloorSource::Data => "noise floor (data)",
+        FloorSource::Given => "noise floor (given)",
+    };
+    s.push_str(&format!("{source:<26}"));
+    for f in r.noise_floor.rms {
+        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
+    }
+    s.push_str(&format!("\n{:<26}", "HF noise estimate"));
+    for f in r.noise_floor.noise_estimate {
+        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
+    }
+    s.push_str(&format!("\nstopped: {}\n", r.stopped));
+    for step in r.steps.iter().skip(1) {
+        if let Some(e) = &step.effect {
+            let coefs: Vec<String> = step
+                .coefficients
+                .iter()
+                .filter(|c| !c.name.starts_with("start_"))
+                .map(|c| match c.confidence_interval {
+                    Some([lo, hi]) => {
+                        format!(
+                            "{} = {:.3e} [{:.2e}, {:.2e}] {}",
+                            c.name, c.value, lo, hi, c.unit
+                        )
+                    }
+                    None => format!("{} = {:.3e} {}", c.name, c.value, c.unit),
+                })
+                .collect();
+            let scan = step
+                .scanned
+                .as_ref()
+                .map(|(n, v, u)| format!("; {n} = {v:.3} {u}"))
+                .unwrap_or_default();
+            s.push_str(&format!(
+                "  {e}: {}{scan} (95 % intervals)\n",
+                coefs.join(", ")
+            ));
+        }
+    }
+    s.push_str(&format!("final model: {}\n", r.final_model.label));
+    if let Some(cmd) = &r.final_model.command {
+        s.push_str(&format!("reproduce it: {cmd}\n"));
+    } else if !r.final_model.effects.is_empty() {
+        s.push_str(&format!(
+            "reproduce it: --with {}\n",
+            r.final_model.effects.join(",")
+        ));
+    }
+    s
+}
+
+/// Terminal summary of a whole report: the starting model's diagnosis (with `--with`, a
+/// before/after table instead of a second full section), the staircase, and what remains.
 pub fn report_table(r: &Report) -> String {
-    let mut s = String::from("=== before ===\n");
-    s.push_str(&diagnosis_table(&r.before));
+    let mut s = String::new();
     if let (Some(a), Some(ch)) = (&r.after, &r.change) {
-        s.push_str(&format!("\n=== after adding {} ===\n", r.with.join(", ")));
+        s.push_str(&format!("=== model with {} ===\n", r.with.join(", ")));
         s.push_str(&diagnosis_table(a));
-        s.push_str("\n=== before / after ===\n");
+        s.push_str("\n=== rigid body / with the added effects (in-sample residual) ===\n");
         s.push_str("channel   fit % before  fit % after   RMS before    RMS after   change\n");
         for c in ch {
             s.push_str(&format!(
@@ -280,6 +417,15 @@ pub fn report_table(r: &Report) -> String {
                 -100.0 * c.rms_reduction
             ));
         }
+    } else {
+        s.push_str("=== model: rigid body ===\n");
+        s.push_str(&diagnosis_table(&r.before));
+    }
+    s.push('\n');
+    s.push_str(&staircase_table(r));
+    if let Some(f) = &r.final_diagnosis {
+        s.push_str(&format!("\n=== what remains ({}) ===\n", f.model));
+        s.push_str(&remains(f));
     }
     if let Some(o) = &r.online {
         s.push_str(&format!(
@@ -287,5 +433,33 @@ pub fn report_table(r: &Report) -> String {
             o.updates, o.final_estimate[0], o.batch_estimate[0], o.distance_to_batch
         ));
     }
+    s
+}
+
+/// The final model in a few lines: its channels against the floor, its parameters' warnings
+/// and where it still fails.
+fn remains(d: &Diagnosis) -> String {
+    let mut s = String::from("channel   fit %   held-out RMS   / floor\n");
+    for (c, ch) in d.channels.iter().enumerate() {
+        s.push_str(&format!(
+            "{:<8} {}   {:>12.4e}   {:>6.2}\n",
+            ch.name,
+            fmt_fit(ch.fit_percent),
+            d.held_out_rms[c],
+            d.held_out_rms[c] / d.noise_floor.rms[c]
+        ));
+    }
+    for w in &d.warnings {
+        s.push_str(&format!("WARNING: {w}\n"));
+    }
+    if d.at_floor {
+        s.push_str("the residual is at the noise floor on every channel: nothing left that a candidate explains\n");
+    } else if !d.findings.is_empty() {
+        s.push_str("where it still fails:\n");
+        for f in &d.findings {
+            s.push_str(&format!("  - {f}\n"));
+        }
+    }
+    s.push_str(&format!("verdict: {}\n", d.verdict));
     s
 }

@@ -1,12 +1,17 @@
-//! The diagnosis workflow: compare, where it fails, what is missing.
+//! The diagnosis workflow: compare, where it fails, what is missing, step by step.
 //!
 //! [`diagnose`] runs four named steps: fit the model ([`crate::fit_model`]), rank the missing
-//! candidates ([`ranking`]), find where the model fails ([`residual`]), judge the parameters
-//! ([`parameters`]); then it states a verdict.
+//! candidates against the noise floor ([`ranking`], [`floor`]) and the physical rules
+//! ([`sanity`]), find where the model fails ([`residual`]), judge the parameters
+//! ([`parameters`]); then it states a verdict. [`discover`] repeats it: rigid body → + the
+//! recommended effect → … until the model is at the noise floor or nothing qualifies.
 
+mod floor;
 mod parameters;
 mod ranking;
 mod residual;
+mod sanity;
+mod stepwise;
 
 use serde::Serialize;
 use tagk_dynamics::SafetyGate;
@@ -16,9 +21,14 @@ use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model};
 use crate::signals::Signals;
 
+pub use floor::{FLOOR_RESOLUTION, FloorSource, NoiseFloor};
 pub use parameters::Parameter;
-pub use ranking::{Candidate, Unavailable};
+pub use ranking::{
+    Candidate, CandidateStatus, FLOOR_MARGIN, MAX_CHANNEL_WORSENING, MIN_GAIN_OF_FLOOR, Unavailable,
+};
 pub use residual::{FailureWindow, RegimeStat, Whiteness};
+pub use sanity::{MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE};
+pub use stepwise::{Discovery, Step, StepChannel, discover, discover_from};
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone)]
@@ -37,6 +47,12 @@ pub struct DiagnoseOptions {
     pub airframe_radius: f64,
     /// Candidate effects to rank (default: every built-in).
     pub candidates: Vec<EffectRef>,
+    /// Measurement noise per channel (N, N m), e.g. from the sensors' specification: the
+    /// noise floor of the stepwise search. `None` (default): the floor comes from the data
+    /// ([`NoiseFloor`]).
+    pub noise_floor: Option<[f64; 6]>,
+    /// Most effects [`discover`] adds (default 5).
+    pub max_steps: usize,
 }
 
 impl Default for DiagnoseOptions {
@@ -47,6 +63,8 @@ impl Default for DiagnoseOptions {
             min_reduction: 0.02,
             airframe_radius: SafetyGate::crazyflie().max_com_offset,
             candidates: builtin_effects(),
+            noise_floor: None,
+            max_steps: 5,
         }
     }
 }
@@ -90,6 +108,14 @@ impl DiagnoseOptions {
         if self.candidates.is_empty() {
             return bad("candidates", "no candidate effect to rank".into());
         }
+        if let Some(f) = self.noise_floor
+            && f.iter().any(|x| !(x.is_finite() && *x > 0.0))
+        {
+            return bad(
+                "noise_floor",
+                format!("{f:?}: every channel's noise level must be positive and finite"),
+            );
+        }
         for (k, e) in self.candidates.iter().enumerate() {
             if self.candidates[..k].iter().any(|f| f.name() == e.name()) {
                 return bad("candidates", format!("effect `{}` listed twice", e.name()));
@@ -132,6 +158,12 @@ pub struct Diagnosis {
     pub derived_accelerations: bool,
     /// Per-channel fit.
     pub channels: Vec<ChannelFit>,
+    /// Held-out (blocked CV) residual RMS per channel (N, N m).
+    pub held_out_rms: [f64; 6],
+    /// The noise floor the candidates were judged against.
+    pub noise_floor: NoiseFloor,
+    /// `true` when every channel's held-out RMS is within [`FLOOR_MARGIN`] of the floor.
+    pub at_floor: bool,
     /// Rigid-body parameter estimates (order of `tagk_dynamics::InertialParams`) with
     /// standard errors.
     pub parameters: Vec<Parameter>,
@@ -176,7 +208,7 @@ pub struct Diagnosis {
 }
 
 /// Diagnoses `model` on a log: fit and compare, where it fails, and the ranking of the
-/// candidate effects not already in the model.
+/// candidate effects not already in the model against the log's noise floor.
 ///
 /// # Errors
 /// [`DiagnoseError::InvalidOption`] if `opts` does not validate
@@ -188,12 +220,27 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     opts.validate_for(s.len())?;
+    let floor = floor::noise_floor(model, s, opts)?;
+    diagnose_against(model, s, opts, &floor)
+}
+
+/// [`diagnose`] against a given noise floor (options already validated).
+pub(crate) fn diagnose_against(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+) -> Result<Diagnosis, DiagnoseError> {
     let fit = fit_model(model, s, None)?;
-    let missing = ranking::rank_candidates(model, s, &fit, opts);
+    let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
     let failures = residual::where_it_fails(s, &fit);
     let params =
         parameters::parameter_report(&fit, opts.airframe_radius, missing.recommended.as_deref());
-    let verdict = verdict(&missing.ranking, missing.recommended.as_deref());
+    let verdict = verdict(
+        &missing.ranking,
+        missing.recommended.as_deref(),
+        missing.at_floor,
+    );
     let n = s.len();
     Ok(Diagnosis {
         model: fit.label.clone(),
@@ -201,6 +248,9 @@ pub fn diagnose(
         duration: s.t[n - 1] - s.t[0],
         derived_accelerations: s.derived_accel,
         channels: fit.channels.clone(),
+        held_out_rms: missing.held_out_rms,
+        noise_floor: floor.clone(),
+        at_floor: missing.at_floor,
         parameters: params.parameters,
         com: params.com,
         physically_consistent: params.physically_consistent,
@@ -222,8 +272,9 @@ pub fn diagnose(
     })
 }
 
-/// The one-line verdict: the missing effect and its held-out gain, or "model adequate".
-fn verdict(ranking: &[Candidate], recommended: Option<&str>) -> String {
+/// The one-line verdict: the missing effect and its held-out gain, or why nothing is
+/// missing (at the noise floor, or no candidate qualifies).
+fn verdict(ranking: &[Candidate], recommended: Option<&str>, at_floor: bool) -> String {
     match recommended {
         Some(r) => {
             let c = ranking.iter().find(|c| c.effect == r);
@@ -232,8 +283,16 @@ fn verdict(ranking: &[Candidate], recommended: Option<&str>) -> String {
                 c.map_or(0.0, |c| -c.reduction * 100.0)
             )
         }
-        None => {
-            "model adequate: no candidate effect lowers the held-out residual significantly".into()
+        None if at_floor => {
+            "model adequate: the held-out residual is at the noise floor on every channel".into()
         }
+        None => match ranking.first() {
+            Some(best) => format!(
+                "no candidate qualifies (best: `{}`, {}); what remains is not explained by a built-in effect",
+                best.effect,
+                best.explanation.rsplit("; ").next().unwrap_or("")
+            ),
+            None => "model adequate: no candidate left to try".into(),
+        },
     }
 }

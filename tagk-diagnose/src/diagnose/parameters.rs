@@ -33,11 +33,13 @@ pub(crate) fn parameter_report(
 ) -> ParameterReport {
     let theta = fit.theta;
     let parameters: Vec<Parameter> = (0..10)
-        .map(|j| Coefficient {
-            name: THETA_NAMES[j].into(),
-            unit: THETA_UNITS[j].into(),
-            value: theta.as_slice()[j],
-            std_error: fit.theta_se[j],
+        .map(|j| {
+            Coefficient::new(
+                THETA_NAMES[j],
+                THETA_UNITS[j],
+                theta.as_slice()[j],
+                fit.theta_se[j],
+            )
         })
         .collect();
     let m = theta.mass();

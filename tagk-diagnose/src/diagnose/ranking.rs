@@ -5,12 +5,58 @@
 use serde::Serialize;
 
 use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::floor::{NoiseFloor, held_out_rms, model_design};
+use crate::diagnose::sanity::{SanityContext, check_refit};
 use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
-    Coefficient, ColData, Evaluation, Fit, GramEngine, Model, effect_design, rigid_design, scan_min,
+    Coefficient, ColData, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
 };
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
+
+/// Where a scored candidate stands (the first that applies, in this order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CandidateStatus {
+    /// The next step: qualifies and has the largest held-out gain.
+    Recommended,
+    /// Qualifies, but gains less than the recommended candidate.
+    Qualifies,
+    /// Makes the held-out residual worse.
+    Worse,
+    /// Its refit breaks a physical rule (the effect's own or the rigid body's).
+    Implausible,
+    /// Makes some channel's held-out RMS worse by more than [`MAX_CHANNEL_WORSENING`].
+    WorsensChannel,
+    /// Its gain fails the partial test (Bonferroni over the candidates).
+    NotSignificant,
+    /// The model is already at the noise floor on every channel.
+    AtFloor,
+    /// Its held-out gain is below the noise floor on every channel (or below
+    /// `min_reduction` overall).
+    BelowFloor,
+}
+
+impl CandidateStatus {
+    /// `true` for a candidate that may be the next step.
+    pub fn qualifies(self) -> bool {
+        matches!(
+            self,
+            CandidateStatus::Recommended | CandidateStatus::Qualifies
+        )
+    }
+}
+
+/// Largest worsening of one channel's held-out RMS a step may cause (10 %).
+pub const MAX_CHANNEL_WORSENING: f64 = 0.10;
+
+/// Smallest gain worth a step: it must lower some channel's held-out RMS by at least this
+/// fraction of that channel's noise floor (5 %).
+pub const MIN_GAIN_OF_FLOOR: f64 = 0.05;
+
+/// A model is at the noise floor when every channel's held-out RMS is within this fraction
+/// above the floor (5 %).
+pub const FLOOR_MARGIN: f64 = 0.05;
 
 /// A ranked candidate effect.
 #[derive(Debug, Clone, Serialize)]
@@ -22,6 +68,12 @@ pub struct Candidate {
     pub reduction: f64,
     /// Held-out reduction per channel (fraction).
     pub reduction_per_channel: Vec<f64>,
+    /// Held-out residual RMS per channel with the candidate added (N, N m).
+    pub held_out_rms: [f64; 6],
+    /// Held-out gain in units of the noise floor: `Σ_c (rms_c² − rms_c,with²) / floor_c²`.
+    pub gain_over_floor: f64,
+    /// Channels whose held-out RMS grows by more than [`MAX_CHANNEL_WORSENING`].
+    pub worsened_channels: Vec<String>,
     /// Partial test statistic (chi-square form of the partial F test, effective sample size
     /// corrected for autocorrelation).
     pub statistic: f64,
@@ -31,13 +83,17 @@ pub struct Candidate {
     pub p_value: f64,
     /// `p < alpha / candidates`.
     pub significant: bool,
-    /// Physical plausibility of the fitted coefficients.
+    /// Physical plausibility of the refit (the effect's rules and the rigid body's).
     pub plausible: bool,
+    /// The rule that fired when implausible (e.g. `mass-change`, `negative-coefficient`).
+    pub rule: Option<String>,
     /// Plausibility note.
     pub plausibility_note: String,
+    /// Where the candidate stands.
+    pub status: CandidateStatus,
     /// Scanned parameter `(name, value, unit)`.
     pub scanned: Option<(String, f64, String)>,
-    /// Fitted coefficients (in-sample, all data).
+    /// Fitted coefficients (in-sample, all data), with 95 % confidence intervals.
     pub coefficients: Vec<Coefficient>,
     /// Channels whose held-out residual falls by at least 30 %.
     pub affected_channels: Vec<String>,
@@ -66,6 +122,10 @@ pub(crate) struct Ranking {
     pub recommended: Option<String>,
     /// The top candidate's driving signal `(name, series)`.
     pub top_driver: Option<(String, Vec<f64>)>,
+    /// Held-out residual RMS per channel of the model itself.
+    pub held_out_rms: [f64; 6],
+    /// `true` when every channel's held-out RMS is within [`FLOOR_MARGIN`] of the floor.
+    pub at_floor: bool,
 }
 
 /// The model's design and the Gram engine of the candidates' tests: the fitted model's
@@ -78,22 +138,28 @@ struct Baseline<'a> {
     columns: usize,
     /// Number of candidates tested (Bonferroni divisor).
     tests: f64,
+    /// Held-out RMS per channel of the model.
+    held_out_rms: [f64; 6],
+    /// The physical rules' context.
+    sanity: SanityContext<'a>,
 }
 
-/// Ranks the candidates of `opts` that are not already in `model` (step 2 of
-/// [`crate::diagnose()`]).
+/// Ranks the candidates of `opts` that are not already in `model` against the noise floor
+/// `floor` (step 2 of [`crate::diagnose()`]).
 pub(crate) fn rank_candidates(
     model: &Model,
     s: &Signals,
     fit: &Fit,
     opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
 ) -> Ranking {
     let candidates: Vec<&EffectRef> = opts
         .candidates
         .iter()
         .filter(|c| !model.has(c.name()))
         .collect();
-    let baseline = baseline(model, s, fit, opts.folds, candidates.len());
+    let baseline = baseline(model, s, fit, opts, candidates.len());
+    let at_floor = (0..6).all(|c| baseline.held_out_rms[c] <= (1.0 + FLOOR_MARGIN) * floor.rms[c]);
     let mut ranking = Vec::new();
     let mut unavailable = Vec::new();
     let mut drivers = Vec::new();
@@ -102,11 +168,11 @@ pub(crate) fn rank_candidates(
             unavailable.push(u);
             continue;
         }
-        let (candidate, driver) = score_candidate(e.as_ref(), s, &baseline, opts);
+        let (candidate, driver) = score_candidate(e.as_ref(), s, &baseline, opts, floor);
         drivers.push((candidate.effect.clone(), candidate.driver.clone(), driver));
         ranking.push(candidate);
     }
-    let recommended = order_and_recommend(&mut ranking, opts);
+    let recommended = judge(&mut ranking, &baseline.held_out_rms, floor, opts, at_floor);
     let top_driver = ranking.first().and_then(|top| {
         drivers
             .iter()
@@ -118,6 +184,8 @@ pub(crate) fn rank_candidates(
         unavailable,
         recommended,
         top_driver,
+        held_out_rms: baseline.held_out_rms,
+        at_floor,
     }
 }
 
@@ -126,21 +194,27 @@ pub(crate) fn rank_candidates(
 fn baseline<'a>(
     model: &Model,
     s: &'a Signals,
-    fit: &Fit,
-    folds: usize,
+    fit: &'a Fit,
+    opts: &DiagnoseOptions,
     candidates: usize,
 ) -> Baseline<'a> {
-    let (mut base_cols, _) = rigid_design(model, s);
-    for (k, e) in model.effects().iter().enumerate() {
-        base_cols.extend(effect_design(e.as_ref(), s, fit.params[k]));
-    }
-    let engine = GramEngine::new(s, &fit.weights, &base_cols, Some(&fit.residual), folds);
+    let base_cols = model_design(model, s, fit);
+    let engine = GramEngine::new(s, &fit.weights, &base_cols, Some(&fit.residual), opts.folds);
     let evaluation = engine.evaluate(&[]);
+    let held_out_rms = held_out_rms(&evaluation, &fit.weights, s.len());
+    let mean_thrust = s.wrench.iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64;
     Baseline {
         engine,
         evaluation,
         columns: base_cols.len(),
         tests: candidates.max(1) as f64,
+        held_out_rms,
+        sanity: SanityContext {
+            fit,
+            mean_thrust,
+            airframe_radius: opts.airframe_radius,
+            known_mass: model.known_mass().is_some(),
+        },
     }
 }
 
@@ -182,15 +256,18 @@ fn best_design(
     }
 }
 
-/// Scores one candidate: held-out reduction (overall and per channel), the partial test
-/// with an autocorrelation-corrected variance, coefficients with standard errors and the
-/// plausibility verdict. The explanation is filled in by [`order_and_recommend`]. Also
-/// returns the series of the candidate's driving signal (for plots).
+/// Scores one candidate: held-out reduction (overall and per channel, and against the noise
+/// floor), the partial test with an autocorrelation-corrected variance, coefficients with
+/// standard errors and confidence intervals, the plausibility verdict (the effect's rules,
+/// then the rigid body's, [`crate::diagnose`]'s sanity rules). The status and explanation are
+/// filled in by [`order_and_recommend`]. Also returns the series of the candidate's driving
+/// signal (for plots).
 fn score_candidate(
     e: &dyn Effect,
     s: &Signals,
     base: &Baseline<'_>,
     opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
 ) -> (Candidate, Vec<f64>) {
     let spec = e.scan();
     let (param, cols, ev) = best_design(e, s, &base.engine);
@@ -229,23 +306,50 @@ fn score_candidate(
             }
         })
         .collect();
+    let held_out = held_out_rms(&ev, &base.sanity.fit.weights, s.len());
+    let gain_over_floor: f64 = (0..6)
+        .map(|c| {
+            if floor.rms[c] > 0.0 {
+                (base.held_out_rms[c].powi(2) - held_out[c].powi(2)) / floor.rms[c].powi(2)
+            } else {
+                0.0
+            }
+        })
+        .sum();
+    let worsened_channels: Vec<String> = (0..6)
+        .filter(|&c| held_out[c] > (1.0 + MAX_CHANNEL_WORSENING) * base.held_out_rms[c])
+        .map(|c| CHANNEL_NAMES[c].to_string())
+        .collect();
     let coef: Vec<f64> = ev.beta[p_base..].to_vec();
     let se: Vec<f64> = ev.cov_diag[p_base..]
         .iter()
         .map(|d| (d * sigma2 * kappa).sqrt())
         .collect();
-    let pl = e.plausibility(&coef, &se, param);
     let ecols = e.columns(s, param);
     let coefficients: Vec<Coefficient> = ecols
         .iter()
         .enumerate()
-        .map(|(i, c)| Coefficient {
-            name: c.name.clone(),
-            unit: c.unit.clone(),
-            value: coef[i],
-            std_error: se[i].is_finite().then_some(se[i]),
+        .map(|(i, c)| {
+            Coefficient::new(
+                &c.name,
+                &c.unit,
+                coef[i],
+                se[i].is_finite().then_some(se[i]),
+            )
         })
         .collect();
+    let own = e.plausibility(&coef, &se, param);
+    let (plausible, rule, note) = if !own.plausible {
+        (false, Some(own.rule.clone()), own.note)
+    } else {
+        // The rigid-body corrections of the refit are the first coefficients after the
+        // target: the rigid columns come first in the model's design.
+        let nr = 10 - usize::from(base.sanity.known_mass);
+        match check_refit(&base.sanity, &ev.beta[..nr], &coefficients) {
+            Some(v) => (false, Some(v.rule.to_string()), v.note),
+            None => (true, None, own.note),
+        }
+    };
     let affected: Vec<String> = (0..6)
         .filter(|&c| reduction_per_channel[c] >= 0.3)
         .map(|c| CHANNEL_NAMES[c].to_string())
@@ -257,12 +361,17 @@ fn score_candidate(
         effect: e.name().to_string(),
         reduction,
         reduction_per_channel,
+        held_out_rms: held_out,
+        gain_over_floor,
+        worsened_channels,
         statistic,
         dof,
         p_value,
         significant,
-        plausible: pl.plausible,
-        plausibility_note: pl.note,
+        plausible,
+        rule,
+        plausibility_note: note,
+        status: CandidateStatus::BelowFloor,
         scanned,
         coefficients,
         affected_channels: affected,
@@ -272,29 +381,86 @@ fn score_candidate(
     (candidate, dsig)
 }
 
-/// Orders the ranking — recommendable candidates (significant, plausible, large enough)
-/// first, then by held-out reduction — and writes each candidate's explanation. Returns the
-/// recommended effect: the first recommendable candidate.
-fn order_and_recommend(ranking: &mut [Candidate], opts: &DiagnoseOptions) -> Option<String> {
-    let recommendable =
-        |c: &Candidate| c.significant && c.plausible && c.reduction >= opts.min_reduction;
+/// The status of a scored candidate before the recommendation is picked (the first rule
+/// that applies, in the order of [`CandidateStatus`]).
+fn status_of(
+    c: &Candidate,
+    base_rms: &[f64; 6],
+    floor: &NoiseFloor,
+    opts: &DiagnoseOptions,
+    at_floor: bool,
+) -> CandidateStatus {
+    if c.reduction < 0.0 {
+        return CandidateStatus::Worse;
+    }
+    if !c.plausible {
+        return CandidateStatus::Implausible;
+    }
+    if !c.worsened_channels.is_empty() {
+        return CandidateStatus::WorsensChannel;
+    }
+    if !c.significant {
+        return CandidateStatus::NotSignificant;
+    }
+    if at_floor {
+        return CandidateStatus::AtFloor;
+    }
+    let above_floor = (0..6).any(|k| {
+        floor.rms[k] > 0.0 && base_rms[k] - c.held_out_rms[k] >= MIN_GAIN_OF_FLOOR * floor.rms[k]
+    });
+    if !above_floor || c.reduction < opts.min_reduction {
+        return CandidateStatus::BelowFloor;
+    }
+    CandidateStatus::Qualifies
+}
+
+/// Orders the ranking — qualifying candidates first, then by held-out reduction (each channel
+/// normalised by the current model's residual) —
+/// and writes each candidate's status and explanation. Returns the recommended effect: the
+/// first qualifying candidate.
+fn order_and_recommend(
+    ranking: &mut [Candidate],
+    opts: &DiagnoseOptions,
+    at_floor: bool,
+) -> Option<String> {
     ranking.sort_by(|a, b| {
-        recommendable(b)
-            .cmp(&recommendable(a))
+        b.status
+            .qualifies()
+            .cmp(&a.status.qualifies())
             .then(b.reduction.total_cmp(&a.reduction))
     });
     let recommended = ranking
         .iter()
-        .find(|c| recommendable(c))
+        .find(|c| c.status.qualifies())
         .map(|c| c.effect.clone());
+    if let Some(first) = ranking.first_mut()
+        && first.status.qualifies()
+    {
+        first.status = CandidateStatus::Recommended;
+    }
     for c in ranking.iter_mut() {
-        c.explanation = explain(c, opts, recommended.as_deref() == Some(c.effect.as_str()));
+        c.explanation = explain(c, opts, at_floor);
     }
     recommended
 }
 
+/// Sets every candidate's status (needs the model's held-out RMS and the floor), then orders
+/// and recommends ([`order_and_recommend`]).
+fn judge(
+    ranking: &mut [Candidate],
+    base_rms: &[f64; 6],
+    floor: &NoiseFloor,
+    opts: &DiagnoseOptions,
+    at_floor: bool,
+) -> Option<String> {
+    for c in ranking.iter_mut() {
+        c.status = status_of(c, base_rms, floor, opts, at_floor);
+    }
+    order_and_recommend(ranking, opts, at_floor)
+}
+
 /// The one-line explanation of a scored candidate (held-out change, coefficients, status).
-fn explain(c: &Candidate, opts: &DiagnoseOptions, recommended: bool) -> String {
+fn explain(c: &Candidate, _opts: &DiagnoseOptions, _at_floor: bool) -> String {
     let chans = if c.affected_channels.is_empty() {
         String::new()
     } else {
@@ -319,16 +485,23 @@ fn explain(c: &Candidate, opts: &DiagnoseOptions, recommended: bool) -> String {
         .as_ref()
         .map(|(n, v, u)| format!(", {n} = {v:.3} {u}"))
         .unwrap_or_default();
-    let status = if recommended {
-        "RECOMMENDED".to_string()
-    } else if !c.significant {
-        format!("not significant (p = {:.2e})", c.p_value)
-    } else if !c.plausible {
-        format!("implausible: {}", c.plausibility_note)
-    } else if c.reduction < opts.min_reduction {
-        "significant but too small to matter".to_string()
-    } else {
-        "significant, explains less than the top candidate".to_string()
+    let status = match c.status {
+        CandidateStatus::Recommended => "RECOMMENDED".to_string(),
+        CandidateStatus::Qualifies => "qualifies, gains less than the recommended one".to_string(),
+        CandidateStatus::Worse => "worse: it raises the held-out residual".to_string(),
+        CandidateStatus::Implausible => format!(
+            "implausible ({}): {}",
+            c.rule.as_deref().unwrap_or("rule"),
+            c.plausibility_note
+        ),
+        CandidateStatus::WorsensChannel => format!(
+            "rejected: held-out RMS of {} worse by more than {:.0} %",
+            c.worsened_channels.join(", "),
+            100.0 * MAX_CHANNEL_WORSENING
+        ),
+        CandidateStatus::NotSignificant => format!("not significant (p = {:.2e})", c.p_value),
+        CandidateStatus::AtFloor => "not needed: the model is at the noise floor".to_string(),
+        CandidateStatus::BelowFloor => "gain below the noise floor".to_string(),
     };
     format!(
         "{}: held-out residual {:+.1} %{}; {}{}; {}",

@@ -205,15 +205,25 @@ impl Effect for MotorLag {
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
         if !(0.4..=2.5).contains(&coef[0]) {
-            return Plausibility::bad(format!(
-                "lag gain {:.2} far from 1: the lag shape does not match",
-                coef[0]
-            ));
+            return Plausibility::broken(
+                "lag-gain",
+                format!(
+                    "lag gain {:.2} far from 1: the lag shape does not match",
+                    coef[0]
+                ),
+            );
         }
         if let Some(tau) = p
             && tau >= *self.grid.last().unwrap_or(&f64::INFINITY)
         {
-            return Plausibility::bad(format!("time constant {tau:.3} s at the end of the scan"));
+            return Plausibility::broken(
+                "lag-range",
+                format!(
+                    "time constant {tau:.3} s at the end of the physical range {:.3}–{:.3} s",
+                    self.grid.iter().copied().fold(f64::INFINITY, f64::min),
+                    self.grid.iter().copied().fold(0.0, f64::max)
+                ),
+            );
         }
         Plausibility::ok()
     }
@@ -312,15 +322,21 @@ impl Effect for TimeDelay {
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
         if !(0.8..=1.25).contains(&coef[0]) {
-            return Plausibility::bad(format!(
-                "delay gain {:.2} far from 1: not a pure time shift",
-                coef[0]
-            ));
+            return Plausibility::broken(
+                "delay-gain",
+                format!(
+                    "delay gain {:.2} far from 1: not a pure time shift",
+                    coef[0]
+                ),
+            );
         }
         if let Some(d) = p {
             let max = self.grid.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             if d.abs() >= max {
-                return Plausibility::bad(format!("delay {d:.3} s at the end of the scan"));
+                return Plausibility::broken(
+                    "delay-range",
+                    format!("delay {d:.3} s at the end of the physical range ±{max:.3} s"),
+                );
             }
         }
         Plausibility::ok()
@@ -362,7 +378,10 @@ impl Effect for ThrustGain {
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         if coef[0].abs() > 0.5 {
-            Plausibility::bad(format!("thrust gain error {:.2} beyond ±50 %", coef[0]))
+            Plausibility::broken(
+                "thrust-gain-range",
+                format!("thrust gain error {:.2} beyond ±50 %", coef[0]),
+            )
         } else {
             Plausibility::ok()
         }

@@ -69,6 +69,9 @@ pub struct ScanSpec {
 pub struct Plausibility {
     /// `true` if the coefficients are physically possible.
     pub plausible: bool,
+    /// Name of the rule that fired (e.g. `negative-coefficient`, `lag-range`; empty when
+    /// plausible).
+    pub rule: String,
     /// Why (empty when plausible and nothing to add).
     pub note: String,
 }
@@ -78,13 +81,19 @@ impl Plausibility {
     pub fn ok() -> Self {
         Self {
             plausible: true,
+            rule: String::new(),
             note: String::new(),
         }
     }
-    /// Implausible, with a reason.
+    /// Implausible, with a reason (rule name `effect`).
     pub fn bad(note: impl Into<String>) -> Self {
+        Self::broken("effect", note)
+    }
+    /// Implausible by the named rule, with a reason.
+    pub fn broken(rule: &str, note: impl Into<String>) -> Self {
         Self {
             plausible: false,
+            rule: rule.to_string(),
             note: note.into(),
         }
     }
@@ -134,10 +143,13 @@ pub type EffectRef = Arc<dyn Effect>;
 pub(crate) fn nonneg(names: &[&str], coef: &[f64], se: &[f64], what: &str) -> Plausibility {
     for (k, n) in names.iter().enumerate() {
         if coef[k] < -3.0 * se[k].max(1e-300) {
-            return Plausibility::bad(format!(
-                "{what} {n} = {:.3e} is significantly negative (would push the vehicle along its motion)",
-                coef[k]
-            ));
+            return Plausibility::broken(
+                "negative-coefficient",
+                format!(
+                    "{what} {n} = {:.3e} is significantly negative (would push the vehicle along its motion)",
+                    coef[k]
+                ),
+            );
         }
     }
     Plausibility::ok()

@@ -42,7 +42,27 @@ pub struct Coefficient {
     pub value: f64,
     /// Standard error (inflated for residual autocorrelation); `null` if unidentifiable.
     pub std_error: Option<f64>,
+    /// 95 % confidence interval `value ± 1.96 std_error` (normal approximation); `null` if
+    /// unidentifiable.
+    pub confidence_interval: Option<[f64; 2]>,
 }
+
+impl Coefficient {
+    /// A coefficient with its standard error and the 95 % interval that follows from it.
+    pub fn new(name: &str, unit: &str, value: f64, std_error: Option<f64>) -> Self {
+        let std_error = std_error.filter(|e| e.is_finite());
+        Self {
+            name: name.to_string(),
+            unit: unit.to_string(),
+            value,
+            std_error,
+            confidence_interval: std_error.map(|e| [value - Z_95 * e, value + Z_95 * e]),
+        }
+    }
+}
+
+/// Two-sided 95 % quantile of the standard normal distribution.
+pub const Z_95: f64 = 1.959_963_984_540_054;
 
 /// An effect's fitted coefficients.
 #[derive(Debug, Clone, Serialize)]
@@ -321,12 +341,7 @@ fn fitted_effects(
             coefficients: ecols
                 .iter()
                 .enumerate()
-                .map(|(i, c)| Coefficient {
-                    name: c.name.clone(),
-                    unit: c.unit.clone(),
-                    value: coef[i],
-                    std_error: sol.se[j + i],
-                })
+                .map(|(i, c)| Coefficient::new(&c.name, &c.unit, coef[i], sol.se[j + i]))
                 .collect(),
             plausible: pl.plausible,
             plausibility_note: pl.note,

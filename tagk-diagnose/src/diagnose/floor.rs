@@ -1,0 +1,160 @@
+//! The noise floor: the held-out residual below which no model term is worth adding.
+//!
+//! **Rule.** Per channel, the floor is the larger of
+//! - the **reachable residual**: the held-out (blocked CV) residual RMS of the *saturated*
+//!   model, the current model plus every usable candidate at once (each scan at its best
+//!   value). No sequence of candidates can do better on held-out data, so the distance from a
+//!   model to it is what the candidates can still explain; on a log whose only imperfection is
+//!   measurement noise it is the noise;
+//! - the **resolution**: 10⁻⁴ of the RMS of the measured force magnitude (forces), times the
+//!   airframe radius (torques) — below that no effect matters to a flight-dynamics model, and a
+//!   noise-free simulator log would otherwise chase rounding.
+//!
+//! or, when the user gives the sensor noise per channel ([`crate::DiagnoseOptions::noise_floor`]),
+//! that value. The report also gives the **high-frequency noise estimate** of the saturated
+//! residual (first differences: `σ² ≈ mean((r_{i+1} − r_i)²) / 2`, exact for white noise): a
+//! floor well above it says something that no candidate explains remains in the data.
+
+use serde::Serialize;
+
+use crate::diagnose::DiagnoseOptions;
+use crate::effects::{EffectRef, usable};
+use crate::error::DiagnoseError;
+use crate::fit::{
+    ColData, Evaluation, Fit, GramEngine, Model, effect_design, fit_model, rigid_design,
+};
+use crate::signals::Signals;
+
+/// Resolution of the floor, relative to the RMS measured force magnitude (10⁻⁴).
+pub const FLOOR_RESOLUTION: f64 = 1e-4;
+
+/// Where the floor came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FloorSource {
+    /// The data: the saturated model's held-out residual (or the resolution).
+    Data,
+    /// The user's per-channel noise level.
+    Given,
+}
+
+/// The noise floor of a log.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoiseFloor {
+    /// Floor per channel (N, N m): held-out residual RMS below which nothing is added.
+    pub rms: [f64; 6],
+    /// Where it came from.
+    pub source: FloorSource,
+    /// Held-out residual RMS of the saturated model per channel (the reachable residual).
+    pub reachable: [f64; 6],
+    /// High-frequency (first-difference) noise estimate of the saturated residual per channel.
+    pub noise_estimate: [f64; 6],
+    /// Effects of the saturated model.
+    pub saturated_model: Vec<String>,
+}
+
+/// Held-out residual RMS per channel (unweighted) of an evaluation with channel weights `w`
+/// on `n` samples: every sample is held out once by the blocked cross-validation.
+pub(crate) fn held_out_rms(ev: &Evaluation, w: &[f64; 6], n: usize) -> [f64; 6] {
+    std::array::from_fn(|c| {
+        if w[c] > 0.0 && n > 0 {
+            (ev.sse_cv_ch[c] / n as f64).sqrt() / w[c]
+        } else {
+            0.0
+        }
+    })
+}
+
+/// The design of a fitted model (rigid columns, then each effect's at its fitted parameter).
+pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> Vec<ColData> {
+    let (mut cols, _) = rigid_design(model, s);
+    for (k, e) in model.effects().iter().enumerate() {
+        cols.extend(effect_design(e.as_ref(), s, fit.params[k]));
+    }
+    cols
+}
+
+/// The held-out evaluation of a fitted model: its columns against its own residual, so the
+/// training folds refit every coefficient.
+pub(crate) fn held_out_evaluation(
+    model: &Model,
+    s: &Signals,
+    fit: &Fit,
+    folds: usize,
+) -> Evaluation {
+    let cols = model_design(model, s, fit);
+    GramEngine::new(s, &fit.weights, &cols, Some(&fit.residual), folds).evaluate(&[])
+}
+
+/// The candidates that can join `model` on this log.
+pub(crate) fn joinable<'a>(
+    model: &Model,
+    s: &Signals,
+    candidates: &'a [EffectRef],
+) -> Vec<&'a EffectRef> {
+    candidates
+        .iter()
+        .filter(|c| !model.has(c.name()))
+        .filter(|c| !(c.needs_known_mass() && model.known_mass().is_none()))
+        .filter(|c| usable(c.as_ref(), s).is_ok())
+        .collect()
+}
+
+/// The noise floor of a log for `model` and the candidates of `opts` (rule in the module
+/// docs).
+///
+/// # Errors
+/// As [`fit_model`] on the saturated model (an invalid model or a failed solve).
+pub(crate) fn noise_floor(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+) -> Result<NoiseFloor, DiagnoseError> {
+    let mut saturated = model.clone();
+    for e in joinable(model, s, &opts.candidates) {
+        saturated = saturated.with_ref(e.clone());
+    }
+    let fit = fit_model(&saturated, s, None)?;
+    let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
+    let reachable = held_out_rms(&ev, &fit.weights, s.len());
+    let noise_estimate: [f64; 6] = std::array::from_fn(|c| {
+        let r = &fit.residual;
+        if r.len() < 2 {
+            return 0.0;
+        }
+        let d2: f64 = r.windows(2).map(|w| (w[1][c] - w[0][c]).powi(2)).sum();
+        (d2 / (2.0 * (r.len() - 1) as f64)).sqrt()
+    });
+    let force_rms = (s
+        .wrench
+        .iter()
+        .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
+        .sum::<f64>()
+        / s.len().max(1) as f64)
+        .sqrt();
+    let resolution = |c: usize| {
+        if c < 3 {
+            FLOOR_RESOLUTION * force_rms
+        } else {
+            FLOOR_RESOLUTION * force_rms * opts.airframe_radius
+        }
+    };
+    let (rms, source) = match opts.noise_floor {
+        Some(given) => (given, FloorSource::Given),
+        None => (
+            std::array::from_fn(|c| reachable[c].max(resolution(c))),
+            FloorSource::Data,
+        ),
+    };
+    Ok(NoiseFloor {
+        rms,
+        source,
+        reachable,
+        noise_estimate,
+        saturated_model: saturated
+            .effects()
+            .iter()
+            .map(|e| e.name().to_string())
+            .collect(),
+    })
+}
