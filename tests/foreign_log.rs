@@ -191,7 +191,7 @@ fn write_foreign(log: &FlightLog, dir: &Path, rotor_clock_offset: f64) -> PathBu
 
 fn foreign_args(dir: &Path, map: PathBuf) -> DiagnoseArgs {
     let mut args = DiagnoseArgs::new(dir.join("unused.csv"));
-    args.log = None;
+    args.logs.clear();
     args.columns = Some(map);
     args.stream = ["imu.csv", "motors.csv", "mocap.csv"]
         .iter()

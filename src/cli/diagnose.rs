@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use crate::diagnose::{
     CustomEffect, DiagnoseError, DiagnoseOptions, EffectKind, EffectRef, FlightLog, Model, Report,
-    Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_loop,
+    Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -14,10 +14,12 @@ use crate::dynamics::vehicle::Vehicle;
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
-    /// Flight log (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
-    /// repository). With `--columns` it is read through the column mapping.
+    /// Flight log(s) (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
+    /// repository). With `--columns` each is read through the column mapping. Several logs of
+    /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients), and
+    /// each log's own staircase is compared with the joint one.
     #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
-    pub log: Option<PathBuf>,
+    pub logs: Vec<PathBuf>,
     /// Column mapping (TOML, docs/COLUMN_MAPPING.md): column names, units, quaternion order,
     /// NED/FRD frames, and the streams of the flight.
     #[arg(long, value_name = "FILE")]
@@ -26,7 +28,7 @@ pub struct DiagnoseArgs {
     /// repeatable. The streams are merged onto the first one's time base (or the mapping's
     /// `primary`); gaps are reported, never interpolated over. Not several flights: one
     /// flight in several files.
-    #[arg(long = "stream", value_name = "FILE", conflicts_with = "log")]
+    #[arg(long = "stream", value_name = "FILE", conflicts_with = "logs")]
     pub stream: Vec<PathBuf>,
     /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
     /// built-in names or aliases (listed below) or the names of `--custom` effects.
@@ -59,6 +61,19 @@ pub struct DiagnoseArgs {
     /// vehicle's `airframe_radius` with `--vehicle`, else 0.0325].
     #[arg(long, value_name = "M")]
     pub airframe_radius: Option<f64>,
+    /// Measurement noise per channel `fx,fy,fz,tx,ty,tz` [N, N m] (e.g. from the sensors'
+    /// specification): the noise floor of the stepwise search. Default: from the data (the
+    /// held-out residual of every candidate at once; docs/CONVENTIONS.md §7).
+    #[arg(
+        long,
+        value_name = "N,N,N,Nm,Nm,Nm",
+        value_delimiter = ',',
+        num_args = 6
+    )]
+    pub noise_floor: Option<Vec<f64>>,
+    /// Most effects the stepwise search adds.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub max_steps: usize,
     /// Do not print the terminal summary.
     #[arg(long)]
     pub quiet: bool,
@@ -110,7 +125,7 @@ impl DiagnoseArgs {
     /// Arguments for a log with every option at its default.
     pub fn new(log: impl Into<PathBuf>) -> Self {
         Self {
-            log: Some(log.into()),
+            logs: vec![log.into()],
             columns: None,
             stream: Vec::new(),
             with: Vec::new(),
@@ -121,8 +136,56 @@ impl DiagnoseArgs {
             vehicle: None,
             mass: None,
             airframe_radius: None,
+            noise_floor: None,
+            max_steps: 5,
             quiet: false,
         }
+    }
+
+    /// The command line that reproduces the final model of a report: these arguments with
+    /// `--with` set to every effect of the final model (the files and flags as given).
+    pub fn command_for(&self, effects: &[String]) -> String {
+        let quote = |p: &std::path::Path| {
+            let s = p.display().to_string();
+            if s.contains(|c: char| c.is_whitespace() || c == '\'' || c == '"') {
+                format!("'{}'", s.replace('\'', "'\\''"))
+            } else {
+                s
+            }
+        };
+        let mut cmd = String::from("tagk diagnose");
+        for log in &self.logs {
+            cmd.push(' ');
+            cmd.push_str(&quote(log));
+        }
+        for stream in &self.stream {
+            cmd.push_str(&format!(" --stream {}", quote(stream)));
+        }
+        if let Some(c) = &self.columns {
+            cmd.push_str(&format!(" --columns {}", quote(c)));
+        }
+        if let Some(v) = &self.vehicle {
+            cmd.push_str(&format!(" --vehicle {v}"));
+        }
+        match self.mass {
+            Some(KnownMass::Kg(m)) => cmd.push_str(&format!(" --mass {m}")),
+            Some(KnownMass::Vehicle) => cmd.push_str(" --mass vehicle"),
+            None => {}
+        }
+        if let Some(r) = self.airframe_radius {
+            cmd.push_str(&format!(" --airframe-radius {r}"));
+        }
+        for c in &self.custom {
+            cmd.push_str(&format!(" --custom {c}"));
+        }
+        if let Some(f) = &self.noise_floor {
+            let v: Vec<String> = f.iter().map(|x| format!("{x:e}")).collect();
+            cmd.push_str(&format!(" --noise-floor {}", v.join(",")));
+        }
+        if !effects.is_empty() {
+            cmd.push_str(&format!(" --with {}", effects.join(",")));
+        }
+        cmd
     }
 }
 
@@ -240,9 +303,21 @@ pub fn plan_with_vehicle(
         .airframe_radius
         .or(vehicle.map(|v| v.airframe_radius))
         .unwrap_or(defaults.airframe_radius);
+    let noise_floor =
+        match &args.noise_floor {
+            None => None,
+            Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
+                DiagnoseError::InvalidOption {
+                    field: "noise_floor",
+                    reason: format!("{} values given, six needed (fx,fy,fz,tx,ty,tz)", v.len()),
+                }
+            })?),
+        };
     let options = DiagnoseOptions {
         airframe_radius,
         candidates,
+        noise_floor,
+        max_steps: args.max_steps,
         ..defaults
     };
     options.validate()?;
@@ -273,6 +348,43 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
     if args.online {
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
     }
+    report.final_model.command = Some(args.command_for(&report.final_model.effects));
+    Ok(report)
+}
+
+/// Runs the joint loop on several logs of one vehicle ([`run_logs`]): each gets its wrench
+/// from `--vehicle` when it has none; the report compares each log's own staircase with the
+/// joint one.
+///
+/// # Errors
+/// As [`diagnose_log`], for any of the logs (naming its file).
+pub fn diagnose_logs(
+    logs: Vec<(String, FlightLog)>,
+    args: &DiagnoseArgs,
+) -> Result<Report, DiagnoseError> {
+    let vehicle = load_vehicle(args)?;
+    let Some((_, first)) = logs.first() else {
+        return Err(DiagnoseError::InvalidOption {
+            field: "logs",
+            reason: "no flight log given".into(),
+        });
+    };
+    let plan = plan_with_vehicle(args, first, vehicle.as_ref())?;
+    let mut parts = Vec::new();
+    for (name, log) in logs {
+        let in_file = |e: DiagnoseError| match e {
+            DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
+                path: name.clone(),
+                source: Box::new(source),
+            }),
+            other => other,
+        };
+        let log = log_with_wrench(log, vehicle.as_ref()).map_err(in_file)?;
+        let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
+        parts.push((name, s));
+    }
+    let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
+    report.final_model.command = Some(args.command_for(&report.final_model.effects));
     Ok(report)
 }
 
@@ -286,7 +398,7 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
 pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>), DiagnoseError> {
     if args.columns.is_none()
         && args.stream.is_empty()
-        && let Some(path) = &args.log
+        && let Some(path) = args.logs.first()
     {
         return Ok((FlightLog::from_csv_path(path)?, None));
     }
@@ -296,7 +408,7 @@ pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>),
     };
     let files: Vec<PathBuf> = if !args.stream.is_empty() {
         args.stream.clone()
-    } else if let Some(log) = &args.log {
+    } else if let Some(log) = args.logs.first() {
         vec![log.clone()]
     } else {
         mapping.files.clone()
@@ -344,6 +456,19 @@ pub fn merge_summary(m: &MergeReport) -> String {
 /// # Errors
 /// Log validation errors (naming line and column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
+    if args.logs.len() > 1 {
+        let mut logs = Vec::new();
+        for path in &args.logs {
+            let one = DiagnoseArgs {
+                logs: vec![path.clone()],
+                ..args.clone()
+            };
+            let (log, _) = read_log(&one)?;
+            logs.push((path.display().to_string(), log));
+        }
+        let report = diagnose_logs(logs, args)?;
+        return write_outputs(&report, args);
+    }
     let vehicle = load_vehicle(args)?;
     let (log, merge) = read_log(args)?;
     // Argument errors first, then the wrench (its errors name the file).
@@ -365,16 +490,24 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     let log = log_with_wrench(log, vehicle.as_ref()).map_err(|e| match e {
         DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
             path: args
-                .log
-                .as_ref()
+                .logs
+                .first()
                 .map_or_else(|| "<streams>".to_string(), |p| p.display().to_string()),
             source: Box::new(source),
         }),
         other => other,
     })?;
     let report = diagnose_log(&log, args)?;
+    write_outputs(&report, args)
+}
+
+/// Prints the report (unless `--quiet`) and writes the `--json` and `--report` files.
+///
+/// # Errors
+/// [`DiagnoseError::Output`] naming the file that could not be written.
+fn write_outputs(report: &Report, args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     if !args.quiet {
-        println!("{}", report_table(&report));
+        println!("{}", report_table(report));
     }
     if let Some(path) = &args.json {
         std::fs::write(path, report.to_json()?).map_err(|e| DiagnoseError::Output {
@@ -383,7 +516,7 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         })?;
     }
     if let Some(dir) = &args.report {
-        let file = crate::diagnose::html::write_report(&report, dir)?;
+        let file = crate::diagnose::html::write_report(report, dir)?;
         if !args.quiet {
             println!("report: {}", file.display());
         }

@@ -23,17 +23,17 @@ pub use diagnose::{
 };
 pub use effects::{
     BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,
-    builtin_by_name, builtin_effects, builtin_with,
+    builtin_by_name, builtin_effects, builtin_with, effect_columns,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineSummary, online_pass};
 pub use report::{
-    ChannelChange, FinalModel, RankingEntry, Report, add_recommended, diagnosis_table,
-    report_table, run_loop, staircase_table,
+    ChannelChange, FinalModel, LogVerdict, RankingEntry, Report, add_recommended, diagnosis_table,
+    report_table, run_logs, run_loop, staircase_table,
 };
-pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, Signals};
+pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, RotorMixer, Signals};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;

@@ -4,14 +4,15 @@ use serde::Serialize;
 
 use crate::diagnose::FloorSource;
 use crate::diagnose::{
-    Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, NoiseFloor, Step, diagnose,
-    diagnose_against, discover_from,
+    Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, Discovery, NoiseFloor, Step, diagnose,
+    diagnose_against, discover, discover_from,
 };
 use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Model};
 use crate::online::OnlineSummary;
 use crate::signals::{CHANNEL_NAMES, Signals};
+use tagk_dynamics::EffectKind;
 
 /// One entry of the JSON `ranking`.
 #[derive(Debug, Clone, Serialize)]
@@ -98,6 +99,25 @@ pub struct Report {
     pub final_diagnosis: Option<Diagnosis>,
     /// Online TAG-K pass, if requested.
     pub online: Option<OnlineSummary>,
+    /// With several logs ([`run_logs`]): each log's own staircase against the joint one
+    /// (empty for one log).
+    pub logs: Vec<LogVerdict>,
+}
+
+/// One log's own staircase in a joint diagnosis of several logs of one vehicle.
+#[derive(Debug, Clone, Serialize)]
+pub struct LogVerdict {
+    /// The log's name (its file).
+    pub log: String,
+    /// Samples.
+    pub samples: usize,
+    /// The effects its own staircase adds.
+    pub added: Vec<String>,
+    /// `true` when it finds the same effect families as the joint staircase (the drag laws
+    /// are one family; a `wind` fit counts as a drag too).
+    pub agrees: bool,
+    /// Why it disagrees (empty when it agrees).
+    pub note: String,
 }
 
 /// The final model of the staircase.
@@ -235,7 +255,96 @@ fn loop_from(
         change,
         final_diagnosis,
         online: None,
+        logs: Vec::new(),
     })
+}
+
+/// The effect families of a list of effect names, each with the effect that stands for it
+/// (custom effects are their own family; a `wind` also counts as a drag).
+fn families(names: &[String]) -> std::collections::BTreeMap<String, String> {
+    let mut out = std::collections::BTreeMap::new();
+    for name in names {
+        match EffectKind::from_name(name) {
+            Some(kind) => {
+                out.entry(kind.family().to_string())
+                    .or_insert_with(|| name.clone());
+                if kind.includes_drag() {
+                    out.entry(EffectKind::LinearDrag.family().to_string())
+                        .or_insert_with(|| name.clone());
+                }
+            }
+            None => {
+                out.entry(name.clone()).or_insert_with(|| name.clone());
+            }
+        }
+    }
+    out
+}
+
+/// The loop on several logs of one vehicle: one joint data set ([`Signals::concat`]: one θ,
+/// one set of effect coefficients, per-log start transients) diagnosed as [`run_loop`] does,
+/// then each log's own staircase, compared with the joint one ([`Report::logs`]). A log that
+/// disagrees says which effect it misses or adds and where that effect stands on it alone.
+///
+/// # Errors
+/// As [`run_loop`]; [`DiagnoseError::InvalidOption`] for no log or an empty one.
+pub fn run_logs(
+    logs: Vec<(String, Signals)>,
+    base: &Model,
+    with: &[EffectRef],
+    opts: &DiagnoseOptions,
+) -> Result<Report, DiagnoseError> {
+    let names: Vec<String> = logs.iter().map(|(n, _)| n.clone()).collect();
+    let parts: Vec<Signals> = logs.into_iter().map(|(_, s)| s).collect();
+    if parts.len() == 1 {
+        return run_loop(&parts[0], base, with, opts);
+    }
+    let mut start = base.clone();
+    for e in with {
+        start = start.with_ref(e.clone());
+    }
+    let mut verdicts = Vec::new();
+    let single: Vec<Discovery> = parts
+        .iter()
+        .map(|p| discover(&start, p, opts))
+        .collect::<Result<_, _>>()?;
+    let joint = Signals::concat(parts)?;
+    let mut report = run_loop(&joint, base, with, opts)?;
+    let joint_families = families(&report.final_model.added);
+    for (name, d) in names.into_iter().zip(single) {
+        let own = families(&d.added);
+        let mut notes = Vec::new();
+        for (family, effect) in &joint_families {
+            if !own.contains_key(family) {
+                let why = d
+                    .last()
+                    .ranking
+                    .iter()
+                    .find(|c| &c.effect == effect)
+                    .map_or_else(
+                        || "not available on this log".to_string(),
+                        |c| c.explanation.rsplit("; ").next().unwrap_or("").to_string(),
+                    );
+                notes.push(format!("misses `{effect}` (alone: {why})"));
+            }
+        }
+        for (family, effect) in &own {
+            if !joint_families.contains_key(family) {
+                notes.push(format!(
+                    "adds `{effect}`, which the joint fit of all logs does not need"
+                ));
+            }
+        }
+        verdicts.push(LogVerdict {
+            log: name,
+            samples: d.first().samples,
+            added: d.added.clone(),
+            agrees: notes.is_empty(),
+            note: notes.join("; "),
+        });
+    }
+    report.logs = verdicts;
+    Ok(report)
 }
 
 fn fmt_fit(f: Option<f64>) -> String {
@@ -364,6 +473,7 @@ pub fn staircase_table(r: &Report) -> String {
                 .coefficients
                 .iter()
                 .filter(|c| !c.name.starts_with("start_"))
+                .chain(&step.derived)
                 .map(|c| match c.confidence_interval {
                     Some([lo, hi]) => {
                         format!(
@@ -423,6 +533,34 @@ pub fn report_table(r: &Report) -> String {
     }
     s.push('\n');
     s.push_str(&staircase_table(r));
+    if !r.logs.is_empty() {
+        s.push_str(&format!(
+            "\n=== each log alone (joint staircase: {}) ===\n",
+            if r.final_model.added.is_empty() {
+                "nothing added".to_string()
+            } else {
+                r.final_model.added.join(" → ")
+            }
+        ));
+        for l in &r.logs {
+            let found = if l.added.is_empty() {
+                "nothing added".to_string()
+            } else {
+                l.added.join(" → ")
+            };
+            if l.agrees {
+                s.push_str(&format!(
+                    "  {} ({} samples): {found}; agrees\n",
+                    l.log, l.samples
+                ));
+            } else {
+                s.push_str(&format!(
+                    "  {} ({} samples): {found}; DISAGREES: {}\n",
+                    l.log, l.samples, l.note
+                ));
+            }
+        }
+    }
     if let Some(f) = &r.final_diagnosis {
         s.push_str(&format!("\n=== what remains ({}) ===\n", f.model));
         s.push_str(&remains(f));

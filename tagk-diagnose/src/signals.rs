@@ -4,7 +4,7 @@ use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::GRAVITY_WORLD;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
-use crate::error::LogError;
+use crate::error::{DiagnoseError, LogError};
 use crate::log::FlightLog;
 
 /// Names of the six wrench channels: body-frame force, then torque about the body origin.
@@ -47,6 +47,65 @@ pub struct Signals {
     pub derived_omega_dot: bool,
     /// The source log (for custom effects and extra columns).
     pub log: FlightLog,
+    /// The rotor mixer identified from the log, computed on first use.
+    rotor_mixer: std::sync::OnceLock<Option<RotorMixer>>,
+    /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
+    /// log). Effects with a time history (lags, delays, start transients) are computed per
+    /// log and never across the joins.
+    parts: Vec<Signals>,
+}
+
+/// The rotor mixer of a log whose wrench was computed from its rotor speeds, identified by
+/// least squares: `[fz, tx, ty, tz]ᵀ = M [ω₁², …, ω₄²]ᵀ`, and the hub positions it implies
+/// (hubs in the body x-y plane: `M` has rows `k_f`, `k_f y_i`, `−k_f x_i`, `±k_m`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RotorMixer {
+    /// `M` (4 channels × 4 rotors), row-major.
+    pub matrix: [[f64; 4]; 4],
+    /// Hub positions `(x_i, y_i)` \[m\], body frame.
+    pub hubs: [[f64; 2]; 4],
+}
+
+impl RotorMixer {
+    /// `M ω²` for the squared rotor speeds `sq` \[rad²/s²\]: `[fz, tx, ty, tz]`.
+    pub fn apply(&self, sq: &[f64; 4]) -> [f64; 4] {
+        std::array::from_fn(|r| (0..4).map(|i| self.matrix[r][i] * sq[i]).sum())
+    }
+}
+
+/// Identifies the mixer from the log: least squares of `[fz, tx, ty, tz]` on the squared rotor
+/// speeds. It must reproduce the logged wrench to 1e-3 relative on at least 90 % of the
+/// samples (saturated samples may disagree), and every rotor must thrust upwards; otherwise
+/// `None` (the wrench was not computed from these speeds by a mixer).
+fn identify_mixer(w: &[[f64; 4]], wrench: &[[f64; 6]]) -> Option<RotorMixer> {
+    use nalgebra::{Matrix4, Vector4};
+    let sq: Vec<[f64; 4]> = w.iter().map(|x| x.map(|v| v * v)).collect();
+    let mut g = Matrix4::<f64>::zeros();
+    let mut rhs = Matrix4::<f64>::zeros();
+    for (x, b) in sq.iter().zip(wrench) {
+        let xv = Vector4::from(*x);
+        let bv = Vector4::new(b[2], b[3], b[4], b[5]);
+        g += xv * xv.transpose();
+        rhs += xv * bv.transpose();
+    }
+    let mt = g.cholesky()?.solve(&rhs); // (4 rotors × 4 channels) = Mᵀ
+    let mut good = 0usize;
+    for (x, b) in sq.iter().zip(wrench) {
+        let pred = mt.transpose() * Vector4::from(*x);
+        let bv = Vector4::new(b[2], b[3], b[4], b[5]);
+        if (pred - bv).norm() <= 1e-3 * bv.norm() {
+            good += 1;
+        }
+    }
+    if good * 10 < w.len() * 9 {
+        return None;
+    }
+    let matrix: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|i| mt[(i, r)]));
+    if matrix[0].iter().any(|k| !(*k > 0.0)) {
+        return None;
+    }
+    let hubs = std::array::from_fn(|i| [-matrix[2][i] / matrix[0][i], matrix[1][i] / matrix[0][i]]);
+    Some(RotorMixer { matrix, hubs })
 }
 
 impl Signals {
@@ -81,6 +140,8 @@ impl Signals {
             derived_accel,
             derived_omega_dot,
             log: log.clone(),
+            rotor_mixer: std::sync::OnceLock::new(),
+            parts: Vec::new(),
         };
         let vs: Vec<Vec<f64>> = (0..3)
             .map(|k| {
@@ -104,6 +165,103 @@ impl Signals {
         Ok(s)
     }
 
+    /// Several logs of one vehicle as one data set (one θ, one set of effect coefficients;
+    /// per-log start transients). Times are shifted so that each log starts one sampling
+    /// period after the previous one ends (the series stay monotonic); every per-sample signal
+    /// is concatenated; rotor speeds, accelerations and extra columns are kept only when every
+    /// log has them. A single log is returned as it is.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::InvalidOption`] (field `logs`) for no logs or an empty one.
+    pub fn concat(parts: Vec<Signals>) -> Result<Signals, DiagnoseError> {
+        if parts.len() == 1 {
+            let mut parts = parts;
+            return Ok(parts.remove(0));
+        }
+        if let Some(k) = parts.iter().position(|p| p.is_empty()) {
+            return Err(DiagnoseError::InvalidOption {
+                field: "logs",
+                reason: format!("log {} of {} has no samples", k + 1, parts.len()),
+            });
+        }
+        if parts.is_empty() {
+            return Err(DiagnoseError::InvalidOption {
+                field: "logs",
+                reason: "no log to join".into(),
+            });
+        }
+        let mut log = FlightLog::new();
+        let all_rotor = parts.iter().all(|p| p.rotor_speeds.is_some());
+        let all_accel = parts.iter().all(|p| p.log.accel.is_some());
+        let all_omega_dot = parts.iter().all(|p| p.log.omega_dot.is_some());
+        let mut t_end = f64::NEG_INFINITY;
+        let mut t = Vec::new();
+        for p in &parts {
+            let offset = if t_end.is_finite() {
+                t_end + p.mean_dt().max(1e-6) - p.t[0]
+            } else {
+                0.0
+            };
+            for (i, sample) in p.log.samples().enumerate() {
+                let mut sample = sample;
+                sample.t = p.t[i] + offset;
+                if !all_rotor {
+                    sample.rotor_speeds = None;
+                }
+                if !all_accel {
+                    sample.accel = None;
+                }
+                if !all_omega_dot {
+                    sample.omega_dot = None;
+                }
+                log.push(&sample);
+                t.push(sample.t);
+            }
+            t_end = *t.last().unwrap_or(&0.0);
+        }
+        for (name, _) in &parts[0].log.extra {
+            let columns: Option<Vec<Vec<f64>>> = parts.iter().map(|p| p.log.signal(name)).collect();
+            if let Some(columns) = columns {
+                log.add_extra(name, columns.concat());
+            }
+        }
+        let cat3 = |f: fn(&Signals) -> &Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
+            parts.iter().flat_map(|p| f(p).iter().copied()).collect()
+        };
+        Ok(Signals {
+            t,
+            rotation: parts
+                .iter()
+                .flat_map(|p| p.rotation.iter().copied())
+                .collect(),
+            position: cat3(|p| &p.position),
+            velocity_body: cat3(|p| &p.velocity_body),
+            accel_proper: cat3(|p| &p.accel_proper),
+            omega: cat3(|p| &p.omega),
+            omega_dot: cat3(|p| &p.omega_dot),
+            wrench: parts
+                .iter()
+                .flat_map(|p| p.wrench.iter().copied())
+                .collect(),
+            rotor_speeds: all_rotor.then(|| {
+                parts
+                    .iter()
+                    .flat_map(|p| p.rotor_speeds.iter().flatten().copied())
+                    .collect()
+            }),
+            derived_accel: parts.iter().any(|p| p.derived_accel),
+            derived_omega_dot: parts.iter().any(|p| p.derived_omega_dot),
+            log,
+            rotor_mixer: std::sync::OnceLock::new(),
+            parts,
+        })
+    }
+
+    /// The logs joined by [`Signals::concat`] (empty for a single log).
+    pub fn parts(&self) -> &[Signals] {
+        &self.parts
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.t.len()
@@ -121,6 +279,18 @@ impl Signals {
             return 0.0;
         }
         (self.t[n - 1] - self.t[0]) / (n - 1) as f64
+    }
+
+    /// The rotor mixer identified from the log (`None` without rotor speeds, or when the
+    /// logged wrench is not a mixer of their squares), computed once.
+    pub fn rotor_mixer(&self) -> Option<&RotorMixer> {
+        self.rotor_mixer
+            .get_or_init(|| {
+                self.rotor_speeds
+                    .as_ref()
+                    .and_then(|w| identify_mixer(w, &self.wrench))
+            })
+            .as_ref()
     }
 
     /// One measured wrench channel as a series.

@@ -92,6 +92,29 @@ impl EffectKind {
         }
     }
 
+    /// The physical family the effect belongs to: the three drag laws (`linear-drag`,
+    /// `quadratic-drag`, `rotor-drag`) are one family, `drag`, since a log near hover cannot
+    /// tell them apart; every other effect is a family of its own, named like it. (A `wind`
+    /// fit includes a drag: [`EffectKind::includes_drag`].)
+    pub const fn family(self) -> &'static str {
+        match self {
+            EffectKind::LinearDrag | EffectKind::QuadraticDrag | EffectKind::RotorDrag => "drag",
+            other => other.name(),
+        }
+    }
+
+    /// `true` for effects whose model contains a drag (the drag family, and `wind`: drag on
+    /// the air-relative velocity).
+    pub const fn includes_drag(self) -> bool {
+        matches!(
+            self,
+            EffectKind::LinearDrag
+                | EffectKind::QuadraticDrag
+                | EffectKind::RotorDrag
+                | EffectKind::Wind
+        )
+    }
+
     /// The effect with this canonical name or alias (ASCII case-insensitive, `_` read as `-`).
     pub fn from_name(name: &str) -> Option<EffectKind> {
         let wanted = name.trim();

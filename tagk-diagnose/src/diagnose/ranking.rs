@@ -325,7 +325,7 @@ fn score_candidate(
         .iter()
         .map(|d| (d * sigma2 * kappa).sqrt())
         .collect();
-    let ecols = e.columns(s, param);
+    let ecols = crate::effects::effect_columns(e, s, param);
     let coefficients: Vec<Coefficient> = ecols
         .iter()
         .enumerate()

@@ -53,6 +53,8 @@ pub struct Step {
     pub gain_over_floor: f64,
     /// The added effect's fitted coefficients in this step's model, with 95 % intervals.
     pub coefficients: Vec<Coefficient>,
+    /// Quantities derived from the added effect's coefficients (e.g. the wind velocity).
+    pub derived: Vec<Coefficient>,
     /// The added effect's scanned parameter `(name, value, unit)`, if any.
     pub scanned: Option<(String, f64, String)>,
 }
@@ -194,6 +196,7 @@ fn step_of(
         channels,
         gain_over_floor: 0.0,
         coefficients: fitted.map_or_else(Vec::new, |f| f.coefficients.clone()),
+        derived: fitted.map_or_else(Vec::new, |f| f.derived.clone()),
         scanned: fitted.and_then(|f| f.scanned.clone()),
     }
 }

@@ -61,34 +61,12 @@ pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
 }
 
 /// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
-/// through the squares: the mixer `[fz, tx, ty, tz]ᵀ = M [ω₁², …, ω₄²]ᵀ` is identified from the
-/// log itself (least squares; it must reproduce the logged wrench to 1e-3 relative on at least
-/// 90 % of the samples — saturated samples may disagree — otherwise
-/// `None` and the lag is applied to the wrench directly), and the delivered wrench is
+/// through the squares: with the mixer identified from the log ([`Signals::rotor_mixer`];
+/// without one the lag is applied to the wrench directly, `None`), the delivered wrench is
 /// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` per sample.
 fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
     let w = s.rotor_speeds.as_ref()?;
-    let sq: Vec<[f64; 4]> = w.iter().map(|x| x.map(|v| v * v)).collect();
-    let mut g = nalgebra::Matrix4::<f64>::zeros();
-    let mut rhs = nalgebra::Matrix4::<f64>::zeros();
-    for (x, b) in sq.iter().zip(&s.wrench) {
-        let xv = nalgebra::Vector4::from(*x);
-        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
-        g += xv * xv.transpose();
-        rhs += xv * bv.transpose();
-    }
-    let mt = g.cholesky()?.solve(&rhs); // (4 rotors × 4 channels) = Mᵀ
-    let mut good = 0usize;
-    for (x, b) in sq.iter().zip(&s.wrench) {
-        let pred = mt.transpose() * nalgebra::Vector4::from(*x);
-        let bv = nalgebra::Vector4::new(b[2], b[3], b[4], b[5]);
-        if (pred - bv).norm() <= 1e-3 * bv.norm() {
-            good += 1;
-        }
-    }
-    if good * 10 < s.len() * 9 {
-        return None;
-    }
+    let mixer = s.rotor_mixer()?;
     // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
     // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
     let n = s.len();
@@ -130,8 +108,8 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
     Some(
         (0..n)
             .map(|i| {
-                let ym = mt.transpose() * nalgebra::Vector4::from(mid[i]);
-                let ya = mt.transpose() * nalgebra::Vector4::from(mean[i]);
+                let ym = mixer.apply(&mid[i]);
+                let ya = mixer.apply(&mean[i]);
                 [ym[0], ya[1], ya[2], ya[3]]
             })
             .collect(),

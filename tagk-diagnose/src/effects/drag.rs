@@ -85,8 +85,13 @@ impl Effect for QuadraticDrag {
     }
 }
 
-/// Rotor (blade-flapping / induced) drag: `f_ext,k = −k_k (Σ |ωᵢ|) v_b,k` per body axis;
-/// needs rotor speeds.
+/// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with
+/// `K = diag(k_x, k_y, k_z)` and `v_hub,i = v_b + Ω × r_i` the hub's body-frame velocity, and
+/// the moment `r_i × H_i` about the origin (a yaw torque from differential rotor speeds times
+/// the horizontal velocity, roll/pitch torques from the vertical one). The hub positions
+/// `r_i` (in the body x-y plane) come from the mixer identified from the log
+/// ([`Signals::rotor_mixer`]); without one, the force `−K (Σ|ω_i|) v_b` alone. Needs rotor
+/// speeds.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RotorDrag;
 
@@ -95,10 +100,10 @@ impl Effect for RotorDrag {
         EffectKind::RotorDrag.name()
     }
     fn description(&self) -> &str {
-        "rotor drag proportional to the summed rotor speed times the body-frame velocity"
+        "rotor drag at each hub, -K |w_i| v_hub, with its moments about the origin"
     }
     fn channels(&self) -> Vec<Channel> {
-        vec![0, 1, 2]
+        (0..6).collect()
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
         if s.rotor_speeds.is_some() {
@@ -111,20 +116,66 @@ impl Effect for RotorDrag {
         let Some(w) = &s.rotor_speeds else {
             return Vec::new();
         };
+        let hubs = s.rotor_mixer().map(|m| m.hubs);
+        let n = s.len();
+        // data[axis][channel]: the external wrench per unit k_axis.
+        let mut data: Vec<[Option<Vec<f64>>; 6]> = (0..3)
+            .map(|axis| {
+                let mut d: [Option<Vec<f64>>; 6] = Default::default();
+                d[axis] = Some(vec![0.0; n]);
+                if hubs.is_some() {
+                    let torques: &[usize] = match axis {
+                        0 | 1 => &[5],
+                        _ => &[3, 4],
+                    };
+                    for &c in torques {
+                        d[c] = Some(vec![0.0; n]);
+                    }
+                }
+                d
+            })
+            .collect();
+        let mut put = |axis: usize, c: usize, i: usize, x: f64| {
+            if let Some(v) = data[axis][c].as_mut() {
+                v[i] += x;
+            }
+        };
+        for i in 0..n {
+            let v = s.velocity_body[i];
+            match hubs {
+                None => {
+                    let sum: f64 = w[i].iter().map(|x| x.abs()).sum();
+                    for axis in 0..3 {
+                        put(axis, axis, i, -v[axis] * sum);
+                    }
+                }
+                Some(h) => {
+                    let om = s.omega[i];
+                    for (r, hub) in h.iter().enumerate() {
+                        let (x, y) = (hub[0], hub[1]);
+                        let p = nalgebra::Vector3::new(x, y, 0.0);
+                        let vh = v + om.cross(&p);
+                        let wr = w[i][r].abs();
+                        // H = −K |ω| v_hub; moment r × H with r = (x, y, 0).
+                        let (hx, hy, hz) = (-wr * vh.x, -wr * vh.y, -wr * vh.z);
+                        put(0, 0, i, hx);
+                        put(0, 5, i, -y * hx);
+                        put(1, 1, i, hy);
+                        put(1, 5, i, x * hy);
+                        put(2, 2, i, hz);
+                        put(2, 3, i, y * hz);
+                        put(2, 4, i, -x * hz);
+                    }
+                }
+            }
+        }
         ["k_x", "k_y", "k_z"]
             .iter()
-            .enumerate()
-            .map(|(k, n)| {
-                EffectColumn::on(
-                    n,
-                    "N s²/(m rad)",
-                    k,
-                    s.velocity_body
-                        .iter()
-                        .zip(w)
-                        .map(|(v, w)| -v[k] * w.iter().map(|x| x.abs()).sum::<f64>())
-                        .collect(),
-                )
+            .zip(data)
+            .map(|(name, data)| EffectColumn {
+                name: name.to_string(),
+                unit: "N s²/(m rad)".into(),
+                data,
             })
             .collect()
     }

@@ -1,11 +1,12 @@
-//! External forces not produced by the rotors: a constant body-frame bias and a constant
-//! world-frame force (steady wind).
+//! External forces not produced by the rotors: a constant body-frame bias and a steady wind
+//! (drag on the air-relative velocity).
 
 use nalgebra::Vector3;
 
 use tagk_dynamics::EffectKind;
 
-use crate::effects::{Effect, EffectColumn, Plausibility};
+use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
+use crate::fit::Coefficient;
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// Constant body-frame force and torque bias (e.g. a miscalibrated motor or a tether).
@@ -43,43 +44,111 @@ impl Effect for BodyBias {
     }
 }
 
-/// Constant world-frame force (steady wind): body-frame columns `Rᵀ e_x, Rᵀ e_y, Rᵀ e_z`.
+/// Largest plausible wind speed \[m/s\] (a strong breeze; flying a small multirotor in more
+/// is not a diagnosis question).
+pub const MAX_WIND_SPEED: f64 = 15.0;
+
+/// Steady wind: linear drag on the air-relative velocity, `f_b = −D Rᵀ (v − v_w)` with
+/// `D = diag(d_x, d_y, d_z)` \[N s/m\] and `v_w` the wind, world frame \[m/s\]. Fitted together
+/// as the drag columns `−v_b` and the world-frame force `F_w = D v_w` (body-frame columns
+/// `Rᵀ e_x, Rᵀ e_y, Rᵀ e_z`; exact for `d_x = d_y` and level flight, the usual case); the
+/// wind velocity `v_w ≈ F_w / d` with `d` the mean horizontal drag is reported as a derived
+/// quantity.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Wind;
+
+/// Names of the wind's columns: the drag, then the world-frame force.
+const WIND_COLUMNS: [(&str, &str); 6] = [
+    ("d_x", "N s/m"),
+    ("d_y", "N s/m"),
+    ("d_z", "N s/m"),
+    ("F_wx", "N"),
+    ("F_wy", "N"),
+    ("F_wz", "N"),
+];
 
 impl Effect for Wind {
     fn name(&self) -> &str {
         EffectKind::Wind.name()
     }
     fn description(&self) -> &str {
-        "constant force fixed in the world frame (steady wind), seen rotating in the body frame"
+        "steady wind: linear drag on the air-relative velocity (drag and wind force fitted together)"
     }
     fn channels(&self) -> Vec<Channel> {
         vec![0, 1, 2]
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
-        ["F_wx", "F_wy", "F_wz"]
+        let mut cols: Vec<EffectColumn> = (0..3)
+            .map(|k| {
+                EffectColumn::on(
+                    WIND_COLUMNS[k].0,
+                    WIND_COLUMNS[k].1,
+                    k,
+                    s.velocity_body.iter().map(|v| -v[k]).collect(),
+                )
+            })
+            .collect();
+        for j in 0..3 {
+            let mut e = Vector3::zeros();
+            e[j] = 1.0;
+            let body: Vec<Vector3<f64>> = s.rotation.iter().map(|r| r.transpose() * e).collect();
+            let mut data: [Option<Vec<f64>>; 6] = Default::default();
+            for (c, d) in data.iter_mut().enumerate().take(3) {
+                *d = Some(body.iter().map(|v| v[c]).collect());
+            }
+            cols.push(EffectColumn {
+                name: WIND_COLUMNS[3 + j].0.to_string(),
+                unit: WIND_COLUMNS[3 + j].1.into(),
+                data,
+            });
+        }
+        cols
+    }
+    fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
+        let drag = nonneg(&["d_x", "d_y", "d_z"], coef, se, "drag coefficient");
+        if !drag.plausible {
+            return drag;
+        }
+        // A wind whose force is within its noise is a plain drag: leave it to the drag effects.
+        let horizontal = [3, 4];
+        if horizontal
+            .iter()
+            .all(|&j| coef[j].abs() <= 3.0 * se[j].max(f64::MIN_POSITIVE))
+        {
+            return Plausibility::broken(
+                "no-wind",
+                "the fitted wind force is within 3 standard errors of zero: a drag without wind explains this",
+            );
+        }
+        let d = 0.5 * (coef[0] + coef[1]);
+        let force = (coef[3] * coef[3] + coef[4] * coef[4]).sqrt();
+        if d > 0.0 && force / d > MAX_WIND_SPEED {
+            return Plausibility::broken(
+                "wind-speed",
+                format!(
+                    "implied wind {:.1} m/s (|F_w| / d) beyond {MAX_WIND_SPEED} m/s",
+                    force / d
+                ),
+            );
+        }
+        Plausibility::ok()
+    }
+    fn derived(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Vec<Coefficient> {
+        let d = 0.5 * (coef[0] + coef[1]);
+        if !(d > 0.0) {
+            return Vec::new();
+        }
+        ["v_wx", "v_wy"]
             .iter()
             .enumerate()
-            .map(|(j, n)| {
-                let mut e = Vector3::zeros();
-                e[j] = 1.0;
-                let body: Vec<Vector3<f64>> =
-                    s.rotation.iter().map(|r| r.transpose() * e).collect();
-                let mut data: [Option<Vec<f64>>; 6] = Default::default();
-                for (c, d) in data.iter_mut().enumerate().take(3) {
-                    *d = Some(body.iter().map(|v| v[c]).collect());
-                }
-                EffectColumn {
-                    name: n.to_string(),
-                    unit: "N".into(),
-                    data,
-                }
+            .map(|(j, name)| {
+                // Delta method on F / d (independent errors).
+                let v = coef[3 + j] / d;
+                let sd = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
+                let e = ((se[3 + j] / d).powi(2) + (v * sd / d).powi(2)).sqrt();
+                Coefficient::new(name, "m/s", v, e.is_finite().then_some(e))
             })
             .collect()
-    }
-    fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
-        Plausibility::ok()
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         (

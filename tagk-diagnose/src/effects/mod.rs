@@ -26,6 +26,7 @@ use std::sync::Arc;
 use tagk_dynamics::EffectKind;
 
 use crate::error::DiagnoseError;
+use crate::fit::Coefficient;
 use crate::signals::{Channel, Signals};
 
 /// One column of an effect: the external wrench per unit coefficient on each channel it
@@ -132,6 +133,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
     /// column of [`Effect::columns`], in that order).
     fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
+    /// Physical quantities derived from fitted coefficients `coef` with standard errors `se`
+    /// (e.g. the wind velocity from the wind force and the drag), with their standard errors.
+    /// Default: none.
+    fn derived(&self, _coef: &[f64], _se: &[f64], _param: Option<f64>) -> Vec<Coefficient> {
+        Vec::new()
+    }
     /// A scalar signal the effect is driven by (for regime plots), with its name and unit.
     fn driver(&self, signals: &Signals) -> (String, Vec<f64>);
 }
@@ -292,6 +299,69 @@ pub fn builtin_by_name(name: &str) -> Result<EffectRef, DiagnoseError> {
     builtin(kind)
 }
 
+/// The columns of an effect on a log, computed per joined log ([`Signals::concat`]) so that no
+/// time history (a lag, a delay, a derivative) runs across a join. Columns named `start_…`
+/// (start-of-log transients) become one column per log (`start_fz@2` for the second log):
+/// per-log nuisance; all other columns are shared. For a single log, [`Effect::columns`].
+pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> Vec<EffectColumn> {
+    let parts = s.parts();
+    if parts.is_empty() {
+        return effect.columns(s, param);
+    }
+    let per_part: Vec<Vec<EffectColumn>> = parts.iter().map(|p| effect.columns(p, param)).collect();
+    let count = per_part[0].len();
+    if per_part.iter().any(|cols| cols.len() != count) {
+        // Inconsistent structure across logs: an empty set makes the effect unavailable.
+        return Vec::new();
+    }
+    let lengths: Vec<usize> = parts.iter().map(Signals::len).collect();
+    let n: usize = lengths.iter().sum();
+    let mut out = Vec::new();
+    for j in 0..count {
+        let first = &per_part[0][j];
+        if first.name.starts_with("start_") {
+            let mut offset = 0;
+            for (k, cols) in per_part.iter().enumerate() {
+                let mut data: [Option<Vec<f64>>; 6] = Default::default();
+                for c in 0..6 {
+                    if let Some(v) = &cols[j].data[c] {
+                        let mut full = vec![0.0; n];
+                        full[offset..offset + v.len().min(lengths[k])]
+                            .copy_from_slice(&v[..v.len().min(lengths[k])]);
+                        data[c] = Some(full);
+                    }
+                }
+                out.push(EffectColumn {
+                    name: format!("{}@{}", first.name, k + 1),
+                    unit: first.unit.clone(),
+                    data,
+                });
+                offset += lengths[k];
+            }
+            continue;
+        }
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        for c in 0..6 {
+            if per_part.iter().any(|cols| cols[j].data[c].is_some()) {
+                let mut full = Vec::with_capacity(n);
+                for (k, cols) in per_part.iter().enumerate() {
+                    match &cols[j].data[c] {
+                        Some(v) if v.len() == lengths[k] => full.extend_from_slice(v),
+                        _ => full.extend(std::iter::repeat_n(0.0, lengths[k])),
+                    }
+                }
+                data[c] = Some(full);
+            }
+        }
+        out.push(EffectColumn {
+            name: first.name.clone(),
+            unit: first.unit.clone(),
+            data,
+        });
+    }
+    out
+}
+
 /// What is wrong with an effect's scan specification (an empty grid or a non-finite value),
 /// or `None` when it has no scan or a usable one.
 pub(crate) fn scan_problem(effect: &dyn Effect) -> Option<String> {
@@ -321,7 +391,7 @@ pub(crate) fn usable(effect: &dyn Effect, s: &Signals) -> Result<(), String> {
     let param = effect
         .scan()
         .and_then(|spec| spec.grid.get(spec.grid.len() / 2).copied());
-    let columns = effect.columns(s, param);
+    let columns = effect_columns(effect, s, param);
     if columns.is_empty() {
         return Err("it has no regressor column on this log".into());
     }

@@ -78,8 +78,7 @@ pub(crate) fn add_known_mass(model: &Model, s: &Signals, pred: &mut [[f64; 6]]) 
 
 /// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped).
 pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> Vec<ColData> {
-    effect
-        .columns(s, p)
+    crate::effects::effect_columns(effect, s, p)
         .into_iter()
         .map(|c| {
             c.data

@@ -75,6 +75,9 @@ pub struct FittedEffect {
     pub scanned: Option<(String, f64, String)>,
     /// Coefficients.
     pub coefficients: Vec<Coefficient>,
+    /// Quantities derived from the coefficients (e.g. the wind velocity), with standard
+    /// errors and 95 % intervals.
+    pub derived: Vec<Coefficient>,
     /// Physical plausibility verdict.
     pub plausible: bool,
     /// Plausibility note.
@@ -324,7 +327,7 @@ fn fitted_effects(
     let mut effects = Vec::new();
     let mut j = nr;
     for (k, e) in model.effects().iter().enumerate() {
-        let ecols = e.columns(s, params[k]);
+        let ecols = crate::effects::effect_columns(e.as_ref(), s, params[k]);
         let q = ecols.len();
         let coef: Vec<f64> = sol.beta[j..j + q].to_vec();
         let se: Vec<f64> = sol.se[j..j + q]
@@ -343,6 +346,7 @@ fn fitted_effects(
                 .enumerate()
                 .map(|(i, c)| Coefficient::new(&c.name, &c.unit, coef[i], sol.se[j + i]))
                 .collect(),
+            derived: e.derived(&coef, &se, params[k]),
             plausible: pl.plausible,
             plausibility_note: pl.note,
         });
