@@ -393,6 +393,108 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     }
 }
 
+/// Channel colours of the staircase plot (fx … tz).
+const CHANNEL_COLORS: [&str; 6] = ["#c22", "#2a7", "#36c", "#d60", "#839", "#555"];
+
+/// The stepwise search: the staircase table (held-out RMS per channel and step, the floor),
+/// why it stopped, the command that reproduces the final model, each log's own verdict, and a
+/// plot of each channel's held-out RMS over the floor step by step.
+fn section_staircase(html: &mut String, report: &Report) {
+    html.push_str("<h2 id=\"staircase\">Stepwise: held-out residual RMS per channel (blocked CV), down to the noise floor</h2>");
+    html.push_str("<table id=\"steps\"><tr><th>step</th>");
+    for c in 0..6 {
+        let _ = write!(html, "<th>{} [{}]</th>", CHANNEL_NAMES[c], CHANNEL_UNITS[c]);
+    }
+    html.push_str("</tr>");
+    for (k, step) in report.steps.iter().enumerate() {
+        let label = match &step.effect {
+            None => format!("{k}. {}", step.model),
+            Some(e) => format!("{k}. + {e}"),
+        };
+        let _ = write!(html, "<tr><td>{}</td>", escape(&label));
+        for ch in &step.channels {
+            if step.effect.is_some() {
+                let _ = write!(
+                    html,
+                    "<td>{:.3e} ({:+.0} %)</td>",
+                    ch.held_out_rms,
+                    100.0 * ch.change
+                );
+            } else {
+                let _ = write!(html, "<td>{:.3e}</td>", ch.held_out_rms);
+            }
+        }
+        html.push_str("</tr>");
+    }
+    html.push_str("<tr><td>noise floor</td>");
+    for f in report.noise_floor.rms {
+        let _ = write!(html, "<td>{f:.3e}</td>");
+    }
+    html.push_str("</tr><tr><td>HF noise estimate</td>");
+    for f in report.noise_floor.noise_estimate {
+        let _ = write!(html, "<td>{f:.3e}</td>");
+    }
+    html.push_str("</tr></table>");
+    let _ = write!(
+        html,
+        "<p id=\"stopped\">stopped: {}</p><p>final model: <b>{}</b></p>",
+        escape(&report.stopped),
+        escape(&report.final_model.label)
+    );
+    if let Some(cmd) = &report.final_model.command {
+        let _ = write!(
+            html,
+            "<p>reproduce it: <code id=\"command\">{}</code></p>",
+            escape(cmd)
+        );
+    }
+    if report.steps.len() > 1 {
+        let x: Vec<f64> = (0..report.steps.len()).map(|k| k as f64).collect();
+        let ratios: Vec<Vec<f64>> = (0..6)
+            .map(|c| {
+                report
+                    .steps
+                    .iter()
+                    .map(|s| s.channels[c].ratio_to_floor.max(1e-3).log10())
+                    .collect()
+            })
+            .collect();
+        let series: Vec<LineSeries<'_>> = (0..6)
+            .map(|c| LineSeries {
+                label: CHANNEL_NAMES[c],
+                color: CHANNEL_COLORS[c],
+                x: &x,
+                y: &ratios[c],
+            })
+            .collect();
+        html.push_str(&line_plot(
+            "log10(held-out RMS / noise floor) per step (0 = at the floor)",
+            "step",
+            &series,
+            &[],
+        ));
+    }
+    if !report.logs.is_empty() {
+        html.push_str("<h3>Each log alone</h3><table id=\"logs\"><tr><th>log</th><th>samples</th><th>its own staircase</th><th>verdict</th></tr>");
+        for l in &report.logs {
+            let _ = write!(
+                html,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td></tr>",
+                escape(&l.log),
+                l.samples,
+                escape(&l.added.join(" → ")),
+                if l.agrees { "" } else { "warn" },
+                if l.agrees {
+                    "agrees".to_string()
+                } else {
+                    escape(&format!("disagrees: {}", l.note))
+                }
+            );
+        }
+        html.push_str("</table>");
+    }
+}
+
 /// The report as one HTML document.
 pub fn render(report: &Report) -> String {
     let mut html = String::from(
@@ -408,6 +510,7 @@ pub fn render(report: &Report) -> String {
                 .unwrap_or("none — model adequate")
         )
     );
+    section_staircase(&mut html, report);
     if let (Some(after), Some(change)) = (&report.after, &report.change) {
         let _ = write!(
             html,
@@ -462,6 +565,13 @@ pub fn render(report: &Report) -> String {
     );
     if let Some(after) = &report.after {
         section_diagnosis(&mut html, &format!("Model: {}", after.model), after);
+    }
+    if let Some(f) = &report.final_diagnosis {
+        section_diagnosis(
+            &mut html,
+            &format!("What remains: final model {}", f.model),
+            f,
+        );
     }
     if let Some(o) = &report.online {
         let t: Vec<f64> = (0..o.mass_history.len()).map(|k| k as f64).collect();

@@ -39,6 +39,15 @@ pub struct Signals {
     pub omega_dot: Vec<Vector3<f64>>,
     /// Measured actuator wrench `[fx, fy, fz, tx, ty, tz]`.
     pub wrench: Vec<[f64; 6]>,
+    /// The measured wrench as the fit compares it with the model: [`Signals::wrench`], except
+    /// on the channels whose accelerations were derived ([`Signals::smoothed`]), where it is
+    /// smoothed by the Savitzky–Golay filter that pairs with the differentiator (same
+    /// half-width), so that both sides of the regression carry the same smoothing. Every
+    /// effect column is smoothed alike ([`Signals::smooth_channels`]).
+    pub target: Vec<[f64; 6]>,
+    /// Channels carrying the differentiator's smoothing: the forces when the accelerations
+    /// were derived, the torques when the angular accelerations were.
+    pub smoothed: [bool; 6],
     /// Rotor speeds \[rad/s\], if logged.
     pub rotor_speeds: Option<Vec<[f64; 4]>>,
     /// `true` if the accelerations were derived (Savitzky–Golay) rather than logged.
@@ -136,6 +145,15 @@ impl Signals {
             omega: Vec::with_capacity(n),
             omega_dot: Vec::with_capacity(n),
             wrench: log.wrench.clone(),
+            target: Vec::new(),
+            smoothed: [
+                derived_accel,
+                derived_accel,
+                derived_accel,
+                derived_omega_dot,
+                derived_omega_dot,
+                derived_omega_dot,
+            ],
             rotor_speeds: log.rotor_speeds.clone(),
             derived_accel,
             derived_omega_dot,
@@ -162,7 +180,48 @@ impl Signals {
             s.omega.push(Vector3::from(log.omega[i]));
             s.omega_dot.push(Vector3::from(omega_dot[i]));
         }
+        s.target = s.wrench.clone();
+        let mut target = s.wrench.clone();
+        let mut data: [Option<Vec<f64>>; 6] =
+            std::array::from_fn(|c| Some(s.wrench.iter().map(|b| b[c]).collect()));
+        s.smooth_channels(&mut data);
+        for (c, d) in data.iter().enumerate() {
+            if let Some(v) = d {
+                for (t, x) in target.iter_mut().zip(v) {
+                    t[c] = *x;
+                }
+            }
+        }
+        s.target = target;
         Ok(s)
+    }
+
+    /// Applies the differentiator's smoothing (Savitzky–Golay, the half-width of the
+    /// acceleration derivative) to the channels of `data` that carry it
+    /// ([`Signals::smoothed`]), per joined log.
+    pub fn smooth_channels(&self, data: &mut [Option<Vec<f64>>; 6]) {
+        for (c, d) in data.iter_mut().enumerate() {
+            if !self.smoothed[c] {
+                continue;
+            }
+            let Some(v) = d else { continue };
+            if self.parts.is_empty() {
+                *v = crate::deriv::savitzky_golay_smooth(&self.t, v, DEFAULT_HALF_WIDTH);
+            } else {
+                let mut out = Vec::with_capacity(v.len());
+                let mut offset = 0;
+                for p in &self.parts {
+                    let n = p.len();
+                    out.extend(crate::deriv::savitzky_golay_smooth(
+                        &p.t,
+                        &v[offset..offset + n],
+                        DEFAULT_HALF_WIDTH,
+                    ));
+                    offset += n;
+                }
+                *v = out;
+            }
+        }
     }
 
     /// Several logs of one vehicle as one data set (one θ, one set of effect coefficients;
@@ -239,6 +298,11 @@ impl Signals {
             accel_proper: cat3(|p| &p.accel_proper),
             omega: cat3(|p| &p.omega),
             omega_dot: cat3(|p| &p.omega_dot),
+            target: parts
+                .iter()
+                .flat_map(|p| p.target.iter().copied())
+                .collect(),
+            smoothed: std::array::from_fn(|c| parts.iter().any(|p| p.smoothed[c])),
             wrench: parts
                 .iter()
                 .flat_map(|p| p.wrench.iter().copied())

@@ -49,10 +49,10 @@ pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
 pub(crate) fn rigid_design(model: &Model, s: &Signals) -> (Vec<ColData>, Vec<[f64; 6]>) {
     let mut cols = rigid_columns(s);
     match model.known_mass() {
-        None => (cols, s.wrench.clone()),
+        None => (cols, s.target.clone()),
         Some(m) => {
             let c0 = cols.remove(0);
-            let mut target = s.wrench.clone();
+            let mut target = s.target.clone();
             for (c, d) in c0.iter().enumerate() {
                 if let Some(v) = d {
                     for (t, x) in target.iter_mut().zip(v) {
@@ -81,8 +81,9 @@ pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) ->
     crate::effects::effect_columns(effect, s, p)
         .into_iter()
         .map(|c| {
-            c.data
-                .map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()))
+            let mut data = c.data;
+            s.smooth_channels(&mut data);
+            data.map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()))
         })
         .collect()
 }

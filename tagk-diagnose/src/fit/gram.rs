@@ -48,7 +48,7 @@ impl<'a> GramEngine<'a> {
         folds: usize,
     ) -> Self {
         let n = s.len();
-        let tgt = target.unwrap_or(&s.wrench);
+        let tgt = target.unwrap_or(&s.target);
         let y: ColData =
             std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
         let weigh = |col: &ColData| -> ColData {

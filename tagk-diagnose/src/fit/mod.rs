@@ -195,7 +195,7 @@ pub fn fit_model(
         theta,
         theta_se,
         effects,
-        channels: channel_stats(&s.wrench, &residual),
+        channels: channel_stats(&s.target, &residual),
         predicted,
         residual,
         weights: w,
@@ -286,7 +286,7 @@ fn solve_pass(
     let mut predicted = predict(&cols, &beta, s.len());
     add_known_mass(model, s, &mut predicted);
     let residual: Vec<[f64; 6]> = s
-        .wrench
+        .target
         .iter()
         .zip(&predicted)
         .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
