@@ -334,6 +334,26 @@ fn the_document_states_the_code_s_constants_and_columns() {
         SUCCESS_DELAY_STEPS as f64,
     );
     states(6, "quaternion norm tolerance", QUATERNION_NORM_TOLERANCE);
+    {
+        use tagk::diagnose::{
+            DiagnoseOptions, FLOOR_MARGIN, FLOOR_RESOLUTION, MAX_CHANNEL_WORSENING,
+            MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MIN_GAIN_OF_FLOOR,
+        };
+        let defaults = DiagnoseOptions::default();
+        states(7, "mass change [%]", 100.0 * MAX_MASS_CHANGE);
+        states(
+            7,
+            "constant force of the thrust [%]",
+            100.0 * MAX_CONSTANT_FORCE_OF_THRUST,
+        );
+        states(7, "channel worsening [%]", 100.0 * MAX_CHANNEL_WORSENING);
+        states(7, "gain of the floor [%]", 100.0 * MIN_GAIN_OF_FLOOR);
+        states(7, "floor margin [%]", 100.0 * FLOOR_MARGIN);
+        states(7, "floor resolution", FLOOR_RESOLUTION);
+        states(7, "alpha", defaults.alpha);
+        states(7, "folds", defaults.folds as f64);
+        states(7, "steps", defaults.max_steps as f64);
+    }
     states(6, "fewest rows", MIN_ROWS as f64);
     let log_section = section(&doc, 6);
     for column in REQUIRED_COLUMNS.iter().chain(&OPTIONAL_COLUMNS) {

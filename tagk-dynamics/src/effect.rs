@@ -82,7 +82,9 @@ impl EffectKind {
         match self {
             EffectKind::LinearDrag => "drag linear in the air-relative velocity, f = -D v",
             EffectKind::QuadraticDrag => "bluff-body drag, f_i = -c_i |v_i| v_i",
-            EffectKind::RotorDrag => "rotor drag (blade flapping), f = -K (sum of rotor speeds) v",
+            EffectKind::RotorDrag => {
+                "rotor drag (blade flapping) at each hub, H_i = -K w_i v_hub, with its moments"
+            }
             EffectKind::MotorLag => "first-order lag between commanded and produced thrust",
             EffectKind::TimeDelay => "time delay between the wrench and the motion streams",
             EffectKind::GroundEffect => "thrust increase close to the ground",

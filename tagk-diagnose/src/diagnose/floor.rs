@@ -2,22 +2,27 @@
 //!
 //! **Rule.** Per channel, the floor is the larger of
 //! - the **reachable residual**: the held-out (blocked CV) residual RMS of the *saturated*
-//!   model, the current model plus every usable candidate at once (each scan at its best
-//!   value). No sequence of candidates can do better on held-out data, so the distance from a
-//!   model to it is what the candidates can still explain; on a log whose only imperfection is
-//!   measurement noise it is the noise;
+//!   model, the current model plus every usable candidate that is physically plausible when
+//!   added alone (each scan at its best value; candidates whose own refit breaks a rule of
+//!   [`crate::diagnose`]'s sanity checks are left out, and if the saturated refit itself
+//!   moves the mass by more than [`crate::MAX_MASS_CHANGE`] the current model's own held-out
+//!   residual is used). No sequence of candidates can do better on held-out data, so the
+//!   distance from a model to it is what the candidates can still explain; on a log whose
+//!   only imperfection is measurement noise it is the noise;
 //! - the **resolution**: 10⁻⁴ of the RMS of the measured force magnitude (forces), times the
 //!   airframe radius (torques) — below that no effect matters to a flight-dynamics model, and a
 //!   noise-free simulator log would otherwise chase rounding.
 //!
-//! or, when the user gives the sensor noise per channel ([`crate::DiagnoseOptions::noise_floor`]),
+//! When no candidate is plausible, the reachable residual is the model's own and the
+//! high-frequency noise estimate below takes its place. Or, when the user gives the sensor
+//! noise per channel ([`crate::DiagnoseOptions::noise_floor`]),
 //! that value. The report also gives the **high-frequency noise estimate** of the saturated
 //! residual (first differences: `σ² ≈ mean((r_{i+1} − r_i)²) / 2`, exact for white noise): a
 //! floor well above it says something that no candidate explains remains in the data.
 
 use serde::Serialize;
 
-use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::{Candidate, DiagnoseOptions};
 use crate::effects::{EffectRef, usable};
 use crate::error::DiagnoseError;
 use crate::fit::{
@@ -109,12 +114,25 @@ pub(crate) fn noise_floor(
     model: &Model,
     s: &Signals,
     opts: &DiagnoseOptions,
+    start_fit: &Fit,
+    alone: &[Candidate],
 ) -> Result<NoiseFloor, DiagnoseError> {
     let mut saturated = model.clone();
     for e in joinable(model, s, &opts.candidates) {
-        saturated = saturated.with_ref(e.clone());
+        if alone.iter().any(|c| c.effect == e.name() && c.plausible) {
+            saturated = saturated.with_ref(e.clone());
+        }
     }
-    let fit = fit_model(&saturated, s, None)?;
+    let mut fit = if saturated.effects().len() > model.effects().len() {
+        fit_model(&saturated, s, None)?
+    } else {
+        start_fit.clone()
+    };
+    let (m0, m1) = (start_fit.theta.mass(), fit.theta.mass());
+    if !(m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= crate::diagnose::MAX_MASS_CHANGE)) {
+        saturated = model.clone();
+        fit = start_fit.clone();
+    }
     let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
     let reachable = held_out_rms(&ev, &fit.weights, s.len());
     let noise_estimate: [f64; 6] = std::array::from_fn(|c| {
@@ -141,6 +159,12 @@ pub(crate) fn noise_floor(
     };
     let (rms, source) = match opts.noise_floor {
         Some(given) => (given, FloorSource::Given),
+        // Without a plausible candidate there is nothing to reach: the floor is the
+        // measurement noise itself (the high-frequency estimate).
+        None if saturated.effects().len() == model.effects().len() => (
+            std::array::from_fn(|c| noise_estimate[c].max(resolution(c))),
+            FloorSource::Data,
+        ),
         None => (
             std::array::from_fn(|c| reachable[c].max(resolution(c))),
             FloorSource::Data,

@@ -220,8 +220,11 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     opts.validate_for(s.len())?;
-    let floor = floor::noise_floor(model, s, opts)?;
-    diagnose_against(model, s, opts, &floor)
+    let fit = fit_model(model, s, None)?;
+    let scored = ranking::score_candidates(model, s, &fit, opts);
+    let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking)?;
+    let missing = ranking::judge_scored(scored, &floor, opts);
+    assemble(model, s, opts, &floor, fit, missing)
 }
 
 /// [`diagnose`] against a given noise floor (options already validated).
@@ -233,6 +236,19 @@ pub(crate) fn diagnose_against(
 ) -> Result<Diagnosis, DiagnoseError> {
     let fit = fit_model(model, s, None)?;
     let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
+    assemble(model, s, opts, floor, fit, missing)
+}
+
+/// The diagnosis from a model's fit and its judged ranking: where it fails, the parameters,
+/// the verdict.
+fn assemble(
+    _model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+    fit: Fit,
+    missing: ranking::Ranking,
+) -> Result<Diagnosis, DiagnoseError> {
     let failures = residual::where_it_fails(s, &fit);
     let params =
         parameters::parameter_report(&fit, opts.airframe_radius, missing.recommended.as_deref());

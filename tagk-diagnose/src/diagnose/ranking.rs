@@ -144,22 +144,32 @@ struct Baseline<'a> {
     sanity: SanityContext<'a>,
 }
 
-/// Ranks the candidates of `opts` that are not already in `model` against the noise floor
-/// `floor` (step 2 of [`crate::diagnose()`]).
-pub(crate) fn rank_candidates(
+/// Scored candidates before they are judged against a noise floor ([`score_candidates`]).
+pub(crate) struct Scored {
+    /// Scored candidates (status not yet set).
+    pub ranking: Vec<Candidate>,
+    /// Candidates that could not be evaluated.
+    pub unavailable: Vec<Unavailable>,
+    /// `(effect, driver name, driver series)` per scored candidate.
+    drivers: Vec<(String, String, Vec<f64>)>,
+    /// Held-out residual RMS per channel of the model itself.
+    pub held_out_rms: [f64; 6],
+}
+
+/// Scores the candidates of `opts` that are not already in `model`: held-out gains, tests,
+/// coefficients and plausibility; the floor-dependent statuses come from [`judge_scored`].
+pub(crate) fn score_candidates(
     model: &Model,
     s: &Signals,
     fit: &Fit,
     opts: &DiagnoseOptions,
-    floor: &NoiseFloor,
-) -> Ranking {
+) -> Scored {
     let candidates: Vec<&EffectRef> = opts
         .candidates
         .iter()
         .filter(|c| !model.has(c.name()))
         .collect();
     let baseline = baseline(model, s, fit, opts, candidates.len());
-    let at_floor = (0..6).all(|c| baseline.held_out_rms[c] <= (1.0 + FLOOR_MARGIN) * floor.rms[c]);
     let mut ranking = Vec::new();
     let mut unavailable = Vec::new();
     let mut drivers = Vec::new();
@@ -168,11 +178,40 @@ pub(crate) fn rank_candidates(
             unavailable.push(u);
             continue;
         }
-        let (candidate, driver) = score_candidate(e.as_ref(), s, &baseline, opts, floor);
+        let (candidate, driver) = score_candidate(e.as_ref(), s, &baseline, opts);
         drivers.push((candidate.effect.clone(), candidate.driver.clone(), driver));
         ranking.push(candidate);
     }
-    let recommended = judge(&mut ranking, &baseline.held_out_rms, floor, opts, at_floor);
+    Scored {
+        ranking,
+        unavailable,
+        drivers,
+        held_out_rms: baseline.held_out_rms,
+    }
+}
+
+/// Judges scored candidates against the noise floor `floor`: statuses, order, the
+/// recommendation, explanations.
+pub(crate) fn judge_scored(scored: Scored, floor: &NoiseFloor, opts: &DiagnoseOptions) -> Ranking {
+    let Scored {
+        mut ranking,
+        unavailable,
+        drivers,
+        held_out_rms,
+    } = scored;
+    for c in ranking.iter_mut() {
+        c.gain_over_floor = (0..6)
+            .map(|k| {
+                if floor.rms[k] > 0.0 {
+                    (held_out_rms[k].powi(2) - c.held_out_rms[k].powi(2)) / floor.rms[k].powi(2)
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+    }
+    let at_floor = (0..6).all(|c| held_out_rms[c] <= (1.0 + FLOOR_MARGIN) * floor.rms[c]);
+    let recommended = judge(&mut ranking, &held_out_rms, floor, opts, at_floor);
     let top_driver = ranking.first().and_then(|top| {
         drivers
             .iter()
@@ -184,9 +223,21 @@ pub(crate) fn rank_candidates(
         unavailable,
         recommended,
         top_driver,
-        held_out_rms: baseline.held_out_rms,
+        held_out_rms,
         at_floor,
     }
+}
+
+/// Ranks the candidates of `opts` that are not already in `model` against the noise floor
+/// `floor` (step 2 of [`crate::diagnose()`]): [`score_candidates`] then [`judge_scored`].
+pub(crate) fn rank_candidates(
+    model: &Model,
+    s: &Signals,
+    fit: &Fit,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+) -> Ranking {
+    judge_scored(score_candidates(model, s, fit, opts), floor, opts)
 }
 
 /// The baseline of the tests: the engine over the fitted model's design and its evaluation
@@ -267,7 +318,6 @@ fn score_candidate(
     s: &Signals,
     base: &Baseline<'_>,
     opts: &DiagnoseOptions,
-    floor: &NoiseFloor,
 ) -> (Candidate, Vec<f64>) {
     let spec = e.scan();
     let (param, cols, ev) = best_design(e, s, &base.engine);
@@ -307,15 +357,6 @@ fn score_candidate(
         })
         .collect();
     let held_out = held_out_rms(&ev, &base.sanity.fit.weights, s.len());
-    let gain_over_floor: f64 = (0..6)
-        .map(|c| {
-            if floor.rms[c] > 0.0 {
-                (base.held_out_rms[c].powi(2) - held_out[c].powi(2)) / floor.rms[c].powi(2)
-            } else {
-                0.0
-            }
-        })
-        .sum();
     let worsened_channels: Vec<String> = (0..6)
         .filter(|&c| held_out[c] > (1.0 + MAX_CHANNEL_WORSENING) * base.held_out_rms[c])
         .map(|c| CHANNEL_NAMES[c].to_string())
@@ -362,7 +403,7 @@ fn score_candidate(
         reduction,
         reduction_per_channel,
         held_out_rms: held_out,
-        gain_over_floor,
+        gain_over_floor: 0.0,
         worsened_channels,
         statistic,
         dof,

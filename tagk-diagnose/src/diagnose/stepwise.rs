@@ -13,7 +13,6 @@
 
 use serde::Serialize;
 
-use crate::diagnose::floor::noise_floor;
 use crate::diagnose::{DiagnoseOptions, Diagnosis, FLOOR_MARGIN, NoiseFloor, diagnose_against};
 use crate::error::DiagnoseError;
 use crate::fit::{Coefficient, Model};
@@ -99,9 +98,7 @@ pub fn discover(
     s: &Signals,
     opts: &DiagnoseOptions,
 ) -> Result<Discovery, DiagnoseError> {
-    opts.validate()?;
-    let floor = noise_floor(start, s, opts)?;
-    let first = diagnose_against(start, s, opts, &floor)?;
+    let first = crate::diagnose::diagnose(start, s, opts)?;
     discover_from(start, first, s, opts)
 }
 

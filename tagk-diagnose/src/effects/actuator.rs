@@ -29,6 +29,38 @@ impl Default for MotorLag {
     }
 }
 
+/// `true` when two sampling steps \[s\] agree to 1e-9 relative: the exponential factors of
+/// the previous step are reused (the time stamps of a uniformly sampled log differ in their
+/// last bits, and the exponentials dominate a scan's cost; the error this makes, below 1e-9
+/// relative, is far below any log's resolution).
+fn same_step(dt: f64, previous: f64) -> bool {
+    (dt - previous).abs() <= 1e-9 * dt.abs()
+}
+
+/// `e^{−(t − t₀)/τ}` at every sample (0 once below 1e-12; all 0 for `τ ≤ 0`), by the
+/// recursion `x_k = x_{k−1} e^{−Δt_k/τ}` (one exponential per distinct step).
+fn start_decay(t: &[f64], tau: f64) -> Vec<f64> {
+    let mut out = vec![0.0; t.len()];
+    if t.is_empty() || tau <= 0.0 {
+        return out;
+    }
+    let (mut x, mut last_dt, mut factor) = (1.0, f64::NAN, 0.0);
+    out[0] = 1.0;
+    for k in 1..t.len() {
+        let dt = t[k] - t[k - 1];
+        if !same_step(dt, last_dt) {
+            last_dt = dt;
+            factor = (-dt / tau).exp();
+        }
+        x *= factor;
+        if x < 1e-12 {
+            break;
+        }
+        out[k] = x;
+    }
+    out
+}
+
 /// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` \[s\]) to a command
 /// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)` and sampled at
 /// its middle `t_k` (the convention of logs whose rows describe one control interval):
@@ -46,7 +78,7 @@ pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
     for k in 1..u.len() {
         let dt = t[k] - t[k - 1];
         // Uniformly sampled logs reuse the factors (exp is the cost of a 1-D scan).
-        if dt != last_dt {
+        if !same_step(dt, last_dt) {
             last_dt = dt;
             (a_half, a_full) = if tau > 0.0 {
                 ((-0.5 * dt / tau).exp(), (-dt / tau).exp())
@@ -82,7 +114,7 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
             let u = w[i][r];
             let e = end - u;
             // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
-            if dt != factors.0 {
+            if !same_step(dt, factors.0) {
                 factors = (
                     dt,
                     if tau > 0.0 {
@@ -160,17 +192,7 @@ impl Effect for MotorLag {
         }];
         // The actuators' state when the log starts is unknown: its effect decays like
         // e^{−(t − t₀)/τ}, a nuisance column per channel.
-        let decay: Vec<f64> =
-            s.t.iter()
-                .map(|t| {
-                    let x = if tau > 0.0 {
-                        (-(t - s.t[0]) / tau).exp()
-                    } else {
-                        0.0
-                    };
-                    if x < 1e-12 { 0.0 } else { x }
-                })
-                .collect();
+        let decay = start_decay(&s.t, tau);
         for c in 2..6 {
             cols.push(EffectColumn::on(
                 &format!("start_{}", CHANNEL_NAMES[c]),

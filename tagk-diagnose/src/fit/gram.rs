@@ -205,6 +205,27 @@ impl<'a> GramEngine<'a> {
     }
 }
 
+/// `Σ x_i y_i` with four interleaved partial sums (so the compiler can keep four products in
+/// flight), added pairwise at the end; the order is fixed, so results are reproducible.
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [0.0f64; 4];
+    let mut xs = x.chunks_exact(4);
+    let mut ys = y.chunks_exact(4);
+    for (a, b) in (&mut xs).zip(&mut ys) {
+        acc[0] += a[0] * b[0];
+        acc[1] += a[1] * b[1];
+        acc[2] += a[2] * b[2];
+        acc[3] += a[3] * b[3];
+    }
+    let mut tail = 0.0;
+    for (a, b) in xs.remainder().iter().zip(ys.remainder()) {
+        tail += a * b;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
 /// Cross products `Σ_{i ∈ piece} a_j[c][i] b_k[c][i]` for every piece, channel, `j`, `k`;
 /// layout `[piece][channel][j][k]`.
 fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Vec<f64> {
@@ -217,11 +238,7 @@ fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Ve
                     continue;
                 };
                 for (pi, &(lo, hi)) in pieces.iter().enumerate() {
-                    let mut s = 0.0;
-                    for i in lo..hi {
-                        s += x[i] * y[i];
-                    }
-                    out[((pi * 6 + c) * pa + j) * pb + k] = s;
+                    out[((pi * 6 + c) * pa + j) * pb + k] = dot(&x[lo..hi], &y[lo..hi]);
                 }
             }
         }
