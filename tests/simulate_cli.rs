@@ -112,3 +112,28 @@ fn names_of_trajectories_noise_and_estimators_are_unchanged() {
     assert!(Cli::try_parse_from(["tagk", "--estimator", "tagk"]).is_ok());
     assert!(Cli::try_parse_from(["tagk", "--noise", "loud"]).is_err());
 }
+
+#[test]
+fn sensing_flag_selects_a_profile_and_gyro_noise_replaces_its_sigma() {
+    use tagk::sim::{Sensing, SensingProfile};
+    let config = |flags: &[&str]| {
+        let mut argv = vec!["tagk"];
+        argv.extend_from_slice(flags);
+        Cli::try_parse_from(argv).unwrap().args.config().unwrap()
+    };
+    assert_eq!(config(&[]).sensing, Sensing::ideal());
+    for p in SensingProfile::ALL {
+        assert_eq!(config(&["--sensing", p.name()]).sensing, p.sensing());
+    }
+    let gyro = config(&["--sensing", "realistic", "--gyro-noise", "0.02"]).sensing;
+    assert_eq!(gyro, Sensing::realistic().with_gyro_noise(0.02));
+    assert_eq!(
+        config(&["--gyro-noise", "0.01"]).sensing,
+        Sensing::ideal().with_gyro_noise(0.01)
+    );
+    let unknown = Cli::try_parse_from(["tagk", "--sensing", "perfect"])
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(unknown.contains("realistic-calibrated"), "{unknown}");
+}

@@ -8,7 +8,7 @@ pub mod vehicle;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use tagk_dynamics::EffectKind;
-use tagk_sim::{EstimatorKind, NoiseLevel, TrajectoryKind};
+use tagk_sim::{EstimatorKind, NoiseLevel, SensingProfile, TrajectoryKind};
 
 /// Parses a [`TrajectoryKind`] by its command-line name (`figure8`, `circle`, …).
 pub fn trajectory_parser() -> impl TypedValueParser<Value = TrajectoryKind> {
@@ -20,6 +20,12 @@ pub fn trajectory_parser() -> impl TypedValueParser<Value = TrajectoryKind> {
 pub fn noise_parser() -> impl TypedValueParser<Value = NoiseLevel> {
     PossibleValuesParser::new(NoiseLevel::ALL.map(NoiseLevel::name))
         .try_map(|s| s.parse::<NoiseLevel>())
+}
+
+/// Parses a [`SensingProfile`] by its name (`ideal`, `realistic`, `realistic-calibrated`).
+pub fn sensing_parser() -> impl TypedValueParser<Value = SensingProfile> {
+    PossibleValuesParser::new(SensingProfile::ALL.map(SensingProfile::name))
+        .try_map(|s| s.parse::<SensingProfile>())
 }
 
 /// Parses an [`EstimatorKind`] by its command-line name (`rls-low`, …, `tagk`, …).

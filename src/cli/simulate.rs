@@ -8,10 +8,10 @@ use std::path::PathBuf;
 use tagk_dynamics::EffectKind;
 use tagk_sim::{
     Adaptation, EstimatorKind, EstimatorSpec, NoiseLevel, Payload, PayloadSchedule, PayloadShape,
-    PlantEffects, SimConfig, SimError, TrajectoryKind,
+    PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
 };
 
-use super::{effect_parser, estimator_parser, noise_parser, trajectory_parser};
+use super::{effect_parser, estimator_parser, noise_parser, sensing_parser, trajectory_parser};
 
 /// Payload choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -37,12 +37,18 @@ pub struct SimulateArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Velocity/acceleration noise level.
+    /// Velocity/acceleration noise level of the paper's protocol (added to the sensing
+    /// profile's noise, in quadrature).
     #[arg(long, value_parser = noise_parser(), default_value = "none")]
     pub noise: NoiseLevel,
-    /// Rate-gyro noise, standard deviation per axis [rad/s].
-    #[arg(long, default_value_t = 0.0)]
-    pub gyro_noise: f64,
+    /// Sensing profile: the vehicle's gyro, accelerometer, velocity and rotor-speed noise and
+    /// biases (`ideal`: none; `realistic`: a Crazyflie 2.1 in flight; `realistic-calibrated`:
+    /// the same with the accelerometer bias calibrated away).
+    #[arg(long, value_parser = sensing_parser(), default_value = "ideal")]
+    pub sensing: SensingProfile,
+    /// Rate-gyro noise, standard deviation per axis [rad/s] (replaces the sensing profile's).
+    #[arg(long)]
+    pub gyro_noise: Option<f64>,
     /// Payload events.
     #[arg(long, value_enum, default_value_t = PayloadArg::None)]
     pub payload: PayloadArg,
@@ -114,7 +120,10 @@ impl SimulateArgs {
             duration: self.duration,
             seed: self.seed,
             noise: self.noise,
-            gyro_noise: self.gyro_noise,
+            sensing: match self.gyro_noise {
+                Some(g) => self.sensing.sensing().with_gyro_noise(g),
+                None => self.sensing.sensing(),
+            },
             payload,
             effects,
             adaptation,

@@ -12,6 +12,7 @@ use tagk_dynamics::{InertialParams, QuadrotorModel, SafetyGate};
 
 use crate::estimators::EstimatorSpec;
 use crate::plant::validate_params;
+use crate::sim::Sensing;
 use crate::trajectory::TrajectoryKind;
 use crate::{EstimatorKind, PlantEffects, SimError};
 
@@ -211,10 +212,12 @@ pub struct SimConfig {
     pub duration: f64,
     /// Seed of every random choice of the flight.
     pub seed: u64,
-    /// Velocity/acceleration noise.
+    /// Velocity/acceleration noise of the paper's protocol (swept in Table II).
     pub noise: NoiseLevel,
-    /// Standard deviation of rate-gyro noise on each axis [rad/s] (0: off).
-    pub gyro_noise: f64,
+    /// The vehicle's sensors (gyro, accelerometer, velocity, rotor-speed noise and biases),
+    /// added to `noise` (σ's of one signal combine in quadrature, [`Sensing::combined`]).
+    /// Default [`Sensing::ideal`].
+    pub sensing: Sensing,
     /// Payload events.
     pub payload: PayloadSchedule,
     /// Plant effects (all off by default).
@@ -252,7 +255,7 @@ impl Default for SimConfig {
             duration: 20.0,
             seed: 0,
             noise: NoiseLevel::None,
-            gyro_noise: 0.0,
+            sensing: Sensing::ideal(),
             payload: PayloadSchedule::Protocol,
             effects: PlantEffects::none(),
             adaptation: Adaptation::Estimator(EstimatorSpec::new(EstimatorKind::TagK)),
@@ -280,7 +283,7 @@ fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
 }
 
 impl SimConfig {
-    /// Checks the configuration without flying: durations and steps, noise, altitude, the
+    /// Checks the configuration without flying: durations and steps, sensing, altitude, the
     /// safety gate's thresholds, the vehicle, the effects, fixed payloads (positive mass, and
     /// hover feasible within the rotor limits) and the estimator's burn-in.
     ///
@@ -312,13 +315,7 @@ impl SimConfig {
                 reason: "must be positive",
             });
         }
-        if !(self.gyro_noise >= 0.0 && self.gyro_noise.is_finite()) {
-            return Err(SimError::InvalidParameter {
-                name: "gyro_noise",
-                value: self.gyro_noise,
-                reason: "must be non-negative and finite",
-            });
-        }
+        self.sensing.validate()?;
         if let Some(z) = self.altitude
             && !z.is_finite()
         {

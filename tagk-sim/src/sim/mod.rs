@@ -9,6 +9,7 @@
 mod config;
 mod controller;
 mod output;
+mod sensing;
 mod sensors;
 
 use std::ops::ControlFlow;
@@ -29,6 +30,11 @@ pub use config::{
 };
 pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
 pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
+pub use sensing::{
+    BMI088_ACCEL_NOISE_DENSITY_G, BMI088_ACCEL_OFFSET_G, BMI088_GYRO_NOISE_DENSITY_DEG,
+    BMI088_GYRO_OFFSET_DRIFT_DEG, CRAZYFLIE_ACCEL_BANDWIDTH, CRAZYFLIE_GYRO_BANDWIDTH,
+    PROPELLER_VIBRATION_FACTOR, Sensing, SensingProfile, WARM_UP_KELVIN,
+};
 pub(crate) use sensors::sub_rng;
 
 use crate::EstimatorKind;
@@ -256,10 +262,14 @@ impl<'a> Flight<'a> {
         let plant = Plant::new(*vehicle, nominal, config.effects, init)?;
         let controller = Controller::new(vehicle, &nominal, config.weights, config.control_dt)?;
         let estimator = build_estimator(config, estimator_seed)?;
+        // Streams 4 and 5 were added with the sensing profiles: streams 1–3 draw exactly as
+        // before, so an ideal profile flies bit-identically to the simulator before them.
         let sensors = Sensors::new(
             noise,
+            sub_rng(config.seed, 4),
+            sub_rng(config.seed, 5),
             config.noise,
-            config.gyro_noise,
+            &config.sensing,
             plant.state().body_rate,
         );
         Ok(Self {
@@ -302,7 +312,13 @@ impl<'a> Flight<'a> {
         let cmd = self
             .plant
             .clamp_speeds(&self.controller.rotor_speeds(&measured, &reference));
-        let wrench_cmd: Wrench = self.config.vehicle.wrench_from_rotor_speeds(&cmd);
+        // What the vehicle measures of its actuators: the rotor speeds read back (commanded +
+        // noise) and, through the nominal mixer, the wrench they make.
+        let measured_speeds = self.sensors.measured_rotor_speeds(&cmd);
+        let wrench_measured: Wrench = self
+            .config
+            .vehicle
+            .wrench_from_rotor_speeds(&measured_speeds);
         let (mid_state, mid_acc) = self.fly_interval(&cmd);
         if !self.plant.is_finite() {
             self.tracking.push(f64::INFINITY);
@@ -315,9 +331,9 @@ impl<'a> Flight<'a> {
             dt,
         );
         if self.config.record_log {
-            self.log_sample(k, &mid_state, &frame, &wrench_cmd, cmd);
+            self.log_sample(k, &mid_state, &frame, &wrench_measured, measured_speeds);
         }
-        self.update_estimator(k, t, &frame, &wrench_cmd)?;
+        self.update_estimator(k, t, &frame, &wrench_measured)?;
         Ok(ControlFlow::Continue(()))
     }
 
@@ -392,8 +408,9 @@ impl<'a> Flight<'a> {
         mid.unwrap_or_else(|| (*self.plant.state(), self.plant.accelerations(cmd)))
     }
 
-    /// Appends the log sample of control interval `k` (stamped at its midpoint); with a
-    /// `time-delay` effect, the wrench and rotor speeds are those commanded `delay` earlier.
+    /// Appends the log sample of control interval `k` (stamped at its midpoint) with the
+    /// measured rotor speeds and wrench; with a `time-delay` effect, the wrench and rotor speeds
+    /// are those measured `delay` earlier.
     fn log_sample(
         &mut self,
         k: usize,

@@ -12,7 +12,7 @@ use rand_chacha::rand_core::SeedableRng;
 use tagk_control::QuadrotorState;
 
 use crate::plant::PlantState;
-use crate::sim::NoiseLevel;
+use crate::sim::{NoiseLevel, Sensing};
 
 /// Standard normal draw (Box–Muller).
 fn gaussian<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
@@ -50,35 +50,80 @@ pub(crate) struct Frame {
     pub(crate) omega_dot: Vector3<f64>,
 }
 
+/// `v + bias`, or `v` itself (bit for bit) without a bias.
+fn biased(v: Vector3<f64>, bias: &Vector3<f64>) -> Vector3<f64> {
+    if *bias == Vector3::zeros() {
+        v
+    } else {
+        v + bias
+    }
+}
+
 /// The sensors of one flight: motion capture (exact position and attitude), noisy velocity,
-/// accelerometer and rate gyro, all drawn from one random stream.
+/// accelerometer and rate gyro (their white noise all drawn from one random stream, in a fixed
+/// order), constant gyro and accelerometer biases (drawn once from a stream of their own), and
+/// the rotor-speed reading (its noise from a third stream).
 #[derive(Debug, Clone)]
 pub(crate) struct Sensors {
     rng: ChaCha8Rng,
+    /// Stream of the rotor-speed noise.
+    rotor_rng: ChaCha8Rng,
     sigma_velocity: f64,
     sigma_acceleration: f64,
     sigma_gyro: f64,
+    sigma_rotor_speed: f64,
+    /// Constant gyro bias of the flight, body frame [rad/s].
+    gyro_bias: Vector3<f64>,
+    /// Constant accelerometer bias of the flight, body frame [m/s²].
+    accel_bias: Vector3<f64>,
     /// Gyro reading at the start of the current control interval [rad/s].
     gyro_start: Vector3<f64>,
 }
 
 impl Sensors {
-    /// Sensors with the noise of `noise` and `gyro_noise` [rad/s]; draws the first gyro
-    /// reading of the body rate `initial_rate`.
+    /// Sensors with the noise of `noise` and the profile `sensing` (σ's of both combined in
+    /// quadrature, [`Sensing::combined`]); white noise from `rng`, the biases from `bias_rng`
+    /// (always 6 standard normal draws, gyro x, y, z then accelerometer x, y, z, scaled by the
+    /// profile's σ's: a seed fixes the bias direction whatever the σ), the rotor-speed noise
+    /// from `rotor_rng`. Draws the first gyro reading of the body rate `initial_rate`.
     pub(crate) fn new(
         mut rng: ChaCha8Rng,
+        mut bias_rng: ChaCha8Rng,
+        rotor_rng: ChaCha8Rng,
         noise: NoiseLevel,
-        gyro_noise: f64,
+        sensing: &Sensing,
         initial_rate: Vector3<f64>,
     ) -> Self {
-        let gyro_start = initial_rate + noise3(&mut rng, gyro_noise);
+        let gyro_bias = noise3(&mut bias_rng, 1.0) * sensing.gyro_bias;
+        let accel_bias = noise3(&mut bias_rng, 1.0) * sensing.accel_bias;
+        let gyro_start = biased(initial_rate, &gyro_bias) + noise3(&mut rng, sensing.gyro_noise);
         Self {
             rng,
-            sigma_velocity: noise.sigma_velocity(),
-            sigma_acceleration: noise.sigma_acceleration(),
-            sigma_gyro: gyro_noise,
+            rotor_rng,
+            sigma_velocity: Sensing::combined(noise.sigma_velocity(), sensing.velocity_noise),
+            sigma_acceleration: Sensing::combined(noise.sigma_acceleration(), sensing.accel_noise),
+            sigma_gyro: sensing.gyro_noise,
+            sigma_rotor_speed: sensing.rotor_speed_noise,
+            gyro_bias,
+            accel_bias,
             gyro_start,
         }
+    }
+
+    /// The flight's constant gyro bias \[rad/s\] and accelerometer bias `[m/s²]`, body frame.
+    #[cfg(test)]
+    pub(crate) fn biases(&self) -> (Vector3<f64>, Vector3<f64>) {
+        (self.gyro_bias, self.accel_bias)
+    }
+
+    /// The measured rotor speeds of the commanded `speeds` \[rad/s\]: plus `N(0, σ²)` per rotor
+    /// (draws 4 from the rotor-speed stream; none, and `speeds` unchanged, when `σ = 0`),
+    /// floored at 0.
+    pub(crate) fn measured_rotor_speeds(&mut self, speeds: &[f64; 4]) -> [f64; 4] {
+        if self.sigma_rotor_speed == 0.0 {
+            return *speeds;
+        }
+        speeds.map(|w| (w + self.sigma_rotor_speed * gaussian(&mut self.rotor_rng)).max(0.0))
     }
 
     /// What the controller sees at the start of an interval: mocap position and attitude,
@@ -93,7 +138,8 @@ impl Sensors {
     }
 
     /// The estimator frame of an interval of length `dt` \[s\] that ended with the body rate
-    /// `end_rate`, from the true midpoint body rate and proper acceleration. Draws the gyro
+    /// `end_rate`, from the true midpoint body rate and proper acceleration (the biases added
+    /// to the gyro readings and the accelerometer). Draws the gyro
     /// reading at the end, the accelerometer noise, then the midpoint gyro noise; the end
     /// reading becomes the next interval's first.
     pub(crate) fn frame(
@@ -103,9 +149,10 @@ impl Sensors {
         mid_proper_acceleration: Vector3<f64>,
         dt: f64,
     ) -> Frame {
-        let gyro_end = end_rate + noise3(&mut self.rng, self.sigma_gyro);
-        let accel = mid_proper_acceleration + noise3(&mut self.rng, self.sigma_acceleration);
-        let omega = mid_rate + noise3(&mut self.rng, self.sigma_gyro);
+        let gyro_end = biased(end_rate, &self.gyro_bias) + noise3(&mut self.rng, self.sigma_gyro);
+        let accel = biased(mid_proper_acceleration, &self.accel_bias)
+            + noise3(&mut self.rng, self.sigma_acceleration);
+        let omega = biased(mid_rate, &self.gyro_bias) + noise3(&mut self.rng, self.sigma_gyro);
         let omega_dot = (gyro_end - self.gyro_start) / dt;
         self.gyro_start = gyro_end;
         Frame {
@@ -118,5 +165,147 @@ impl Sensors {
     /// The logged velocity: `velocity` plus a fresh velocity noise (draws 3).
     pub(crate) fn logged_velocity(&mut self, velocity: Vector3<f64>) -> Vector3<f64> {
         velocity + noise3(&mut self.rng, self.sigma_velocity)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sample mean and standard deviation of `x`.
+    fn mean_std(x: &[f64]) -> (f64, f64) {
+        let n = x.len() as f64;
+        let mean = x.iter().sum::<f64>() / n;
+        let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        (mean, var.sqrt())
+    }
+
+    fn sensors(seed: u64, noise: NoiseLevel, sensing: &Sensing) -> Sensors {
+        Sensors::new(
+            sub_rng(seed, 2),
+            sub_rng(seed, 4),
+            sub_rng(seed, 5),
+            noise,
+            sensing,
+            Vector3::zeros(),
+        )
+    }
+
+    /// Every per-sample noise has the profile's σ (sample std within 3 % over 20 000
+    /// samples per axis, where the standard error of a std is 0.5 %), and the per-sample
+    /// mean is the flight's constant bias (within 5 standard errors).
+    #[test]
+    fn realistic_noise_has_the_stated_sigma_around_a_constant_bias() {
+        let s = Sensing::realistic();
+        let mut sensors = sensors(11, NoiseLevel::None, &s);
+        let (gyro_bias, accel_bias) = sensors.biases();
+        let n = 20_000;
+        let mut omega = [vec![], vec![], vec![]];
+        let mut accel = [vec![], vec![], vec![]];
+        let mut velocity = [vec![], vec![], vec![]];
+        let mut rotor = [vec![], vec![], vec![], vec![]];
+        for _ in 0..n {
+            let f = sensors.frame(Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0.02);
+            let v = sensors.logged_velocity(Vector3::zeros());
+            for i in 0..3 {
+                omega[i].push(f.omega[i]);
+                accel[i].push(f.accel[i]);
+                velocity[i].push(v[i]);
+            }
+            let w = sensors.measured_rotor_speeds(&[2000.0; 4]);
+            for i in 0..4 {
+                rotor[i].push(w[i] - 2000.0);
+            }
+        }
+        let se = 5.0 / (n as f64).sqrt();
+        let check = |what: &str, x: &[f64], sigma: f64, bias: f64| {
+            let (m, sd) = mean_std(x);
+            assert!(
+                (sd / sigma - 1.0).abs() < 0.03,
+                "{what}: std {sd} vs sigma {sigma}"
+            );
+            assert!(
+                (m - bias).abs() < se * sigma,
+                "{what}: mean {m} vs bias {bias}"
+            );
+        };
+        for i in 0..3 {
+            check("gyro", &omega[i], s.gyro_noise, gyro_bias[i]);
+            check("accel", &accel[i], s.accel_noise, accel_bias[i]);
+            check("velocity", &velocity[i], s.velocity_noise, 0.0);
+        }
+        for r in &rotor {
+            check("rotor speed", r, s.rotor_speed_noise, 0.0);
+        }
+    }
+
+    /// The noise level and the profile combine in quadrature.
+    #[test]
+    fn noise_level_and_profile_add_in_quadrature() {
+        let s = Sensing {
+            accel_noise: 0.05e-2 * 0.75,
+            velocity_noise: 0.5e-2 * 0.75,
+            ..Sensing::ideal()
+        };
+        let mut sensors = sensors(3, NoiseLevel::Medium, &s);
+        let n = 20_000;
+        let (mut a, mut v) = (vec![], vec![]);
+        for _ in 0..n {
+            let f = sensors.frame(Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0.02);
+            a.push(f.accel.x);
+            v.push(sensors.logged_velocity(Vector3::zeros()).y);
+        }
+        // sqrt(1 + 0.75²) = 1.25 times the level's σ.
+        let (_, sa) = mean_std(&a);
+        let (_, sv) = mean_std(&v);
+        assert!((sa / (1.25 * 0.05e-2) - 1.0).abs() < 0.03, "{sa}");
+        assert!((sv / (1.25 * 0.5e-2) - 1.0).abs() < 0.03, "{sv}");
+    }
+
+    /// The biases are drawn once per flight from the seed: the same seed gives the same
+    /// biases, and across seeds they scatter with the profile's σ (std within 5 % over 4000
+    /// flights, 3 axes each).
+    #[test]
+    fn biases_are_seeded_with_the_stated_sigma() {
+        let s = Sensing::realistic();
+        assert_eq!(
+            sensors(7, NoiseLevel::None, &s).biases(),
+            sensors(7, NoiseLevel::None, &s).biases()
+        );
+        assert_ne!(
+            sensors(7, NoiseLevel::None, &s).biases(),
+            sensors(8, NoiseLevel::None, &s).biases()
+        );
+        let (mut g, mut a) = (vec![], vec![]);
+        for seed in 0..4000 {
+            let (bg, ba) = sensors(seed, NoiseLevel::None, &s).biases();
+            g.extend(bg.iter());
+            a.extend(ba.iter());
+        }
+        let (mg, sg) = mean_std(&g);
+        let (ma, sa) = mean_std(&a);
+        assert!((sg / s.gyro_bias - 1.0).abs() < 0.05, "{sg}");
+        assert!((sa / s.accel_bias - 1.0).abs() < 0.05, "{sa}");
+        assert!(mg.abs() < 0.05 * s.gyro_bias && ma.abs() < 0.05 * s.accel_bias);
+        // The calibrated profile keeps the gyro bias and has no accelerometer bias.
+        let (bg, ba) = sensors(7, NoiseLevel::None, &Sensing::realistic_calibrated()).biases();
+        assert_eq!(bg, sensors(7, NoiseLevel::None, &s).biases().0);
+        assert_eq!(ba, Vector3::zeros());
+    }
+
+    /// A constant gyro bias cancels in `ω̇` (the difference of two readings).
+    #[test]
+    fn gyro_bias_cancels_in_the_rate_derivative() {
+        let s = Sensing {
+            gyro_bias: 0.01,
+            ..Sensing::ideal()
+        };
+        let mut sensors = sensors(5, NoiseLevel::None, &s);
+        let (bg, _) = sensors.biases();
+        assert!(bg.norm() > 0.0);
+        let rate = Vector3::new(0.1, -0.2, 0.3);
+        let f = sensors.frame(rate, rate * 0.5, Vector3::zeros(), 0.02);
+        assert!((f.omega_dot - rate / 0.02).norm() < 1e-12);
+        assert!((f.omega - (rate * 0.5 + bg)).norm() < 1e-15);
     }
 }

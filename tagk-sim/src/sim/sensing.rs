@@ -1,0 +1,245 @@
+//! Sensing profiles: the noise and biases of the vehicle's own sensors (IMU, velocity,
+//! rotor-speed reading), on top of the paper's swept [`NoiseLevel`](crate::NoiseLevel).
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::SimError;
+
+/// BMI088 gyroscope output noise density \[deg/s/sqrt(Hz)\] (Bosch BMI088 data sheet
+/// BST-BMI088-DS001, gyroscope specification: 0.014 deg/s/sqrt(Hz)).
+pub const BMI088_GYRO_NOISE_DENSITY_DEG: f64 = 0.014;
+/// Gyroscope filter bandwidth the Crazyflie firmware configures \[Hz\]
+/// (`BMI088_GYRO_BW_116_ODR_1000_HZ` in `sensors_bmi088_bmp388.c`).
+pub const CRAZYFLIE_GYRO_BANDWIDTH: f64 = 116.0;
+/// BMI088 accelerometer output noise density \[g/sqrt(Hz)\] (BMI088 data sheet, accelerometer
+/// specification: 175 micro-g/sqrt(Hz)).
+pub const BMI088_ACCEL_NOISE_DENSITY_G: f64 = 175e-6;
+/// Accelerometer filter bandwidth of the Crazyflie's in-flight setting \[Hz\] (OSR4 at a
+/// 1600 Hz output rate, "145 Hz cut-off according to datasheet" in `sensors_bmi088_bmp388.c`).
+pub const CRAZYFLIE_ACCEL_BANDWIDTH: f64 = 145.0;
+/// Factor by which propeller vibration raises the IMU's in-flight noise above the data sheet's
+/// at-rest white noise (a chosen figure: the Crazyflie's motors sit on the IMU's circuit board;
+/// its own Kalman filter assumes a far more conservative 0.1 rad/s of gyro noise,
+/// `measNoiseGyro_rollpitch` in `kalman_core.c`).
+pub const PROPELLER_VIBRATION_FACTOR: f64 = 3.0;
+/// BMI088 gyroscope zero-rate offset drift with temperature \[deg/s/K\] (data sheet: TCO
+/// 0.015 deg/s/K).
+pub const BMI088_GYRO_OFFSET_DRIFT_DEG: f64 = 0.015;
+/// Warm-up between the Crazyflie's at-rest gyro calibration and flight \[K\] (a chosen
+/// figure: the board heats by about this much once the motors run).
+pub const WARM_UP_KELVIN: f64 = 10.0;
+/// BMI088 accelerometer zero-g offset, typical \[g\] (data sheet: 20 mg).
+pub const BMI088_ACCEL_OFFSET_G: f64 = 20e-3;
+/// Standard gravity \[m/s²\] (to convert the data sheet's `g` units).
+const STANDARD_GRAVITY: f64 = 9.806_65;
+
+/// The vehicle's own sensors: per-sample white noise and per-flight constant biases.
+///
+/// Every σ is per axis (per rotor for the rotor speeds) and per logged sample (one a 20 ms
+/// control interval). The profile is **added** to the paper's swept
+/// [`NoiseLevel`](crate::NoiseLevel): where both give a σ for one signal (velocity,
+/// acceleration), the two are independent and combine in quadrature,
+/// `σ = sqrt(σ_level² + σ_sensing²)` ([`Sensing::combined`]).
+///
+/// What each field does in the flight (see the crate README, "Measurement model"):
+///
+/// | field | signal | used by |
+/// |---|---|---|
+/// | `gyro_noise`, `gyro_bias` | rate gyro `ω` (and `ω̇`, the difference of two readings: a constant bias cancels there) | controller, estimator, log `wx..wz`, `dwx..dwz` |
+/// | `accel_noise`, `accel_bias` | accelerometer (proper acceleration, body frame) | estimator, log `ax..az` |
+/// | `velocity_noise` | velocity (motion capture) | controller, log `vx..vz` |
+/// | `rotor_speed_noise` | measured rotor speeds = commanded + noise | log `w1..w4`, and through the nominal mixer the measured wrench `b` of the estimator and log `fx..tz` |
+///
+/// Biases are drawn once per flight from the seed (a stream of their own, so that a profile
+/// with zero biases draws exactly what it drew before biases existed).
+///
+/// **An accelerometer bias is a constant body force in the data**: `m (a + b_a)` differs from
+/// the wrench by `m b_a`, exactly the signature of a force bias. A diagnosis of a log with
+/// [`Sensing::realistic`] therefore correctly reports `body-bias`; use
+/// [`Sensing::realistic_calibrated`] for logs whose accelerometer was calibrated in flight.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sensing {
+    /// Rate-gyro white noise, σ per axis per sample \[rad/s\].
+    pub gyro_noise: f64,
+    /// σ of the rate gyro's constant per-flight bias, per axis \[rad/s\].
+    pub gyro_bias: f64,
+    /// Accelerometer white noise, σ per axis per sample `[m/s²]` (combined in quadrature with
+    /// the noise level's σ_a).
+    pub accel_noise: f64,
+    /// σ of the accelerometer's constant per-flight bias, per body axis `[m/s²]`.
+    pub accel_bias: f64,
+    /// Velocity white noise, σ per axis per sample \[m/s\] (combined in quadrature with the
+    /// noise level's σ_v).
+    pub velocity_noise: f64,
+    /// White noise on each measured rotor speed, σ per rotor per sample \[rad/s\].
+    pub rotor_speed_noise: f64,
+}
+
+impl Default for Sensing {
+    /// [`Sensing::ideal`].
+    fn default() -> Self {
+        Self::ideal()
+    }
+}
+
+impl Sensing {
+    /// Ideal sensors: every σ zero. With it a flight is bit-identical to the simulator before
+    /// sensing profiles existed (only the [`NoiseLevel`](crate::NoiseLevel) adds noise).
+    pub const fn ideal() -> Self {
+        Self {
+            gyro_noise: 0.0,
+            gyro_bias: 0.0,
+            accel_noise: 0.0,
+            accel_bias: 0.0,
+            velocity_noise: 0.0,
+            rotor_speed_noise: 0.0,
+        }
+    }
+
+    /// A Crazyflie 2.1 in flight: BMI088 IMU with propeller vibration, motion-capture
+    /// velocity, rotor speeds read back as an ESC's eRPM telemetry.
+    ///
+    /// | field | value | from |
+    /// |---|---|---|
+    /// | `gyro_noise` | 7.9e-3 rad/s (0.45 deg/s) | data sheet 0.014 deg/s/sqrt(Hz) × sqrt(116 Hz) = 0.15 deg/s, × 3 for propeller vibration ([`PROPELLER_VIBRATION_FACTOR`], chosen) |
+    /// | `gyro_bias` | 2.6e-3 rad/s (0.15 deg/s) | what remains after the firmware's at-rest calibration: data sheet offset drift 0.015 deg/s/K × 10 K warm-up ([`WARM_UP_KELVIN`], chosen) |
+    /// | `accel_noise` | 0.062 m/s² | data sheet 175 micro-g/sqrt(Hz) × sqrt(145 Hz) = 2.1 mg, × 3 for propeller vibration |
+    /// | `accel_bias` | 0.196 m/s² (20 mg) | data sheet typical zero-g offset (the firmware only rescales the magnitude at rest) |
+    /// | `velocity_noise` | 0.01 m/s | motion capture (sub-millimetre position, differenced at 100 Hz and filtered); a chosen figure |
+    /// | `rotor_speed_noise` | 20 rad/s | about 1 % of the hover speed (≈ 1930 rad/s): eRPM period quantisation (≈ 0.3 % at hover with 1 µs steps) plus commutation jitter; a chosen figure |
+    ///
+    /// The accelerometer bias is realistic for an uncalibrated BMI088 and shows in the data as a
+    /// constant body force (see [`Sensing`]).
+    pub fn realistic() -> Self {
+        let deg = std::f64::consts::PI / 180.0;
+        Self {
+            gyro_noise: BMI088_GYRO_NOISE_DENSITY_DEG
+                * deg
+                * CRAZYFLIE_GYRO_BANDWIDTH.sqrt()
+                * PROPELLER_VIBRATION_FACTOR,
+            gyro_bias: BMI088_GYRO_OFFSET_DRIFT_DEG * WARM_UP_KELVIN * deg,
+            accel_noise: BMI088_ACCEL_NOISE_DENSITY_G
+                * STANDARD_GRAVITY
+                * CRAZYFLIE_ACCEL_BANDWIDTH.sqrt()
+                * PROPELLER_VIBRATION_FACTOR,
+            accel_bias: BMI088_ACCEL_OFFSET_G * STANDARD_GRAVITY,
+            velocity_noise: 0.01,
+            rotor_speed_noise: 20.0,
+        }
+    }
+
+    /// [`Sensing::realistic`] with the accelerometer calibrated in flight (`accel_bias = 0`):
+    /// a log whose only constant body force is the plant's.
+    pub fn realistic_calibrated() -> Self {
+        Self {
+            accel_bias: 0.0,
+            ..Self::realistic()
+        }
+    }
+
+    /// This profile with the rate-gyro noise `gyro_noise` \[rad/s\].
+    pub fn with_gyro_noise(self, gyro_noise: f64) -> Self {
+        Self { gyro_noise, ..self }
+    }
+
+    /// The σ of two independent noises on one signal, `sqrt(a² + b²)`; exactly `a` when
+    /// `b = 0` (and `b` when `a = 0`), so that an ideal profile leaves the noise level's σ
+    /// bit-for-bit unchanged.
+    pub fn combined(a: f64, b: f64) -> f64 {
+        if b == 0.0 {
+            a
+        } else if a == 0.0 {
+            b
+        } else {
+            a.hypot(b)
+        }
+    }
+
+    /// Checks every σ is non-negative and finite.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), SimError> {
+        for (name, value) in [
+            ("sensing.gyro_noise", self.gyro_noise),
+            ("sensing.gyro_bias", self.gyro_bias),
+            ("sensing.accel_noise", self.accel_noise),
+            ("sensing.accel_bias", self.accel_bias),
+            ("sensing.velocity_noise", self.velocity_noise),
+            ("sensing.rotor_speed_noise", self.rotor_speed_noise),
+        ] {
+            if !(value >= 0.0 && value.is_finite()) {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be non-negative and finite",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The named sensing profiles (`tagk simulate --sensing NAME`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum SensingProfile {
+    /// [`Sensing::ideal`].
+    #[default]
+    Ideal,
+    /// [`Sensing::realistic`].
+    Realistic,
+    /// [`Sensing::realistic_calibrated`].
+    RealisticCalibrated,
+}
+
+impl SensingProfile {
+    /// Every profile.
+    pub const ALL: [SensingProfile; 3] = [
+        SensingProfile::Ideal,
+        SensingProfile::Realistic,
+        SensingProfile::RealisticCalibrated,
+    ];
+
+    /// Name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SensingProfile::Ideal => "ideal",
+            SensingProfile::Realistic => "realistic",
+            SensingProfile::RealisticCalibrated => "realistic-calibrated",
+        }
+    }
+
+    /// The profile's figures.
+    pub fn sensing(self) -> Sensing {
+        match self {
+            SensingProfile::Ideal => Sensing::ideal(),
+            SensingProfile::Realistic => Sensing::realistic(),
+            SensingProfile::RealisticCalibrated => Sensing::realistic_calibrated(),
+        }
+    }
+}
+
+impl fmt::Display for SensingProfile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for SensingProfile {
+    type Err = SimError;
+
+    /// Parses [`SensingProfile::name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        SensingProfile::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "sensing profile",
+                value: s.to_string(),
+                expected: "ideal, realistic, realistic-calibrated",
+            })
+    }
+}
