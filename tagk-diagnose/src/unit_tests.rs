@@ -95,7 +95,8 @@ fn gram_cross_validation_matches_brute_force() {
     let s = Signals::from_log(&log).unwrap();
     let base = rigid_columns(&s);
     let cand: Vec<ColData> =
-        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None);
+        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None)
+            .cols;
     let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
     let folds = 5;
     let engine = GramEngine::new(&s, &w, &base, None, folds);
@@ -714,4 +715,36 @@ fn malformed_user_effects_are_reported_not_panicked_on() {
         skipped.contains(&"short") && skipped.contains(&"nan"),
         "{skipped:?}"
     );
+}
+
+/// A known part moved to the target (`evaluate_with` and an offset) gives what an engine built
+/// on the shifted target gives: the Gram algebra `(y − o)ᵀ(y − o)`, `(y − o)ᵀx` is right.
+#[test]
+fn an_offset_equals_a_shifted_target() {
+    let log = synthetic_log(&crazyflie(), 400, 5e-3, 9, &|_, vb| {
+        [-0.01 * vb.x, -0.01 * vb.y, 0.0, 0.0, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let base = rigid_columns(&s);
+    let cand: Vec<ColData> =
+        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None)
+            .cols;
+    let offset: ColData = std::array::from_fn(|c| {
+        (c % 2 == 0).then(|| s.t.iter().map(|t| 1e-3 * (3.0 * t + c as f64).sin()).collect())
+    });
+    let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
+    let shifted: Vec<[f64; 6]> = s
+        .target
+        .iter()
+        .enumerate()
+        .map(|(i, y)| std::array::from_fn(|c| y[c] - offset[c].as_ref().map_or(0.0, |v| v[i])))
+        .collect();
+    let with = GramEngine::new(&s, &w, &base, None, 5).evaluate_with(&cand, Some(&offset));
+    let direct = GramEngine::new(&s, &w, &base, Some(&shifted), 5).evaluate(&cand);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-300);
+    assert!(close(with.sse_full, direct.sse_full), "{} {}", with.sse_full, direct.sse_full);
+    assert!(close(with.sse_cv, direct.sse_cv), "{} {}", with.sse_cv, direct.sse_cv);
+    for (a, b) in with.beta.iter().zip(&direct.beta) {
+        assert!((a - b).abs() <= 1e-7 * b.abs().max(1e-9), "{a} {b}");
+    }
 }

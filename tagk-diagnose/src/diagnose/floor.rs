@@ -2,13 +2,14 @@
 //!
 //! **Rule.** Per channel, the floor is the larger of
 //! - the **reachable residual**: the held-out (blocked CV) residual RMS of the *saturated*
-//!   model, the current model plus every usable candidate that is physically plausible when
-//!   added alone (each scan at its best value; candidates whose own refit breaks a rule of
-//!   [`crate::diagnose`]'s sanity checks are left out, and if the saturated refit itself
-//!   moves the mass by more than [`crate::MAX_MASS_CHANGE`] the current model's own held-out
-//!   residual is used). No sequence of candidates can do better on held-out data, so the
-//!   distance from a model to it is what the candidates can still explain; on a log whose
-//!   only imperfection is measurement noise it is the noise;
+//!   model, the current model plus every usable candidate that is plausible when added alone,
+//!   all at once (each scan at its best value), pruned one effect at a time until its fit is
+//!   physical (an effect whose own rules fail in the joint fit, or one that collapses the
+//!   rigid body's mass by more than [`crate::MAX_MASS_CHANGE`], goes: the one with the
+//!   smallest held-out gain alone first). No
+//!   sequence of candidates can do better on held-out data, so the distance from a model to it
+//!   is what the candidates can still explain; on a log whose only imperfection is
+//!   measurement noise it is the noise;
 //! - the **resolution**: 10⁻⁴ of the RMS of the measured force magnitude (forces), times the
 //!   airframe radius (torques) — below that no effect matters to a flight-dynamics model, and a
 //!   noise-free simulator log would otherwise chase rounding.
@@ -22,7 +23,7 @@
 
 use serde::Serialize;
 
-use crate::diagnose::{Candidate, DiagnoseOptions};
+use crate::diagnose::{Candidate, DiagnoseOptions, MAX_MASS_CHANGE};
 use crate::effects::{EffectRef, usable};
 use crate::error::DiagnoseError;
 use crate::fit::{
@@ -70,11 +71,12 @@ pub(crate) fn held_out_rms(ev: &Evaluation, w: &[f64; 6], n: usize) -> [f64; 6] 
     })
 }
 
-/// The design of a fitted model (rigid columns, then each effect's at its fitted parameter).
+/// The design of a fitted model (rigid columns, then each effect's fitted columns at its
+/// fitted parameter; the fixed columns are already in the fit's residual).
 pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> Vec<ColData> {
     let (mut cols, _) = rigid_design(model, s);
     for (k, e) in model.effects().iter().enumerate() {
-        cols.extend(effect_design(e.as_ref(), s, fit.params[k]));
+        cols.extend(effect_design(e.as_ref(), s, fit.params[k]).cols);
     }
     cols
 }
@@ -105,6 +107,65 @@ pub(crate) fn joinable<'a>(
         .collect()
 }
 
+/// The saturated model and its fit: the model plus every joinable candidate that is plausible
+/// when added alone, pruned until the joint fit is physical — one effect per round, the one
+/// whose own rules fail in the joint fit (or, if none fails but the rigid body does, mass off
+/// by more than [`MAX_MASS_CHANGE`] or not positive, any) with the smallest held-out gain
+/// alone. With nothing left, the model itself.
+fn saturated_fit(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    start_fit: &Fit,
+    alone: &[Candidate],
+) -> Result<(Model, Fit), DiagnoseError> {
+    let gain_alone = |name: &str| {
+        alone
+            .iter()
+            .find(|c| c.effect == name)
+            .map_or(f64::NEG_INFINITY, |c| c.reduction)
+    };
+    let mut set: Vec<EffectRef> = joinable(model, s, &opts.candidates)
+        .into_iter()
+        .filter(|e| alone.iter().any(|c| c.effect == e.name() && c.plausible))
+        .cloned()
+        .collect();
+    let m0 = start_fit.theta.mass();
+    while !set.is_empty() {
+        let mut saturated = model.clone();
+        for e in &set {
+            saturated = saturated.with_ref(e.clone());
+        }
+        let fit = fit_model(&saturated, s, None)?;
+        let bad: Vec<&str> = fit
+            .effects
+            .iter()
+            .filter(|f| !f.plausible && !model.has(&f.effect))
+            .map(|f| f.effect.as_str())
+            .collect();
+        let m1 = fit.theta.mass();
+        let mass_ok = m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= MAX_MASS_CHANGE);
+        if bad.is_empty() && mass_ok {
+            return Ok((saturated, fit));
+        }
+        let pool: Vec<&str> = if bad.is_empty() {
+            set.iter().map(|e| e.name()).collect()
+        } else {
+            bad
+        };
+        let Some(drop) = pool
+            .iter()
+            .copied()
+            .min_by(|a, b| gain_alone(a).total_cmp(&gain_alone(b)))
+            .map(str::to_string)
+        else {
+            break;
+        };
+        set.retain(|e| e.name() != drop);
+    }
+    Ok((model.clone(), start_fit.clone()))
+}
+
 /// The noise floor of a log for `model` and the candidates of `opts` (rule in the module
 /// docs).
 ///
@@ -117,22 +178,7 @@ pub(crate) fn noise_floor(
     start_fit: &Fit,
     alone: &[Candidate],
 ) -> Result<NoiseFloor, DiagnoseError> {
-    let mut saturated = model.clone();
-    for e in joinable(model, s, &opts.candidates) {
-        if alone.iter().any(|c| c.effect == e.name() && c.plausible) {
-            saturated = saturated.with_ref(e.clone());
-        }
-    }
-    let mut fit = if saturated.effects().len() > model.effects().len() {
-        fit_model(&saturated, s, None)?
-    } else {
-        start_fit.clone()
-    };
-    let (m0, m1) = (start_fit.theta.mass(), fit.theta.mass());
-    if !(m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= crate::diagnose::MAX_MASS_CHANGE)) {
-        saturated = model.clone();
-        fit = start_fit.clone();
-    }
+    let (saturated, fit) = saturated_fit(model, s, opts, start_fit, alone)?;
     let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
     let reachable = held_out_rms(&ev, &fit.weights, s.len());
     let noise_estimate: [f64; 6] = std::array::from_fn(|c| {

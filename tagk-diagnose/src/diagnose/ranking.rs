@@ -9,7 +9,7 @@ use crate::diagnose::floor::{NoiseFloor, held_out_rms, model_design};
 use crate::diagnose::sanity::{SanityContext, check_refit};
 use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
-    Coefficient, ColData, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
+    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
 };
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
@@ -289,20 +289,21 @@ fn best_design(
     e: &dyn Effect,
     s: &Signals,
     engine: &GramEngine<'_>,
-) -> (Option<f64>, Vec<ColData>, Evaluation) {
+) -> (Option<f64>, EffectDesign, Evaluation) {
     match e.scan() {
         None => {
-            let cols = effect_design(e, s, None);
-            let ev = engine.evaluate(&cols);
-            (None, cols, ev)
+            let d = effect_design(e, s, None);
+            let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+            (None, d, ev)
         }
         Some(sp) => {
             let (g, _) = scan_min(&sp.grid, |g| {
-                engine.evaluate(&effect_design(e, s, Some(g))).sse_full
+                let d = effect_design(e, s, Some(g));
+                engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
             });
-            let cols = effect_design(e, s, Some(g));
-            let ev = engine.evaluate(&cols);
-            (Some(g), cols, ev)
+            let d = effect_design(e, s, Some(g));
+            let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+            (Some(g), d, ev)
         }
     }
 }
@@ -320,13 +321,14 @@ fn score_candidate(
     opts: &DiagnoseOptions,
 ) -> (Candidate, Vec<f64>) {
     let spec = e.scan();
-    let (param, cols, ev) = best_design(e, s, &base.engine);
+    let (param, design, ev) = best_design(e, s, &base.engine);
+    let cols = &design.cols;
     let base_ev = &base.evaluation;
     let p_base = base.columns;
     let rows = (6 * s.len()) as f64;
     let q = cols.len();
     let dof = q + usize::from(spec.is_some());
-    let res = base.engine.residual(&cols, &ev.beta);
+    let res = base.engine.residual(cols, design.offset.as_ref(), &ev.beta);
     let mut kappa = 0.0;
     for c in 0..6 {
         let r: Vec<f64> = res.iter().map(|x| x[c]).collect();
@@ -366,7 +368,10 @@ fn score_candidate(
         .iter()
         .map(|d| (d * sigma2 * kappa).sqrt())
         .collect();
-    let ecols = crate::effects::effect_columns(e, s, param);
+    let ecols: Vec<_> = crate::effects::effect_columns(e, s, param)
+        .into_iter()
+        .filter(|c| c.fixed.is_none())
+        .collect();
     let coefficients: Vec<Coefficient> = ecols
         .iter()
         .enumerate()

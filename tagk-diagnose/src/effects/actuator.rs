@@ -108,7 +108,7 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
     for r in 0..4 {
         let mut end = w[0][r];
         mid[0][r] = end * end;
-        mean[0][r] = end * end;
+        mean[0][r] = mid[0][r];
         for i in 1..n {
             let dt = s.t[i] - s.t[i - 1];
             let u = w[i][r];
@@ -189,6 +189,7 @@ impl Effect for MotorLag {
             name: "g_lag".into(),
             unit: "1".into(),
             data,
+            fixed: Some(1.0),
         }];
         // The actuators' state when the log starts is unknown: its effect decays like
         // e^{−(t − t₀)/τ}, a nuisance column per channel.
@@ -203,16 +204,9 @@ impl Effect for MotorLag {
         }
         cols
     }
-    fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
-        if !(0.4..=2.5).contains(&coef[0]) {
-            return Plausibility::broken(
-                "lag-gain",
-                format!(
-                    "lag gain {:.2} far from 1: the lag shape does not match",
-                    coef[0]
-                ),
-            );
-        }
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
+        // The lag's gain is fixed at 1 (the delivered wrench IS the lagged command); only the
+        // time constant can be unphysical.
         if let Some(tau) = p
             && tau >= *self.grid.last().unwrap_or(&f64::INFINITY)
         {
@@ -263,6 +257,7 @@ pub(crate) fn shifted(t: &[f64], x: &[f64], d: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(n);
     let mut k = 0usize;
     for &ti in t {
+
         let tq = ti - d;
         if tq <= t[0] {
             out.push(x[0]);
@@ -318,18 +313,11 @@ impl Effect for TimeDelay {
             name: "g_delay".into(),
             unit: "1".into(),
             data,
+            fixed: Some(1.0),
         }]
     }
-    fn plausibility(&self, coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
-        if !(0.8..=1.25).contains(&coef[0]) {
-            return Plausibility::broken(
-                "delay-gain",
-                format!(
-                    "delay gain {:.2} far from 1: not a pure time shift",
-                    coef[0]
-                ),
-            );
-        }
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
+        // A pure time shift: the gain is fixed at 1; only the delay can be unphysical.
         if let Some(d) = p {
             let max = self.grid.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             if d.abs() >= max {
@@ -374,6 +362,7 @@ impl Effect for ThrustGain {
             name: "kappa".into(),
             unit: "1".into(),
             data,
+            fixed: None,
         }]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {

@@ -176,6 +176,7 @@ impl Effect for RotorDrag {
                 name: name.to_string(),
                 unit: "N s²/(m rad)".into(),
                 data,
+                fixed: None,
             })
             .collect()
     }

@@ -100,6 +100,7 @@ impl Effect for Wind {
                 name: WIND_COLUMNS[3 + j].0.to_string(),
                 unit: WIND_COLUMNS[3 + j].1.into(),
                 data,
+                fixed: None,
             });
         }
         cols

@@ -59,6 +59,7 @@ impl Effect for GroundEffect {
             name: "c_ge".into(),
             unit: "1".into(),
             data,
+            fixed: None,
         }]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {

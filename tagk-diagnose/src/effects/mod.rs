@@ -39,6 +39,11 @@ pub struct EffectColumn {
     pub unit: String,
     /// External wrench per unit coefficient, per channel, one value per sample.
     pub data: [Option<Vec<f64>>; 6],
+    /// `Some(value)`: the coefficient is known physics, fixed at `value` instead of fitted
+    /// (e.g. a motor lag's gain of 1: a fitted gain would absorb the measured wrench's noise,
+    /// which the column carries too — errors in variables). Such a column shifts the target
+    /// and has no standard error.
+    pub fixed: Option<f64>,
 }
 
 impl EffectColumn {
@@ -50,7 +55,14 @@ impl EffectColumn {
             name: name.to_string(),
             unit: unit.to_string(),
             data,
+            fixed: None,
         }
+    }
+
+    /// The same column with its coefficient fixed at `value` (see [`EffectColumn::fixed`]).
+    pub fn fixed_at(mut self, value: f64) -> Self {
+        self.fixed = Some(value);
+        self
     }
 }
 
@@ -131,7 +143,7 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// one, each with one finite value per sample on the channels it touches.
     fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;
     /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
-    /// column of [`Effect::columns`], in that order).
+    /// fitted column of [`Effect::columns`] — fixed columns have none — in that order).
     fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
     /// Physical quantities derived from fitted coefficients `coef` with standard errors `se`
     /// (e.g. the wind velocity from the wind force and the drag), with their standard errors.
@@ -335,6 +347,7 @@ pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> V
                     name: format!("{}@{}", first.name, k + 1),
                     unit: first.unit.clone(),
                     data,
+                    fixed: first.fixed,
                 });
                 offset += lengths[k];
             }
@@ -357,6 +370,7 @@ pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> V
             name: first.name.clone(),
             unit: first.unit.clone(),
             data,
+            fixed: first.fixed,
         });
     }
     out

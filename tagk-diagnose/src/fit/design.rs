@@ -76,16 +76,50 @@ pub(crate) fn add_known_mass(model: &Model, s: &Signals, pred: &mut [[f64; 6]]) 
     }
 }
 
-/// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped).
-pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> Vec<ColData> {
-    crate::effects::effect_columns(effect, s, p)
-        .into_iter()
-        .map(|c| {
-            let mut data = c.data;
-            s.smooth_channels(&mut data);
-            data.map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()))
-        })
-        .collect()
+/// An effect's part of the regression: the fitted columns and the known part (the fixed
+/// columns times their values), both sign-flipped (`b = Yθ − Φβ`).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct EffectDesign {
+    /// Fitted columns.
+    pub cols: Vec<ColData>,
+    /// The fixed columns' sum, to move to the target (`None`: none).
+    pub offset: Option<ColData>,
+}
+
+/// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped), smoothed like
+/// the target ([`Signals::smooth_channels`]); fixed columns go into the offset.
+pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> EffectDesign {
+    let mut out = EffectDesign::default();
+    for c in crate::effects::effect_columns(effect, s, p) {
+        let mut data = c.data;
+        s.smooth_channels(&mut data);
+        let data: ColData = data.map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()));
+        match c.fixed {
+            None => out.cols.push(data),
+            Some(value) => {
+                let offset = out.offset.get_or_insert_with(Default::default);
+                for (o, d) in offset.iter_mut().zip(data) {
+                    let Some(d) = d else { continue };
+                    match o {
+                        Some(v) => v.iter_mut().zip(&d).for_each(|(a, b)| *a += value * b),
+                        None => *o = Some(d.iter().map(|b| value * b).collect()),
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Adds `offset` (a sum of fixed columns) to per-sample values.
+pub(crate) fn add_offset(values: &mut [[f64; 6]], offset: &ColData) {
+    for (c, d) in offset.iter().enumerate() {
+        if let Some(v) = d {
+            for (x, o) in values.iter_mut().zip(v) {
+                x[c] += o;
+            }
+        }
+    }
 }
 
 /// Initial channel weights from the measurement scale per unit group (forces, torques).

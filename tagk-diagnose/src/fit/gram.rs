@@ -103,6 +103,12 @@ impl<'a> GramEngine<'a> {
 
     /// Evaluates base + `cand` (unweighted extra columns; may be empty).
     pub fn evaluate(&self, cand: &[ColData]) -> Evaluation {
+        self.evaluate_with(cand, None)
+    }
+
+    /// Evaluates base + `cand` with the known part `offset` (unweighted; fixed columns times
+    /// their values) moved to the target: the target becomes `y − offset`.
+    pub fn evaluate_with(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
         let cand = self.weigh(cand);
         let p0 = 1 + self.base.len();
         let q = cand.len();
@@ -113,6 +119,15 @@ impl<'a> GramEngine<'a> {
         left.extend(cand.iter());
         let candr: Vec<&ColData> = cand.iter().collect();
         let cross = cross_tensor(&left, &candr, &self.pieces);
+        // The offset's cross products with [y, base…, cand…] and with itself.
+        let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
+        let (ocross, oo) = match &offset {
+            Some(o) => (
+                cross_tensor(&[o], &left, &self.pieces),
+                cross_tensor(&[o], &[o], &self.pieces),
+            ),
+            None => (Vec::new(), Vec::new()),
+        };
         // Assemble the full (pp × pp) matrices per piece and channel.
         let mut g = vec![0.0; np * 6 * pp * pp];
         for pc in 0..np * 6 {
@@ -128,6 +143,15 @@ impl<'a> GramEngine<'a> {
                 for j in 0..q {
                     dst[i * pp + p0 + j] = cs[i * q + j];
                     dst[(p0 + j) * pp + i] = cs[i * q + j];
+                }
+            }
+            if offset.is_some() {
+                // y → y − o: (y−o)ᵀ(y−o) = yᵀy − 2 oᵀy + oᵀo; (y−o)ᵀx = yᵀx − oᵀx.
+                let oc = &ocross[pc * pp..(pc + 1) * pp];
+                dst[0] += -2.0 * oc[0] + oo[pc];
+                for j in 1..pp {
+                    dst[j] -= oc[j];
+                    dst[j * pp] -= oc[j];
                 }
             }
         }
@@ -185,13 +209,23 @@ impl<'a> GramEngine<'a> {
         }
     }
 
-    /// Weighted residual of base + `cand` at coefficients `beta` (from [`Self::evaluate`]).
-    pub fn residual(&self, cand: &[ColData], beta: &[f64]) -> Vec<[f64; 6]> {
+    /// Weighted residual of base + `cand` (with the known part `offset`) at coefficients
+    /// `beta` (from [`Self::evaluate_with`]).
+    pub fn residual(&self, cand: &[ColData], offset: Option<&ColData>, beta: &[f64]) -> Vec<[f64; 6]> {
         let cand = self.weigh(cand);
         let n = self.s.len();
         let mut r: Vec<[f64; 6]> = (0..n)
             .map(|i| std::array::from_fn(|c| self.y[c].as_ref().map_or(0.0, |v| v[i])))
             .collect();
+        if let Some(o) = offset {
+            for (c, d) in self.weigh(std::slice::from_ref(o))[0].iter().enumerate() {
+                if let Some(v) = d {
+                    for i in 0..n {
+                        r[i][c] -= v[i];
+                    }
+                }
+            }
+        }
         for (col, &b) in self.base.iter().chain(cand.iter()).zip(beta) {
             for (c, d) in col.iter().enumerate() {
                 if let Some(v) = d {

@@ -14,7 +14,9 @@ use crate::effects::{Plausibility, usable};
 use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
-pub(crate) use design::{ColData, effect_design, rigid_columns, rigid_design};
+pub(crate) use design::{
+    ColData, EffectDesign, add_offset, effect_design, rigid_columns, rigid_design,
+};
 pub(crate) use gram::{Evaluation, GramEngine};
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
@@ -239,18 +241,33 @@ fn scan_parameters(
     for (k, e) in model.effects().iter().enumerate() {
         let Some(spec) = e.scan() else { continue };
         let mut fixed: Vec<ColData> = rigid.to_vec();
+        let mut shifted_target = target.to_vec();
         for (j, f) in model.effects().iter().enumerate() {
             if j != k {
-                fixed.extend(effect_design(f.as_ref(), s, params[j]));
+                let d = effect_design(f.as_ref(), s, params[j]);
+                fixed.extend(d.cols);
+                if let Some(o) = &d.offset {
+                    sub_offset(&mut shifted_target, o);
+                }
             }
         }
-        let engine = GramEngine::new(s, w, &fixed, Some(target), 1);
+        let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
         let (best, _) = scan_min(&spec.grid, |g| {
-            engine
-                .evaluate(&effect_design(e.as_ref(), s, Some(g)))
-                .sse_full
+            let d = effect_design(e.as_ref(), s, Some(g));
+            engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
         });
         params[k] = Some(best);
+    }
+}
+
+/// Subtracts `offset` (a sum of fixed columns) from per-sample values.
+fn sub_offset(values: &mut [[f64; 6]], offset: &ColData) {
+    for (c, d) in offset.iter().enumerate() {
+        if let Some(v) = d {
+            for (x, o) in values.iter_mut().zip(v) {
+                x[c] -= o;
+            }
+        }
     }
 }
 
@@ -273,17 +290,40 @@ fn solve_pass(
     last_pass: bool,
 ) -> Result<Pass, DiagnoseError> {
     let mut cols = rigid.to_vec();
+    let mut known: Option<ColData> = None;
     for (k, e) in model.effects().iter().enumerate() {
-        cols.extend(effect_design(e.as_ref(), s, params[k]));
+        let d = effect_design(e.as_ref(), s, params[k]);
+        cols.extend(d.cols);
+        if let Some(o) = d.offset {
+            match &mut known {
+                None => known = Some(o),
+                Some(acc) => {
+                    for (a, b) in acc.iter_mut().zip(o) {
+                        match (a.as_mut(), b) {
+                            (Some(x), Some(y)) => x.iter_mut().zip(&y).for_each(|(p, q)| *p += q),
+                            (None, Some(y)) => *a = Some(y),
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut shifted_target = target.to_vec();
+    if let Some(o) = &known {
+        sub_offset(&mut shifted_target, o);
     }
     let (beta, solution) = if last_pass {
-        let sol = weighted_qr_solve(&cols, target, w, 1.0)?;
+        let sol = weighted_qr_solve(&cols, &shifted_target, w, 1.0)?;
         (sol.beta.clone(), Some(sol))
     } else {
-        let engine = GramEngine::new(s, w, &cols, Some(target), 1);
+        let engine = GramEngine::new(s, w, &cols, Some(&shifted_target), 1);
         (engine.evaluate(&[]).beta, None)
     };
     let mut predicted = predict(&cols, &beta, s.len());
+    if let Some(o) = &known {
+        add_offset(&mut predicted, o);
+    }
     add_known_mass(model, s, &mut predicted);
     let residual: Vec<[f64; 6]> = s
         .target
@@ -327,7 +367,10 @@ fn fitted_effects(
     let mut effects = Vec::new();
     let mut j = nr;
     for (k, e) in model.effects().iter().enumerate() {
-        let ecols = crate::effects::effect_columns(e.as_ref(), s, params[k]);
+        let ecols: Vec<_> = crate::effects::effect_columns(e.as_ref(), s, params[k])
+            .into_iter()
+            .filter(|c| c.fixed.is_none())
+            .collect();
         let q = ecols.len();
         let coef: Vec<f64> = sol.beta[j..j + q].to_vec();
         let se: Vec<f64> = sol.se[j..j + q]
