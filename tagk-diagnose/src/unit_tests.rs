@@ -95,8 +95,7 @@ fn gram_cross_validation_matches_brute_force() {
     let s = Signals::from_log(&log).unwrap();
     let base = rigid_columns(&s);
     let cand: Vec<ColData> =
-        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None)
-            .cols;
+        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None).cols;
     let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
     let folds = 5;
     let engine = GramEngine::new(&s, &w, &base, None, folds);
@@ -727,10 +726,13 @@ fn an_offset_equals_a_shifted_target() {
     let s = Signals::from_log(&log).unwrap();
     let base = rigid_columns(&s);
     let cand: Vec<ColData> =
-        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None)
-            .cols;
+        crate::fit::effect_design(builtin(EffectKind::LinearDrag).unwrap().as_ref(), &s, None).cols;
     let offset: ColData = std::array::from_fn(|c| {
-        (c % 2 == 0).then(|| s.t.iter().map(|t| 1e-3 * (3.0 * t + c as f64).sin()).collect())
+        (c % 2 == 0).then(|| {
+            s.t.iter()
+                .map(|t| 1e-3 * (3.0 * t + c as f64).sin())
+                .collect()
+        })
     });
     let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
     let shifted: Vec<[f64; 6]> = s
@@ -742,8 +744,18 @@ fn an_offset_equals_a_shifted_target() {
     let with = GramEngine::new(&s, &w, &base, None, 5).evaluate_with(&cand, Some(&offset));
     let direct = GramEngine::new(&s, &w, &base, Some(&shifted), 5).evaluate(&cand);
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-300);
-    assert!(close(with.sse_full, direct.sse_full), "{} {}", with.sse_full, direct.sse_full);
-    assert!(close(with.sse_cv, direct.sse_cv), "{} {}", with.sse_cv, direct.sse_cv);
+    assert!(
+        close(with.sse_full, direct.sse_full),
+        "{} {}",
+        with.sse_full,
+        direct.sse_full
+    );
+    assert!(
+        close(with.sse_cv, direct.sse_cv),
+        "{} {}",
+        with.sse_cv,
+        direct.sse_cv
+    );
     for (a, b) in with.beta.iter().zip(&direct.beta) {
         assert!((a - b).abs() <= 1e-7 * b.abs().max(1e-9), "{a} {b}");
     }

@@ -88,7 +88,7 @@ impl EffectKind {
             EffectKind::MotorLag => "first-order lag between commanded and produced thrust",
             EffectKind::TimeDelay => "time delay between the wrench and the motion streams",
             EffectKind::GroundEffect => "thrust increase close to the ground",
-            EffectKind::BodyBias => "constant body-frame force and torque",
+            EffectKind::BodyBias => "constant horizontal body-frame force and torque",
             EffectKind::Wind => "constant wind acting through drag on the air-relative velocity",
             EffectKind::ThrustGain => "relative error of the thrust coefficient",
         }
@@ -96,11 +96,14 @@ impl EffectKind {
 
     /// The physical family the effect belongs to: the three drag laws (`linear-drag`,
     /// `quadratic-drag`, `rotor-drag`) are one family, `drag`, since a log near hover cannot
-    /// tell them apart; every other effect is a family of its own, named like it. (A `wind`
-    /// fit includes a drag: [`EffectKind::includes_drag`].)
+    /// tell them apart; `motor-lag` and `time-delay` are one family, `timing`, since to first
+    /// order in frequency a first-order lag τ is a delay τ (they part only where the lag's
+    /// amplitude roll-off rises above the noise); every other effect is a family of its own,
+    /// named like it. (A `wind` fit includes a drag: [`EffectKind::includes_drag`].)
     pub const fn family(self) -> &'static str {
         match self {
             EffectKind::LinearDrag | EffectKind::QuadraticDrag | EffectKind::RotorDrag => "drag",
+            EffectKind::MotorLag | EffectKind::TimeDelay => "timing",
             other => other.name(),
         }
     }

@@ -401,7 +401,13 @@ fn score_candidate(
         .map(|c| CHANNEL_NAMES[c].to_string())
         .collect();
     let significant = p_value < opts.alpha / base.tests;
-    let scanned = spec.map(|sp| (sp.name, param.unwrap_or(f64::NAN), sp.unit));
+    let scanned = spec.map(|sp| {
+        (
+            sp.name,
+            param.map_or(f64::NAN, |p| e.applied(s, p)),
+            sp.unit,
+        )
+    });
     let (dname, dsig) = e.driver(s);
     let candidate = Candidate {
         effect: e.name().to_string(),

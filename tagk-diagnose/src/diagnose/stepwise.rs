@@ -13,7 +13,9 @@
 
 use serde::Serialize;
 
-use crate::diagnose::{DiagnoseOptions, Diagnosis, FLOOR_MARGIN, NoiseFloor, diagnose_against};
+use crate::diagnose::{
+    DiagnoseOptions, Diagnosis, FLOOR_MARGIN, MAX_CHANNEL_WORSENING, NoiseFloor, diagnose_against,
+};
 use crate::error::DiagnoseError;
 use crate::fit::{Coefficient, Model};
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
@@ -117,33 +119,60 @@ pub fn discover_from(
     let mut diagnoses = vec![first];
     let mut model = start.clone();
     let mut added = Vec::new();
-    let stopped = loop {
+    let stopped = 'search: loop {
         let current = &diagnoses[diagnoses.len() - 1];
-        let Some(name) = current.recommended.clone() else {
+        if current.recommended.is_none() {
             break stop_reason(current);
-        };
-        if added.len() >= opts.max_steps {
-            break format!(
-                "step limit: {} effects added (`max_steps`); `{name}` would be next",
-                opts.max_steps
-            );
         }
-        let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
-            break format!("the recommended `{name}` is not among the candidates");
-        };
-        let gain = current
+        // The qualifying candidates, best first: the first whose refit keeps every channel
+        // within MAX_CHANNEL_WORSENING of the current held-out RMS is the step (the full refit
+        // re-scans every effect, so it can differ from the candidate's own evaluation).
+        let qualifying: Vec<(String, f64)> = current
             .ranking
             .iter()
-            .find(|c| c.effect == name)
-            .map_or(0.0, |c| c.gain_over_floor);
-        model = model.with_ref(effect.clone());
-        let next = diagnose_against(&model, s, opts, &floor)?;
-        steps.push(step_of(Some(&name), &next, Some(current), &floor));
-        if let Some(last) = steps.last_mut() {
-            last.gain_over_floor = gain;
+            .filter(|c| c.status.qualifies())
+            .map(|c| (c.effect.clone(), c.gain_over_floor))
+            .collect();
+        let mut refused = Vec::new();
+        for (name, gain) in qualifying {
+            if added.len() >= opts.max_steps {
+                break 'search format!(
+                    "step limit: {} effects added (`max_steps`); `{name}` would be next",
+                    opts.max_steps
+                );
+            }
+            let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
+                continue;
+            };
+            let trial = model.clone().with_ref(effect.clone());
+            let next = diagnose_against(&trial, s, opts, &floor)?;
+            let worse: Vec<&str> = (0..6)
+                .filter(|&c| {
+                    next.held_out_rms[c] > (1.0 + MAX_CHANNEL_WORSENING) * current.held_out_rms[c]
+                })
+                .map(|c| CHANNEL_NAMES[c])
+                .collect();
+            if !worse.is_empty() {
+                refused.push(format!(
+                    "`{name}` (its refit worsens the held-out RMS of {} by more than {:.0} %)",
+                    worse.join(", "),
+                    100.0 * MAX_CHANNEL_WORSENING
+                ));
+                continue;
+            }
+            steps.push(step_of(Some(&name), &next, Some(current), &floor));
+            if let Some(last) = steps.last_mut() {
+                last.gain_over_floor = gain;
+            }
+            model = trial;
+            added.push(name);
+            diagnoses.push(next);
+            continue 'search;
         }
-        added.push(name);
-        diagnoses.push(next);
+        break format!(
+            "no candidate qualifies after its refit: {}",
+            refused.join("; ")
+        );
     };
     Ok(Discovery {
         steps,

@@ -9,24 +9,32 @@ use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
 use crate::fit::Coefficient;
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
-/// Constant body-frame force and torque bias (e.g. a miscalibrated motor or a tether).
+/// Constant body-frame force and torque bias (e.g. a miscalibrated motor, a cable, an
+/// accelerometer offset): `bias_fx`, `bias_fy`, `bias_tx`, `bias_ty`, `bias_tz`. No vertical
+/// force: in near-level flight a constant `fz` is the weight `m g` again, so it would trade
+/// against the fitted mass (a vertical bias is a mass error, or with a known mass a
+/// `thrust-gain`).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct BodyBias;
+
+/// The channels of [`BodyBias`].
+const BIAS_CHANNELS: [usize; 5] = [0, 1, 3, 4, 5];
 
 impl Effect for BodyBias {
     fn name(&self) -> &str {
         EffectKind::BodyBias.name()
     }
     fn description(&self) -> &str {
-        "constant force and torque in the body frame (miscalibrated motor, cable, sensor offset)"
+        "constant horizontal force and torque in the body frame (miscalibrated motor, cable, sensor offset)"
     }
     fn channels(&self) -> Vec<Channel> {
-        (0..6).collect()
+        BIAS_CHANNELS.to_vec()
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
         let n = s.len();
-        (0..6)
-            .map(|c| {
+        BIAS_CHANNELS
+            .iter()
+            .map(|&c| {
                 EffectColumn::on(
                     &format!("bias_{}", CHANNEL_NAMES[c]),
                     if c < 3 { "N" } else { "N m" },
@@ -48,14 +56,25 @@ impl Effect for BodyBias {
 /// is not a diagnosis question).
 pub const MAX_WIND_SPEED: f64 = 15.0;
 
-/// Steady wind: linear drag on the air-relative velocity, `f_b = −D Rᵀ (v − v_w)` with
+/// Steady wind: drag on the air-relative velocity, `f_b = −D Rᵀ (v − v_w)` with
 /// `D = diag(d_x, d_y, d_z)` \[N s/m\] and `v_w` the wind, world frame \[m/s\]. Fitted together
 /// as the drag columns `−v_b` and the world-frame force `F_w = D v_w` (body-frame columns
 /// `Rᵀ e_x, Rᵀ e_y, Rᵀ e_z`; exact for `d_x = d_y` and level flight, the usual case); the
 /// wind velocity `v_w ≈ F_w / d` with `d` the mean horizontal drag is reported as a derived
-/// quantity.
+/// quantity. With rotor speeds in the log the drag is the rotor drag, `D = K Σ|ω_i|`: every
+/// column carries the factor `Σ|ω_i|` and the coefficients are `K` and `K v_w`.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Wind;
+
+/// Names of the wind's columns with rotor speeds in the log: the rotor drag `K`, then `K v_w`.
+const ROTOR_WIND_COLUMNS: [(&str, &str); 6] = [
+    ("k_x", "N s²/(m rad)"),
+    ("k_y", "N s²/(m rad)"),
+    ("k_z", "N s²/(m rad)"),
+    ("kv_wx", "N s/rad"),
+    ("kv_wy", "N s/rad"),
+    ("kv_wz", "N s/rad"),
+];
 
 /// Names of the wind's columns: the drag, then the world-frame force.
 const WIND_COLUMNS: [(&str, &str); 6] = [
@@ -78,13 +97,28 @@ impl Effect for Wind {
         vec![0, 1, 2]
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
+        // With rotor speeds the drag is the rotor drag, scaled by Σ|ω_i|: both the drag and
+        // the wind force columns carry the factor (the coefficients become K and K v_w).
+        let scale: Vec<f64> = match &s.rotor_speeds {
+            Some(w) => w.iter().map(|x| x.iter().map(|v| v.abs()).sum()).collect(),
+            None => vec![1.0; s.len()],
+        };
+        let names = if s.rotor_speeds.is_some() {
+            ROTOR_WIND_COLUMNS
+        } else {
+            WIND_COLUMNS
+        };
         let mut cols: Vec<EffectColumn> = (0..3)
             .map(|k| {
                 EffectColumn::on(
-                    WIND_COLUMNS[k].0,
-                    WIND_COLUMNS[k].1,
+                    names[k].0,
+                    names[k].1,
                     k,
-                    s.velocity_body.iter().map(|v| -v[k]).collect(),
+                    s.velocity_body
+                        .iter()
+                        .zip(&scale)
+                        .map(|(v, f)| -v[k] * f)
+                        .collect(),
                 )
             })
             .collect();
@@ -94,11 +128,11 @@ impl Effect for Wind {
             let body: Vec<Vector3<f64>> = s.rotation.iter().map(|r| r.transpose() * e).collect();
             let mut data: [Option<Vec<f64>>; 6] = Default::default();
             for (c, d) in data.iter_mut().enumerate().take(3) {
-                *d = Some(body.iter().map(|v| v[c]).collect());
+                *d = Some(body.iter().zip(&scale).map(|(v, f)| v[c] * f).collect());
             }
             cols.push(EffectColumn {
-                name: WIND_COLUMNS[3 + j].0.to_string(),
-                unit: WIND_COLUMNS[3 + j].1.into(),
+                name: names[3 + j].0.to_string(),
+                unit: names[3 + j].1.into(),
                 data,
                 fixed: None,
             });

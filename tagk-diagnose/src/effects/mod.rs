@@ -139,6 +139,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn scan(&self) -> Option<ScanSpec> {
         None
     }
+    /// The value of the scanned parameter that [`Effect::columns`] actually applies on this
+    /// log for `param` (e.g. a delay rounded to whole samples); reported instead of `param`.
+    /// Default: `param` itself.
+    fn applied(&self, _signals: &Signals, param: f64) -> f64 {
+        param
+    }
     /// The columns of `Φ` on this log (`param` is the scanned parameter, if any): at least
     /// one, each with one finite value per sample on the channels it touches.
     fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;

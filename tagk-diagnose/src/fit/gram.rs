@@ -211,7 +211,12 @@ impl<'a> GramEngine<'a> {
 
     /// Weighted residual of base + `cand` (with the known part `offset`) at coefficients
     /// `beta` (from [`Self::evaluate_with`]).
-    pub fn residual(&self, cand: &[ColData], offset: Option<&ColData>, beta: &[f64]) -> Vec<[f64; 6]> {
+    pub fn residual(
+        &self,
+        cand: &[ColData],
+        offset: Option<&ColData>,
+        beta: &[f64],
+    ) -> Vec<[f64; 6]> {
         let cand = self.weigh(cand);
         let n = self.s.len();
         let mut r: Vec<[f64; 6]> = (0..n)

@@ -254,7 +254,9 @@ fn scan_parameters(
         let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
         let (best, _) = scan_min(&spec.grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
-            engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
+            let v = engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full;
+            if std::env::var("TAGK_DEBUG").is_ok() { eprintln!("scan {} {} {g} {v} w={:?}", model.label().replace(" ", "_"), e.name(), w); }
+            v
         });
         params[k] = Some(best);
     }
@@ -383,7 +385,7 @@ fn fitted_effects(
             description: e.description().to_string(),
             scanned: e
                 .scan()
-                .and_then(|sp| params[k].map(|v| (sp.name, v, sp.unit))),
+                .and_then(|sp| params[k].map(|v| (sp.name, e.applied(s, v), sp.unit))),
             coefficients: ecols
                 .iter()
                 .enumerate()
