@@ -137,3 +137,20 @@ fn sensing_flag_selects_a_profile_and_gyro_noise_replaces_its_sigma() {
         .to_string();
     assert!(unknown.contains("realistic-calibrated"), "{unknown}");
 }
+
+#[test]
+fn yaw_rate_flag_sets_the_reference_heading_rate() {
+    let yaw = |flags: &[&str]| {
+        let mut argv = vec!["tagk"];
+        argv.extend_from_slice(flags);
+        Cli::try_parse_from(argv)
+            .unwrap()
+            .args
+            .config()
+            .unwrap()
+            .yaw_rate
+    };
+    assert_eq!(yaw(&[]), 0.0);
+    assert_eq!(yaw(&["--yaw-rate", "0.5"]), 0.5);
+    assert_eq!(yaw(&["--yaw-rate", "-0.5"]), -0.5);
+}

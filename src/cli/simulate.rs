@@ -49,6 +49,10 @@ pub struct SimulateArgs {
     /// Rate-gyro noise, standard deviation per axis [rad/s] (replaces the sensing profile's).
     #[arg(long)]
     pub gyro_noise: Option<f64>,
+    /// Reference yaw rate [rad/s]: the heading turns at this rate from 0 (default 0: the
+    /// heading stays along world x).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw_rate: f64,
     /// Payload events.
     #[arg(long, value_enum, default_value_t = PayloadArg::None)]
     pub payload: PayloadArg,
@@ -124,6 +128,7 @@ impl SimulateArgs {
                 Some(g) => self.sensing.sensing().with_gyro_noise(g),
                 None => self.sensing.sensing(),
             },
+            yaw_rate: self.yaw_rate,
             payload,
             effects,
             adaptation,

@@ -86,7 +86,8 @@ impl std::str::FromStr for TrajectoryKind {
     }
 }
 
-/// Reference position, velocity and acceleration at one time (world frame).
+/// Reference position, velocity and acceleration at one time (world frame), and the
+/// reference heading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReferenceSample {
     /// Position \[m\].
@@ -95,6 +96,22 @@ pub struct ReferenceSample {
     pub velocity: Vector3<f64>,
     /// Acceleration [m/s²].
     pub acceleration: Vector3<f64>,
+    /// Heading `ψ`: the reference attitude's yaw about world `+z` \[rad\] (0: body `x`
+    /// along world `x`).
+    pub yaw: f64,
+    /// Rate of the heading `ψ̇` \[rad/s\].
+    pub yaw_rate: f64,
+}
+
+impl ReferenceSample {
+    /// This sample with heading `yaw` \[rad\] turning at `yaw_rate` \[rad/s\].
+    pub fn with_heading(self, yaw: f64, yaw_rate: f64) -> Self {
+        Self {
+            yaw,
+            yaw_rate,
+            ..self
+        }
+    }
 }
 
 /// One reference path (see the module docs).
@@ -245,6 +262,8 @@ impl Trajectory {
             position: p,
             velocity: v,
             acceleration: acc,
+            yaw: 0.0,
+            yaw_rate: 0.0,
         }
     }
 }

@@ -78,6 +78,8 @@ fn hover_holds_with_true_parameters() {
         position: target,
         velocity: Vector3::zeros(),
         acceleration: Vector3::zeros(),
+        yaw: 0.0,
+        yaw_rate: 0.0,
     };
     for _ in 0..250 {
         let s = plant.state();

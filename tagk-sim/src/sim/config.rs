@@ -218,6 +218,9 @@ pub struct SimConfig {
     /// added to `noise` (σ's of one signal combine in quadrature, [`Sensing::combined`]).
     /// Default [`Sensing::ideal`].
     pub sensing: Sensing,
+    /// Reference yaw rate \[rad/s\]: the reference heading is `ψ(t) = yaw_rate · t` (0: the
+    /// heading stays along world `x`, the paper's protocol).
+    pub yaw_rate: f64,
     /// Payload events.
     pub payload: PayloadSchedule,
     /// Plant effects (all off by default).
@@ -256,6 +259,7 @@ impl Default for SimConfig {
             seed: 0,
             noise: NoiseLevel::None,
             sensing: Sensing::ideal(),
+            yaw_rate: 0.0,
             payload: PayloadSchedule::Protocol,
             effects: PlantEffects::none(),
             adaptation: Adaptation::Estimator(EstimatorSpec::new(EstimatorKind::TagK)),
@@ -316,6 +320,13 @@ impl SimConfig {
             });
         }
         self.sensing.validate()?;
+        if !self.yaw_rate.is_finite() {
+            return Err(SimError::InvalidParameter {
+                name: "yaw_rate",
+                value: self.yaw_rate,
+                reason: "must be finite",
+            });
+        }
         if let Some(z) = self.altitude
             && !z.is_finite()
         {

@@ -16,9 +16,16 @@ pub const REDESIGN_TOLERANCE: f64 = 1e-8;
 
 /// LQR trajectory-tracking controller: the hover LQR of `tagk-control` around a reference
 /// that carries the path's feedforward. The reference attitude tilts body `z` along the
-/// desired specific force `a_ref − g_w` (yaw 0), and the collective thrust gets the
-/// feedforward `m̂ (‖a_ref − g_w‖ − g) / 4` per rotor; rotor thrusts are clipped to
-/// `[0, T_max]` and converted to speeds `ω = sqrt(T / k_f)`.
+/// desired specific force `a_ref − g_w` with body `x` towards the reference heading `ψ`, and
+/// the collective thrust gets the feedforward `m̂ (‖a_ref − g_w‖ − g) / 4` per rotor; rotor
+/// thrusts are clipped to `[0, T_max]` and converted to speeds `ω = sqrt(T / k_f)`.
+///
+/// **Heading.** The LQR is designed at hover with yaw 0. The hover dynamics do not depend on
+/// the yaw, so for a heading `ψ ≠ 0` the controller works in the heading frame (world rotated by
+/// `−ψ` about `+z`): measured state and reference are rotated into it, where the reference
+/// heading is 0 and the design applies unchanged. A turning heading (`ψ̇ ≠ 0`) adds the
+/// reference body rate `R_refᵀ (0, 0, ψ̇)`. With `ψ = ψ̇ = 0` nothing is rotated (the
+/// computation is bit-identical to a controller without headings).
 #[derive(Debug, Clone)]
 pub struct Controller {
     lqr: Lqr,
@@ -66,8 +73,36 @@ impl Controller {
         &self.lqr
     }
 
-    /// Rotor speeds [rad/s] for the measured `state` tracking `reference`.
+    /// Rotor speeds [rad/s] for the measured `state` tracking `reference` (its path and
+    /// heading).
     pub fn rotor_speeds(&self, state: &QuadrotorState, reference: &ReferenceSample) -> [f64; 4] {
+        if reference.yaw == 0.0 && reference.yaw_rate == 0.0 {
+            return self.rotor_speeds_in_heading_frame(state, reference);
+        }
+        let to_heading = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -reference.yaw);
+        let state = QuadrotorState {
+            position: to_heading * state.position,
+            velocity: to_heading * state.velocity,
+            attitude: to_heading * state.attitude,
+            body_rate: state.body_rate,
+        };
+        let reference = ReferenceSample {
+            position: to_heading * reference.position,
+            velocity: to_heading * reference.velocity,
+            acceleration: to_heading * reference.acceleration,
+            yaw: 0.0,
+            yaw_rate: reference.yaw_rate,
+        };
+        self.rotor_speeds_in_heading_frame(&state, &reference)
+    }
+
+    /// [`Controller::rotor_speeds`] for a `reference` of heading 0 (state and reference in the
+    /// heading frame).
+    fn rotor_speeds_in_heading_frame(
+        &self,
+        state: &QuadrotorState,
+        reference: &ReferenceSample,
+    ) -> [f64; 4] {
         let model = self.lqr.model();
         let specific = reference.acceleration - GRAVITY_WORLD;
         let norm = specific.norm();
@@ -81,11 +116,16 @@ impl Controller {
         } else {
             UnitQuaternion::identity()
         };
+        let body_rate = if reference.yaw_rate == 0.0 {
+            Vector3::zeros()
+        } else {
+            attitude.inverse_transform_vector(&Vector3::new(0.0, 0.0, reference.yaw_rate))
+        };
         let r = QuadrotorState {
             position: reference.position,
             velocity: reference.velocity,
             attitude,
-            body_rate: Vector3::zeros(),
+            body_rate,
         };
         let e = error_state(state, &r);
         let extra = self.lqr.params().mass() * (norm - GRAVITY_WORLD.z.abs()) / 4.0;

@@ -307,7 +307,11 @@ impl<'a> Flight<'a> {
         if self.track(t, &state).is_break() {
             return Ok(ControlFlow::Break(()));
         }
-        let reference = self.trajectory.sample(t);
+        let yaw_rate = self.config.yaw_rate;
+        let reference = self
+            .trajectory
+            .sample(t)
+            .with_heading(yaw_rate * t, yaw_rate);
         let measured = self.sensors.controller_measurement(&state);
         let cmd = self
             .plant
