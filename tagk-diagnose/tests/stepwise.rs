@@ -56,7 +56,7 @@ fn config(
         adaptation: Adaptation::Nominal,
         record_log: true,
         stop_on_abort: false,
-        // YAWRATE yaw_rate: YAW_RATE,
+        yaw_rate: YAW_RATE,
         ..SimConfig::default()
     }
 }
@@ -112,10 +112,17 @@ fn judge(hidden: &[EffectKind], found: &Discovery) -> Result<(), String> {
     );
     let got = families(&found.added);
     let what = format!(
-        "hidden {:?}: staircase {:?} ({})",
+        "hidden {:?}: staircase {:?} ({}); floor from {:?}: {:.2?}; start {:.2?}",
         hidden.iter().map(|k| k.name()).collect::<Vec<_>>(),
         found.added,
-        found.stopped
+        found.stopped,
+        found.noise_floor.saturated_model,
+        found.noise_floor.rms.map(|x| format!("{x:.2e}")),
+        found
+            .steps
+            .iter()
+            .map(|s| s.held_out_rms.map(|x| format!("{x:.2e}")))
+            .collect::<Vec<_>>(),
     );
     if !truth.is_subset(&got) {
         return Err(format!("missed a family; {what}"));
@@ -127,7 +134,13 @@ fn judge(hidden: &[EffectKind], found: &Discovery) -> Result<(), String> {
     for c in 0..6 {
         let ratio = last.held_out_rms[c] / found.noise_floor.rms[c];
         if ratio > 1.3 {
-            return Err(format!("channel {c} ends at {ratio:.2}× the floor; {what}"));
+            return Err(format!(
+                "channel {c} ends at {ratio:.2}× the floor; {what}; last ranking: {:?}",
+                last.ranking
+                    .iter()
+                    .map(|r| r.explanation.clone())
+                    .collect::<Vec<_>>()
+            ));
         }
     }
     for step in &found.steps {

@@ -30,6 +30,7 @@ use crate::fit::{
     ColData, Evaluation, Fit, GramEngine, Model, effect_design, fit_model, rigid_design,
 };
 use crate::signals::Signals;
+use tagk_dynamics::EffectKind;
 
 /// Resolution of the floor, relative to the RMS measured force magnitude (10⁻⁴).
 pub const FLOOR_RESOLUTION: f64 = 1e-4;
@@ -107,8 +108,9 @@ pub(crate) fn joinable<'a>(
         .collect()
 }
 
-/// The saturated model and its fit: the model plus every joinable candidate that is plausible
-/// when added alone, pruned until the joint fit is physical — one effect per round, the one
+/// The saturated model and its fit: the model plus, per effect family not yet in it
+/// ([`EffectKind::family`]), the joinable candidate with the largest held-out gain among those
+/// plausible when added alone, pruned until the joint fit is physical — one effect per round, the one
 /// whose own rules fail in the joint fit (or, if none fails but the rigid body does, mass off
 /// by more than [`MAX_MASS_CHANGE`] or not positive, any) with the smallest held-out gain
 /// alone. With nothing left, the model itself.
@@ -125,11 +127,32 @@ fn saturated_fit(
             .find(|c| c.effect == name)
             .map_or(f64::NEG_INFINITY, |c| c.reduction)
     };
-    let mut set: Vec<EffectRef> = joinable(model, s, &opts.candidates)
-        .into_iter()
-        .filter(|e| alone.iter().any(|c| c.effect == e.name() && c.plausible))
-        .cloned()
-        .collect();
+    // One member per family (the best alone): members of one family are near collinear
+    // (the drag laws) or alike to first order (a lag and a delay), and fitted together they
+    // split one physical effect between them. A wind includes its drag.
+    let mut best: std::collections::BTreeMap<String, (f64, EffectRef)> = Default::default();
+    for e in joinable(model, s, &opts.candidates) {
+        let Some(c) = alone.iter().find(|c| c.effect == e.name() && c.plausible) else {
+            continue;
+        };
+        let family = EffectKind::from_name(e.name())
+            .map_or_else(|| e.name().to_string(), |k| k.family().to_string());
+        if best.get(&family).is_none_or(|(r, _)| c.reduction > *r) {
+            best.insert(family, (c.reduction, e.clone()));
+        }
+    }
+    if best.contains_key(EffectKind::Wind.family()) {
+        best.remove(EffectKind::LinearDrag.family());
+    }
+    for e in model.effects() {
+        if let Some(k) = EffectKind::from_name(e.name()) {
+            best.remove(k.family());
+            if k.includes_drag() {
+                best.remove(EffectKind::LinearDrag.family());
+            }
+        }
+    }
+    let mut set: Vec<EffectRef> = best.into_values().map(|(_, e)| e).collect();
     let m0 = start_fit.theta.mass();
     while !set.is_empty() {
         let mut saturated = model.clone();

@@ -13,8 +13,10 @@
 
 use serde::Serialize;
 
+use crate::diagnose::floor::noise_floor;
 use crate::diagnose::{
-    DiagnoseOptions, Diagnosis, FLOOR_MARGIN, MAX_CHANNEL_WORSENING, NoiseFloor, diagnose_against,
+    DiagnoseOptions, Diagnosis, FLOOR_MARGIN, FloorSource, MAX_CHANNEL_WORSENING, NoiseFloor,
+    diagnose_against,
 };
 use crate::error::DiagnoseError;
 use crate::fit::{Coefficient, Model};
@@ -114,7 +116,8 @@ pub fn discover_from(
     s: &Signals,
     opts: &DiagnoseOptions,
 ) -> Result<Discovery, DiagnoseError> {
-    let floor = first.noise_floor.clone();
+    let mut floor = first.noise_floor.clone();
+    let mut floor_updates = 0;
     let mut steps = vec![step_of(None, &first, None, &floor)];
     let mut diagnoses = vec![first];
     let mut model = start.clone();
@@ -122,7 +125,28 @@ pub fn discover_from(
     let stopped = 'search: loop {
         let current = &diagnoses[diagnoses.len() - 1];
         if current.recommended.is_none() {
-            break stop_reason(current);
+            // The floor was measured from the starting model: candidates implausible then
+            // (a drag whose vertical coefficient soaked up an unmodelled lag) may be plausible
+            // now. Measure it again from here; a lower floor reopens the search.
+            if floor.source == FloorSource::Data && floor_updates < 2 && !added.is_empty() {
+                floor_updates += 1;
+                let again = noise_floor(&model, s, opts, &current.fit, &current.ranking)?;
+                if (0..6).any(|c| again.rms[c] < (1.0 - FLOOR_MARGIN) * floor.rms[c]) {
+                    for c in 0..6 {
+                        if again.rms[c] < floor.rms[c] {
+                            floor.rms[c] = again.rms[c];
+                            floor.reachable[c] = again.reachable[c];
+                            floor.noise_estimate[c] = again.noise_estimate[c];
+                        }
+                    }
+                    floor.saturated_model = again.saturated_model;
+                    let rejudged = diagnose_against(&model, s, opts, &floor)?;
+                    let last = diagnoses.len() - 1;
+                    diagnoses[last] = rejudged;
+                    continue;
+                }
+            }
+            break stop_reason(&diagnoses[diagnoses.len() - 1]);
         }
         // The qualifying candidates, best first: the first whose refit keeps every channel
         // within MAX_CHANNEL_WORSENING of the current held-out RMS is the step (the full refit
@@ -174,6 +198,21 @@ pub fn discover_from(
             refused.join("; ")
         );
     };
+    // Every step against the final floor.
+    for (k, step) in steps.iter_mut().enumerate() {
+        for (c, ch) in step.channels.iter_mut().enumerate() {
+            ch.floor = floor.rms[c];
+            ch.ratio_to_floor = if floor.rms[c] > 0.0 {
+                ch.held_out_rms / floor.rms[c]
+            } else {
+                f64::INFINITY
+            };
+        }
+        let _ = k;
+    }
+    for d in &mut diagnoses {
+        d.noise_floor = floor.clone();
+    }
     Ok(Discovery {
         steps,
         added,

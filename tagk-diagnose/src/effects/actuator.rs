@@ -163,6 +163,8 @@ impl Effect for MotorLag {
             name: "tau".into(),
             unit: "s".into(),
             grid: self.grid.clone(),
+            // The shortest lag: the closest to no lag at all.
+            start: self.grid.iter().copied().reduce(f64::min),
         })
     }
     fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
@@ -259,7 +261,8 @@ impl Default for TimeDelay {
 }
 
 /// `x(t − d)` at every sample by linear interpolation (clamped at the ends), in one
-/// monotone sweep.
+/// monotone sweep: the reference of the whole-sample shift in the unit tests.
+#[cfg(test)]
 pub(crate) fn shifted(t: &[f64], x: &[f64], d: f64) -> Vec<f64> {
     let n = t.len();
     let mut out = Vec::with_capacity(n);
@@ -298,6 +301,8 @@ impl Effect for TimeDelay {
             name: "delay".into(),
             unit: "s".into(),
             grid: self.grid.clone(),
+            // No shift.
+            start: Some(0.0),
         })
     }
     fn applied(&self, s: &Signals, d: f64) -> f64 {

@@ -87,11 +87,16 @@ impl Effect for QuadraticDrag {
 
 /// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with
 /// `K = diag(k_x, k_y, k_z)` and `v_hub,i = v_b + Ω × r_i` the hub's body-frame velocity, and
-/// the moment `r_i × H_i` about the origin (a yaw torque from differential rotor speeds times
-/// the horizontal velocity, roll/pitch torques from the vertical one). The hub positions
-/// `r_i` (in the body x-y plane) come from the mixer identified from the log
+/// the yaw moment of the horizontal hub forces about the origin, `(r_i × H_i)_z` (from
+/// differential rotor speeds times the horizontal velocity, and the yaw rate). The hub
+/// positions `r_i` (in the body x-y plane) come from the mixer identified from the log
 /// ([`Signals::rotor_mixer`]); without one, the force `−K (Σ|ω_i|) v_b` alone. Needs rotor
 /// speeds.
+///
+/// The roll and pitch moments of the vertical hub forces are left out: their hub velocity is
+/// dominated by `Ω × r_i`, so they act as a roll/pitch rate damping `∝ k_z Σ y_i² ω_i Ω` that
+/// the vertical force barely constrains, and on simulator logs they fitted unrelated
+/// rate-correlated torque residuals (a spurious `rotor-drag` after a lag or a delay).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RotorDrag;
 
@@ -126,7 +131,7 @@ impl Effect for RotorDrag {
                 if hubs.is_some() {
                     let torques: &[usize] = match axis {
                         0 | 1 => &[5],
-                        _ => &[3, 4],
+                        _ => &[],
                     };
                     for &c in torques {
                         d[c] = Some(vec![0.0; n]);
@@ -163,8 +168,6 @@ impl Effect for RotorDrag {
                         put(1, 1, i, hy);
                         put(1, 5, i, x * hy);
                         put(2, 2, i, hz);
-                        put(2, 3, i, y * hz);
-                        put(2, 4, i, -x * hz);
                     }
                 }
             }

@@ -75,6 +75,10 @@ pub struct ScanSpec {
     pub unit: String,
     /// Values tried (the one with the smallest residual wins).
     pub grid: Vec<f64>,
+    /// Where a joint fit of several scanned effects starts this one (coordinate descent):
+    /// the value at which the effect is (nearly) absent, e.g. a delay of 0, so that an effect
+    /// with a fixed coefficient does not start far off. `None`: the middle of the grid.
+    pub start: Option<f64>,
 }
 
 /// Verdict on the physical plausibility of fitted coefficients.

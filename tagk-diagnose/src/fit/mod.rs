@@ -159,23 +159,50 @@ pub fn fit_model(
     }
     let (rigid, target) = rigid_design(model, s);
     let mut w = weights.unwrap_or_else(|| initial_weights(s));
-    let passes = if weights.is_some() { 1 } else { 2 };
+    // Weighting passes: the measurement scale first, then 1 / residual RMS of the previous
+    // pass; with scanned effects the weights and the scanned parameters are iterated until the
+    // parameters settle (at most four passes), since a parameter chosen under poor weights
+    // gives poor weights in turn.
+    let scanned = model
+        .effects()
+        .iter()
+        .filter(|e| e.scan().is_some())
+        .count();
+    let passes = match (weights.is_some(), scanned) {
+        (true, _) => 1,
+        (false, 0) => 2,
+        (false, _) => 4,
+    };
     let mut params = initial_scan_parameters(model);
     let mut last: Option<Pass> = None;
+    let mut settled = 0;
     for pass in 0..passes {
         if let Some(previous) = &last {
             w = weights_from_residual(&previous.residual);
         }
-        scan_parameters(model, s, &rigid, &target, &w, &mut params);
+        let before = params.clone();
+        // Coordinate descent over the scanned effects: rounds until no parameter moves (at
+        // most three; one when fewer than two effects are scanned).
+        for _ in 0..if scanned > 1 { 3 } else { 1 } {
+            let round = params.clone();
+            scan_parameters(model, s, &rigid, &target, &w, &mut params);
+            if params == round {
+                break;
+            }
+        }
+        // Two weighting passes always; then stop once the parameters no longer move.
+        settled = if pass > 0 && params == before {
+            settled + 1
+        } else {
+            0
+        };
+        let final_pass = pass + 1 == passes || (pass >= 1 && settled >= 1);
         last = Some(solve_pass(
-            model,
-            s,
-            &rigid,
-            &target,
-            &w,
-            &params,
-            pass + 1 == passes,
+            model, s, &rigid, &target, &w, &params, final_pass,
         )?);
+        if final_pass {
+            break;
+        }
     }
     let Some(Pass {
         predicted,
@@ -218,13 +245,16 @@ fn check_effects_usable(model: &Model, s: &Signals) -> Result<(), DiagnoseError>
     Ok(())
 }
 
-/// The starting value of each effect's scanned parameter: the middle of its grid (`None`
+/// The starting value of each effect's scanned parameter: its `start`, else the middle of its grid (`None`
 /// for an effect without a scan). Grids are non-empty ([`Model::validate`]).
 fn initial_scan_parameters(model: &Model) -> Vec<Option<f64>> {
     model
         .effects()
         .iter()
-        .map(|e| e.scan().map(|sc| sc.grid[sc.grid.len() / 2]))
+        .map(|e| {
+            e.scan()
+                .map(|sc| sc.start.unwrap_or(sc.grid[sc.grid.len() / 2]))
+        })
         .collect()
 }
 
@@ -254,9 +284,7 @@ fn scan_parameters(
         let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
         let (best, _) = scan_min(&spec.grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
-            let v = engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full;
-            if std::env::var("TAGK_DEBUG").is_ok() { eprintln!("scan {} {} {g} {v} w={:?}", model.label().replace(" ", "_"), e.name(), w); }
-            v
+            engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
         });
         params[k] = Some(best);
     }
