@@ -56,10 +56,11 @@ impl Effect for BodyBias {
 /// is not a diagnosis question).
 pub const MAX_WIND_SPEED: f64 = 15.0;
 
-/// Steady wind: drag on the air-relative velocity, `f_b = −D Rᵀ (v − v_w)` with
-/// `D = diag(d_x, d_y, d_z)` \[N s/m\] and `v_w` the wind, world frame \[m/s\]. Fitted together
-/// as the drag columns `−v_b` and the world-frame force `F_w = D v_w` (body-frame columns
-/// `Rᵀ e_x, Rᵀ e_y, Rᵀ e_z`; exact for `d_x = d_y` and level flight, the usual case); the
+/// Steady horizontal wind: drag on the air-relative velocity, `f_b = −D Rᵀ (v − v_w)` with
+/// `D = diag(d_x, d_y, d_z)` \[N s/m\] and `v_w` the wind, world frame \[m/s\], horizontal (a
+/// constant vertical world force is the weight again and would trade against the mass).
+/// Fitted together as the drag columns `−v_b` and the world-frame force `F_w = D v_w`
+/// (body-frame columns `Rᵀ e_x, Rᵀ e_y`; exact for `d_x = d_y` and level flight, the usual case); the
 /// wind velocity `v_w ≈ F_w / d` with `d` the mean horizontal drag is reported as a derived
 /// quantity. With rotor speeds in the log the drag is the rotor drag, `D = K Σ|ω_i|`: every
 /// column carries the factor `Σ|ω_i|` and the coefficients are `K` and `K v_w`.
@@ -67,23 +68,21 @@ pub const MAX_WIND_SPEED: f64 = 15.0;
 pub(crate) struct Wind;
 
 /// Names of the wind's columns with rotor speeds in the log: the rotor drag `K`, then `K v_w`.
-const ROTOR_WIND_COLUMNS: [(&str, &str); 6] = [
+const ROTOR_WIND_COLUMNS: [(&str, &str); 5] = [
     ("k_x", "N s²/(m rad)"),
     ("k_y", "N s²/(m rad)"),
     ("k_z", "N s²/(m rad)"),
     ("kv_wx", "N s/rad"),
     ("kv_wy", "N s/rad"),
-    ("kv_wz", "N s/rad"),
 ];
 
 /// Names of the wind's columns: the drag, then the world-frame force.
-const WIND_COLUMNS: [(&str, &str); 6] = [
+const WIND_COLUMNS: [(&str, &str); 5] = [
     ("d_x", "N s/m"),
     ("d_y", "N s/m"),
     ("d_z", "N s/m"),
     ("F_wx", "N"),
     ("F_wy", "N"),
-    ("F_wz", "N"),
 ];
 
 impl Effect for Wind {
@@ -122,7 +121,9 @@ impl Effect for Wind {
                 )
             })
             .collect();
-        for j in 0..3 {
+        // Horizontal wind only: a constant vertical world force is the weight `m g` again and
+        // would trade against the fitted mass.
+        for j in 0..2 {
             let mut e = Vector3::zeros();
             e[j] = 1.0;
             let body: Vec<Vector3<f64>> = s.rotation.iter().map(|r| r.transpose() * e).collect();
