@@ -67,6 +67,8 @@ impl Effect for Tether {
             name: "k_tether".into(),
             unit: "N/m".into(),
             data,
+            // A stiffness to estimate, not a known coefficient.
+            fixed: None,
         }]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _param: Option<f64>) -> Plausibility {

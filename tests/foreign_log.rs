@@ -347,7 +347,9 @@ fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     // the native one gives, within one step of the scan.
     assert_eq!(report.recommended.as_deref(), Some("time-delay"));
     assert!((-0.04..=-0.015).contains(&found), "delay {found}");
-    assert!((found - found_native).abs() <= 0.01 + 1e-9);
+    // Delays are applied in whole samples (a fraction would average neighbouring samples'
+    // noise), so the two agree within one 20 ms sample.
+    assert!((found - found_native).abs() <= 0.02 + 1e-9);
     // And the mapping's per-stream offset undoes it.
     let mut text = std::fs::read_to_string(&map).unwrap();
     text.push_str("\n[streams.\"motors.csv\"]\noffset = -0.02\n");

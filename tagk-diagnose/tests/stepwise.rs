@@ -143,9 +143,12 @@ fn judge(hidden: &[EffectKind], found: &Discovery) -> Result<(), String> {
             ));
         }
     }
+    // A step may not worsen a channel by more than 10 % to above its floor (below the floor
+    // a change is noise).
     for step in &found.steps {
         for ch in &step.channels {
-            if ch.change > 0.10 {
+            let before = ch.held_out_rms / (1.0 + ch.change);
+            if ch.change > 0.10 && ch.held_out_rms > 1.05 * ch.floor && before > 0.0 {
                 return Err(format!(
                     "step {:?} worsens {} by {:.0} %; {what}",
                     step.effect,

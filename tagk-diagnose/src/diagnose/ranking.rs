@@ -47,8 +47,16 @@ impl CandidateStatus {
     }
 }
 
-/// Largest worsening of one channel's held-out RMS a step may cause (10 %).
+/// Largest worsening of one channel's held-out RMS a step may cause (10 %), on a channel above
+/// its noise floor ([`worsens`]).
 pub const MAX_CHANNEL_WORSENING: f64 = 0.10;
+
+/// `true` when a channel's held-out RMS going from `current` to `new` is a worsening that
+/// counts: by more than [`MAX_CHANNEL_WORSENING`], to above the channel's floor (`floor` ×
+/// (1 + [`FLOOR_MARGIN`])); below the floor a change is noise.
+pub(crate) fn worsens(new: f64, current: f64, floor: f64) -> bool {
+    new > (1.0 + MAX_CHANNEL_WORSENING) * current && new > (1.0 + FLOOR_MARGIN) * floor
+}
 
 /// Smallest gain worth a step: it must lower some channel's held-out RMS by at least this
 /// fraction of that channel's noise floor (5 %).
@@ -72,7 +80,8 @@ pub struct Candidate {
     pub held_out_rms: [f64; 6],
     /// Held-out gain in units of the noise floor: `Σ_c (rms_c² − rms_c,with²) / floor_c²`.
     pub gain_over_floor: f64,
-    /// Channels whose held-out RMS grows by more than [`MAX_CHANNEL_WORSENING`].
+    /// Channels whose held-out RMS grows by more than [`MAX_CHANNEL_WORSENING`] to above the
+    /// floor.
     pub worsened_channels: Vec<String>,
     /// Partial test statistic (chi-square form of the partial F test, effective sample size
     /// corrected for autocorrelation).
@@ -200,6 +209,10 @@ pub(crate) fn judge_scored(scored: Scored, floor: &NoiseFloor, opts: &DiagnoseOp
         held_out_rms,
     } = scored;
     for c in ranking.iter_mut() {
+        c.worsened_channels = (0..6)
+            .filter(|&k| worsens(c.held_out_rms[k], held_out_rms[k], floor.rms[k]))
+            .map(|k| CHANNEL_NAMES[k].to_string())
+            .collect();
         c.gain_over_floor = (0..6)
             .map(|k| {
                 if floor.rms[k] > 0.0 {
@@ -359,10 +372,6 @@ fn score_candidate(
         })
         .collect();
     let held_out = held_out_rms(&ev, &base.sanity.fit.weights, s.len());
-    let worsened_channels: Vec<String> = (0..6)
-        .filter(|&c| held_out[c] > (1.0 + MAX_CHANNEL_WORSENING) * base.held_out_rms[c])
-        .map(|c| CHANNEL_NAMES[c].to_string())
-        .collect();
     let coef: Vec<f64> = ev.beta[p_base..].to_vec();
     let se: Vec<f64> = ev.cov_diag[p_base..]
         .iter()
@@ -415,7 +424,7 @@ fn score_candidate(
         reduction_per_channel,
         held_out_rms: held_out,
         gain_over_floor: 0.0,
-        worsened_channels,
+        worsened_channels: Vec::new(),
         statistic,
         dof,
         p_value,

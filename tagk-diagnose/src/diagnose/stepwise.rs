@@ -172,13 +172,17 @@ pub fn discover_from(
             let next = diagnose_against(&trial, s, opts, &floor)?;
             let worse: Vec<&str> = (0..6)
                 .filter(|&c| {
-                    next.held_out_rms[c] > (1.0 + MAX_CHANNEL_WORSENING) * current.held_out_rms[c]
+                    crate::diagnose::ranking::worsens(
+                        next.held_out_rms[c],
+                        current.held_out_rms[c],
+                        floor.rms[c],
+                    )
                 })
                 .map(|c| CHANNEL_NAMES[c])
                 .collect();
             if !worse.is_empty() {
                 refused.push(format!(
-                    "`{name}` (its refit worsens the held-out RMS of {} by more than {:.0} %)",
+                    "`{name}` (its refit worsens the held-out RMS of {} by more than {:.0} %, above the floor)",
                     worse.join(", "),
                     100.0 * MAX_CHANNEL_WORSENING
                 ));
