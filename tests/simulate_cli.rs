@@ -154,3 +154,32 @@ fn yaw_rate_flag_sets_the_reference_heading_rate() {
     assert_eq!(yaw(&["--yaw-rate", "0.5"]), 0.5);
     assert_eq!(yaw(&["--yaw-rate", "-0.5"]), -0.5);
 }
+
+#[test]
+fn log_rate_flag_records_every_physics_step() {
+    use tagk::sim::LogRate;
+    let path = std::env::temp_dir().join(format!("tagk-sim-rate-{}.csv", std::process::id()));
+    let cli = Cli::try_parse_from([
+        "tagk",
+        "--duration",
+        "2",
+        "--log-rate",
+        "physics",
+        "--output",
+        path.to_str().unwrap(),
+    ])
+    .unwrap();
+    assert_eq!(cli.args.config().unwrap().log_rate, LogRate::Physics);
+    let summary = run_simulate(&cli.args).unwrap();
+    assert_eq!(summary.samples, 1000);
+    let header = std::fs::read_to_string(&path).unwrap();
+    let header = header.lines().next().unwrap().to_string();
+    std::fs::remove_file(&path).ok();
+    assert!(header.contains("ax") && !header.contains("dwx"), "{header}");
+    let default = Cli::try_parse_from(["tagk"])
+        .unwrap()
+        .args
+        .config()
+        .unwrap();
+    assert_eq!(default.log_rate, LogRate::Control);
+}

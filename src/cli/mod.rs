@@ -8,7 +8,7 @@ pub mod vehicle;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use tagk_dynamics::EffectKind;
-use tagk_sim::{EstimatorKind, NoiseLevel, SensingProfile, TrajectoryKind};
+use tagk_sim::{EstimatorKind, LogRate, NoiseLevel, SensingProfile, TrajectoryKind};
 
 /// Parses a [`TrajectoryKind`] by its command-line name (`figure8`, `circle`, …).
 pub fn trajectory_parser() -> impl TypedValueParser<Value = TrajectoryKind> {
@@ -26,6 +26,11 @@ pub fn noise_parser() -> impl TypedValueParser<Value = NoiseLevel> {
 pub fn sensing_parser() -> impl TypedValueParser<Value = SensingProfile> {
     PossibleValuesParser::new(SensingProfile::ALL.map(SensingProfile::name))
         .try_map(|s| s.parse::<SensingProfile>())
+}
+
+/// Parses a [`LogRate`] by its name (`control`, `physics`).
+pub fn log_rate_parser() -> impl TypedValueParser<Value = LogRate> {
+    PossibleValuesParser::new(LogRate::ALL.map(LogRate::name)).try_map(|s| s.parse::<LogRate>())
 }
 
 /// Parses an [`EstimatorKind`] by its command-line name (`rls-low`, …, `tagk`, …).

@@ -7,11 +7,14 @@ use std::path::PathBuf;
 
 use tagk_dynamics::EffectKind;
 use tagk_sim::{
-    Adaptation, EstimatorKind, EstimatorSpec, NoiseLevel, Payload, PayloadSchedule, PayloadShape,
-    PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
+    Adaptation, EstimatorKind, EstimatorSpec, LogRate, NoiseLevel, Payload, PayloadSchedule,
+    PayloadShape, PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
 };
 
-use super::{effect_parser, estimator_parser, noise_parser, sensing_parser, trajectory_parser};
+use super::{
+    effect_parser, estimator_parser, log_rate_parser, noise_parser, sensing_parser,
+    trajectory_parser,
+};
 
 /// Payload choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -79,6 +82,11 @@ pub struct SimulateArgs {
     /// Height of the trajectory centre [m] (default: random 0.8–1.5 m).
     #[arg(long)]
     pub altitude: Option<f64>,
+    /// Log samples: `control` (one per 50 Hz control interval, at its midpoint) or `physics`
+    /// (one per 2 ms physics step: instantaneous IMU-style samples, no angular-acceleration
+    /// columns).
+    #[arg(long, value_parser = log_rate_parser(), default_value = "control")]
+    pub log_rate: LogRate,
     /// Output CSV path (the flight-log format of docs/CONVENTIONS.md §6).
     #[arg(long, short, default_value = "flight.csv")]
     pub output: PathBuf,
@@ -134,6 +142,7 @@ impl SimulateArgs {
             adaptation,
             altitude: self.altitude,
             record_log: true,
+            log_rate: self.log_rate,
             ..SimConfig::default()
         })
     }

@@ -21,7 +21,7 @@ pub use monte_carlo::{
 pub use plant::{Plant, PlantState};
 pub use plant_effects::PlantEffects;
 pub use sim::{
-    Adaptation, Controller, NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing,
+    Adaptation, Controller, LogRate, NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing,
     SensingProfile, SimConfig, SimOutput, TrialMetrics, simulate,
 };
 /// The flight-log type the simulator records (re-exported from `tagk-dynamics`).

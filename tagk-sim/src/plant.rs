@@ -153,9 +153,15 @@ impl Plant {
         let k = self.effects.thrust_multiplier(s.position.z);
         let thrusts = rotor.map(|w| k * self.model.k_f * w * w);
         let mut wrench = self.model.wrench_from_thrusts(&thrusts);
-        let sum: f64 = rotor.iter().sum();
-        wrench.force += self.effects.extra_force(&s.velocity, &s.attitude, sum);
-        wrench.torque += self.effects.extra_torque();
+        let extra = self.effects.extra_wrench(
+            &s.velocity,
+            &s.attitude,
+            &s.body_rate,
+            rotor,
+            &self.model.rotor_positions,
+        );
+        wrench.force += extra.force;
+        wrench.torque += extra.torque;
         wrench
     }
 

@@ -22,27 +22,36 @@
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //!
 //! The effects act on the **plant only**. The measured wrench `b` the estimator sees is
-//! always computed from the commanded rotor speeds with the nominal `k_f`, `k_m` through the
+//! always computed from the measured rotor speeds (the commanded ones plus the sensing
+//! profile's rotor-speed noise, [`crate::Sensing`]) with the nominal `k_f`, `k_m` through the
 //! mixer, so every effect shows up as a model mismatch `b − Y θ ≠ 0` that a diagnosis tool can
 //! look for.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
-use tagk_dynamics::EffectKind;
 use tagk_dynamics::quadrotor::{CRAZYFLIE_K_F, CRAZYFLIE_MASS};
+use tagk_dynamics::{EffectKind, Wrench};
 
 use crate::SimError;
 
-/// Body-frame linear rotor drag (blade flapping and induced drag), proportional to the sum of
-/// rotor speeds: `f_b = −K (Σ ωᵢ) v_b`, with `v_b = Rᵀ (v − v_wind)` the air-relative velocity
-/// of the body origin in the body frame [m/s] and `ωᵢ` the actual rotor speeds [rad/s].
+/// Linear rotor drag (blade flapping and induced drag) at each rotor hub: rotor `i` at hub
+/// `rᵢ` (body frame, the vehicle's rotor layout) spinning at `ωᵢ` makes the in-plane force
+/// `Hᵢ = −K ωᵢ v_hub,i` with `v_hub,i = v_b + Ω × rᵢ` the air-relative velocity of its hub,
+/// body frame [m/s] (`v_b = Rᵀ (v − v_wind)` that of the body origin, `Ω` the body rate
+/// [rad/s]), and the moment `rᵢ × Hᵢ` about the origin. The net force `Σ Hᵢ =
+/// −K (Σ ωᵢ) v_b − K Σ ωᵢ (Ω × rᵢ)` is the body-origin form `−K (Σ ωᵢ) v_b` to first order (the
+/// second term vanishes at `Ω = 0`); the moments are what the body-origin form leaves out: a
+/// yaw torque from differential rotor speeds times the in-plane velocity, roll and pitch
+/// torques from the vertical component, and a damping of the body rate. With equal rotor
+/// speeds, `Ω = 0` and a symmetric layout (`Σ rᵢ = 0`) the moments cancel
+/// ([`RotorDrag::wrench`]).
 ///
 /// Model and Crazyflie coefficients: J. Förster, "System identification of the Crazyflie 2.0
-/// nano quadrocopter", ETH Zürich, 2015 (`K = diag(9.1785, 9.1785, 10.311)·10⁻⁷ kg/rad`);
-/// the body-frame linear form is also the one of M. Faessler, A. Franchi, D. Scaramuzza,
-/// "Differential flatness of quadrotor dynamics subject to rotor drag", IEEE RA-L 2018.
-/// At the nominal 35 g vehicle's hover (`Σω ≈ 7.7·10³ rad/s`) this is about
-/// `7.1·10⁻³ N s/m` horizontally ([`LinearDrag::crazyflie`]).
+/// nano quadrocopter", ETH Zürich, 2015 (`K = diag(9.1785, 9.1785, 10.311)·10⁻⁷ kg/rad`,
+/// identified per rotor); the per-rotor linear form is also the one of M. Faessler, A. Franchi,
+/// D. Scaramuzza, "Differential flatness of quadrotor dynamics subject to rotor drag", IEEE
+/// RA-L 2018. At the nominal 35 g vehicle's hover (`Σω ≈ 7.7·10³ rad/s`) the net force is
+/// about `7.1·10⁻³ N s/m` horizontally ([`LinearDrag::crazyflie`]).
 ///
 /// The vocabulary's `rotor-drag` (called `linear-drag` by the simulator before the shared
 /// vocabulary).
@@ -58,6 +67,29 @@ impl RotorDrag {
         Self {
             coefficients: [9.1785e-7, 9.1785e-7, 10.311e-7],
         }
+    }
+
+    /// The drag wrench of the four rotors, body frame, about the origin: force `Σ Hᵢ` \[N\]
+    /// and torque `Σ rᵢ × Hᵢ` \[N m\], with `Hᵢ = −K ωᵢ (v_air_b + Ω × rᵢ)`, for the
+    /// air-relative body-frame velocity of the origin `v_air_b` \[m/s\], body rate `body_rate`
+    /// \[rad/s\], actual rotor speeds `rotor_speeds` \[rad/s\] and hub positions
+    /// `rotor_positions` (body frame) \[m\].
+    pub fn wrench(
+        &self,
+        v_air_b: &Vector3<f64>,
+        body_rate: &Vector3<f64>,
+        rotor_speeds: &[f64; 4],
+        rotor_positions: &[Vector3<f64>; 4],
+    ) -> Wrench {
+        let k = Vector3::from(self.coefficients);
+        let mut w = Wrench::zero();
+        for (omega, r) in rotor_speeds.iter().zip(rotor_positions) {
+            let v_hub = v_air_b + body_rate.cross(r);
+            let h = -k.component_mul(&v_hub) * *omega;
+            w.force += h;
+            w.torque += r.cross(&h);
+        }
+        w
     }
 }
 
@@ -456,16 +488,22 @@ impl PlantEffects {
         k
     }
 
-    /// Aerodynamic force on the body origin, body frame \[N\], at world velocity `velocity`
-    /// [m/s], attitude `attitude` and actual rotor-speed sum `rotor_speed_sum` [rad/s], plus
-    /// the constant bias force.
-    pub fn extra_force(
+    /// The wrench of the aerodynamic effects and the bias (body frame, about the origin:
+    /// force \[N\], torque \[N m\]) at world velocity `velocity` \[m/s\], attitude `attitude`,
+    /// body rate `body_rate` \[rad/s\], actual rotor speeds `rotor_speeds` \[rad/s\] of the
+    /// rotors at `rotor_positions` (body frame \[m\]). The drag effects act on the
+    /// air-relative velocity (`wind` subtracted); rotor drag at each hub with its moments
+    /// ([`RotorDrag::wrench`]), which is also the drag a `wind` without any drag effect uses.
+    pub fn extra_wrench(
         &self,
         velocity: &Vector3<f64>,
         attitude: &UnitQuaternion<f64>,
-        rotor_speed_sum: f64,
-    ) -> Vector3<f64> {
+        body_rate: &Vector3<f64>,
+        rotor_speeds: &[f64; 4],
+        rotor_positions: &[Vector3<f64>; 4],
+    ) -> Wrench {
         let mut f = Vector3::zeros();
+        let mut torque = Vector3::zeros();
         let wind = self
             .wind
             .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity));
@@ -477,7 +515,9 @@ impl PlantEffects {
             _ => None,
         };
         if let Some(d) = rotor {
-            f -= Vector3::from(d.coefficients).component_mul(&v_air_b) * rotor_speed_sum;
+            let w = d.wrench(&v_air_b, body_rate, rotor_speeds, rotor_positions);
+            f += w.force;
+            torque += w.torque;
         }
         if let Some(d) = &self.linear_drag {
             f -= Vector3::from(d.coefficients).component_mul(&v_air_b);
@@ -489,15 +529,9 @@ impl PlantEffects {
         }
         if let Some(b) = &self.body_bias {
             f += Vector3::from(b.force);
+            torque += Vector3::from(b.torque);
         }
-        f
-    }
-
-    /// Constant bias torque about the origin, body frame [N m] (zero unless
-    /// [`body_bias`](Self::body_bias) is on).
-    pub fn extra_torque(&self) -> Vector3<f64> {
-        self.body_bias
-            .map_or_else(Vector3::zeros, |b| Vector3::from(b.torque))
+        Wrench { force: f, torque }
     }
 }
 
@@ -527,9 +561,120 @@ mod tests {
         assert!((d[0] - 9.1785e-7 * 4.0 * omega).abs() < 1e-12);
         assert!((7.0e-3..7.2e-3).contains(&d[0]) && (7.9e-3..8.1e-3).contains(&d[2]));
         let v = Vector3::new(1.0, 0.0, 0.0);
-        let f = PlantEffects::only(EffectKind::LinearDrag)
+        let w = PlantEffects::only(EffectKind::LinearDrag)
             .unwrap()
-            .extra_force(&v, &UnitQuaternion::identity(), 0.0);
+            .extra_wrench(
+                &v,
+                &UnitQuaternion::identity(),
+                &Vector3::zeros(),
+                &[0.0; 4],
+                &[Vector3::zeros(); 4],
+            );
+        let f = w.force;
         assert!((f.x + d[0]).abs() < 1e-15 && f.y == 0.0 && f.z == 0.0);
+        assert_eq!(w.torque, Vector3::zeros());
+    }
+
+    /// The Crazyflie's hubs, written out (M1..M4, docs/CONVENTIONS.md §4).
+    fn hubs() -> [Vector3<f64>; 4] {
+        let l = tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
+        [
+            Vector3::new(l, -l, 0.0),
+            Vector3::new(-l, -l, 0.0),
+            Vector3::new(-l, l, 0.0),
+            Vector3::new(l, l, 0.0),
+        ]
+    }
+
+    /// One state, summed by hand in scalars: `v_hub = v + Ω × r` with `r_z = 0` is
+    /// `(v_x − r y, v_y + r x, v_z + p y − q x)`, `H = −ω K v_hub`, and `r × H` with `r_z = 0`
+    /// is `(y H_z, −x H_z, x H_y − y H_x)`.
+    #[test]
+    fn rotor_drag_wrench_is_the_hand_written_sum_over_the_hubs() {
+        let d = RotorDrag::crazyflie();
+        let [kx, ky, kz] = d.coefficients;
+        let (vx, vy, vz) = (0.4, -0.3, 0.2);
+        let (p, q, r) = (0.7, -1.1, 0.9);
+        let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+        let (mut f, mut t) = ([0.0; 3], [0.0; 3]);
+        for (w, h) in speeds.iter().zip(hubs()) {
+            let (x, y) = (h.x, h.y);
+            let hx = -w * kx * (vx - r * y);
+            let hy = -w * ky * (vy + r * x);
+            let hz = -w * kz * (vz + p * y - q * x);
+            f = [f[0] + hx, f[1] + hy, f[2] + hz];
+            t = [t[0] + y * hz, t[1] - x * hz, t[2] + x * hy - y * hx];
+        }
+        let w = d.wrench(
+            &Vector3::new(vx, vy, vz),
+            &Vector3::new(p, q, r),
+            &speeds,
+            &hubs(),
+        );
+        for i in 0..3 {
+            assert!((w.force[i] - f[i]).abs() < 1e-15, "force {i}");
+            assert!((w.torque[i] - t[i]).abs() < 1e-17, "torque {i}");
+        }
+        // The moments are not negligible: the yaw torque is of the order of the
+        // reaction-torque differences the mixer commands.
+        assert!(w.torque.norm() > 1e-6);
+    }
+
+    /// Closed forms and symmetry: equal speeds at `Ω = 0` give the body-origin force
+    /// `−K (Σω) v` and no moment (the hubs sum to zero); at `Ω = 0` with differential speeds
+    /// the yaw torque is `k_x v_x Σ yᵢωᵢ − k_y v_y Σ xᵢωᵢ`, roll `−k_z v_z Σ yᵢωᵢ`, pitch
+    /// `k_z v_z Σ xᵢωᵢ`; at `v = 0` the torque dissipates, `τ·Ω = −Σ ωᵢ (Ω×rᵢ)ᵀ K (Ω×rᵢ) < 0`.
+    #[test]
+    fn rotor_drag_moments_follow_their_closed_forms() {
+        let d = RotorDrag::crazyflie();
+        let k = Vector3::from(d.coefficients);
+        let v = Vector3::new(0.5, -0.2, 0.3);
+        let w = d.wrench(&v, &Vector3::zeros(), &[2000.0; 4], &hubs());
+        assert!((w.force + k.component_mul(&v) * 8000.0).norm() < 1e-15);
+        assert!(w.torque.norm() < 1e-20);
+
+        let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+        let w = d.wrench(&v, &Vector3::zeros(), &speeds, &hubs());
+        let sum_y: f64 = speeds.iter().zip(hubs()).map(|(s, h)| s * h.y).sum();
+        let sum_x: f64 = speeds.iter().zip(hubs()).map(|(s, h)| s * h.x).sum();
+        let expected = Vector3::new(
+            -k.z * v.z * sum_y,
+            k.z * v.z * sum_x,
+            k.x * v.x * sum_y - k.y * v.y * sum_x,
+        );
+        assert!(
+            (w.torque - expected).norm() < 1e-18,
+            "{}",
+            w.torque - expected
+        );
+        let sum: f64 = speeds.iter().sum();
+        assert!((w.force + k.component_mul(&v) * sum).norm() < 1e-15);
+
+        let rate = Vector3::new(1.5, -0.8, 2.0);
+        let w = d.wrench(&Vector3::zeros(), &rate, &speeds, &hubs());
+        let power: f64 = speeds
+            .iter()
+            .zip(hubs())
+            .map(|(s, h)| {
+                let u = rate.cross(&h);
+                -s * (k.x * u.x * u.x + k.y * u.y * u.y + k.z * u.z * u.z)
+            })
+            .sum();
+        assert!(power < 0.0);
+        assert!((w.torque.dot(&rate) - power).abs() < 1e-18);
+    }
+
+    /// A wind without a drag effect pushes through the same hub model.
+    #[test]
+    fn wind_without_drag_uses_rotor_drag_at_the_hubs() {
+        let wind = PlantEffects::only(EffectKind::Wind).unwrap();
+        let drag = PlantEffects::only(EffectKind::RotorDrag).unwrap();
+        let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+        let rate = Vector3::new(0.1, 0.2, -0.3);
+        let q = UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7);
+        let a = wind.extra_wrench(&Vector3::zeros(), &q, &rate, &speeds, &hubs());
+        let b = drag.extra_wrench(&Vector3::new(-0.3, 0.0, 0.0), &q, &rate, &speeds, &hubs());
+        assert_eq!(a, b);
+        assert!(a.torque.norm() > 0.0);
     }
 }

@@ -332,13 +332,31 @@ fn effects_follow_their_formulas() {
     assert!((g.thrust_ratio(1.0) - 1.0).abs() < 1e-4);
     let fx = PlantEffects::only(EffectKind::RotorDrag).unwrap();
     let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
-    // World velocity +x is body −y after a 90° yaw.
-    let f = fx.extra_force(&Vector3::new(1.0, 0.0, 0.0), &q, 4000.0);
+    let hubs = QuadrotorModel::crazyflie_2_1().rotor_positions;
+    let at_rest = Vector3::zeros();
+    // World velocity +x is body −y after a 90° yaw; equal rotor speeds, no body rate: the
+    // body-origin form, and no moment.
+    let w = fx.extra_wrench(
+        &Vector3::new(1.0, 0.0, 0.0),
+        &q,
+        &at_rest,
+        &[1000.0; 4],
+        &hubs,
+    );
     let k = RotorDrag::crazyflie().coefficients;
-    assert!((f - Vector3::new(0.0, k[1] * 4000.0, 0.0)).norm() < 1e-15);
+    assert!((w.force - Vector3::new(0.0, k[1] * 4000.0, 0.0)).norm() < 1e-15);
+    assert!(w.torque.norm() < 1e-20);
     // Plain linear drag does not depend on the rotor speeds.
     let lin = PlantEffects::only(EffectKind::LinearDrag).unwrap();
-    let f = lin.extra_force(&Vector3::new(1.0, 0.0, 0.0), &q, 4000.0);
+    let f = lin
+        .extra_wrench(
+            &Vector3::new(1.0, 0.0, 0.0),
+            &q,
+            &at_rest,
+            &[1000.0; 4],
+            &hubs,
+        )
+        .force;
     let d = LinearDrag::crazyflie().coefficients;
     assert!((f - Vector3::new(0.0, d[1], 0.0)).norm() < 1e-15);
     let te = PlantEffects::only(EffectKind::ThrustGain).unwrap();

@@ -87,6 +87,51 @@ impl FromStr for NoiseLevel {
     }
 }
 
+/// How often a recorded flight log samples the flight ([`SimConfig::log_rate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum LogRate {
+    /// One sample per control interval (50 Hz), stamped at its midpoint: the frames the
+    /// onboard estimator sees (accelerometer at the midpoint, `ω̇` from differenced gyro
+    /// readings).
+    #[default]
+    Control,
+    /// One sample per physics step (every RK4 step, 500 Hz at the default 2 ms), stamped at
+    /// the step's end: instantaneous IMU-style samples of the state (gyro, accelerometer and
+    /// velocity with fresh noise each, on a random stream of their own, so the flight itself is
+    /// that of [`LogRate::Control`]); no `ω̇` columns (an IMU does not measure it); rotor speeds
+    /// and wrench are the control interval's measured values, held over its steps.
+    Physics,
+}
+
+impl LogRate {
+    /// Every rate.
+    pub const ALL: [LogRate; 2] = [LogRate::Control, LogRate::Physics];
+
+    /// Name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogRate::Control => "control",
+            LogRate::Physics => "physics",
+        }
+    }
+}
+
+impl FromStr for LogRate {
+    type Err = SimError;
+
+    /// Parses [`LogRate::name`] (`control`, `physics`).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        LogRate::ALL
+            .into_iter()
+            .find(|r| r.name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "log rate",
+                value: s.to_string(),
+                expected: "control, physics",
+            })
+    }
+}
+
 /// Shape of a payload.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum PayloadShape {
@@ -243,6 +288,9 @@ pub struct SimConfig {
     pub stop_on_abort: bool,
     /// Keep a flight-log sample per control step ([`SimOutput::log`](crate::SimOutput::log)).
     pub record_log: bool,
+    /// Samples of the recorded log: one per control interval (default) or one per physics
+    /// step.
+    pub log_rate: LogRate,
     /// Keep a [`TraceSample`](crate::sim::TraceSample) per control step.
     pub record_trace: bool,
     /// Actuator layout and nominal parameters of the vehicle.
@@ -271,6 +319,7 @@ impl Default for SimConfig {
             gate: SafetyGate::crazyflie(),
             stop_on_abort: true,
             record_log: false,
+            log_rate: LogRate::Control,
             record_trace: false,
             vehicle: QuadrotorModel::crazyflie_2_1(),
             weights: tracking_weights(),

@@ -25,8 +25,8 @@ use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
 use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
 
 pub use config::{
-    Adaptation, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig, check_payload,
-    tracking_weights,
+    Adaptation, LogRate, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig,
+    check_payload, tracking_weights,
 };
 pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
 pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
@@ -262,12 +262,13 @@ impl<'a> Flight<'a> {
         let plant = Plant::new(*vehicle, nominal, config.effects, init)?;
         let controller = Controller::new(vehicle, &nominal, config.weights, config.control_dt)?;
         let estimator = build_estimator(config, estimator_seed)?;
-        // Streams 4 and 5 were added with the sensing profiles: streams 1–3 draw exactly as
+        // Streams 4, 5 (and 6, the physics-rate log) were added with the sensing profiles: streams 1–3 draw exactly as
         // before, so an ideal profile flies bit-identically to the simulator before them.
         let sensors = Sensors::new(
             noise,
             sub_rng(config.seed, 4),
             sub_rng(config.seed, 5),
+            sub_rng(config.seed, 6),
             config.noise,
             &config.sensing,
             plant.state().body_rate,
@@ -323,7 +324,9 @@ impl<'a> Flight<'a> {
             .config
             .vehicle
             .wrench_from_rotor_speeds(&measured_speeds);
-        let (mid_state, mid_acc) = self.fly_interval(&cmd);
+        let physics_log = self.config.record_log && self.config.log_rate == LogRate::Physics;
+        let mut steps = Vec::new();
+        let (mid_state, mid_acc) = self.fly_interval(&cmd, physics_log.then_some(&mut steps));
         if !self.plant.is_finite() {
             self.tracking.push(f64::INFINITY);
             return Ok(ControlFlow::Break(()));
@@ -334,7 +337,9 @@ impl<'a> Flight<'a> {
             mid_acc.proper,
             dt,
         );
-        if self.config.record_log {
+        if physics_log {
+            self.log_physics_samples(k, &mid_state, &steps, &wrench_measured, measured_speeds);
+        } else if self.config.record_log {
             self.log_sample(k, &mid_state, &frame, &wrench_measured, measured_speeds);
         }
         self.update_estimator(k, t, &frame, &wrench_measured)?;
@@ -400,16 +405,56 @@ impl<'a> Flight<'a> {
     }
 
     /// RK4 substeps over one control interval with the rotor speeds `cmd`; returns the state
-    /// and accelerations at the interval's midpoint.
-    fn fly_interval(&mut self, cmd: &[f64; 4]) -> (PlantState, Accelerations) {
+    /// and accelerations at the interval's midpoint. With `steps`, also collects the state and
+    /// accelerations after every substep (the physics-rate log).
+    fn fly_interval(
+        &mut self,
+        cmd: &[f64; 4],
+        mut steps: Option<&mut Vec<(PlantState, Accelerations)>>,
+    ) -> (PlantState, Accelerations) {
         let mut mid = None;
         for j in 0..self.substeps {
             if 2 * j == self.substeps {
                 mid = Some((*self.plant.state(), self.plant.accelerations(cmd)));
             }
             self.plant.step(cmd, self.substep);
+            if let Some(steps) = steps.as_deref_mut() {
+                steps.push((*self.plant.state(), self.plant.accelerations(cmd)));
+            }
         }
         mid.unwrap_or_else(|| (*self.plant.state(), self.plant.accelerations(cmd)))
+    }
+
+    /// The measured rotor speeds and wrench a log sample of control interval `k` carries,
+    /// stamped at `stamp` control periods (`k + ½` for the midpoint, `k + s` with `0 < s ≤ 1`
+    /// within the interval): this interval's, or with a `time-delay` effect those measured
+    /// `delay` earlier. Interval `j` holds its command over `(j dt, (j+1) dt]`, so the command
+    /// at `stamp − delay/dt` is that of `ceil(stamp − delay/dt) − 1` (stamps within 1e-9 of an
+    /// interval boundary count as on it; before the flight began, the first interval). Keeps the
+    /// history it needs.
+    fn logged_actuators(
+        &mut self,
+        k: usize,
+        stamp: f64,
+        wrench: &Wrench,
+        rotor_speeds: [f64; 4],
+    ) -> ([f64; 4], [f64; 6]) {
+        match self.config.effects.time_delay {
+            None => (rotor_speeds, wrench.to_array()),
+            Some(d) => {
+                if self.commands.len() == k {
+                    self.commands.push((rotor_speeds, wrench.to_array()));
+                }
+                let x = stamp - d.delay / self.config.control_dt;
+                let x = if (x - x.round()).abs() < 1e-9 {
+                    x.round()
+                } else {
+                    x
+                };
+                let j = (x.ceil() - 1.0).max(0.0) as usize;
+                self.commands[j.min(k)]
+            }
+        }
     }
 
     /// Appends the log sample of control interval `k` (stamped at its midpoint) with the
@@ -424,16 +469,7 @@ impl<'a> Flight<'a> {
         rotor_speeds: [f64; 4],
     ) {
         let dt = self.config.control_dt;
-        let (rotor_speeds, wrench) = match self.config.effects.time_delay {
-            None => (rotor_speeds, wrench.to_array()),
-            Some(d) => {
-                self.commands.push((rotor_speeds, wrench.to_array()));
-                // The command held at `t_mid − delay` is that of interval
-                // `floor(k + ½ − delay/dt)` (the first one before the flight began).
-                let j = (k as f64 + 0.5 - d.delay / dt).floor().max(0.0) as usize;
-                self.commands[j.min(k)]
-            }
-        };
+        let (rotor_speeds, wrench) = self.logged_actuators(k, k as f64 + 0.5, wrench, rotor_speeds);
         let q = mid.attitude;
         let velocity = self.sensors.logged_velocity(mid.velocity);
         self.log.push(&LogSample {
@@ -447,6 +483,42 @@ impl<'a> Flight<'a> {
             omega_dot: Some(frame.omega_dot.into()),
             rotor_speeds: Some(rotor_speeds),
         });
+    }
+
+    /// Appends the physics-rate log samples of control interval `k` ([`LogRate::Physics`]):
+    /// one per RK4 step, stamped at the step's end, with instantaneous IMU-style readings of
+    /// the states in `steps` (after each step, with their accelerations). Draws the control-rate
+    /// log's velocity noise too (and discards it), so that the noise stream, hence the flight,
+    /// is that of a control-rate log.
+    fn log_physics_samples(
+        &mut self,
+        k: usize,
+        mid: &PlantState,
+        steps: &[(PlantState, Accelerations)],
+        wrench: &Wrench,
+        rotor_speeds: [f64; 4],
+    ) {
+        let _ = self.sensors.logged_velocity(mid.velocity);
+        let dt = self.config.control_dt;
+        for (i, (s, acc)) in steps.iter().enumerate() {
+            let t_s = k as f64 * dt + (i + 1) as f64 * self.substep;
+            let stamp = k as f64 + (i + 1) as f64 / steps.len() as f64;
+            let (speeds, w) = self.logged_actuators(k, stamp, wrench, rotor_speeds);
+            let (omega, accel, velocity) =
+                self.sensors.imu_sample(s.body_rate, acc.proper, s.velocity);
+            let q = s.attitude;
+            self.log.push(&LogSample {
+                t: t_s,
+                position: s.position.into(),
+                velocity: velocity.into(),
+                attitude: [q.w, q.i, q.j, q.k],
+                omega: omega.into(),
+                wrench: w,
+                accel: Some((q * accel + GRAVITY_WORLD).into()),
+                omega_dot: None,
+                rotor_speeds: Some(speeds),
+            });
+        }
     }
 
     /// Pushes the frame into the estimator's window and, every `estimator_period` steps with

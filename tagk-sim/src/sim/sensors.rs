@@ -68,6 +68,8 @@ pub(crate) struct Sensors {
     rng: ChaCha8Rng,
     /// Stream of the rotor-speed noise.
     rotor_rng: ChaCha8Rng,
+    /// Stream of the physics-rate log's IMU noise.
+    imu_rng: ChaCha8Rng,
     sigma_velocity: f64,
     sigma_acceleration: f64,
     sigma_gyro: f64,
@@ -85,11 +87,13 @@ impl Sensors {
     /// quadrature, [`Sensing::combined`]); white noise from `rng`, the biases from `bias_rng`
     /// (always 6 standard normal draws, gyro x, y, z then accelerometer x, y, z, scaled by the
     /// profile's σ's: a seed fixes the bias direction whatever the σ), the rotor-speed noise
-    /// from `rotor_rng`. Draws the first gyro reading of the body rate `initial_rate`.
+    /// from `rotor_rng`, the physics-rate log's noise from `imu_rng`. Draws the first gyro
+    /// reading of the body rate `initial_rate`.
     pub(crate) fn new(
         mut rng: ChaCha8Rng,
         mut bias_rng: ChaCha8Rng,
         rotor_rng: ChaCha8Rng,
+        imu_rng: ChaCha8Rng,
         noise: NoiseLevel,
         sensing: &Sensing,
         initial_rate: Vector3<f64>,
@@ -100,6 +104,7 @@ impl Sensors {
         Self {
             rng,
             rotor_rng,
+            imu_rng,
             sigma_velocity: Sensing::combined(noise.sigma_velocity(), sensing.velocity_noise),
             sigma_acceleration: Sensing::combined(noise.sigma_acceleration(), sensing.accel_noise),
             sigma_gyro: sensing.gyro_noise,
@@ -162,6 +167,23 @@ impl Sensors {
         }
     }
 
+    /// An instantaneous IMU-style sample for the physics-rate log, from the true body rate
+    /// `rate`, proper acceleration `proper` and world velocity `velocity`: gyro, accelerometer
+    /// (each with its bias) and velocity, each plus fresh noise from the IMU stream (draws 3
+    /// each, gyro, accelerometer, velocity; none for a zero σ).
+    pub(crate) fn imu_sample(
+        &mut self,
+        rate: Vector3<f64>,
+        proper: Vector3<f64>,
+        velocity: Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+        let omega = biased(rate, &self.gyro_bias) + noise3(&mut self.imu_rng, self.sigma_gyro);
+        let accel =
+            biased(proper, &self.accel_bias) + noise3(&mut self.imu_rng, self.sigma_acceleration);
+        let velocity = velocity + noise3(&mut self.imu_rng, self.sigma_velocity);
+        (omega, accel, velocity)
+    }
+
     /// The logged velocity: `velocity` plus a fresh velocity noise (draws 3).
     pub(crate) fn logged_velocity(&mut self, velocity: Vector3<f64>) -> Vector3<f64> {
         velocity + noise3(&mut self.rng, self.sigma_velocity)
@@ -185,6 +207,7 @@ mod tests {
             sub_rng(seed, 2),
             sub_rng(seed, 4),
             sub_rng(seed, 5),
+            sub_rng(seed, 6),
             noise,
             sensing,
             Vector3::zeros(),
