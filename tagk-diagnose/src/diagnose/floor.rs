@@ -10,6 +10,9 @@
 //!   sequence of candidates can do better on held-out data, so the distance from a model to it
 //!   is what the candidates can still explain; on a log whose only imperfection is
 //!   measurement noise it is the noise;
+//! - the **noise**: the high-frequency estimate below — held-out data cannot be predicted
+//!   better than their white noise; a saturated model that seems to (a lag whose fixed gain
+//!   smooths the measured wrench's own noise) does not lower the floor;
 //! - the **resolution**: 10⁻⁴ of the RMS of the measured force magnitude (forces), times the
 //!   airframe radius (torques) — below that no effect matters to a flight-dynamics model, and a
 //!   noise-free simulator log would otherwise chase rounding.
@@ -17,9 +20,10 @@
 //! When no candidate is plausible, the reachable residual is the model's own and the
 //! high-frequency noise estimate below takes its place. Or, when the user gives the sensor
 //! noise per channel ([`crate::DiagnoseOptions::noise_floor`]),
-//! that value. The report also gives the **high-frequency noise estimate** of the saturated
-//! residual (first differences: `σ² ≈ mean((r_{i+1} − r_i)²) / 2`, exact for white noise): a
-//! floor well above it says something that no candidate explains remains in the data.
+//! that value. The **high-frequency noise estimate** is taken on the residual of the
+//! saturated model without a lag (a lag filters the measured wrench, noise included), by first
+//! differences: `σ² ≈ mean((r_{i+1} − r_i)²) / 2`, exact for white noise; a floor well above
+//! it says something that no candidate explains remains in the data.
 
 use serde::Serialize;
 
@@ -204,8 +208,26 @@ pub(crate) fn noise_floor(
     let (saturated, fit) = saturated_fit(model, s, opts, start_fit, alone)?;
     let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
     let reachable = held_out_rms(&ev, &fit.weights, s.len());
+    // The noise is measured on a residual whose target is the measured wrench itself: a lag
+    // (a fixed column: the target becomes the lagged wrench) filters the target, which also
+    // averages the wrench's measurement noise away.
+    let filters = |e: &EffectRef| EffectKind::from_name(e.name()) == Some(EffectKind::MotorLag);
+    let unfiltered_fit;
+    let noise_fit = if saturated.effects().iter().any(filters) {
+        let mut plain = Model::rigid_body();
+        if let Some(m) = model.known_mass() {
+            plain = plain.with_known_mass(m);
+        }
+        for e in saturated.effects().iter().filter(|e| !filters(e)) {
+            plain = plain.with_ref(e.clone());
+        }
+        unfiltered_fit = fit_model(&plain, s, None)?;
+        &unfiltered_fit
+    } else {
+        &fit
+    };
     let noise_estimate: [f64; 6] = std::array::from_fn(|c| {
-        let r = &fit.residual;
+        let r = &noise_fit.residual;
         if r.len() < 2 {
             return 0.0;
         }
@@ -235,7 +257,7 @@ pub(crate) fn noise_floor(
             FloorSource::Data,
         ),
         None => (
-            std::array::from_fn(|c| reachable[c].max(resolution(c))),
+            std::array::from_fn(|c| reachable[c].max(noise_estimate[c]).max(resolution(c))),
             FloorSource::Data,
         ),
     };

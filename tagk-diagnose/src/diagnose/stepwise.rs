@@ -146,6 +146,28 @@ pub fn discover_from(
                     continue;
                 }
             }
+            // Second chance by refit: an effect of the saturated model that only helps once
+            // the scanned parameters move with it (its ranking held them fixed).
+            let current = &diagnoses[diagnoses.len() - 1];
+            if !current.at_floor
+                && let Some((name, next)) = best_by_refit(&model, current, s, opts, &floor)?
+            {
+                let gain = 0.0;
+                steps.push(step_of(Some(&name), &next, Some(current), &floor));
+                if let Some(last) = steps.last_mut() {
+                    last.gain_over_floor = gain;
+                }
+                model = model.clone().with_ref(
+                    opts.candidates
+                        .iter()
+                        .find(|c| c.name() == name)
+                        .cloned()
+                        .expect("a candidate of the options"),
+                );
+                added.push(name);
+                diagnoses.push(next);
+                continue;
+            }
             break stop_reason(&diagnoses[diagnoses.len() - 1]);
         }
         // The qualifying candidates, best first: the first whose refit keeps every channel
@@ -225,6 +247,59 @@ pub fn discover_from(
         stopped,
         diagnoses,
     })
+}
+
+/// Among the effects of the floor's saturated model not yet in `model`, the one whose full
+/// refit (every scan redone) qualifies and lowers the held-out residual most: plausible in the
+/// refit, the rigid body's mass within [`crate::MAX_MASS_CHANGE`], no channel worsened
+/// ([`crate::diagnose::ranking::worsens`]), and some channel lowered by at least
+/// [`crate::MIN_GAIN_OF_FLOOR`] of its floor.
+fn best_by_refit(
+    model: &Model,
+    current: &Diagnosis,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+) -> Result<Option<(String, Diagnosis)>, DiagnoseError> {
+    let mut best: Option<(f64, String, Diagnosis)> = None;
+    for name in &floor.saturated_model {
+        if model.has(name) {
+            continue;
+        }
+        let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
+            continue;
+        };
+        let trial = model.clone().with_ref(effect.clone());
+        let next = diagnose_against(&trial, s, opts, floor)?;
+        let plausible = next.effects.iter().all(|f| f.plausible);
+        let (m0, m1) = (current.parameters[0].value, next.parameters[0].value);
+        let mass_ok =
+            m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= crate::diagnose::MAX_MASS_CHANGE);
+        let worse = (0..6).any(|c| {
+            crate::diagnose::ranking::worsens(
+                next.held_out_rms[c],
+                current.held_out_rms[c],
+                floor.rms[c],
+            )
+        });
+        let material = (0..6).any(|c| {
+            current.held_out_rms[c] - next.held_out_rms[c]
+                >= crate::diagnose::MIN_GAIN_OF_FLOOR * floor.rms[c]
+        });
+        if !(plausible && mass_ok && !worse && material) {
+            continue;
+        }
+        let gain: f64 = (0..6)
+            .map(|c| {
+                (current.held_out_rms[c].powi(2) - next.held_out_rms[c].powi(2))
+                    / floor.rms[c].powi(2)
+            })
+            .sum();
+        if best.as_ref().is_none_or(|(g, _, _)| gain > *g) {
+            best = Some((gain, name.clone(), next));
+        }
+    }
+    Ok(best.map(|(_, name, d)| (name, d)))
 }
 
 /// The staircase entry of a step's diagnosis `d` (after adding `effect`; `previous` is the

@@ -86,17 +86,17 @@ impl Effect for QuadraticDrag {
 }
 
 /// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with
-/// `K = diag(k_x, k_y, k_z)` and `v_hub,i = v_b + Ω × r_i` the hub's body-frame velocity, and
-/// the yaw moment of the horizontal hub forces about the origin, `(r_i × H_i)_z` (from
-/// differential rotor speeds times the horizontal velocity, and the yaw rate). The hub
-/// positions `r_i` (in the body x-y plane) come from the mixer identified from the log
-/// ([`Signals::rotor_mixer`]); without one, the force `−K (Σ|ω_i|) v_b` alone. Needs rotor
-/// speeds.
-///
-/// The roll and pitch moments of the vertical hub forces are left out: their hub velocity is
-/// dominated by `Ω × r_i`, so they act as a roll/pitch rate damping `∝ k_z Σ y_i² ω_i Ω` that
-/// the vertical force barely constrains, and on simulator logs they fitted unrelated
-/// rate-correlated torque residuals (a spurious `rotor-drag` after a lag or a delay).
+/// `K = diag(k_h, k_h, k_z)` (axisymmetric rotors: one horizontal coefficient) and
+/// `v_hub,i = v_b + Ω × r_i` the hub's body-frame velocity, and the moments `r_i × H_i` about
+/// the origin: a yaw torque from differential rotor speeds times the horizontal velocity (and
+/// the yaw rate), and roll/pitch torques from the vertical hub forces, whose hub velocity is
+/// mostly `Ω × r_i` (a roll/pitch rate damping `∝ Σ y_i² ω_i Ω`). Every moment is carried by
+/// `k_h`, which the horizontal forces pin down; `k_z` fits the vertical force alone (with the
+/// moments on a free `k_z`, the weakly observed vertical coefficient became a free rate
+/// damping that fitted unrelated torque residuals). For the Crazyflie `k_z ≈ 1.1 k_h`
+/// (Förster 2015), so the moments are a tenth low at most. The hub positions `r_i` (in the body x-y plane) come from the mixer
+/// identified from the log ([`Signals::rotor_mixer`]); without one, the force
+/// `−K (Σ|ω_i|) v_b` alone. Needs rotor speeds.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RotorDrag;
 
@@ -123,25 +123,21 @@ impl Effect for RotorDrag {
         };
         let hubs = s.rotor_mixer().map(|m| m.hubs);
         let n = s.len();
-        // data[axis][channel]: the external wrench per unit k_axis.
-        let mut data: Vec<[Option<Vec<f64>>; 6]> = (0..3)
-            .map(|axis| {
-                let mut d: [Option<Vec<f64>>; 6] = Default::default();
-                d[axis] = Some(vec![0.0; n]);
-                if hubs.is_some() {
-                    let torques: &[usize] = match axis {
-                        0 | 1 => &[5],
-                        _ => &[],
-                    };
-                    for &c in torques {
-                        d[c] = Some(vec![0.0; n]);
-                    }
-                }
-                d
-            })
-            .collect();
-        let mut put = |axis: usize, c: usize, i: usize, x: f64| {
-            if let Some(v) = data[axis][c].as_mut() {
+        // data[0]: per unit k_h (horizontal forces and every hub moment), data[1]: per unit
+        // k_z (the vertical force).
+        let mut horizontal: [Option<Vec<f64>>; 6] = Default::default();
+        let mut vertical: [Option<Vec<f64>>; 6] = Default::default();
+        for c in [0, 1] {
+            horizontal[c] = Some(vec![0.0; n]);
+        }
+        if hubs.is_some() {
+            for c in [3, 4, 5] {
+                horizontal[c] = Some(vec![0.0; n]);
+            }
+        }
+        vertical[2] = Some(vec![0.0; n]);
+        let add = |d: &mut [Option<Vec<f64>>; 6], c: usize, i: usize, x: f64| {
+            if let Some(v) = d[c].as_mut() {
                 v[i] += x;
             }
         };
@@ -150,9 +146,9 @@ impl Effect for RotorDrag {
             match hubs {
                 None => {
                     let sum: f64 = w[i].iter().map(|x| x.abs()).sum();
-                    for axis in 0..3 {
-                        put(axis, axis, i, -v[axis] * sum);
-                    }
+                    add(&mut horizontal, 0, i, -v.x * sum);
+                    add(&mut horizontal, 1, i, -v.y * sum);
+                    add(&mut vertical, 2, i, -v.z * sum);
                 }
                 Some(h) => {
                     let om = s.omega[i];
@@ -163,28 +159,35 @@ impl Effect for RotorDrag {
                         let wr = w[i][r].abs();
                         // H = −K |ω| v_hub; moment r × H with r = (x, y, 0).
                         let (hx, hy, hz) = (-wr * vh.x, -wr * vh.y, -wr * vh.z);
-                        put(0, 0, i, hx);
-                        put(0, 5, i, -y * hx);
-                        put(1, 1, i, hy);
-                        put(1, 5, i, x * hy);
-                        put(2, 2, i, hz);
+                        add(&mut horizontal, 0, i, hx);
+                        add(&mut horizontal, 1, i, hy);
+                        add(&mut horizontal, 5, i, x * hy - y * hx);
+                        // The vertical hub forces' moments: their hub velocity is mostly
+                        // Ω × r_i (a roll/pitch rate damping), carried by k_h.
+                        add(&mut horizontal, 3, i, y * hz);
+                        add(&mut horizontal, 4, i, -x * hz);
+                        add(&mut vertical, 2, i, hz);
                     }
                 }
             }
         }
-        ["k_x", "k_y", "k_z"]
-            .iter()
-            .zip(data)
-            .map(|(name, data)| EffectColumn {
-                name: name.to_string(),
+        vec![
+            EffectColumn {
+                name: "k_h".into(),
                 unit: "N s²/(m rad)".into(),
-                data,
+                data: horizontal,
                 fixed: None,
-            })
-            .collect()
+            },
+            EffectColumn {
+                name: "k_z".into(),
+                unit: "N s²/(m rad)".into(),
+                data: vertical,
+                fixed: None,
+            },
+        ]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
-        nonneg(&["k_x", "k_y", "k_z"], coef, se, "rotor-drag coefficient")
+        nonneg(&["k_h", "k_z"], coef, se, "rotor-drag coefficient")
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         ("horizontal body speed [m/s]".into(), horiz_speed(s))

@@ -156,9 +156,12 @@ impl Effect for Wind {
                 "the fitted wind force is within 3 standard errors of zero: a drag without wind explains this",
             );
         }
+        // The implied wind speed needs the drag: when a drag effect of the model carries it,
+        // the wind's own drag columns are duplicates and their share is not the drag.
         let d = 0.5 * (coef[0] + coef[1]);
+        let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
         let force = (coef[3] * coef[3] + coef[4] * coef[4]).sqrt();
-        if d > 0.0 && force / d > MAX_WIND_SPEED {
+        if d > 3.0 * d_se && force / d > MAX_WIND_SPEED {
             return Plausibility::broken(
                 "wind-speed",
                 format!(
@@ -171,7 +174,9 @@ impl Effect for Wind {
     }
     fn derived(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Vec<Coefficient> {
         let d = 0.5 * (coef[0] + coef[1]);
-        if !(d > 0.0) {
+        let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
+        if !(d > 3.0 * d_se) {
+            // No drag of its own (another effect carries it): no wind speed to report.
             return Vec::new();
         }
         ["v_wx", "v_wy"]
