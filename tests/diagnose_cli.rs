@@ -240,3 +240,102 @@ fn headless(chromium: &str, profile: &Path, extra: &[String], file: &Path) -> st
     );
     out
 }
+
+/// The staircase in the JSON and on the terminal: `recommended` is the first step, `steps`
+/// has the starting model and one entry per added effect (per channel: held-out RMS, floor,
+/// change), `final_model` names the effects and the command that reproduces it — and that
+/// command, run, reproduces the final model with nothing left to add.
+#[test]
+fn the_staircase_is_in_the_json_and_its_command_reproduces_it() {
+    let dir = tmpdir("staircase");
+    let log = write_drag_log(&dir);
+    let mut args = DiagnoseArgs::new(&log);
+    args.json = Some(dir.join("out.json"));
+    args.quiet = true;
+    run_diagnose(&args).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert!(steps.len() >= 2, "{}", v["steps"]);
+    assert!(steps[0]["effect"].is_null());
+    assert_eq!(steps[1]["effect"], v["recommended"]);
+    for step in steps {
+        let ch = step["channels"].as_array().unwrap();
+        assert_eq!(ch.len(), 6);
+        for c in ch {
+            assert!(c["held_out_rms"].as_f64().unwrap() > 0.0);
+            assert!(c["floor"].as_f64().unwrap() > 0.0);
+            assert!(c["change"].is_number());
+        }
+        assert_eq!(step["held_out_rms"].as_array().unwrap().len(), 6);
+    }
+    let effects: Vec<String> = v["final_model"]["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_str().unwrap().to_string())
+        .collect();
+    assert!(!effects.is_empty());
+    let command = v["final_model"]["command"].as_str().unwrap();
+    assert!(
+        command.ends_with(&format!("--with {}", effects.join(","))),
+        "{command}"
+    );
+    assert!(v["noise_floor"]["rms"].as_array().unwrap().len() == 6);
+    assert!(v["stopped"].is_string());
+    // The command reproduces the final model: with its effects, nothing is left to add.
+    let mut again = DiagnoseArgs::new(&log);
+    again.with = effects;
+    again.json = Some(dir.join("again.json"));
+    again.quiet = true;
+    run_diagnose(&again).unwrap();
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("again.json")).unwrap()).unwrap();
+    assert!(w["recommended"].is_null(), "{}", w["stopped"]);
+    // The terminal shows the staircase and the command.
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg(&log)
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("=== stepwise:"), "{text}");
+    assert!(text.contains("reproduce it: tagk diagnose"), "{text}");
+}
+
+/// Several logs on the command line are diagnosed jointly, each beside the joint verdict;
+/// a bad `--noise-floor` is a typed error naming the option.
+#[test]
+fn several_logs_on_the_command_line_and_a_bad_noise_floor() {
+    let dir = tmpdir("several");
+    let a = write_drag_log(&dir);
+    let b = dir.join("copy.csv");
+    std::fs::copy(&a, &b).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg(&a)
+        .arg(&b)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("=== each log alone"), "{text}");
+    assert!(text.contains("agrees"), "{text}");
+    let mut args = DiagnoseArgs::new(&a);
+    args.noise_floor = Some(vec![1e-3, 1e-3, -1.0, 1e-5, 1e-5, 1e-5]);
+    let err = run_diagnose(&args).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            DiagnoseError::InvalidOption {
+                field: "noise_floor",
+                ..
+            }
+        ),
+        "{err}"
+    );
+}

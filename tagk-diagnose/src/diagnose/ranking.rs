@@ -310,9 +310,10 @@ fn best_design(
             (None, d, ev)
         }
         Some(sp) => {
+            let scan = engine.for_scan();
             let (g, _) = scan_min(&sp.grid, |g| {
                 let d = effect_design(e, s, Some(g));
-                engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
+                scan.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
             });
             let d = effect_design(e, s, Some(g));
             let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());

@@ -34,9 +34,16 @@ pub(crate) struct GramEngine<'a> {
     base: Vec<ColData>,
     pieces: Vec<(usize, usize)>,
     folds: usize,
+    /// Every `stride`-th sample enters the cross products (1: all; more in scan engines).
     /// Per piece, per channel: (1+p0)² cross products of [y, base…].
     base_gram: Vec<f64>,
+    stride: usize,
 }
+
+/// Samples a 1-D scan looks at, at most (about): a scan ranks the values of one parameter by
+/// their in-sample residual, for which every `n / SCAN_SAMPLES`-th sample of a long log
+/// suffices; the chosen value is then evaluated on every sample.
+pub(crate) const SCAN_SAMPLES: usize = 10_000;
 
 impl<'a> GramEngine<'a> {
     /// `target`: the unweighted target (the measured wrench when `None`).
@@ -76,7 +83,7 @@ impl<'a> GramEngine<'a> {
         }
         let mut all: Vec<&ColData> = vec![&y];
         all.extend(base.iter());
-        let base_gram = cross_tensor(&all, &all, &pieces);
+        let base_gram = cross_tensor(&all, &all, &pieces, 1);
         Self {
             s,
             w: *w,
@@ -85,6 +92,28 @@ impl<'a> GramEngine<'a> {
             pieces,
             folds,
             base_gram,
+            stride: 1,
+        }
+    }
+
+    /// The same base and target for a scan: no folds (in-sample SSE only) and every
+    /// `n / SCAN_SAMPLES`-th sample.
+    pub fn for_scan(&self) -> GramEngine<'a> {
+        let n = self.s.len();
+        let stride = (n / SCAN_SAMPLES).max(1);
+        let pieces = vec![(0, n)];
+        let mut all: Vec<&ColData> = vec![&self.y];
+        all.extend(self.base.iter());
+        let base_gram = cross_tensor(&all, &all, &pieces, stride);
+        GramEngine {
+            s: self.s,
+            w: self.w,
+            y: self.y.clone(),
+            base: self.base.clone(),
+            pieces,
+            folds: 1,
+            base_gram,
+            stride,
         }
     }
 
@@ -118,13 +147,13 @@ impl<'a> GramEngine<'a> {
         left.extend(self.base.iter());
         left.extend(cand.iter());
         let candr: Vec<&ColData> = cand.iter().collect();
-        let cross = cross_tensor(&left, &candr, &self.pieces);
+        let cross = cross_tensor(&left, &candr, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
         let (ocross, oo) = match &offset {
             Some(o) => (
-                cross_tensor(&[o], &left, &self.pieces),
-                cross_tensor(&[o], &[o], &self.pieces),
+                cross_tensor(&[o], &left, &self.pieces, self.stride),
+                cross_tensor(&[o], &[o], &self.pieces, self.stride),
             ),
             None => (Vec::new(), Vec::new()),
         };
@@ -267,7 +296,12 @@ fn dot(x: &[f64], y: &[f64]) -> f64 {
 
 /// Cross products `Σ_{i ∈ piece} a_j[c][i] b_k[c][i]` for every piece, channel, `j`, `k`;
 /// layout `[piece][channel][j][k]`.
-fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Vec<f64> {
+fn cross_tensor(
+    a: &[&ColData],
+    b: &[&ColData],
+    pieces: &[(usize, usize)],
+    stride: usize,
+) -> Vec<f64> {
     let (pa, pb) = (a.len(), b.len());
     let mut out = vec![0.0; pieces.len() * 6 * pa * pb];
     for (j, aj) in a.iter().enumerate() {
@@ -277,7 +311,11 @@ fn cross_tensor(a: &[&ColData], b: &[&ColData], pieces: &[(usize, usize)]) -> Ve
                     continue;
                 };
                 for (pi, &(lo, hi)) in pieces.iter().enumerate() {
-                    out[((pi * 6 + c) * pa + j) * pb + k] = dot(&x[lo..hi], &y[lo..hi]);
+                    out[((pi * 6 + c) * pa + j) * pb + k] = if stride == 1 {
+                        dot(&x[lo..hi], &y[lo..hi])
+                    } else {
+                        (lo..hi).step_by(stride).map(|i| x[i] * y[i]).sum()
+                    };
                 }
             }
         }

@@ -190,12 +190,14 @@ pub fn fit_model(
                 break;
             }
         }
-        // Two weighting passes always; then stop once the parameters no longer move.
-        settled = if pass > 0 && params == before {
-            settled + 1
-        } else {
-            0
-        };
+        // Two weighting passes always; then stop once the parameters no longer move (by more
+        // than 1 % of their value: the golden-section refinement never lands twice on the
+        // same bits).
+        let moved = params.iter().zip(&before).any(|(a, b)| match (a, b) {
+            (Some(a), Some(b)) => (a - b).abs() > 0.01 * a.abs().max(b.abs()),
+            _ => false,
+        });
+        settled = if pass > 0 && !moved { settled + 1 } else { 0 };
         let final_pass = pass + 1 == passes || (pass >= 1 && settled >= 1);
         last = Some(solve_pass(
             model, s, &rigid, &target, &w, &params, final_pass,
@@ -281,7 +283,7 @@ fn scan_parameters(
                 }
             }
         }
-        let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
+        let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1).for_scan();
         let (best, _) = scan_min(&spec.grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
             engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
