@@ -361,8 +361,7 @@ fn the_accelerometer_read_back_is_the_simulators_world_acceleration() {
     let dir = tmpdir("accelerometer");
     let sim = simulate(PlantEffects::only(EffectKind::QuadraticDrag).unwrap());
     // No IMU measures the angular acceleration: it is derived on both logs.
-    let mut original = sim.clone();
-    original.omega_dot = None;
+    let original = with_accelerometer(sim.clone());
     let map = write_foreign(&original, &dir, 0.0);
     let args = foreign_args(&dir, map);
     let (read, merge) = read_log(&args).unwrap();
@@ -445,10 +444,20 @@ fn delay_found(report: &tagk::diagnose::Report) -> f64 {
         .expect("time-delay is a candidate")
 }
 
+/// The log as an IMU logs it: its accelerations (the accelerometer) kept, the angular
+/// acceleration (which no sensor measures) dropped.
+fn with_accelerometer(mut log: FlightLog) -> FlightLog {
+    log.omega_dot = None;
+    log
+}
+
 #[test]
 fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     let dir = tmpdir("offset");
-    let original = without_accelerations(simulate(PlantEffects::none()));
+    // With the accelerometer, as an autopilot logs it (with accelerations derived from the
+    // 25 Hz motion capture the native log's candidate is rejected as implausible, gain 0.65:
+    // the differentiator's smoothing looks like part of a shift).
+    let original = with_accelerometer(simulate(PlantEffects::none()));
     // The rotor stream's clock runs 20 ms late: the wrench merged at t is the one of t − 20 ms.
     let map = write_foreign(&original, &dir, 0.02);
     let args = foreign_args(&dir, map.clone());
@@ -456,8 +465,7 @@ fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     let report = diagnose_log(&read, &args).unwrap();
     let found = delay_found(&report);
     // The same 20 ms offset made by the simulator in its own log (the native format).
-    let native =
-        without_accelerations(simulate(PlantEffects::only(EffectKind::TimeDelay).unwrap()));
+    let native = with_accelerometer(simulate(PlantEffects::only(EffectKind::TimeDelay).unwrap()));
     let mut plain = DiagnoseArgs::new(dir.join("unused.csv"));
     plain.quiet = true;
     let reference = diagnose_log(&native, &plain).unwrap();
@@ -465,10 +473,11 @@ fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     eprintln!("delay found: foreign {found} s, native {found_native} s");
     // Found and recommended, with the right sign (the actuator log is late: d < 0) and the
     // candidate's resolution: its column `g·(b(t − d) − b(t))` is, for a shift short against
-    // the motion, identified through `g·d` only; here g = 0.86, d = −0.031 s, g·d = −0.027 s
-    // (the native log: g = 0.72, d = −0.038 s, g·d = −0.027 s). The read-back log gives what
+    // the motion, identified through `g·d` only; here g = 0.95, d = −0.025 s, g·d = −0.024 s
+    // (the native log: g = 0.83, d = −0.030 s, g·d = −0.025 s). The read-back log gives what
     // the native one gives, within one step of the scan.
     assert_eq!(report.recommended.as_deref(), Some("time-delay"));
+    assert_eq!(reference.recommended.as_deref(), Some("time-delay"));
     assert!((-0.04..=-0.015).contains(&found), "delay {found}");
     assert!((found - found_native).abs() <= 0.01 + 1e-9);
     // And the mapping's per-stream offset undoes it.
@@ -573,11 +582,8 @@ fn shipped_flight() -> FlightLog {
     };
     let out = tagk::sim::simulate(&config).expect("simulation runs");
     assert!(!out.metrics.aborted);
-    // The accelerometer is logged (the simulator's noisy one, as specific force in `imu.csv`);
-    // no sensor measures the angular acceleration.
-    let mut log = out.log;
-    log.omega_dot = None;
-    log
+    // The accelerometer is logged (the simulator's noisy one, as specific force in `imu.csv`).
+    with_accelerometer(out.log)
 }
 
 /// Rewrites the shipped example files (`cargo test --test foreign_log -- --ignored`).
@@ -604,6 +610,8 @@ struct ReadmeFigures {
     rotor_drag: &'static str,
     /// Step 3's before/after lines of fx and fy.
     refit: [&'static str; 2],
+    /// Step 2's "what remains" lines of tx and ty (held-out RMS and its ratio to the floor).
+    remains: [&'static str; 2],
     /// Without the accelerometer columns (accelerations derived): the verdict, the rotor-drag
     /// candidate's status and the final model.
     derived_verdict: &'static str,
@@ -626,6 +634,10 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
     refit: [
         "fx                n/a          n/a    2.0940e-3    2.3021e-5   -98.9 %",
         "fy                n/a          n/a    1.2742e-3    2.2555e-5   -98.2 %",
+    ],
+    remains: [
+        "tx         28.2      1.4381e-5    12.88",
+        "ty         25.6      1.3188e-5    11.82",
     ],
     derived_verdict: "verdict: no candidate qualifies (best: `ground-effect`, implausible",
     derived_rotor_drag: "rotor-drag: held-out residual -26.0 % (fx -87 %, fy -73 %); k_x = 9.284e-7 N s²/(m rad), k_y = 9.335e-7 N s²/(m rad), k_z = -2.205e-6 N s²/(m rad); implausible (negative-coefficient)",
@@ -728,6 +740,10 @@ fn the_readme_walkthrough_runs_on_the_shipped_files() {
         interval[0] <= 9.1785e-7 && 9.1785e-7 <= interval[1],
         "{rotor_drag}"
     );
+    let remains = &report[report.find("=== what remains").expect("what remains")..];
+    for line in figures.remains {
+        assert!(remains.contains(line), "{line} not in\n{remains}");
+    }
     // 3. Add the drag the plant has: the lateral residual falls.
     let refit = readme_diagnose(&shipped, quad, &["--with", "rotor-drag"]);
     assert!(refit.contains("rigid body + rotor-drag"), "{refit}");
