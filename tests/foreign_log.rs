@@ -640,7 +640,9 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
         "ty         25.6      1.3188e-5    11.82",
     ],
     derived_verdict: "verdict: no candidate qualifies (best: `ground-effect`, implausible",
-    derived_rotor_drag: "rotor-drag: held-out residual -26.0 % (fx -87 %, fy -73 %); k_x = 9.284e-7 N s²/(m rad), k_y = 9.335e-7 N s²/(m rad), k_z = -2.205e-6 N s²/(m rad); implausible (negative-coefficient)",
+    derived_rotor_drag: "rotor-drag: held-out residual -26.0 % (fx -87 %, fy -73 %); \
+        k_x = 9.284e-7 N s²/(m rad), k_y = 9.335e-7 N s²/(m rad), \
+        k_z = -2.205e-6 N s²/(m rad); implausible (negative-coefficient)",
     derived_final_model: "final model: rigid body\n",
 };
 

@@ -81,9 +81,10 @@
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
 //! on its own time base before the merge. The world acceleration comes from the accelerometer
 //! when a stream has one (above). Acceleration (without an accelerometer) and angular
-//! acceleration, when absent, are derived by the diagnosis (see [`FlightLog::accel`]). A log without the wrench `fx..tz`
-//! but with rotor speeds `w1..w4` needs a [vehicle](crate::vehicle): pass it as
-//! [`ReadOptions::vehicle`] (the wrench is then computed after the merge, on the time base).
+//! acceleration, when absent, are derived by the diagnosis (see [`FlightLog::accel`]). A log
+//! without the wrench `fx..tz` but with rotor speeds `w1..w4` needs a
+//! [vehicle](crate::vehicle): pass it as [`ReadOptions::vehicle`] (the wrench is then computed
+//! after the merge, on the time base).
 
 use std::collections::BTreeMap;
 use std::io::Read;
