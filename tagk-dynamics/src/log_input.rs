@@ -12,9 +12,10 @@
 //!
 //! [units]                   # by project column or group; SI if absent
 //! t = "ms"                  # s, ms, us (µs), ns
-//! position = "mm"           # m, cm, mm   (groups: position velocity accel omega omega_dot
-//! omega = "deg/s"           #              force torque rotor_speeds time)
+//! position = "mm"           # m, cm, mm   (groups: position velocity accel specific_force
+//! omega = "deg/s"           #   omega omega_dot force torque rotor_speeds time)
 //! rotor_speeds = "rpm"      # rad/s, deg/s, rpm
+//! specific_force = "g"      # the accelerometer (sfx, sfy, sfz): m/s2, mm/s2, g
 //!
 //! [frames]
 //! world = "ned"             # enu (default: z up) or ned
@@ -46,8 +47,23 @@
 //! - FRD → FLU: `C_b = diag(1, −1, −1)`, a rotation by π about x.
 //!
 //! World vectors (position, velocity, acceleration) become `C_w v`; body vectors (angular
-//! velocity and acceleration, force, torque) become `C_b v`; the attitude `R` (body → world)
-//! becomes `C_w R C_bᵀ`. Rotor speeds are scalars and do not change.
+//! velocity and acceleration, force, torque, the accelerometer's specific force) become
+//! `C_b v`; the attitude `R` (body → world) becomes `C_w R C_bᵀ`. Rotor speeds are scalars and
+//! do not change.
+//!
+//! # The accelerometer
+//!
+//! The project columns `sfx, sfy, sfz` ([`SPECIFIC_FORCE_COLUMNS`], unit group
+//! `specific_force`) are what an accelerometer at the body origin measures: the **specific
+//! force** `f = Rᵀ (p̈ − g_w)`, body frame (a vehicle at rest, level, reads `+1 g` along body
+//! up: `(0, 0, 9.81)` m/s² in FLU, `(0, 0, −9.81)` in FRD). They are not the wrench `fx..fz`
+//! (a force in N) nor the world acceleration `ax..az` (`p̈`, gravity removed). After the merge
+//! they become the log's world acceleration `p̈ = R f + g_w` ([`world_acceleration`]) with the
+//! merged attitude `R` and the project's `g_w = (0, 0, −9.81)` m/s² (the one the regressor
+//! subtracts again, so it sees `f` exactly, whatever the local gravity). A stream with
+//! `ax..az` wins over the accelerometer. The accelerometer is taken to sit at the body origin
+//! (a lever arm `r` adds `ω̇ × r + ω × (ω × r)`, not removed here); its bias and scale errors
+//! are not corrected.
 //!
 //! # Several streams
 //!
@@ -63,10 +79,12 @@
 //!
 //! Derived columns: a stream with position but no velocity gets its velocity by the
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
-//! on its own time base before the merge. Acceleration and angular acceleration, when absent,
-//! are derived by the diagnosis (see [`FlightLog::accel`]). A log without the wrench `fx..tz`
-//! but with rotor speeds `w1..w4` needs a [vehicle](crate::vehicle): pass it as
-//! [`ReadOptions::vehicle`] (the wrench is then computed after the merge, on the time base).
+//! on its own time base before the merge. The world acceleration comes from the accelerometer
+//! when a stream has one (above). Acceleration (without an accelerometer) and angular
+//! acceleration, when absent, are derived by the diagnosis (see [`FlightLog::accel`]). A log
+//! without the wrench `fx..tz` but with rotor speeds `w1..w4` needs a
+//! [vehicle](crate::vehicle): pass it as [`ReadOptions::vehicle`] (the wrench is then computed
+//! after the merge, on the time base).
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -77,10 +95,16 @@ use thiserror::Error;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
 use crate::log::{FlightLog, LogError, NumericRows};
+use crate::rigid_body::GRAVITY_WORLD;
 use crate::vehicle::Vehicle;
 
 /// A step longer than `GAP_FACTOR` × the stream's median step is a gap.
 pub const GAP_FACTOR: f64 = 3.0;
+
+/// The project columns of the accelerometer: the specific force `f = Rᵀ (p̈ − g_w)` of the
+/// body origin, body frame \[m/s²\] (module docs, "The accelerometer"). Mapping-only: the
+/// native format stores the world acceleration `ax..az` instead.
+pub const SPECIFIC_FORCE_COLUMNS: [&str; 3] = ["sfx", "sfy", "sfz"];
 
 /// The world frame a log's world vectors and attitude are expressed in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -211,10 +235,11 @@ enum Group {
     Accel,
     OmegaDot,
     RotorSpeeds,
+    SpecificForce,
 }
 
 impl Group {
-    const ALL: [Group; 9] = [
+    const ALL: [Group; 10] = [
         Group::Position,
         Group::Velocity,
         Group::Attitude,
@@ -224,6 +249,7 @@ impl Group {
         Group::Accel,
         Group::OmegaDot,
         Group::RotorSpeeds,
+        Group::SpecificForce,
     ];
     fn columns(self) -> &'static [&'static str] {
         match self {
@@ -236,6 +262,7 @@ impl Group {
             Group::Accel => &["ax", "ay", "az"],
             Group::OmegaDot => &["dwx", "dwy", "dwz"],
             Group::RotorSpeeds => &["w1", "w2", "w3", "w4"],
+            Group::SpecificForce => &SPECIFIC_FORCE_COLUMNS,
         }
     }
     fn key(self) -> &'static str {
@@ -249,6 +276,7 @@ impl Group {
             Group::Accel => "accel",
             Group::OmegaDot => "omega_dot",
             Group::RotorSpeeds => "rotor_speeds",
+            Group::SpecificForce => "specific_force",
         }
     }
     fn quantity(self) -> Quantity {
@@ -259,7 +287,7 @@ impl Group {
             Group::Omega | Group::RotorSpeeds => Quantity::AngularRate,
             Group::Force => Quantity::Force,
             Group::Torque => Quantity::Torque,
-            Group::Accel => Quantity::Acceleration,
+            Group::Accel | Group::SpecificForce => Quantity::Acceleration,
             Group::OmegaDot => Quantity::AngularAcceleration,
         }
     }
@@ -274,6 +302,7 @@ impl Group {
             Group::Accel => &["acc", "a"],
             Group::OmegaDot => &["dw", "alpha"],
             Group::RotorSpeeds => &["rpm", "motor", "rotor", "esc", "w"],
+            Group::SpecificForce => &["acc", "imu", "specific", "sf"],
         }
     }
 }
@@ -805,7 +834,11 @@ impl ColumnMapping {
         for (g, rows) in &mut s.groups {
             let c = match g {
                 Group::Position | Group::Velocity | Group::Accel => cw,
-                Group::Omega | Group::OmegaDot | Group::Force | Group::Torque => cb,
+                Group::Omega
+                | Group::OmegaDot
+                | Group::Force
+                | Group::Torque
+                | Group::SpecificForce => cb,
                 Group::Attitude => {
                     for q in rows.iter_mut() {
                         let out = convert_attitude([q[0], q[1], q[2], q[3]], self.world, self.body);
@@ -842,6 +875,28 @@ pub fn convert_attitude(q: [f64; 4], world: WorldFrame, body: BodyFrame) -> [f64
         o.iter_mut().for_each(|x| *x = -*x);
     }
     o.map(|x| x * norm)
+}
+
+/// The world acceleration `p̈ = R f + g_w` \[m/s²\] (project frames) of each sample from the
+/// attitude `(w, x, y, z)` (body → world; normalised here, so a norm within the log's tolerance
+/// does not scale the result) and the accelerometer's specific force `f` (body frame)
+/// \[m/s²\]: the inverse of [`crate::proper_acceleration`], with the same [`GRAVITY_WORLD`],
+/// so the regressor's `Rᵀ (p̈ − g_w)` gives back `f`.
+pub fn world_acceleration(attitude: &[[f64; 4]], specific_force: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    attitude
+        .iter()
+        .zip(specific_force)
+        .map(|(q, f)| {
+            let q = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
+            // A zero quaternion is rejected by the log's validation; rotate by nothing here.
+            let r = if q.norm() > 0.0 {
+                UnitQuaternion::from_quaternion(q)
+            } else {
+                UnitQuaternion::identity()
+            };
+            (r * Vector3::from(*f) + GRAVITY_WORLD).into()
+        })
+        .collect()
 }
 
 fn median_step(t: &[f64]) -> f64 {
@@ -1035,8 +1090,12 @@ pub fn read_streams(
             return Err(e);
         }
     }
+    // The accelerometer is read only when no stream has the world acceleration itself (which
+    // then wins, as the wrench wins over the rotor speeds).
+    let has_world_accel = source(Group::Accel).is_some();
     let used: Vec<(Group, usize)> = Group::ALL
         .iter()
+        .filter(|&&g| !(g == Group::SpecificForce && has_world_accel))
         .filter_map(|&g| source(g).map(|s| (g, s)))
         .collect();
     for (g, s) in &used {
@@ -1097,6 +1156,21 @@ pub fn read_streams(
         .map(|r| r.iter().map(|v| [v[0], v[1], v[2], v[3]]).collect())
         .unwrap_or_default();
     log.accel = v3(Group::Accel);
+    if log.accel.is_none()
+        && let Some(f) = v3(Group::SpecificForce)
+    {
+        log.accel = Some(world_acceleration(&log.attitude, &f));
+        let from = |g: Group| {
+            used.iter()
+                .find(|(u, _)| *u == g)
+                .map_or("", |(_, s)| streams[*s].name.as_str())
+        };
+        report.derived.push(format!(
+            "accel (world, from the accelerometer's specific force of {} and the attitude of {})",
+            from(Group::SpecificForce),
+            from(Group::Attitude)
+        ));
+    }
     log.omega_dot = v3(Group::OmegaDot);
     log.rotor_speeds = rows
         .get(&Group::RotorSpeeds)

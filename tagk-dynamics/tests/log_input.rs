@@ -382,3 +382,222 @@ fn errors_name_file_line_column_and_close_names() {
         Err(InputError::NoStream)
     ));
 }
+
+/// The project's gravity `g_w` \[m/s²\] (z up), written out here so the test does not lean on
+/// the constant it checks.
+const G: f64 = 9.81;
+
+/// The accelerometer of a vehicle in NED/FRD at `t`: its attitude (NED ← FRD) and its world
+/// acceleration in NED \[m/s²\], and the specific force an ideal accelerometer reads, computed in
+/// NED/FRD throughout (gravity `(0, 0, +g)` in NED): `f = R_nedᵀ (p̈_ned − g_ned)`.
+fn ned_accelerometer(t: f64) -> (UnitQuaternion<f64>, Vector3<f64>, Vector3<f64>) {
+    let r_ned = UnitQuaternion::from_euler_angles(0.4 * t.sin(), -0.3 * t.cos(), 1.2 * t);
+    let a_ned = Vector3::new(0.8 * (1.3 * t).sin(), -0.5 * t.cos(), 0.2 * (0.7 * t).sin());
+    let f_frd = r_ned.inverse() * (a_ned - Vector3::new(0.0, 0.0, G));
+    (r_ned, a_ned, f_frd)
+}
+
+#[test]
+fn the_accelerometer_in_frd_and_g_becomes_the_world_acceleration() {
+    let dir = tmpdir("imu");
+    let g_unit = unit_factor("g").unwrap();
+    assert_eq!(g_unit, 9.80665, "the standard gravity");
+    // IMU at 100 Hz: gyro (FRD, rad/s), accelerometer (FRD, in g), wrench (project frames).
+    let n = 300;
+    let imu: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            let t = 0.01 * i as f64;
+            let r = project_row(t);
+            let (_, _, f) = ned_accelerometer(t);
+            let f = f / g_unit;
+            [
+                vec![t * 1e3],
+                r[11..14].to_vec(),
+                vec![f.x, f.y, f.z],
+                r[14..20].to_vec(),
+            ]
+            .concat()
+        })
+        .collect();
+    // Motion capture on the same clock (time in µs, one sample more at each end so no IMU
+    // sample falls outside its range): position, attitude xyzw (NED/FRD).
+    let mocap: Vec<Vec<f64>> = (-1..=n as i32)
+        .map(|i| {
+            let t = 0.01 * f64::from(i);
+            let r = project_row(t);
+            let (q, _, _) = ned_accelerometer(t);
+            vec![
+                t * 1e6,
+                r[1],
+                r[2],
+                r[3],
+                r[4],
+                r[5],
+                r[6],
+                q.i,
+                q.j,
+                q.k,
+                q.w,
+            ]
+        })
+        .collect();
+    let imu_header = [
+        "time_ms", "wx", "wy", "wz", "acc_x", "acc_y", "acc_z", "fx", "fy", "fz", "tx", "ty", "tz",
+    ];
+    let imu_path = write(&dir, "imu.csv", &imu_header, &imu);
+    let mocap_path = write(
+        &dir,
+        "mocap.csv",
+        &[
+            "time_us", "px", "py", "pz", "vx", "vy", "vz", "qx", "qy", "qz", "qw",
+        ],
+        &mocap,
+    );
+    let map = r#"
+[columns]
+t = ["time_ms", "time_us"]
+sfx = "acc_x"
+sfy = "acc_y"
+sfz = "acc_z"
+q = ["qx", "qy", "qz", "qw"]
+
+[units]
+t = "ms"
+specific_force = "g"
+
+[frames]
+world = "ned"
+body = "frd"
+quaternion = "xyzw"
+
+[streams."mocap.csv"]
+units = { t = "us" }
+"#;
+    let mapping = ColumnMapping::from_toml_str(map).unwrap();
+    // (The wrench and the gyro are in FRD here too: the test looks at the acceleration only.)
+    let (log, report) = read_streams(
+        &[imu_path.clone(), mocap_path.clone()],
+        &mapping,
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(log.len(), n);
+    assert!(
+        report
+            .sources
+            .contains(&("specific_force".into(), "imu.csv".into())),
+        "{:?}",
+        report.sources
+    );
+    assert!(
+        report.derived.iter().any(|d| d
+            == "accel (world, from the accelerometer's specific force of imu.csv and the \
+                attitude of mocap.csv)"),
+        "{:?}",
+        report.derived
+    );
+    let accel = log.accel.as_ref().expect("the accelerometer gives p̈");
+    for (i, &t) in log.t.iter().enumerate() {
+        let (_, a_ned, f_frd) = ned_accelerometer(t);
+        // NED → ENU by hand: x ← east, y ← north, z ← −down.
+        let expected = [a_ned.y, a_ned.x, -a_ned.z];
+        for k in 0..3 {
+            assert!(
+                (accel[i][k] - expected[k]).abs() < 1e-9,
+                "t {t} a{k}: {} vs {}",
+                accel[i][k],
+                expected[k]
+            );
+        }
+        // The regressor's a = Rᵀ (p̈ − g_w) is the accelerometer's reading in FLU.
+        let q = log.attitude[i];
+        let q = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+        let a = tagk_dynamics::proper_acceleration(&q, &Vector3::from(accel[i]));
+        let f_flu = Vector3::new(f_frd.x, -f_frd.y, -f_frd.z);
+        assert!((a - f_flu).norm() < 1e-9, "t {t}: {a} vs {f_flu}");
+    }
+
+    // Hand-built: level, nose north, at rest in NED/FRD (attitude the identity there), the
+    // accelerometer reads −g on body z (m/s², so no unit rounding): p̈ = 0. Nose east, rolled
+    // 90° right (right side down: body y along world down), it reads −g on body y.
+    let level = ColumnMapping::from_toml_str(
+        "[frames]\nworld = \"ned\"\nbody = \"frd\"\nquaternion = \"xyzw\"\n",
+    )
+    .unwrap();
+    let rolled = UnitQuaternion::from_euler_angles(PI / 2.0, 0.0, PI / 2.0);
+    for (q_ned, reading) in [
+        (UnitQuaternion::identity(), [0.0, 0.0, -G]),
+        (rolled, [0.0, -G, 0.0]),
+    ] {
+        // Check the hand-built reading against the attitude: body y is world down.
+        if reading[1] != 0.0 {
+            let y_world = q_ned * Vector3::new(0.0, 1.0, 0.0);
+            assert!((y_world - Vector3::new(0.0, 0.0, 1.0)).norm() < 1e-12);
+        }
+        let rows: Vec<Vec<f64>> = (0..250)
+            .map(|i| {
+                let r = project_row(0.01 * i as f64);
+                [
+                    vec![r[0]],
+                    r[1..7].to_vec(),
+                    vec![q_ned.i, q_ned.j, q_ned.k, q_ned.w],
+                    r[11..20].to_vec(),
+                    reading.to_vec(),
+                ]
+                .concat()
+            })
+            .collect();
+        let mut header = PROJECT_HEADER.to_vec();
+        header[7..11].copy_from_slice(&["qx", "qy", "qz", "qw"]);
+        header.extend(["sfx", "sfy", "sfz"]);
+        let p = write(&dir, "still.csv", &header, &rows);
+        let mut m = level.clone();
+        m.set_unit("specific_force", "m/s2").unwrap();
+        let (log, _) = read_streams(&[p], &m, &ReadOptions::default()).unwrap();
+        for a in log.accel.as_ref().unwrap() {
+            assert!(Vector3::from(*a).norm() < 1e-12, "{a:?}");
+        }
+    }
+
+    // A stream with the world acceleration `ax..az` wins over the accelerometer.
+    let mut rows = imu.clone();
+    for r in &mut rows {
+        r.extend([0.1, 0.2, 0.3]);
+    }
+    let mut header = imu_header.to_vec();
+    header.extend(["ax", "ay", "az"]);
+    let both = write(&dir, "both.csv", &header, &rows);
+    let (log, report) = read_streams(
+        &[both, mocap_path.clone()],
+        &mapping,
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    // NED → ENU of (0.1, 0.2, 0.3).
+    assert_eq!(log.accel.as_ref().unwrap()[7], [0.2, 0.1, -0.3]);
+    assert!(!report.derived.iter().any(|d| d.starts_with("accel")));
+    assert!(!report.sources.iter().any(|(q, _)| q == "specific_force"));
+
+    // Errors: a unit that is not an acceleration; a bad accelerometer cell (file, line,
+    // column).
+    let e = ColumnMapping::from_toml_str("[units]\nspecific_force = \"deg/s\"\n").unwrap_err();
+    assert!(
+        e.contains("units.specific_force") && e.contains("Acceleration"),
+        "{e}"
+    );
+    let e = ColumnMapping::from_toml_str("[units]\nsfz = \"N\"\n").unwrap_err();
+    assert!(e.contains("units.sfz"), "{e}");
+    let text = std::fs::read_to_string(&imu_path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut cells: Vec<&str> = lines[5].split(',').collect();
+    cells[5] = "n/a";
+    lines[5] = cells.join(",");
+    std::fs::write(&imu_path, lines.join("\n")).unwrap();
+    let msg = read_streams(&[imu_path, mocap_path], &mapping, &ReadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("imu.csv") && msg.contains("line 6") && msg.contains("`acc_y`"),
+        "{msg}"
+    );
+}
