@@ -245,7 +245,9 @@ fn max_rate(t: &[f64], x: &[[f64; 3]]) -> f64 {
 fn foreign_streams_read_back_give_the_same_diagnosis_and_theta() {
     let dir = tmpdir("roundtrip");
     let sim = simulate(PlantEffects::only(EffectKind::QuadraticDrag).unwrap());
-    let original = without_accelerations(sim.clone());
+    // As an autopilot logs it: the accelerometer kept (written as specific force), the angular
+    // acceleration (which no sensor measures) derived.
+    let original = with_accelerometer(sim.clone());
     let map = write_foreign(&original, &dir, 0.0);
     let args = foreign_args(&dir, map);
     let (read, merge) = read_log(&args).unwrap();
@@ -477,9 +479,14 @@ fn a_known_clock_offset_of_the_rotor_stream_is_found_by_time_delay() {
     // (the native log: g = 0.83, d = −0.030 s, g·d = −0.025 s). The read-back log gives what
     // the native one gives, within one step of the scan.
     assert_eq!(report.recommended.as_deref(), Some("time-delay"));
-    assert_eq!(reference.recommended.as_deref(), Some("time-delay"));
+    // The native log's offset is not a whole number of samples of its own time stamps (the
+    // simulator delays the command by 20 ms against interval midpoints); its candidate finds
+    // the same delay but its refit is refused (docs/CONVENTIONS.md §7.1), so only the found
+    // delay is compared.
     assert!((-0.04..=-0.015).contains(&found), "delay {found}");
-    assert!((found - found_native).abs() <= 0.01 + 1e-9);
+    // Delays are applied in whole samples (a fraction would average neighbouring samples'
+    // noise): the two agree within one 20 ms sample.
+    assert!((found - found_native).abs() <= 0.02 + 1e-9);
     // And the mapping's per-stream offset undoes it.
     let mut text = std::fs::read_to_string(&map).unwrap();
     text.push_str("\n[streams.\"motors.csv\"]\noffset = -0.02\n");
@@ -624,25 +631,25 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
         "fx          n/a      2.0940e-3 N",
         "fy          n/a      1.2742e-3 N",
     ],
-    verdict: "verdict: missing physics: `rotor-drag` (held-out residual -46 %)",
+    verdict: "verdict: missing physics: `rotor-drag` (held-out residual -45 %)",
     staircase: [
         "0. rigid body ",
         "1. + rotor-drag ",
         "final model: rigid body + rotor-drag\n",
     ],
-    rotor_drag: "rotor-drag: k_x = 9.171e-7 [9.16e-7, 9.18e-7] N s²/(m rad)",
+    rotor_drag: "rotor-drag: k_h = 9.202e-7 [9.02e-7, 9.38e-7] N s²/(m rad)",
     refit: [
-        "fx                n/a          n/a    2.0940e-3    2.3021e-5   -98.9 %",
-        "fy                n/a          n/a    1.2742e-3    2.2555e-5   -98.2 %",
+        "fx                n/a          n/a    2.0940e-3    2.4185e-5   -98.8 %",
+        "fy                n/a          n/a    1.2742e-3    2.2648e-5   -98.2 %",
     ],
     remains: [
-        "tx         28.2      1.4381e-5    12.88",
-        "ty         25.6      1.3188e-5    11.82",
+        "tx         28.1      1.4272e-5     1.10",
+        "ty         25.5      1.3090e-5     1.02",
     ],
-    derived_verdict: "verdict: no candidate qualifies (best: `ground-effect`, implausible",
-    derived_rotor_drag: "rotor-drag: held-out residual -26.0 % (fx -87 %, fy -73 %); \
-        k_x = 9.284e-7 N s²/(m rad), k_y = 9.335e-7 N s²/(m rad), \
-        k_z = -2.205e-6 N s²/(m rad); implausible (negative-coefficient)",
+    derived_verdict: "verdict: missing physics: `motor-lag` (held-out residual -20 %)",
+    derived_rotor_drag: "rotor-drag: held-out residual -25.6 % (fx -87 %, fy -73 %); \
+        k_h = 9.349e-7 N s²/(m rad), k_z = -3.000e-6 N s²/(m rad); \
+        implausible (negative-coefficient)",
     derived_final_model: "final model: rigid body\n",
 };
 
@@ -730,7 +737,7 @@ fn the_readme_walkthrough_runs_on_the_shipped_files() {
     assert!(!staircase.contains("2. + "), "a second step:\n{staircase}");
     let rotor_drag = staircase
         .lines()
-        .find(|l| l.trim_start().starts_with("rotor-drag: k_x = "))
+        .find(|l| l.trim_start().starts_with("rotor-drag: k_h = "))
         .unwrap_or_else(|| panic!("no rotor-drag coefficients in\n{staircase}"));
     assert!(rotor_drag.contains(figures.rotor_drag), "{rotor_drag}");
     let interval: Vec<f64> = rotor_drag

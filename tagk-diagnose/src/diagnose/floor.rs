@@ -256,10 +256,23 @@ pub(crate) fn noise_floor(
             std::array::from_fn(|c| noise_estimate[c].max(resolution(c))),
             FloorSource::Data,
         ),
-        None => (
-            std::array::from_fn(|c| reachable[c].max(noise_estimate[c]).max(resolution(c))),
-            FloorSource::Data,
-        ),
+        None => {
+            // Where the saturated model does no better than the model itself, nothing is
+            // reachable on that channel: its floor is the noise alone.
+            let start_ev = held_out_evaluation(model, s, start_fit, opts.folds);
+            let start = held_out_rms(&start_ev, &start_fit.weights, s.len());
+            (
+                std::array::from_fn(|c| {
+                    let reach = if reachable[c] < start[c] {
+                        reachable[c]
+                    } else {
+                        0.0
+                    };
+                    reach.max(noise_estimate[c]).max(resolution(c))
+                }),
+                FloorSource::Data,
+            )
+        }
     };
     Ok(NoiseFloor {
         rms,
