@@ -110,7 +110,7 @@ fn identify_mixer(w: &[[f64; 4]], wrench: &[[f64; 6]]) -> Option<RotorMixer> {
         return None;
     }
     let matrix: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|i| mt[(i, r)]));
-    if matrix[0].iter().any(|k| !(*k > 0.0)) {
+    if matrix[0].iter().any(|k| k.is_nan() || *k <= 0.0) {
         return None;
     }
     let hubs = std::array::from_fn(|i| [-matrix[2][i] / matrix[0][i], matrix[1][i] / matrix[0][i]]);

@@ -175,7 +175,7 @@ impl Effect for Wind {
     fn derived(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Vec<Coefficient> {
         let d = 0.5 * (coef[0] + coef[1]);
         let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
-        if !(d > 3.0 * d_se) {
+        if d.is_nan() || d <= 3.0 * d_se {
             // No drag of its own (another effect carries it): no wind speed to report.
             return Vec::new();
         }
