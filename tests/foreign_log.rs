@@ -127,6 +127,17 @@ fn specific_force(log: &FlightLog, i: usize) -> Vector3<f64> {
 /// `rotor_clock_offset` s late) and `mocap.csv` (25 Hz, 10 ms later clock) plus `map.toml`;
 /// returns the mapping path.
 fn write_foreign(log: &FlightLog, dir: &Path, rotor_clock_offset: f64) -> PathBuf {
+    write_foreign_with(log, dir, rotor_clock_offset, None)
+}
+
+/// [`write_foreign`], with the motion capture at every `mocap_every`-th log sample (its own
+/// time stamps, no interpolation) instead of the 25 Hz midpoints when given.
+fn write_foreign_with(
+    log: &FlightLog,
+    dir: &Path,
+    rotor_clock_offset: f64,
+    mocap_every: Option<usize>,
+) -> PathBuf {
     let cw = WorldFrame::Ned.to_project(); // NED <-> ENU: symmetric, its own inverse
     let cb = BodyFrame::Frd.to_project(); // FRD <-> FLU: likewise
     let rpm = 30.0 / std::f64::consts::PI;
@@ -188,11 +199,13 @@ fn write_foreign(log: &FlightLog, dir: &Path, rotor_clock_offset: f64) -> PathBu
             "qz",
             "qw",
         ],
-        (0..n - 1).step_by(2).map(|i| {
+        (0..n - 1).step_by(mocap_every.unwrap_or(2)).map(|i| {
+            // The sample itself (`j = i`) or the midpoint with the next one.
+            let j = if mocap_every.is_some() { i } else { i + 1 };
             let mid = |a: [f64; 3], b: [f64; 3]| (Vector3::from(a) + Vector3::from(b)) * 0.5;
-            let p = cw * mid(log.position[i], log.position[i + 1]) * 1e3;
-            let v = cw * mid(log.velocity[i], log.velocity[i + 1]);
-            let (a, b) = (log.attitude[i], log.attitude[i + 1]);
+            let p = cw * mid(log.position[i], log.position[j]) * 1e3;
+            let v = cw * mid(log.velocity[i], log.velocity[j]);
+            let (a, b) = (log.attitude[i], log.attitude[j]);
             let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
                 a[0] + b[0],
                 a[1] + b[1],
@@ -200,7 +213,7 @@ fn write_foreign(log: &FlightLog, dir: &Path, rotor_clock_offset: f64) -> PathBu
                 a[3] + b[3],
             ));
             let qf = cwq.inverse() * q * cbq;
-            let t = 0.5 * (log.t[i] + log.t[i + 1]);
+            let t = 0.5 * (log.t[i] + log.t[j]);
             vec![
                 t * 1e6,
                 p.x,
@@ -792,6 +805,67 @@ fn without_the_accelerometer_the_derived_accelerations_still_run() {
         assert!(
             report.contains(line),
             "changed: update README_FIGURES and README.md\n{line}\nnot in\n{report}"
+        );
+    }
+}
+
+/// The proof at the rates: a simulator log recorded at its 500 Hz integration rate
+/// (`LogRate::Physics`: instantaneous IMU samples, no `ω̇`), rewritten with the IMU (gyro and
+/// accelerometer) and the rotor speeds at 500 Hz and the motion capture at 100 Hz in their own
+/// files, read back through the mapping and the vehicle: the same staircase as the original
+/// log, and θ within the fit's 95 % interval of the original's (the interpolation of the
+/// 100 Hz motion capture is the only difference).
+#[test]
+fn at_500_hz_imu_and_100_hz_motion_capture_the_diagnosis_is_the_same() {
+    let dir = tmpdir("rates");
+    let config = SimConfig {
+        trajectory: TrajectoryKind::Figure8,
+        duration: 10.0,
+        seed: 3,
+        noise: NoiseLevel::Medium,
+        payload: PayloadSchedule::None,
+        effects: PlantEffects::only(EffectKind::RotorDrag).unwrap(),
+        adaptation: Adaptation::Nominal,
+        record_log: true,
+        stop_on_abort: false,
+        log_rate: tagk::sim::LogRate::Physics,
+        ..SimConfig::default()
+    };
+    let original = tagk::sim::simulate(&config).expect("simulation runs").log;
+    assert!(
+        (original.t[1] - original.t[0] - 0.002).abs() < 1e-12,
+        "500 Hz"
+    );
+    let map = write_foreign_with(&original, &dir, 0.0, Some(5));
+    let args = foreign_args(&dir, map);
+    let (read, merge) = read_log(&args).unwrap();
+    assert!(merge.unwrap().gaps.is_empty());
+    // The read-back log spans the motion capture's first to last sample.
+    let offset = original
+        .t
+        .iter()
+        .position(|t| (t - read.t[0]).abs() < 1e-9)
+        .expect("the read-back log starts on an original sample");
+    let reference = trimmed(&original, offset, read.len());
+    let mut plain = DiagnoseArgs::new(dir.join("unused.csv"));
+    plain.quiet = true;
+    let a = diagnose_log(&reference, &plain).unwrap();
+    let b = diagnose_log(&read, &args).unwrap();
+    assert_eq!(a.final_model.effects, b.final_model.effects);
+    assert!(!a.final_model.effects.is_empty(), "{}", a.stopped);
+    let (ta, tb) = (
+        &a.final_diagnosis().parameters,
+        &b.final_diagnosis().parameters,
+    );
+    for (pa, pb) in ta.iter().zip(tb) {
+        let Some([lo, hi]) = pa.confidence_interval else {
+            continue;
+        };
+        assert!(
+            (lo..=hi).contains(&pb.value),
+            "{}: read back {} outside the original's interval [{lo}, {hi}]",
+            pa.name,
+            pb.value
         );
     }
 }
