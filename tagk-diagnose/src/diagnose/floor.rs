@@ -27,7 +27,7 @@
 
 use serde::Serialize;
 
-use crate::diagnose::{Candidate, DiagnoseOptions, MAX_MASS_CHANGE};
+use crate::diagnose::{Candidate, DiagnoseOptions};
 use crate::effects::{EffectRef, usable};
 use crate::error::DiagnoseError;
 use crate::fit::{
@@ -116,7 +116,7 @@ pub(crate) fn joinable<'a>(
 /// ([`EffectKind::family`]), the joinable candidate with the largest held-out gain among those
 /// plausible when added alone, pruned until the joint fit is physical — one effect per round, the one
 /// whose own rules fail in the joint fit (or, if none fails but the rigid body does, mass off
-/// by more than [`MAX_MASS_CHANGE`] or not positive, any) with the smallest held-out gain
+/// by more than [`crate::MAX_MASS_CHANGE`] or not positive, any) with the smallest held-out gain
 /// alone. With nothing left, the model itself.
 fn saturated_fit(
     model: &Model,
@@ -171,7 +171,7 @@ fn saturated_fit(
             .map(|f| f.effect.as_str())
             .collect();
         let m1 = fit.theta.mass();
-        let mass_ok = m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= MAX_MASS_CHANGE);
+        let mass_ok = crate::diagnose::sanity::mass_kept(m0, m1);
         if bad.is_empty() && mass_ok {
             return Ok((saturated, fit));
         }

@@ -47,8 +47,8 @@ impl CandidateStatus {
     }
 }
 
-/// Largest worsening of one channel's held-out RMS a step may cause (10 %), on a channel above
-/// its noise floor ([`worsens`]).
+/// Largest worsening of one channel's held-out RMS a step may cause (10 %), to above the
+/// channel's noise floor (below the floor a change is noise).
 pub const MAX_CHANNEL_WORSENING: f64 = 0.10;
 
 /// `true` when a channel's held-out RMS going from `current` to `new` is a worsening that

@@ -28,6 +28,12 @@ pub const MAX_MASS_CHANGE: f64 = 0.25;
 /// constant force of the order of the thrust is a collapsed rigid body, not a bias.
 pub const MAX_CONSTANT_FORCE_OF_THRUST: f64 = 0.25;
 
+/// `true` when a refit's mass `m1` \[kg\] keeps the rigid body: positive, and within
+/// [`MAX_MASS_CHANGE`] of the current fit's `m0` (any `m1 > 0` when `m0` is not positive).
+pub(crate) fn mass_kept(m0: f64, m1: f64) -> bool {
+    m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= MAX_MASS_CHANGE)
+}
+
 /// What the refit rules need besides the candidate.
 pub(crate) struct SanityContext<'a> {
     /// The current model's fit.

@@ -273,8 +273,7 @@ fn best_by_refit(
         let next = diagnose_against(&trial, s, opts, floor)?;
         let plausible = next.effects.iter().all(|f| f.plausible);
         let (m0, m1) = (current.parameters[0].value, next.parameters[0].value);
-        let mass_ok =
-            m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= crate::diagnose::MAX_MASS_CHANGE);
+        let mass_ok = crate::diagnose::sanity::mass_kept(m0, m1);
         let worse = (0..6).any(|c| {
             crate::diagnose::ranking::worsens(
                 next.held_out_rms[c],
