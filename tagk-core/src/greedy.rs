@@ -1,6 +1,7 @@
 //! The greedy iterations of GRK and TAG-K on one window, behind a small kernel interface
-//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones for
-//! `f64` on x86-64 (in `x86.rs`).
+//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones on
+//! x86-64 (`x86.rs`) and aarch64 (`aarch64.rs`), whose greedy loops without AVX-512 are one
+//! loop over eight-lane chunks (`lanes.rs`).
 //!
 //! Every floating-point operation happens in an order fixed here, and every implementation
 //! follows it, so a microcontroller, a host without AVX2 and a host with AVX-512 compute the

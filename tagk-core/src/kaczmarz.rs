@@ -42,15 +42,18 @@
 //! the 30 greedy iterations take about 1.1 µs and, at `n = 120`, the Gram matrix about 2.5 µs.
 //!
 //! # Kernels and bit-identical results
-//! The greedy variants run on one of three kernel sets, chosen at run time, which perform the
-//! same floating-point operations in the same order (the order is fixed in the `greedy` module
-//! and documented there; multiplies and adds are never fused), so the same seed gives the
-//! same bits on every machine:
+//! The greedy variants run on one of four kernel sets, chosen at run time on x86-64 and at
+//! compile time on aarch64, which perform the same floating-point operations in the same
+//! order (the order is fixed in the `greedy` module and documented there; multiplies and adds
+//! are never fused), so the same seed gives the same bits on every machine:
 //! - portable loops (any target, any scalar; what a Cortex-M7 runs);
-//! - `f64` on x86-64 with AVX2 (`std` feature): the Gram matrix built GEMM-style from packed
-//!   panels of 8 rows with 4 × 8 register tiles;
-//! - `f64` on x86-64 with AVX-512F and BMI2: 8 × 8 Gram tiles, and for windows of up to 32
-//!   rows the greedy loop with the window held in `zmm` registers across iterations.
+//! - x86-64 with AVX2 (`std` feature): for `f64` the Gram matrix built GEMM-style from packed
+//!   panels of 8 rows with 4 × 8 register tiles; for `f64` and `f32`, windows of up to 32 rows,
+//!   the greedy loop with the window held in `ymm` registers across iterations;
+//! - x86-64 with AVX-512F and BMI2: for `f64`, 8 × 8 Gram tiles and the greedy loop in `zmm`
+//!   and mask registers (`f32` as with AVX2);
+//! - aarch64 (NEON, with or without `std`): the portable Gram loops and, for `f64` and `f32`,
+//!   windows of up to 32 rows, the greedy loop in NEON registers.
 //!
 //! The update never allocates: every buffer is laid out at construction in storage the
 //! caller chooses (a `Vec`, an array, or a `&mut [T]` in static memory on a microcontroller).
@@ -600,21 +603,23 @@ mod tests {
         greedy::uniform(rng) * 2.0 - 1.0
     }
 
-    /// The AVX2 kernels must reproduce the portable ones bit for bit (the portable ones are
+    /// The x86 kernels must reproduce the portable ones bit for bit (the portable ones are
     /// what a microcontroller runs), over window sizes that change between calls, zero rows,
-    /// tolerances and iteration counts beyond one pass.
+    /// tolerances and iteration counts beyond one pass: the kernels detected (AVX-512 where
+    /// the CPU has it) and, forced, the AVX2 ones, in `f64` and `f32`.
     #[test]
     fn avx2_and_portable_kernels_give_the_same_bits() {
         let Some(detected) = Avx2::detect() else {
             std::eprintln!("no AVX2 on this CPU: nothing to compare");
             return;
         };
-        for k in [detected, detected.without_avx512()] {
-            compare_with_portable(k);
+        for k in [detected.without_avx512(), detected] {
+            compare_with_portable::<f64>(k);
+            compare_with_portable::<f32>(k);
         }
     }
 
-    fn compare_with_portable(k: Avx2) {
+    fn compare_with_portable<T: Real>(k: Avx2) {
         let mut data = ChaCha8Rng::seed_from_u64(7);
         for (n, m_max) in [
             (1, 1),
@@ -634,10 +639,10 @@ mod tests {
                     .with_seed(data.next_u64())
                     .with_iterations(iterations)
                     .with_tolerance(tolerance);
-                let mut portable = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut avx2 = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut grk_portable = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut grk_avx2 = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let mut portable = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut avx2 = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut grk_portable = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut grk_avx2 = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
                 let theta: Vec<f64> = (0..n).map(|_| value(&mut data)).collect();
                 for w in 0..10 {
                     let m = 1 + (w * 7 + 3) % m_max;
@@ -651,12 +656,23 @@ mod tests {
                             ax + 1e-2 * value(&mut data)
                         })
                         .collect();
+                    let (a, b): (Vec<T>, Vec<T>) = (
+                        a.iter().map(|&v| T::cast(v)).collect(),
+                        b.iter().map(|&v| T::cast(v)).collect(),
+                    );
                     let want = portable.run(Portable, &a, &b).unwrap();
                     // SAFETY: `k` proves AVX2 support.
                     let got = unsafe { avx2.run_avx2(k, &a, &b) }.unwrap();
-                    assert_eq!(want, got, "n={n} m={m} window {w}");
-                    let same = |x: &[f64], y: &[f64]| {
-                        x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+                    assert_eq!(
+                        want,
+                        got,
+                        "{} n={n} m={m} window {w}",
+                        core::any::type_name::<T>()
+                    );
+                    let same = |x: &[T], y: &[T]| {
+                        x.iter()
+                            .zip(y)
+                            .all(|(p, q)| p.as_f64().to_bits() == q.as_f64().to_bits())
                     };
                     assert!(
                         same(portable.estimate(), avx2.estimate()),
@@ -670,7 +686,7 @@ mod tests {
                         "GRK n={n} m={m} window {w}"
                     );
                 }
-                assert_ne!(portable.estimate(), vec![0.0; n].as_slice());
+                assert_ne!(portable.estimate(), vec![T::zero(); n].as_slice());
             }
         }
     }

@@ -1,10 +1,14 @@
-//! AVX2 kernels of the greedy iterations for `f64` on x86-64 (detected at run time).
+//! AVX2 and AVX-512 kernels of the greedy iterations on x86-64 (detected at run time).
 //!
 //! They perform the operations of the portable kernels ([`crate::greedy::Portable`]) in the
 //! same order — separate multiplies and adds, never fused — so estimates are bit-identical
 //! with and without AVX2 and to a microcontroller's; only the instructions differ (explicit
 //! 4-wide vectors, a register-blocked Gram tile that the compiler would otherwise spill, and a
-//! branch-free candidate pass). Other scalar types fall back to the portable kernels.
+//! register-resident greedy loop). For windows of up to 32 rows the greedy loop runs in
+//! registers: with AVX-512F in `zmm` registers and mask registers ([`iterate_avx512`]), else
+//! the eight-lane loop of the `lanes` module on AVX2 (`f64` as two `ymm` per chunk, `f32` as
+//! one). The Gram kernels are `f64` only; `f32` builds its Gram matrix with the portable loops
+//! (compiled for AVX2), and other scalar types run the portable kernels throughout.
 
 use core::any::TypeId;
 use core::arch::x86_64::*;
@@ -15,6 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::greedy::{
     Draws, Kernels, LANES, Portable, Schedule, Window, argmax_ratio, iterate_portable,
 };
+use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_chunks};
 use crate::linalg::padded;
 
 /// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
@@ -43,24 +48,67 @@ impl Avx2 {
 }
 
 #[inline(always)]
+fn is<T: 'static, U: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<U>()
+}
+
+#[inline(always)]
 fn is_f64<T: 'static>() -> bool {
-    TypeId::of::<T>() == TypeId::of::<f64>()
+    is::<T, f64>()
+}
+
+/// `s` as `&[U]` when `T` is `U`.
+#[inline(always)]
+fn same<T: 'static, U: 'static>(s: &[T]) -> &[U] {
+    assert!(is::<T, U>());
+    // SAFETY: T and U are the same type (checked above), so this is the identity cast.
+    unsafe { core::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+}
+
+/// `s` as `&mut [U]` when `T` is `U`.
+#[inline(always)]
+fn same_mut<T: 'static, U: 'static>(s: &mut [T]) -> &mut [U] {
+    assert!(is::<T, U>());
+    // SAFETY: T and U are the same type (checked above), so this is the identity cast.
+    unsafe { core::slice::from_raw_parts_mut(s.as_mut_ptr().cast(), s.len()) }
 }
 
 /// `s` as `&[f64]` when `T` is `f64`.
 #[inline(always)]
 fn f64s<T: 'static>(s: &[T]) -> &[f64] {
-    debug_assert!(is_f64::<T>());
-    // SAFETY: callers check `T == f64` first, so this is the identity cast.
-    unsafe { core::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+    same(s)
 }
 
 /// `s` as `&mut [f64]` when `T` is `f64`.
 #[inline(always)]
 fn f64s_mut<T: 'static>(s: &mut [T]) -> &mut [f64] {
-    debug_assert!(is_f64::<T>());
-    // SAFETY: callers check `T == f64` first, so this is the identity cast.
-    unsafe { core::slice::from_raw_parts_mut(s.as_mut_ptr().cast(), s.len()) }
+    same_mut(s)
+}
+
+/// The window and schedule of scalar `T` as those of `U` (the same type).
+#[inline(always)]
+pub(crate) fn same_window<T: Real, U: Real>(
+    w: Window<'_, T>,
+    s: Schedule<T>,
+) -> (Window<'_, U>, Schedule<U>) {
+    (
+        Window {
+            p: w.p,
+            resid: same_mut(w.resid),
+            inv_norm2: same(w.inv_norm2),
+            gram: same(w.gram),
+            coef: same_mut(w.coef),
+            coef_avg: same_mut(w.coef_avg),
+            weights: same_mut(w.weights),
+            prefix: same_mut(w.prefix),
+        },
+        Schedule {
+            t_total: s.t_total,
+            t_b: s.t_b,
+            tol2: U::cast(s.tol2.as_f64()),
+            half_inv_fro2: U::cast(s.half_inv_fro2.as_f64()),
+        },
+    )
 }
 
 impl<T: Real> Kernels<T> for Avx2 {
@@ -104,35 +152,300 @@ impl<T: Real> Kernels<T> for Avx2 {
         s: Schedule<T>,
         rng: &mut ChaCha8Rng,
     ) -> (usize, bool) {
-        if !(is_f64::<T>() && self.avx512f && w.p <= LANES * MAX_CHUNKS) {
+        if w.p > LANES * MAX_CHUNKS {
             return iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng);
         }
-        let w64 = Window {
-            p: w.p,
-            resid: f64s_mut(w.resid),
-            inv_norm2: f64s(w.inv_norm2),
-            gram: f64s(w.gram),
-            coef: f64s_mut(w.coef),
-            coef_avg: f64s_mut(w.coef_avg),
-            weights: f64s_mut(w.weights),
-            prefix: f64s_mut(w.prefix),
-        };
-        let s64 = Schedule {
-            t_total: s.t_total,
-            t_b: s.t_b,
-            tol2: s.tol2.as_f64(),
-            half_inv_fro2: s.half_inv_fro2.as_f64(),
-        };
-        let (rnorm2, max_ratio) = (rnorm2.as_f64(), max_ratio.as_f64());
-        // SAFETY: `self.avx512f` says the CPU supports AVX-512F and BMI2.
+        let chunks = w.p / LANES;
+        // SAFETY: `self` proves AVX2 support, and AVX-512F with BMI2 where it says so; the
+        // casts are between identical types.
         unsafe {
-            match w.p / LANES {
-                1 => iterate_avx512::<1, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                2 => iterate_avx512::<2, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                3 => iterate_avx512::<3, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                _ => iterate_avx512::<4, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+            if is::<T, f64>() {
+                let (w, s) = same_window::<T, f64>(w, s);
+                let (rnorm2, max_ratio) = (rnorm2.as_f64(), max_ratio.as_f64());
+                if self.avx512f {
+                    match chunks {
+                        1 => iterate_avx512::<1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        2 => iterate_avx512::<2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        3 => iterate_avx512::<3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        _ => iterate_avx512::<4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                    }
+                } else {
+                    iterate_avx2::<F64x8, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng)
+                }
+            } else if is::<T, f32>() {
+                let (w, s) = same_window::<T, f32>(w, s);
+                let (rnorm2, max_ratio) = (rnorm2.as_f64() as f32, max_ratio.as_f64() as f32);
+                iterate_avx2::<F32x8, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng)
+            } else {
+                iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng)
             }
         }
+    }
+}
+
+/// [`iterate_chunks`] compiled for AVX2, for a window of `chunks ≤ 4` chunks.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn iterate_avx2<V: Lanes8, const AVERAGE: bool>(
+    chunks: usize,
+    w: Window<'_, V::T>,
+    rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    // SAFETY: compiled for AVX2, which `V`'s instructions need.
+    unsafe {
+        match chunks {
+            1 => iterate_chunks::<V, 1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            2 => iterate_chunks::<V, 2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            3 => iterate_chunks::<V, 3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            _ => iterate_chunks::<V, 4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+        }
+    }
+}
+
+/// Eight `f64` lanes as two AVX `ymm` registers (lanes 0–3, 4–7).
+#[derive(Clone, Copy)]
+struct F64x8(__m256d, __m256d);
+
+/// Eight `f32` lanes in one AVX `ymm` register.
+#[derive(Clone, Copy)]
+struct F32x8(__m256);
+
+// SAFETY (every block in the two implementations): they are only called from functions
+// compiled for AVX2 (`iterate_avx2`), and pointers are the callers' promise.
+impl Lanes8 for F64x8 {
+    type T = f64;
+    #[inline(always)]
+    unsafe fn load(p: *const f64) -> Self {
+        unsafe { Self(_mm256_loadu_pd(p), _mm256_loadu_pd(p.add(4))) }
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f64) {
+        unsafe {
+            _mm256_storeu_pd(p, self.0);
+            _mm256_storeu_pd(p.add(4), self.1);
+        }
+    }
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        unsafe { Self(_mm256_set1_pd(x), _mm256_set1_pd(x)) }
+    }
+    #[inline(always)]
+    fn first(self) -> f64 {
+        unsafe { _mm256_cvtsd_f64(self.0) }
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        unsafe { Self(_mm256_add_pd(self.0, o.0), _mm256_add_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        unsafe { Self(_mm256_sub_pd(self.0, o.0), _mm256_sub_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        unsafe { Self(_mm256_mul_pd(self.0, o.0), _mm256_mul_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        unsafe { Self(_mm256_and_pd(self.0, o.0), _mm256_and_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn max_onto(self, best: Self) -> Self {
+        // MAXPD returns its second operand when they are unordered or equal.
+        unsafe { Self(_mm256_max_pd(self.0, best.0), _mm256_max_pd(self.1, best.1)) }
+    }
+    #[inline(always)]
+    fn select_ge(self, t: Self, v: Self) -> Self {
+        unsafe {
+            Self(
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0), v.0),
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1), v.1),
+            )
+        }
+    }
+    #[inline(always)]
+    fn gt_bits(self, t: Self) -> u8 {
+        unsafe {
+            let lo = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0));
+            let hi = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1));
+            (lo | hi << 4) as u8
+        }
+    }
+    #[inline(always)]
+    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
+        unsafe {
+            let lo = _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(prefix.0, target.0),
+            );
+            let hi = _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(prefix.1, target.1),
+            );
+            (_mm256_movemask_pd(lo) | _mm256_movemask_pd(hi) << 4) as u8
+        }
+    }
+    #[inline(always)]
+    fn shift<const D: usize>(self) -> Self {
+        unsafe {
+            let (lo, hi) = (self.0, self.1);
+            match D {
+                1 => {
+                    // (0, 0, lo0, lo1) and (lo2, lo3, hi0, hi1), then odd lanes from the
+                    // unshifted halves: (0, lo0, lo1, lo2) and (lo3, hi0, hi1, hi2).
+                    let a = _mm256_permute2f128_pd::<0x08>(lo, lo);
+                    let b = _mm256_permute2f128_pd::<0x21>(lo, hi);
+                    Self(
+                        _mm256_shuffle_pd::<0b0101>(a, lo),
+                        _mm256_shuffle_pd::<0b0101>(b, hi),
+                    )
+                }
+                2 => Self(
+                    _mm256_permute2f128_pd::<0x08>(lo, lo),
+                    _mm256_permute2f128_pd::<0x21>(lo, hi),
+                ),
+                _ => Self(_mm256_setzero_pd(), lo),
+            }
+        }
+    }
+    #[inline(always)]
+    fn broadcast_last(self) -> Self {
+        unsafe {
+            let x = _mm256_permute4x64_pd::<0xff>(self.1);
+            Self(x, x)
+        }
+    }
+    #[inline(always)]
+    fn sum_all(self) -> Self {
+        unsafe {
+            let t = _mm256_add_pd(self.0, self.1);
+            let u = _mm256_add_pd(t, _mm256_permute2f128_pd::<0x01>(t, t));
+            let v = _mm256_add_pd(u, _mm256_permute_pd::<0b0101>(u));
+            Self(v, v)
+        }
+    }
+    #[inline(always)]
+    fn max_all(self) -> Self {
+        unsafe {
+            let t = _mm256_max_pd(self.0, self.1);
+            let u = _mm256_max_pd(t, _mm256_permute2f128_pd::<0x01>(t, t));
+            let v = _mm256_max_pd(u, _mm256_permute_pd::<0b0101>(u));
+            Self(v, v)
+        }
+    }
+    #[inline(always)]
+    fn keep_table() -> &'static [f64; KEEP_LEN] {
+        &KEEP_F64
+    }
+}
+
+impl Lanes8 for F32x8 {
+    type T = f32;
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        unsafe { Self(_mm256_loadu_ps(p)) }
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f32) {
+        unsafe { _mm256_storeu_ps(p, self.0) }
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        unsafe { Self(_mm256_set1_ps(x)) }
+    }
+    #[inline(always)]
+    fn first(self) -> f32 {
+        unsafe { _mm256_cvtss_f32(self.0) }
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        unsafe { Self(_mm256_add_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        unsafe { Self(_mm256_sub_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        unsafe { Self(_mm256_mul_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        unsafe { Self(_mm256_and_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn max_onto(self, best: Self) -> Self {
+        // MAXPS returns its second operand when they are unordered or equal.
+        unsafe { Self(_mm256_max_ps(self.0, best.0)) }
+    }
+    #[inline(always)]
+    fn select_ge(self, t: Self, v: Self) -> Self {
+        unsafe { Self(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0), v.0)) }
+    }
+    #[inline(always)]
+    fn gt_bits(self, t: Self) -> u8 {
+        unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) as u8 }
+    }
+    #[inline(always)]
+    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
+        unsafe {
+            _mm256_movemask_ps(_mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(prefix.0, target.0),
+            )) as u8
+        }
+    }
+    #[inline(always)]
+    fn shift<const D: usize>(self) -> Self {
+        unsafe {
+            let x = _mm256_castps_si256(self.0);
+            // (0, 0, 0, 0, x0, x1, x2, x3); then each 128-bit half takes its own lanes
+            // shifted up by D with the lanes below from the half before it.
+            let below = _mm256_permute2x128_si256::<0x08>(x, x);
+            let y = match D {
+                1 => _mm256_alignr_epi8::<12>(x, below),
+                2 => _mm256_alignr_epi8::<8>(x, below),
+                _ => below,
+            };
+            Self(_mm256_castsi256_ps(y))
+        }
+    }
+    #[inline(always)]
+    fn broadcast_last(self) -> Self {
+        unsafe { Self(_mm256_permutevar8x32_ps(self.0, _mm256_set1_epi32(7))) }
+    }
+    #[inline(always)]
+    fn sum_all(self) -> Self {
+        unsafe {
+            let t = _mm_add_ps(
+                _mm256_castps256_ps128(self.0),
+                _mm256_extractf128_ps::<1>(self.0),
+            );
+            let u = _mm_add_ps(t, _mm_movehl_ps(t, t));
+            let v = _mm_add_ss(u, _mm_shuffle_ps::<0b01>(u, u));
+            Self(_mm256_broadcastss_ps(v))
+        }
+    }
+    #[inline(always)]
+    fn max_all(self) -> Self {
+        unsafe {
+            let t = _mm_max_ps(
+                _mm256_castps256_ps128(self.0),
+                _mm256_extractf128_ps::<1>(self.0),
+            );
+            let u = _mm_max_ps(t, _mm_movehl_ps(t, t));
+            let v = _mm_max_ss(u, _mm_shuffle_ps::<0b01>(u, u));
+            Self(_mm256_broadcastss_ps(v))
+        }
+    }
+    #[inline(always)]
+    fn keep_table() -> &'static [f32; KEEP_LEN] {
+        &KEEP_F32
     }
 }
 
@@ -633,9 +946,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
 
 /// Every fourth bit: `pdep` spreads a chunk's 8 lane bits to bits `4l + c`.
 const LANE_MAJOR: u32 = 0x1111_1111;
-
-/// Chunks a window may have for [`iterate_avx512`] (`p ≤ 32`, windows of up to 32 rows).
-const MAX_CHUNKS: usize = 4;
 
 /// The in-chunk prefix sums of the documented order: `x_l ← x_l + x_{l−d}` for `d = 1, 2, 4`,
 /// each shift one lane permutation with zeroing (cheaper on Zen 4 than `valignq`, which the

@@ -1,0 +1,253 @@
+//! The greedy loop of [`crate::greedy::iterate_portable`] written once over chunks of eight
+//! lanes ([`Lanes8`]), for the SIMD units without AVX-512's masks and 512-bit registers: AVX2
+//! (`f64` as two `ymm`, `f32` as one) and NEON (`f64` as four `q` registers, `f32` as two).
+//!
+//! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy` module),
+//! so every operation below is one of the portable loop's, lane for lane, in the same order:
+//! separate multiplies and adds (never fused), the same sums in the same association, the
+//! same comparisons. Residual, ratios `r_j²/‖a_j‖²` and reciprocal norms of a window of up to
+//! 32 rows stay in registers (or the compiler's spill slots) across the iterations, and the
+//! row choice is a bit scan instead of a search through memory.
+
+use rand_chacha::ChaCha8Rng;
+
+use crate::Real;
+use crate::greedy::{Draws, LANES, Schedule, Window, argmax_ratio};
+
+/// Chunks a window may have for [`iterate_chunks`] (`p ≤ 32`, windows of up to 32 rows).
+pub(crate) const MAX_CHUNKS: usize = 4;
+
+/// Entries of a [`Lanes8::keep_table`]: all-ones bit patterns except a zero at
+/// [`KEEP_ZERO`], so that the eight entries from `KEEP_ZERO − i + 8c` mask out lane `i` of
+/// chunk `c` and nothing else.
+pub(crate) const KEEP_LEN: usize = 2 * LANES * MAX_CHUNKS;
+/// Where the zero of a keep table sits.
+pub(crate) const KEEP_ZERO: usize = LANES * MAX_CHUNKS;
+
+/// A keep table of `f64` (see [`KEEP_LEN`]): `r & keep` zeroes one lane exactly (`+0`).
+pub(crate) static KEEP_F64: [f64; KEEP_LEN] = {
+    let mut t = [f64::from_bits(u64::MAX); KEEP_LEN];
+    t[KEEP_ZERO] = 0.0;
+    t
+};
+/// A keep table of `f32` (see [`KEEP_LEN`]).
+pub(crate) static KEEP_F32: [f32; KEEP_LEN] = {
+    let mut t = [f32::from_bits(u32::MAX); KEEP_LEN];
+    t[KEEP_ZERO] = 0.0;
+    t
+};
+
+/// `SPREAD[m]` has bit `4l` set for every bit `l` of `m`: a chunk's eight lane bits placed in
+/// lane-major order (bit `4l + c` for row `8c + l`) by one look-up and a shift by `c`.
+static SPREAD: [u32; 256] = {
+    let mut t = [0u32; 256];
+    let mut m = 0;
+    while m < 256 {
+        let mut l = 0;
+        while l < LANES {
+            if m & (1 << l) != 0 {
+                t[m] |= 1 << (4 * l);
+            }
+            l += 1;
+        }
+        m += 1;
+    }
+    t
+};
+
+/// Eight lanes of a SIMD unit. Every method is a lane-wise IEEE-754 operation (or a bit
+/// operation) with the semantics written next to it; implementations must be
+/// `#[inline(always)]` and are only ever called from functions compiled for the instruction
+/// set they use.
+pub(crate) trait Lanes8: Copy {
+    /// The scalar of a lane.
+    type T: Real;
+
+    /// Eight scalars from `p`.
+    ///
+    /// # Safety
+    /// `p` must be valid for reading eight scalars.
+    unsafe fn load(p: *const Self::T) -> Self;
+    /// Eight scalars to `p`.
+    ///
+    /// # Safety
+    /// `p` must be valid for writing eight scalars.
+    unsafe fn store(self, p: *mut Self::T);
+    /// `x` in every lane.
+    fn splat(x: Self::T) -> Self;
+    /// Lane 0.
+    fn first(self) -> Self::T;
+    /// `self + o`.
+    fn add(self, o: Self) -> Self;
+    /// `self − o`.
+    fn sub(self, o: Self) -> Self;
+    /// `self · o`.
+    fn mul(self, o: Self) -> Self;
+    /// Bitwise `self & o` (with a keep table's entries: lanes kept or set to `+0`).
+    fn and(self, o: Self) -> Self;
+    /// `if self > best { self } else { best }` (so a NaN in `self` keeps `best`).
+    fn max_onto(self, best: Self) -> Self;
+    /// `v` where `self ≥ t`, else `+0` (false on NaN).
+    fn select_ge(self, t: Self, v: Self) -> Self;
+    /// Bit `l` set where `self > t` (false on NaN).
+    fn gt_bits(self, t: Self) -> u8;
+    /// Bit `l` set where `self > t` and `prefix > target` (false on NaN).
+    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8;
+    /// Lane `l` takes lane `l − D` (`D ∈ {1, 2, 4}`), lanes below `D` take `+0`.
+    fn shift<const D: usize>(self) -> Self;
+    /// Lane 7 in every lane.
+    fn broadcast_last(self) -> Self;
+    /// In every lane: `t_l = x_l + x_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)` (the documented sum).
+    fn sum_all(self) -> Self;
+    /// In every lane: the largest lane (no lane may be NaN).
+    fn max_all(self) -> Self;
+    /// The keep table of this scalar.
+    fn keep_table() -> &'static [Self::T; KEEP_LEN];
+}
+
+/// The documented in-chunk scan `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4`. Lanes below `d` add
+/// `+0` instead of nothing, which changes no bit: they hold sums of weights, never `−0`.
+#[inline(always)]
+fn scan8<V: Lanes8>(x: V) -> V {
+    let x = x.add(x.shift::<1>());
+    let x = x.add(x.shift::<2>());
+    x.add(x.shift::<4>())
+}
+
+/// The greedy loop of [`crate::greedy::iterate_portable`] on a window of `p = 8C ≤ 32` rows
+/// held in chunks of [`Lanes8`]: the same operations in the same order, the same bits.
+///
+/// # Safety
+/// Must be inlined into a function compiled for `V`'s instruction set.
+#[inline(always)]
+pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bool>(
+    w: Window<'_, V::T>,
+    mut rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    let p = LANES * C;
+    assert!(
+        C <= MAX_CHUNKS
+            && w.p == p
+            && w.resid.len() >= p
+            && w.inv_norm2.len() >= p
+            && w.gram.len() >= p * p
+            && w.coef.len() >= p
+            && w.coef_avg.len() >= p
+    );
+    let (rp, ip, gp) = (w.resid.as_mut_ptr(), w.inv_norm2.as_ptr(), w.gram.as_ptr());
+    let keep = V::keep_table().as_ptr();
+    // SAFETY (every pointer access below): below p entries of the residual and the reciprocal
+    // norms, below p² of the Gram matrix, below KEEP_LEN of the keep table (checked above).
+    let mut r: [V; C] = core::array::from_fn(|c| unsafe { V::load(rp.add(LANES * c)) });
+    let inv: [V; C] = core::array::from_fn(|c| unsafe { V::load(ip.add(LANES * c)) });
+    let mut ratio: [V; C] = core::array::from_fn(|c| r[c].mul(r[c]).mul(inv[c]));
+    let half = V::splat(V::T::cast(0.5));
+    let half_inv_fro2 = V::splat(s.half_inv_fro2);
+    let zero = V::splat(V::T::cast(0.0));
+
+    let mut sum_v = V::splat(rnorm2);
+    let mut max_v = V::splat(max_ratio);
+    let mut draws = Draws::new(rng, s.t_total);
+    let mut iterations = 0;
+    let mut converged = rnorm2 <= s.tol2;
+    while !converged && iterations < s.t_total {
+        iterations += 1;
+        // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
+        let threshold = max_v.mul(half).add(sum_v.mul(half_inv_fro2));
+        // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
+        // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
+        // candidate's weight can be zero when θ underflows to zero).
+        let weights: [V; C] =
+            core::array::from_fn(|c| ratio[c].select_ge(threshold, r[c].mul(r[c])));
+        let mut down = weights;
+        for c in 1..C {
+            down[c] = down[c - 1].add(weights[c]);
+        }
+        let across = scan8(down[C - 1]);
+        let before = across.shift::<1>();
+        let total = across.broadcast_last();
+        let mut chosen = None;
+        if total.first() > V::T::cast(0.0) {
+            let target = V::splat(V::T::cast(draws.next())).mul(total);
+            // Bits in lane-major order (bit 4l + c for row 8c + l).
+            let mut hit = 0u32;
+            for c in 0..C {
+                let prefix = before.add(down[c]);
+                let bits = weights[c].gt_gt_bits(zero, prefix, target);
+                hit |= SPREAD[usize::from(bits)] << c;
+            }
+            let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
+            chosen = if hit != 0 {
+                Some(row(hit.trailing_zeros()))
+            } else {
+                // Round-off: the last candidate in lane-major order.
+                let positive = (0..C).fold(0u32, |acc, c| {
+                    acc | SPREAD[usize::from(weights[c].gt_bits(zero))] << c
+                });
+                (positive != 0).then(|| row(31 - positive.leading_zeros()))
+            };
+        }
+        // The residual in memory is the current one (stored every iteration).
+        // SAFETY: p entries of each, and no other live reference to the residual.
+        let i = match chosen {
+            Some(i) => i,
+            None => unsafe { argmax_in_memory(rp, ip, p) },
+        };
+        // SAFETY: i < p.
+        let alpha = unsafe { *rp.add(i) * *ip.add(i) };
+        w.coef[i] += alpha;
+        if AVERAGE {
+            w.coef_avg[i] += alpha * s.weight(iterations);
+        }
+        // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual: squares summed
+        // chunk by chunk into eight lane sums (the first chunk's squares are the sums:
+        // 0 + x = x, squares are never −0), then across the lanes.
+        let a = V::splat(alpha);
+        // SAFETY: row i < p of the Gram matrix; KEEP_ZERO − i + 8c + 8 ≤ KEEP_LEN.
+        let (g, k) = unsafe { (gp.add(i * p), keep.add(KEEP_ZERO - i)) };
+        let mut sum = zero;
+        let mut best = zero;
+        for c in 0..C {
+            // SAFETY: as above.
+            let v = unsafe {
+                let v = r[c]
+                    .sub(a.mul(V::load(g.add(LANES * c))))
+                    .and(V::load(k.add(LANES * c)));
+                v.store(rp.add(LANES * c));
+                v
+            };
+            r[c] = v;
+            let r2 = v.mul(v);
+            ratio[c] = r2.mul(inv[c]);
+            best = ratio[c].max_onto(best);
+            sum = if c == 0 { r2 } else { sum.add(r2) };
+        }
+        sum_v = sum.sum_all();
+        max_v = best.max_all();
+        rnorm2 = sum_v.first();
+        converged = rnorm2 <= s.tol2;
+    }
+    draws.finish();
+    (iterations, converged)
+}
+
+/// [`argmax_ratio`] over the residual and reciprocal norms in memory, out of line: the loop
+/// calls it only when every weight is zero, and inlined the compiler would keep copies of the
+/// residual's lanes ready for it on every iteration.
+///
+/// # Safety
+/// `r` and `inv_norm2` must be valid for reading `p` scalars, and not written meanwhile.
+#[cold]
+#[inline(never)]
+unsafe fn argmax_in_memory<T: Real>(r: *const T, inv_norm2: *const T, p: usize) -> usize {
+    // SAFETY: the caller's promise.
+    unsafe {
+        argmax_ratio(
+            core::slice::from_raw_parts(r, p),
+            core::slice::from_raw_parts(inv_norm2, p),
+        )
+    }
+}
