@@ -1,9 +1,10 @@
 //! NEON kernels of the greedy iterations on aarch64 (NEON is part of the base instruction
 //! set there, so they are chosen at compile time, with or without `std`).
 //!
-//! The Gram matrix and the residual come from the portable loops; the greedy loop is the
-//! eight-lane loop of the `lanes` module, `f64` as four `q` registers per chunk and `f32` as
-//! two. Same operations in the same order as [`crate::greedy::Portable`] (multiplies and adds
+//! For `f64` the Gram matrix is built from a transposed copy of the window with 4 × 8 tiles
+//! in sixteen `q` registers (for `f32`, and the residual, the portable loops); the greedy loop
+//! is the eight-lane loop of the `lanes` module, `f64` as four `q` registers per chunk and
+//! `f32` as two. Same operations in the same order as [`crate::greedy::Portable`] (multiplies and adds
 //! separate, never fused), so estimates are bit-identical to x86-64's and a microcontroller's.
 
 use core::any::TypeId;
@@ -13,7 +14,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::Real;
 use crate::greedy::{Kernels, LANES, Portable, Schedule, Window, iterate_portable};
-use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_chunks};
+use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_any};
+use crate::linalg::padded;
 
 /// The NEON kernels (no run-time detection needed: NEON is baseline on aarch64).
 #[derive(Clone, Copy)]
@@ -76,7 +78,19 @@ impl<T: Real> Kernels<T> for Neon {
         gram: &mut [T],
         resid: &mut [T],
     ) {
-        Portable.gram_and_residual(a, b, x, n, m, at, gram, resid)
+        if !is::<T, f64>() {
+            return Portable.gram_and_residual(a, b, x, n, m, at, gram, resid);
+        }
+        let p = padded(m);
+        let (at, gram): (&mut [f64], &mut [f64]) = (same_mut(at), same_mut(gram));
+        assert!(at.len() >= n * p && gram.len() >= p * p);
+        transpose_and_residual_f64(same(a), same(b), same(x), n, m, at, same_mut(resid));
+        let mut bj = 0;
+        while bj < m {
+            // SAFETY: `at` holds n × p and `gram` p × p entries (checked above), bj + 8 ≤ p.
+            unsafe { gram_panel(at.as_ptr(), n, m, p, bj, gram.as_mut_ptr()) };
+            bj += LANES;
+        }
     }
 
     #[inline(always)]
@@ -105,6 +119,243 @@ impl<T: Real> Kernels<T> for Neon {
     }
 }
 
+/// `at[k p + j] = a[j n + k]` (the window transposed, `p = padded(m)` columns, zero from `m`
+/// on) and, from the same loads, `r_j = b_j − a_jᵀx` (zero from `m` to `p`), each dot product
+/// summed as [`crate::linalg::dot`] does: partial sums `s_{k mod 4}` over the first `4⌊n/4⌋`
+/// entries (lanes of two `q` registers), combined as `(s₀ + s₂) + (s₁ + s₃)`, then the
+/// remaining entries in order. Rows go in pairs, as 2 × 2 transposes.
+fn transpose_and_residual_f64(
+    a: &[f64],
+    b: &[f64],
+    x: &[f64],
+    n: usize,
+    m: usize,
+    at: &mut [f64],
+    resid: &mut [f64],
+) {
+    let p = padded(m);
+    let n4 = n - n % 4;
+    assert!(
+        a.len() >= m * n && b.len() >= m && x.len() >= n && at.len() >= n * p && resid.len() >= p
+    );
+    let (ap, xp, tp) = (a.as_ptr(), x.as_ptr(), at.as_mut_ptr());
+    let mut j = 0;
+    while j < p {
+        if j >= m {
+            for k in 0..n {
+                at[k * p + j] = 0.0;
+                at[k * p + j + 1] = 0.0;
+            }
+            resid[j] = 0.0;
+            resid[j + 1] = 0.0;
+            j += 2;
+            continue;
+        }
+        let pair = j + 1 < m;
+        // SAFETY: NEON is baseline on aarch64; reads rows j (and j + 1 if `pair`) of `a` below
+        // column n and `x` below n, writes `at` below n · p (checked above).
+        unsafe {
+            let r0 = ap.add(j * n);
+            let r1 = ap.add((j + usize::from(pair)) * n);
+            let load = |k: usize| {
+                let q0 = vld1q_f64(r0.add(k));
+                let q1 = if pair {
+                    vld1q_f64(r1.add(k))
+                } else {
+                    vdupq_n_f64(0.0)
+                };
+                vst1q_f64(tp.add(k * p + j), vzip1q_f64(q0, q1));
+                vst1q_f64(tp.add((k + 1) * p + j), vzip2q_f64(q0, q1));
+                (q0, q1)
+            };
+            let zero = vdupq_n_f64(0.0);
+            let (mut lo0, mut hi0, mut lo1, mut hi1) = (zero, zero, zero, zero);
+            let mut k = 0;
+            while k < n4 {
+                let xlo = vld1q_f64(xp.add(k));
+                let xhi = vld1q_f64(xp.add(k + 2));
+                let (a0, a1) = load(k);
+                lo0 = vaddq_f64(vmulq_f64(a0, xlo), lo0);
+                lo1 = vaddq_f64(vmulq_f64(a1, xlo), lo1);
+                let (a0, a1) = load(k + 2);
+                hi0 = vaddq_f64(vmulq_f64(a0, xhi), hi0);
+                hi1 = vaddq_f64(vmulq_f64(a1, xhi), hi1);
+                k += 4;
+            }
+            while k + 2 <= n {
+                load(k);
+                k += 2;
+            }
+            if k < n {
+                *tp.add(k * p + j) = *r0.add(k);
+                *tp.add(k * p + j + 1) = if pair { *r1.add(k) } else { 0.0 };
+            }
+            let mut sums = [
+                vaddvq_f64(vaddq_f64(lo0, hi0)),
+                vaddvq_f64(vaddq_f64(lo1, hi1)),
+            ];
+            for k in n4..n {
+                sums[0] = *r0.add(k) * x[k] + sums[0];
+                sums[1] = *r1.add(k) * x[k] + sums[1];
+            }
+            resid[j] = b[j] - sums[0];
+            resid[j + 1] = if pair { b[j + 1] - sums[1] } else { 0.0 };
+        }
+        j += 2;
+    }
+}
+
+/// The tiles `G[I, J]`, `I ≤ J`, of the panel `J = bj..bj+8` of `G = A Aᵀ` (`f64`) from the
+/// transposed window `at` (`n × p`, stride `p`): 4 × 8 tiles of sixteen `q` accumulators, each
+/// entry summed in order of `k` (multiply, then add), as `gram_transposed` does; in the
+/// diagonal block the lower four rows only right of its split (a 4 × 4 tile), their left
+/// quarter the upper-right one's mirror image (the same products in the same order). Columns
+/// from `m` on are padding: they are not computed but written as zeros (rows from `m` on are
+/// left unspecified, as the kernel contract allows).
+///
+/// # Safety
+/// `at` must hold `n · p` and `gram` `p · p` entries, `bj + 8 ≤ p`, `bj < m`.
+#[inline(never)]
+unsafe fn gram_panel(at: *const f64, n: usize, m: usize, p: usize, bj: usize, gram: *mut f64) {
+    // Column pairs holding rows below m, in the panel and in its right half.
+    let pairs = ((m - bj).min(8) + 1) / 2;
+    let lower = ((m - bj).saturating_sub(4).min(4) + 1) / 2;
+    // SAFETY: the caller's promise.
+    unsafe {
+        match pairs {
+            1 => panel_tiles::<1>(at, n, p, bj, gram),
+            2 => panel_tiles::<2>(at, n, p, bj, gram),
+            3 => panel_tiles::<3>(at, n, p, bj, gram),
+            _ => panel_tiles::<4>(at, n, p, bj, gram),
+        }
+        match lower {
+            0 => {}
+            1 => lower_tile::<1>(at, n, p, bj, gram),
+            _ => lower_tile::<2>(at, n, p, bj, gram),
+        }
+    }
+}
+
+/// The 4-row tiles of [`gram_panel`] over its first `2Q` columns (zeros in the others).
+///
+/// # Safety
+/// As [`gram_panel`].
+#[inline(always)]
+unsafe fn panel_tiles<const Q: usize>(
+    at: *const f64,
+    n: usize,
+    p: usize,
+    bj: usize,
+    gram: *mut f64,
+) {
+    // SAFETY: every access is below n · p of `at` and p · p of `gram` (the caller's promise).
+    unsafe {
+        let zero = vdupq_n_f64(0.0);
+        let mut bi = 0;
+        while bi <= bj {
+            let c = tile::<Q>(at, n, p, bi, bj);
+            for s in 0..4 {
+                let row = gram.add((bi + s) * p + bj);
+                for q in 0..4 {
+                    vst1q_f64(row.add(2 * q), if q < Q { c[s][q] } else { zero });
+                }
+            }
+            // The mirror image, rows bj.. (in the diagonal block only bj+4..), columns
+            // bi..bi+4, as 2 × 2 transposes.
+            for q in if bi == bj { 2..Q } else { 0..Q } {
+                for s in [0, 2] {
+                    let (x, y) = (c[s][q], c[s + 1][q]);
+                    vst1q_f64(gram.add((bj + 2 * q) * p + bi + s), vzip1q_f64(x, y));
+                    vst1q_f64(gram.add((bj + 2 * q + 1) * p + bi + s), vzip2q_f64(x, y));
+                }
+            }
+            bi += 4;
+        }
+    }
+}
+
+/// The lower-right 4 × 4 quarter of [`gram_panel`]'s diagonal block over its first `2Q`
+/// columns (zeros in the others).
+///
+/// # Safety
+/// As [`gram_panel`].
+#[inline(always)]
+unsafe fn lower_tile<const Q: usize>(
+    at: *const f64,
+    n: usize,
+    p: usize,
+    bj: usize,
+    gram: *mut f64,
+) {
+    // SAFETY: as in `panel_tiles`.
+    unsafe {
+        let zero = vdupq_n_f64(0.0);
+        let c = tile::<Q>(at, n, p, bj + 4, bj + 4);
+        for (s, cs) in c.iter().enumerate() {
+            let row = gram.add((bj + 4 + s) * p + bj + 4);
+            for q in 0..2 {
+                vst1q_f64(row.add(2 * q), if q < Q { cs[q] } else { zero });
+            }
+        }
+    }
+}
+
+/// `c[s][q] = Σ_k at[k p + bi + s] · at[k p + bj + 2q .. +2]` for four rows `s` and `2Q`
+/// columns, summed in order of `k`.
+///
+/// # Safety
+/// As [`gram_panel`], with `bi + 4 ≤ p` and `bj + 2Q ≤ p`.
+#[inline(always)]
+unsafe fn tile<const Q: usize>(
+    at: *const f64,
+    n: usize,
+    p: usize,
+    bi: usize,
+    bj: usize,
+) -> [[float64x2_t; Q]; 4] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut c = [[vdupq_n_f64(0.0); Q]; 4];
+        // Two values of k per pass (the same order: k, then k + 1), to halve the loop's
+        // bookkeeping.
+        let mut row = at;
+        for _ in 0..n / 2 {
+            tile_step(&mut c, row, bi, bj);
+            tile_step(&mut c, row.add(p), bi, bj);
+            row = row.add(2 * p);
+        }
+        if n % 2 == 1 {
+            tile_step(&mut c, row, bi, bj);
+        }
+        c
+    }
+}
+
+/// One `k` of [`tile`], `row` pointing at row `k` of `at`.
+///
+/// # Safety
+/// As [`tile`].
+#[inline(always)]
+unsafe fn tile_step<const Q: usize>(
+    c: &mut [[float64x2_t; Q]; 4],
+    row: *const f64,
+    bi: usize,
+    bj: usize,
+) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let v: [float64x2_t; Q] = core::array::from_fn(|q| vld1q_f64(row.add(bj + 2 * q)));
+        let u01 = vld1q_f64(row.add(bi));
+        let u23 = vld1q_f64(row.add(bi + 2));
+        for q in 0..Q {
+            c[0][q] = vaddq_f64(vmulq_laneq_f64::<0>(v[q], u01), c[0][q]);
+            c[1][q] = vaddq_f64(vmulq_laneq_f64::<1>(v[q], u01), c[1][q]);
+            c[2][q] = vaddq_f64(vmulq_laneq_f64::<0>(v[q], u23), c[2][q]);
+            c[3][q] = vaddq_f64(vmulq_laneq_f64::<1>(v[q], u23), c[3][q]);
+        }
+    }
+}
+
 /// [`iterate_chunks`] for a window of `chunks ≤ 4` chunks.
 #[inline(never)]
 fn iterate_neon<V: Lanes8, const AVERAGE: bool>(
@@ -116,14 +367,7 @@ fn iterate_neon<V: Lanes8, const AVERAGE: bool>(
     rng: &mut ChaCha8Rng,
 ) -> (usize, bool) {
     // SAFETY: NEON is enabled for the whole crate on this target.
-    unsafe {
-        match chunks {
-            1 => iterate_chunks::<V, 1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            2 => iterate_chunks::<V, 2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            3 => iterate_chunks::<V, 3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            _ => iterate_chunks::<V, 4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-        }
-    }
+    unsafe { iterate_any::<V, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng) }
 }
 
 /// Eight `f64` lanes as four NEON `q` registers (lanes 0–1, 2–3, 4–5, 6–7).

@@ -63,6 +63,8 @@ use core::marker::PhantomData;
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 
+#[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+use crate::aarch64::Neon;
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
 use crate::greedy::{self, Kernels, Portable, Schedule, Window};
 use crate::linalg::{add_combination, axpy, dot, norm2_and_dot, padded};
@@ -205,13 +207,14 @@ impl KaczmarzConfig {
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
 /// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
 /// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
-/// `n·p` on x86-64 for a transposed copy of the window.
+/// `n·p` on x86-64 and aarch64 for a transposed copy of the window.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     let p = padded(m_max);
-    // The transposed copy of a window is only kept on x86-64 (see the Gram kernels).
-    let transposed = if cfg!(target_arch = "x86_64") {
+    // The transposed copy of a window is only kept where SIMD units are wide (see the Gram
+    // kernels).
+    let transposed = if crate::linalg::TRANSPOSED_COPY {
         n * p
     } else {
         0
@@ -343,7 +346,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (coef_avg, rest) = rest.split_at_mut(m);
         let (scratch, rest) = rest.split_at_mut(m);
         let (prefix, rest) = rest.split_at_mut(m);
-        let (transposed, rest) = if cfg!(target_arch = "x86_64") {
+        let (transposed, rest) = if crate::linalg::TRANSPOSED_COPY {
             rest.split_at_mut(n * m)
         } else {
             rest.split_at_mut(0)
@@ -562,6 +565,10 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> OnlineEsti
             // SAFETY: `k` proves that the CPU supports AVX2.
             return unsafe { self.run_avx2(k, a, b) };
         }
+        #[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+        if greedy::requested() != greedy::Requested::Portable {
+            return self.run(Neon, a, b);
+        }
         self.run(Portable, a, b)
     }
 
@@ -590,11 +597,21 @@ impl<T: Real, const GREEDY: bool, const AVERAGE: bool>
     }
 }
 
-#[cfg(all(test, feature = "std", target_arch = "x86_64"))]
+#[cfg(all(
+    test,
+    feature = "std",
+    any(
+        target_arch = "x86_64",
+        all(target_arch = "aarch64", target_feature = "neon")
+    )
+))]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "aarch64")]
+    use crate::aarch64::Neon as Fast;
     use crate::greedy::Portable;
-    use crate::x86::Avx2;
+    #[cfg(target_arch = "x86_64")]
+    use crate::x86::Avx2 as Fast;
     use rand_core::Rng;
     use std::vec;
     use std::vec::Vec;
@@ -603,23 +620,46 @@ mod tests {
         greedy::uniform(rng) * 2.0 - 1.0
     }
 
-    /// The x86 kernels must reproduce the portable ones bit for bit (the portable ones are
+    /// One update on the SIMD kernels `k`.
+    fn run_fast<T: Real, const G: bool, const A: bool>(
+        e: &mut Kaczmarz<T, Vec<T>, G, A>,
+        k: Fast,
+        a: &[T],
+        b: &[T],
+    ) -> Result<UpdateInfo, EstimatorError> {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `k` proves AVX2 support.
+        return unsafe { e.run_avx2(k, a, b) };
+        #[cfg(target_arch = "aarch64")]
+        return e.run(k, a, b);
+    }
+
+    /// The SIMD kernels must reproduce the portable ones bit for bit (the portable ones are
     /// what a microcontroller runs), over window sizes that change between calls, zero rows,
-    /// tolerances and iteration counts beyond one pass: the kernels detected (AVX-512 where
-    /// the CPU has it) and, forced, the AVX2 ones, in `f64` and `f32`.
+    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`: on x86-64 the
+    /// kernels detected (AVX-512 where the CPU has it) and, forced, the AVX2 ones; on aarch64
+    /// the NEON ones.
     #[test]
-    fn avx2_and_portable_kernels_give_the_same_bits() {
-        let Some(detected) = Avx2::detect() else {
-            std::eprintln!("no AVX2 on this CPU: nothing to compare");
-            return;
+    fn simd_and_portable_kernels_give_the_same_bits() {
+        #[cfg(target_arch = "x86_64")]
+        let kernels = {
+            let Some(detected) = Fast::detect() else {
+                std::eprintln!(
+                    "no AVX2 on this CPU (or TAGK_KERNELS=portable): nothing to compare"
+                );
+                return;
+            };
+            [detected.without_avx512(), detected]
         };
-        for k in [detected.without_avx512(), detected] {
+        #[cfg(target_arch = "aarch64")]
+        let kernels = [Neon];
+        for k in kernels {
             compare_with_portable::<f64>(k);
             compare_with_portable::<f32>(k);
         }
     }
 
-    fn compare_with_portable<T: Real>(k: Avx2) {
+    fn compare_with_portable<T: Real>(k: Fast) {
         let mut data = ChaCha8Rng::seed_from_u64(7);
         for (n, m_max) in [
             (1, 1),
@@ -640,9 +680,9 @@ mod tests {
                     .with_iterations(iterations)
                     .with_tolerance(tolerance);
                 let mut portable = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
-                let mut avx2 = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut fast = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
                 let mut grk_portable = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
-                let mut grk_avx2 = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut grk_fast = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
                 let theta: Vec<f64> = (0..n).map(|_| value(&mut data)).collect();
                 for w in 0..10 {
                     let m = 1 + (w * 7 + 3) % m_max;
@@ -661,8 +701,7 @@ mod tests {
                         b.iter().map(|&v| T::cast(v)).collect(),
                     );
                     let want = portable.run(Portable, &a, &b).unwrap();
-                    // SAFETY: `k` proves AVX2 support.
-                    let got = unsafe { avx2.run_avx2(k, &a, &b) }.unwrap();
+                    let got = run_fast(&mut fast, k, &a, &b).unwrap();
                     assert_eq!(
                         want,
                         got,
@@ -675,14 +714,13 @@ mod tests {
                             .all(|(p, q)| p.as_f64().to_bits() == q.as_f64().to_bits())
                     };
                     assert!(
-                        same(portable.estimate(), avx2.estimate()),
+                        same(portable.estimate(), fast.estimate()),
                         "TAG-K n={n} m={m} window {w}"
                     );
                     grk_portable.run(Portable, &a, &b).unwrap();
-                    // SAFETY: as above.
-                    unsafe { grk_avx2.run_avx2(k, &a, &b) }.unwrap();
+                    run_fast(&mut grk_fast, k, &a, &b).unwrap();
                     assert!(
-                        same(grk_portable.estimate(), grk_avx2.estimate()),
+                        same(grk_portable.estimate(), grk_fast.estimate()),
                         "GRK n={n} m={m} window {w}"
                     );
                 }

@@ -141,9 +141,14 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     let keep = V::keep_table().as_ptr();
     // SAFETY (every pointer access below): below p entries of the residual and the reciprocal
     // norms, below p² of the Gram matrix, below KEEP_LEN of the keep table (checked above).
-    let mut r: [V; C] = core::array::from_fn(|c| unsafe { V::load(rp.add(LANES * c)) });
+    // Squares r_j² and ratios r_j²/‖a_j‖² of the current residual; the residual itself lives
+    // in memory (stored every iteration, read once per iteration by the update).
+    let mut sq: [V; C] = core::array::from_fn(|c| {
+        let r = unsafe { V::load(rp.add(LANES * c)) };
+        r.mul(r)
+    });
     let inv: [V; C] = core::array::from_fn(|c| unsafe { V::load(ip.add(LANES * c)) });
-    let mut ratio: [V; C] = core::array::from_fn(|c| r[c].mul(r[c]).mul(inv[c]));
+    let mut ratio: [V; C] = core::array::from_fn(|c| sq[c].mul(inv[c]));
     let half = V::splat(V::T::cast(0.5));
     let half_inv_fro2 = V::splat(s.half_inv_fro2);
     let zero = V::splat(V::T::cast(0.0));
@@ -160,8 +165,7 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
-        let weights: [V; C] =
-            core::array::from_fn(|c| ratio[c].select_ge(threshold, r[c].mul(r[c])));
+        let weights: [V; C] = core::array::from_fn(|c| ratio[c].select_ge(threshold, sq[c]));
         let mut down = weights;
         for c in 1..C {
             down[c] = down[c - 1].add(weights[c]);
@@ -200,7 +204,13 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         let alpha = unsafe { *rp.add(i) * *ip.add(i) };
         w.coef[i] += alpha;
         if AVERAGE {
-            w.coef_avg[i] += alpha * s.weight(iterations);
+            // In the burn-in the weight is (T − t_b)/(T − t_b) = 1 exactly, and α · 1 = α:
+            // the division is skipped, not the bits.
+            w.coef_avg[i] += if iterations > s.t_b {
+                alpha * s.weight(iterations)
+            } else {
+                alpha
+            };
         }
         // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual: squares summed
         // chunk by chunk into eight lane sums (the first chunk's squares are the sums:
@@ -213,17 +223,16 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         for c in 0..C {
             // SAFETY: as above.
             let v = unsafe {
-                let v = r[c]
+                let v = V::load(rp.add(LANES * c))
                     .sub(a.mul(V::load(g.add(LANES * c))))
                     .and(V::load(k.add(LANES * c)));
                 v.store(rp.add(LANES * c));
                 v
             };
-            r[c] = v;
-            let r2 = v.mul(v);
-            ratio[c] = r2.mul(inv[c]);
+            sq[c] = v.mul(v);
+            ratio[c] = sq[c].mul(inv[c]);
             best = ratio[c].max_onto(best);
-            sum = if c == 0 { r2 } else { sum.add(r2) };
+            sum = if c == 0 { sq[c] } else { sum.add(sq[c]) };
         }
         sum_v = sum.sum_all();
         max_v = best.max_all();
@@ -249,5 +258,29 @@ unsafe fn argmax_in_memory<T: Real>(r: *const T, inv_norm2: *const T, p: usize) 
             core::slice::from_raw_parts(r, p),
             core::slice::from_raw_parts(inv_norm2, p),
         )
+    }
+}
+
+/// [`iterate_chunks`] for a window of `chunks ≤ 4` chunks.
+///
+/// # Safety
+/// As [`iterate_chunks`].
+#[inline(always)]
+pub(crate) unsafe fn iterate_any<V: Lanes8, const AVERAGE: bool>(
+    chunks: usize,
+    w: Window<'_, V::T>,
+    rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        match chunks {
+            1 => iterate_chunks::<V, 1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            2 => iterate_chunks::<V, 2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            3 => iterate_chunks::<V, 3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            _ => iterate_chunks::<V, 4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+        }
     }
 }

@@ -17,9 +17,10 @@ use crate::Real;
 use rand_chacha::ChaCha8Rng;
 
 use crate::greedy::{
-    Draws, Kernels, LANES, Portable, Schedule, Window, argmax_ratio, iterate_portable,
+    Draws, Kernels, LANES, Portable, Requested, Schedule, Window, argmax_ratio, iterate_portable,
+    requested,
 };
-use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_chunks};
+use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_any};
 use crate::linalg::padded;
 
 /// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
@@ -31,12 +32,16 @@ pub(crate) struct Avx2 {
 }
 
 impl Avx2 {
-    /// `Some` if this CPU supports AVX2 (cached by the standard library after the first call).
+    /// `Some` if this CPU supports AVX2 (cached by the standard library after the first call)
+    /// and `TAGK_KERNELS` does not ask for the portable kernels; AVX-512 where the CPU has it
+    /// and `TAGK_KERNELS` is not `avx2`.
     #[inline]
     pub(crate) fn detect() -> Option<Self> {
-        std::is_x86_feature_detected!("avx2").then(|| Self {
+        let requested = requested();
+        (std::is_x86_feature_detected!("avx2") && requested != Requested::Portable).then(|| Self {
             avx512f: std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("bmi2"),
+                && std::is_x86_feature_detected!("bmi2")
+                && requested == Requested::Best,
         })
     }
 
@@ -197,14 +202,7 @@ unsafe fn iterate_avx2<V: Lanes8, const AVERAGE: bool>(
     rng: &mut ChaCha8Rng,
 ) -> (usize, bool) {
     // SAFETY: compiled for AVX2, which `V`'s instructions need.
-    unsafe {
-        match chunks {
-            1 => iterate_chunks::<V, 1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            2 => iterate_chunks::<V, 2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            3 => iterate_chunks::<V, 3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-            _ => iterate_chunks::<V, 4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
-        }
-    }
+    unsafe { iterate_any::<V, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng) }
 }
 
 /// Eight `f64` lanes as two AVX `ymm` registers (lanes 0–3, 4–7).
@@ -673,7 +671,10 @@ unsafe fn gram_panel_avx512(
     }
 }
 
-/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles.
+/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles; in the
+/// diagonal block, the lower four rows only right of its 4 × 4 split (a 4 × 4 tile), their
+/// left quarter being the upper-right one transposed (`a_i·a_j` and `a_j·a_i` are the same
+/// products summed in the same order: the same bits).
 ///
 /// # Safety
 /// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
@@ -692,37 +693,120 @@ unsafe fn gram_panel_avx2(
     prefetch_spread(next, n);
     let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
     let mut bi = 0;
-    while bi < bj + PANEL {
+    while bi <= bj {
         let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
         // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
         // columns < p of `gram` (bi + 4 ≤ p, bj + 8 ≤ p).
         unsafe {
-            let mut c = [_mm256_setzero_pd(); 8];
-            for k in 0..n {
-                let v0 = _mm256_loadu_pd(v.add(k * PANEL));
-                let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
-                for s in 0..4 {
-                    let u = _mm256_set1_pd(*rows[s].add(k));
-                    c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
-                    c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
-                }
-            }
+            let c = tile_4x8(rows, v, n);
             for s in 0..4 {
                 _mm256_storeu_pd(g.add((bi + s) * p + bj), c[2 * s]);
                 _mm256_storeu_pd(g.add((bi + s) * p + bj + 4), c[2 * s + 1]);
             }
-            // Off the diagonal block, the mirror image: rows bj..bj+8, columns bi..bi+4
-            // (inside it, the two tiles of the block already cover every entry).
-            if bi < bj {
-                for h in 0..2 {
-                    let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
-                    for (l, tl) in t.iter().enumerate() {
-                        _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
-                    }
+            // The mirror image: rows bj..bj+8, columns bi..bi+4 (in the diagonal block only
+            // rows bj+4..bj+8, the upper tile's right half).
+            for h in usize::from(bi == bj)..2 {
+                let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
+                for (l, tl) in t.iter().enumerate() {
+                    _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
                 }
             }
         }
         bi += 4;
+    }
+    // The diagonal block's lower-right quarter.
+    let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bj + 4 + s));
+    // SAFETY: as above, with panel columns 4..8.
+    unsafe {
+        let c = tile_4x4(rows, v.add(4), n);
+        for (s, cs) in c.iter().enumerate() {
+            _mm256_storeu_pd(g.add((bj + 4 + s) * p + bj + 4), *cs);
+        }
+    }
+}
+
+/// `c[2s + h][l] = Σ_k rows[s][k] · v[8k + 4h + l]`, summed in order of `k` (multiply, then
+/// add; the loop is unrolled by four without changing the order).
+///
+/// # Safety
+/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n`.
+#[inline(always)]
+unsafe fn tile_4x8(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 8] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut c = [_mm256_setzero_pd(); 8];
+        let mut k = 0;
+        while k + 4 <= n {
+            step_4x8(&mut c, rows, v, k);
+            step_4x8(&mut c, rows, v, k + 1);
+            step_4x8(&mut c, rows, v, k + 2);
+            step_4x8(&mut c, rows, v, k + 3);
+            k += 4;
+        }
+        while k < n {
+            step_4x8(&mut c, rows, v, k);
+            k += 1;
+        }
+        c
+    }
+}
+
+/// One `k` of [`tile_4x8`].
+///
+/// # Safety
+/// As [`tile_4x8`], with `k < n`.
+#[inline(always)]
+unsafe fn step_4x8(c: &mut [__m256d; 8], rows: [*const f64; 4], v: *const f64, k: usize) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let v0 = _mm256_loadu_pd(v.add(k * PANEL));
+        let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
+        for s in 0..4 {
+            let u = _mm256_set1_pd(*rows[s].add(k));
+            c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
+            c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
+        }
+    }
+}
+
+/// `c[s][l] = Σ_k rows[s][k] · v[8k + l]`, summed in order of `k` (as [`tile_4x8`]).
+///
+/// # Safety
+/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n − 4`.
+#[inline(always)]
+unsafe fn tile_4x4(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 4] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut c = [_mm256_setzero_pd(); 4];
+        let mut k = 0;
+        while k + 4 <= n {
+            step_4x4(&mut c, rows, v, k);
+            step_4x4(&mut c, rows, v, k + 1);
+            step_4x4(&mut c, rows, v, k + 2);
+            step_4x4(&mut c, rows, v, k + 3);
+            k += 4;
+        }
+        while k < n {
+            step_4x4(&mut c, rows, v, k);
+            k += 1;
+        }
+        c
+    }
+}
+
+/// One `k` of [`tile_4x4`].
+///
+/// # Safety
+/// As [`tile_4x4`], with `k < n`.
+#[inline(always)]
+unsafe fn step_4x4(c: &mut [__m256d; 4], rows: [*const f64; 4], v: *const f64, k: usize) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let vk = _mm256_loadu_pd(v.add(k * PANEL));
+        for (s, cs) in c.iter_mut().enumerate() {
+            let u = _mm256_set1_pd(*rows[s].add(k));
+            *cs = _mm256_add_pd(_mm256_mul_pd(u, vk), *cs);
+        }
     }
 }
 
