@@ -14,7 +14,9 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::Real;
 use crate::greedy::{Kernels, LANES, Portable, Schedule, Window, iterate_portable};
-use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_any};
+use crate::lanes::{
+    KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, LANE_MAJOR_U64, Lanes8, MAX_CHUNKS, iterate_any,
+};
 use crate::linalg::padded;
 
 /// The NEON kernels (no run-time detection needed: NEON is baseline on aarch64).
@@ -378,27 +380,10 @@ struct F64x8([float64x2_t; 4]);
 #[derive(Clone, Copy)]
 struct F32x8([float32x4_t; 2]);
 
-/// Lane `l` of a mask register contributes bit `l` (then `2l`, `4l`, … across registers).
-const BITS_F64: [[u64; 2]; 4] = [[1, 2], [4, 8], [16, 32], [64, 128]];
-/// As [`BITS_F64`], four lanes a register.
-const BITS_F32: [[u32; 4]; 2] = [[1, 2, 4, 8], [16, 32, 64, 128]];
-
 impl F64x8 {
     #[inline(always)]
     fn map(self, o: Self, f: impl Fn(float64x2_t, float64x2_t) -> float64x2_t) -> Self {
         Self(core::array::from_fn(|q| f(self.0[q], o.0[q])))
-    }
-    /// Bits of four lane masks (all-ones or zero per lane).
-    #[inline(always)]
-    fn bits(m: [uint64x2_t; 4]) -> u8 {
-        // SAFETY: NEON is baseline on aarch64.
-        unsafe {
-            let mut acc = vdupq_n_u64(0);
-            for (q, mq) in m.iter().enumerate() {
-                acc = vorrq_u64(acc, vandq_u64(*mq, vld1q_u64(BITS_F64[q].as_ptr())));
-            }
-            vaddvq_u64(acc) as u8
-        }
     }
 }
 
@@ -406,16 +391,6 @@ impl F32x8 {
     #[inline(always)]
     fn map(self, o: Self, f: impl Fn(float32x4_t, float32x4_t) -> float32x4_t) -> Self {
         Self(core::array::from_fn(|q| f(self.0[q], o.0[q])))
-    }
-    /// Bits of two lane masks (all-ones or zero per lane).
-    #[inline(always)]
-    fn bits(m: [uint32x4_t; 2]) -> u8 {
-        // SAFETY: NEON is baseline on aarch64.
-        unsafe {
-            let lo = vandq_u32(m[0], vld1q_u32(BITS_F32[0].as_ptr()));
-            let hi = vandq_u32(m[1], vld1q_u32(BITS_F32[1].as_ptr()));
-            vaddvq_u32(vorrq_u32(lo, hi)) as u8
-        }
     }
 }
 
@@ -477,19 +452,26 @@ impl Lanes8 for F64x8 {
         }))
     }
     #[inline(always)]
-    fn gt_bits(self, t: Self) -> u8 {
-        Self::bits(core::array::from_fn(|q| unsafe {
-            vcgtq_f64(self.0[q], t.0[q])
-        }))
+    fn gt_mask(self, t: Self) -> Self {
+        self.map(t, |a, b| unsafe { vreinterpretq_f64_u64(vcgtq_f64(a, b)) })
     }
     #[inline(always)]
-    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
-        Self::bits(core::array::from_fn(|q| unsafe {
-            vandq_u64(
-                vcgtq_f64(self.0[q], t.0[q]),
-                vcgtq_f64(prefix.0[q], target.0[q]),
-            )
-        }))
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        unsafe {
+            let mut acc = vdupq_n_u64(0);
+            for (c, m) in masks.iter().enumerate() {
+                for (q, mq) in m.0.iter().enumerate() {
+                    let bits = vld1q_u64(LANE_MAJOR_U64[c].as_ptr().add(2 * q));
+                    acc = vorrq_u64(acc, vandq_u64(vreinterpretq_u64_f64(*mq), bits));
+                }
+            }
+            // The bits are disjoint: the sum of the lanes is their union.
+            vaddvq_u64(acc) as u32
+        }
     }
     #[inline(always)]
     fn shift<const D: usize>(self) -> Self {
@@ -596,19 +578,26 @@ impl Lanes8 for F32x8 {
         }))
     }
     #[inline(always)]
-    fn gt_bits(self, t: Self) -> u8 {
-        Self::bits(core::array::from_fn(|q| unsafe {
-            vcgtq_f32(self.0[q], t.0[q])
-        }))
+    fn gt_mask(self, t: Self) -> Self {
+        self.map(t, |a, b| unsafe { vreinterpretq_f32_u32(vcgtq_f32(a, b)) })
     }
     #[inline(always)]
-    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
-        Self::bits(core::array::from_fn(|q| unsafe {
-            vandq_u32(
-                vcgtq_f32(self.0[q], t.0[q]),
-                vcgtq_f32(prefix.0[q], target.0[q]),
-            )
-        }))
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        unsafe {
+            let mut acc = vdupq_n_u32(0);
+            for (c, m) in masks.iter().enumerate() {
+                for (q, mq) in m.0.iter().enumerate() {
+                    let bits = vld1q_u32(LANE_MAJOR_U32[c].as_ptr().add(4 * q));
+                    acc = vorrq_u32(acc, vandq_u32(vreinterpretq_u32_f32(*mq), bits));
+                }
+            }
+            // The bits are disjoint: the sum of the lanes is their union.
+            vaddvq_u32(acc)
+        }
     }
     #[inline(always)]
     fn shift<const D: usize>(self) -> Self {

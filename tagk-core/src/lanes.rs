@@ -37,20 +37,32 @@ pub(crate) static KEEP_F32: [f32; KEEP_LEN] = {
     t
 };
 
-/// `SPREAD[m]` has bit `4l` set for every bit `l` of `m`: a chunk's eight lane bits placed in
-/// lane-major order (bit `4l + c` for row `8c + l`) by one look-up and a shift by `c`.
-static SPREAD: [u32; 256] = {
-    let mut t = [0u32; 256];
-    let mut m = 0;
-    while m < 256 {
+/// `LANE_MAJOR_U64[c][l] = 1 << (4l + c)`: the bit of row `8c + l` in lane-major order, for
+/// [`Lanes8::lane_major_bits`] of 64-bit lanes (AND with a lane mask, OR across chunks).
+pub(crate) static LANE_MAJOR_U64: [[u64; LANES]; MAX_CHUNKS] = {
+    let mut t = [[0u64; LANES]; MAX_CHUNKS];
+    let mut c = 0;
+    while c < MAX_CHUNKS {
         let mut l = 0;
         while l < LANES {
-            if m & (1 << l) != 0 {
-                t[m] |= 1 << (4 * l);
-            }
+            t[c][l] = 1 << (4 * l + c);
             l += 1;
         }
-        m += 1;
+        c += 1;
+    }
+    t
+};
+/// [`LANE_MAJOR_U64`] for 32-bit lanes.
+pub(crate) static LANE_MAJOR_U32: [[u32; LANES]; MAX_CHUNKS] = {
+    let mut t = [[0u32; LANES]; MAX_CHUNKS];
+    let mut c = 0;
+    while c < MAX_CHUNKS {
+        let mut l = 0;
+        while l < LANES {
+            t[c][l] = 1 << (4 * l + c);
+            l += 1;
+        }
+        c += 1;
     }
     t
 };
@@ -89,10 +101,13 @@ pub(crate) trait Lanes8: Copy {
     fn max_onto(self, best: Self) -> Self;
     /// `v` where `self ≥ t`, else `+0` (false on NaN).
     fn select_ge(self, t: Self, v: Self) -> Self;
-    /// Bit `l` set where `self > t` (false on NaN).
-    fn gt_bits(self, t: Self) -> u8;
-    /// Bit `l` set where `self > t` and `prefix > target` (false on NaN).
-    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8;
+    /// All-ones lanes where `self > t`, zero elsewhere (false on NaN).
+    fn gt_mask(self, t: Self) -> Self;
+    /// All-ones lanes where `self > t` and `prefix > target`, zero elsewhere (false on NaN).
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self;
+    /// The lane masks of `C` chunks as bits in lane-major order: bit `4l + c` set when lane
+    /// `l` of `masks[c]` is (see [`LANE_MAJOR_U64`]).
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
     /// Lane `l` takes lane `l − D` (`D ∈ {1, 2, 4}`), lanes below `D` take `+0`.
     fn shift<const D: usize>(self) -> Self;
     /// Lane 7 in every lane.
@@ -143,15 +158,18 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     // norms, below p² of the Gram matrix, below KEEP_LEN of the keep table (checked above).
     // Squares r_j² and ratios r_j²/‖a_j‖² of the current residual; the residual itself lives
     // in memory (stored every iteration, read once per iteration by the update).
-    let mut sq: [V; C] = core::array::from_fn(|c| {
+    // (Loops, not `array::from_fn`: a closure the compiler leaves out of line is not compiled
+    // for the SIMD instruction set.)
+    let zero = V::splat(V::T::cast(0.0));
+    let (mut sq, mut inv, mut ratio) = ([zero; C], [zero; C], [zero; C]);
+    for c in 0..C {
         let r = unsafe { V::load(rp.add(LANES * c)) };
-        r.mul(r)
-    });
-    let inv: [V; C] = core::array::from_fn(|c| unsafe { V::load(ip.add(LANES * c)) });
-    let mut ratio: [V; C] = core::array::from_fn(|c| sq[c].mul(inv[c]));
+        sq[c] = r.mul(r);
+        inv[c] = unsafe { V::load(ip.add(LANES * c)) };
+        ratio[c] = sq[c].mul(inv[c]);
+    }
     let half = V::splat(V::T::cast(0.5));
     let half_inv_fro2 = V::splat(s.half_inv_fro2);
-    let zero = V::splat(V::T::cast(0.0));
 
     let mut sum_v = V::splat(rnorm2);
     let mut max_v = V::splat(max_ratio);
@@ -165,7 +183,10 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
-        let weights: [V; C] = core::array::from_fn(|c| ratio[c].select_ge(threshold, sq[c]));
+        let mut weights = [zero; C];
+        for c in 0..C {
+            weights[c] = ratio[c].select_ge(threshold, sq[c]);
+        }
         let mut down = weights;
         for c in 1..C {
             down[c] = down[c - 1].add(weights[c]);
@@ -177,20 +198,21 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         if total.first() > V::T::cast(0.0) {
             let target = V::splat(V::T::cast(draws.next())).mul(total);
             // Bits in lane-major order (bit 4l + c for row 8c + l).
-            let mut hit = 0u32;
+            let mut hits = [zero; C];
             for c in 0..C {
-                let prefix = before.add(down[c]);
-                let bits = weights[c].gt_gt_bits(zero, prefix, target);
-                hit |= SPREAD[usize::from(bits)] << c;
+                hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
             }
+            let hit = V::lane_major_bits(&hits);
             let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
             chosen = if hit != 0 {
                 Some(row(hit.trailing_zeros()))
             } else {
                 // Round-off: the last candidate in lane-major order.
-                let positive = (0..C).fold(0u32, |acc, c| {
-                    acc | SPREAD[usize::from(weights[c].gt_bits(zero))] << c
-                });
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    positive[c] = weights[c].gt_mask(zero);
+                }
+                let positive = V::lane_major_bits(&positive);
                 (positive != 0).then(|| row(31 - positive.leading_zeros()))
             };
         }

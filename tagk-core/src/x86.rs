@@ -20,7 +20,9 @@ use crate::greedy::{
     Draws, Kernels, LANES, Portable, Requested, Schedule, Window, argmax_ratio, iterate_portable,
     requested,
 };
-use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, Lanes8, MAX_CHUNKS, iterate_any};
+use crate::lanes::{
+    KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, LANE_MAJOR_U64, Lanes8, MAX_CHUNKS, iterate_any,
+};
 use crate::linalg::padded;
 
 /// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
@@ -267,25 +269,30 @@ impl Lanes8 for F64x8 {
         }
     }
     #[inline(always)]
-    fn gt_bits(self, t: Self) -> u8 {
+    fn gt_mask(self, t: Self) -> Self {
         unsafe {
-            let lo = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0));
-            let hi = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1));
-            (lo | hi << 4) as u8
+            Self(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1),
+            )
         }
     }
     #[inline(always)]
-    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
         unsafe {
-            let lo = _mm256_and_pd(
-                _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0),
-                _mm256_cmp_pd::<_CMP_GT_OQ>(prefix.0, target.0),
-            );
-            let hi = _mm256_and_pd(
-                _mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1),
-                _mm256_cmp_pd::<_CMP_GT_OQ>(prefix.1, target.1),
-            );
-            (_mm256_movemask_pd(lo) | _mm256_movemask_pd(hi) << 4) as u8
+            let (mut lo, mut hi) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+            for (c, m) in masks.iter().enumerate() {
+                let bits = LANE_MAJOR_U64[c].as_ptr().cast::<f64>();
+                lo = _mm256_or_pd(lo, _mm256_and_pd(m.0, _mm256_loadu_pd(bits)));
+                hi = _mm256_or_pd(hi, _mm256_and_pd(m.1, _mm256_loadu_pd(bits.add(4))));
+            }
+            let x = _mm256_castpd_si256(_mm256_or_pd(lo, hi));
+            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
+            _mm_cvtsi128_si64(_mm_or_si128(y, _mm_unpackhi_epi64(y, y))) as u32
         }
     }
     #[inline(always)]
@@ -386,16 +393,25 @@ impl Lanes8 for F32x8 {
         unsafe { Self(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0), v.0)) }
     }
     #[inline(always)]
-    fn gt_bits(self, t: Self) -> u8 {
-        unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) as u8 }
+    fn gt_mask(self, t: Self) -> Self {
+        unsafe { Self(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) }
     }
     #[inline(always)]
-    fn gt_gt_bits(self, t: Self, prefix: Self, target: Self) -> u8 {
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
         unsafe {
-            _mm256_movemask_ps(_mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(prefix.0, target.0),
-            )) as u8
+            let mut acc = _mm256_setzero_ps();
+            for (c, m) in masks.iter().enumerate() {
+                let bits = _mm256_loadu_ps(LANE_MAJOR_U32[c].as_ptr().cast::<f32>());
+                acc = _mm256_or_ps(acc, _mm256_and_ps(m.0, bits));
+            }
+            let x = _mm256_castps_si256(acc);
+            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
+            let z = _mm_or_si128(y, _mm_unpackhi_epi64(y, y));
+            _mm_cvtsi128_si32(_mm_or_si128(z, _mm_srli_epi64::<32>(z))) as u32
         }
     }
     #[inline(always)]
