@@ -19,9 +19,11 @@
 # target/insncount/<arch>.md. Environment:
 #   TAGK_INSNCOUNT_BLESS=1        write the measured counts as the new baselines
 #   TAGK_INSNCOUNT_SKIP_INSTALL=1 never call apt-get
-#   TAGK_INSNCOUNT_PLUGIN_SRC     insncount.c of the QEMU plugin (default: the development
-#                                 machines' ../shared/tools/cortex-m7/insncount.c beside the
-#                                 checkout; without it aarch64 checks bits but counts nothing)
+#   TAGK_INSNCOUNT_PLUGIN_SRC     insncount.c of an instruction-counting QEMU plugin (CI
+#                                 passes the development machines' Cortex-M7 one; unset,
+#                                 aarch64 checks bits but counts nothing)
+#   TAGK_KERNELS=portable         count the portable kernels instead (tagk-core reads it; the
+#                                 tables go to <arch>-portable.md, no baseline is checked)
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -88,6 +90,11 @@ measure() {
 # check ARCH LABEL: the table, the baseline check (or bless).
 check() {
   local arch=$1 label=$2 base=$HERE/baseline-$1.txt
+  if [[ -n ${TAGK_KERNELS:-} ]]; then
+    label="$label, TAGK_KERNELS=$TAGK_KERNELS"
+    cp "$OUT/$arch.txt" "$OUT/$arch-$TAGK_KERNELS.txt"
+    arch=$arch-$TAGK_KERNELS
+  fi
   awk -v label="$label" '
     { c[$1 " " $2] = $3 }
     END {
@@ -100,6 +107,9 @@ check() {
         printf "| %d | %d | %d | %d | %d | %.2f× | %.2f× |\n", n, t, c["tagk-f32 " n], c["rls-low " n],
           c["kf-low " n], c["rls-low " n] / t, c["kf-low " n] / t }
     }' "$OUT/$arch.txt" | tee "$OUT/$arch.md"
+  if [[ -n ${TAGK_KERNELS:-} ]]; then
+    log "TAGK_KERNELS=$TAGK_KERNELS: no baseline check"; return 0
+  fi
   if [[ ${TAGK_INSNCOUNT_BLESS:-0} == 1 ]]; then
     { echo "# estimator n instructions-per-update ($label; tagk-insncount/run.sh; TAGK_INSNCOUNT_BLESS=1 rewrites)"
       cat "$OUT/$arch.txt"; } > "$base"
@@ -143,8 +153,14 @@ x86() {
     diff "$OUT/x86_64-native.bits" "$OUT/x86_64.bits" >&2 || true
     return 1
   fi
-  log "native ($(grep -q avx512f /proc/cpuinfo && echo AVX-512 || echo AVX2) kernels) and callgrind (AVX2) runs: the same bits"
-  check x86_64 "x86-64 AVX2 kernels under valgrind's callgrind"
+  if [[ -n ${TAGK_KERNELS:-} ]]; then
+    log "native and callgrind runs (TAGK_KERNELS=$TAGK_KERNELS): the same bits"
+  else
+    log "native ($(grep -q avx512f /proc/cpuinfo && echo AVX-512 || echo AVX2) kernels) and callgrind (AVX2) runs: the same bits"
+  fi
+  local kernels="AVX2 kernels"
+  [[ ${TAGK_KERNELS:-} == portable ]] && kernels="portable kernels"
+  check x86_64 "x86-64 $kernels under valgrind's callgrind"
 }
 
 # --- aarch64: cross build, QEMU user mode (the NEON kernels) --------------------------------
@@ -159,9 +175,21 @@ aarch64() {
     /usr/bin/cargo build --release --quiet -p tagk-insncount --target aarch64-unknown-linux-gnu \
       -Zbuild-std=std,panic_abort --target-dir target/aarch64
   )
+  # tagk-core's own test of the SIMD kernels against the portable ones, bit for bit (many
+  # window shapes, f64 and f32), run on the NEON kernels under qemu-aarch64.
+  log "tagk-core's kernel tests on aarch64 (qemu-aarch64)"
+  (
+    cd "$ROOT"
+    export RUSTC_BOOTSTRAP=1 RUSTC=/usr/bin/rustc RUSTDOC=/usr/bin/rustdoc
+    export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
+    export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
+    unset RUSTUP_TOOLCHAIN RUSTFLAGS CARGO_BUILD_TARGET CARGO_TARGET_DIR || true
+    /usr/bin/cargo test --release --quiet -p tagk-core --lib --target aarch64-unknown-linux-gnu \
+      -Zbuild-std=std,panic_abort --target-dir target/aarch64
+  )
   local bin=$ROOT/target/aarch64/aarch64-unknown-linux-gnu/release/tagk-insncount c est n
-  local src=${TAGK_INSNCOUNT_PLUGIN_SRC:-$ROOT/../shared/tools/cortex-m7/insncount.c}
-  if [[ -f $src ]]; then
+  local src=${TAGK_INSNCOUNT_PLUGIN_SRC:-}
+  if [[ -n $src && -f $src ]]; then
     # The Cortex-M7 tool's plugin, built for the installed QEMU (user-mode plugins load alike).
     local major def=""
     major=$(qemu-aarch64 --version | sed -n 's/.*version \([0-9]*\)\..*/\1/p;q')
@@ -171,7 +199,7 @@ aarch64() {
     log "counting under qemu-aarch64 $major with the insncount plugin"
     measure aarch64 count_qemu "$bin"
   else
-    log "no QEMU plugin source ($src): checking bits only, no counts"
+    log "no QEMU plugin source (TAGK_INSNCOUNT_PLUGIN_SRC): checking bits only, no counts"
     : > "$OUT/aarch64.bits"
     for c in "${CASES[@]}"; do
       read -r est n <<< "$c"
@@ -186,11 +214,13 @@ aarch64() {
     diff "$OUT/x86_64-native.bits" "$OUT/aarch64.bits" >&2 || true
     return 1
   fi
-  log "aarch64 (NEON kernels, QEMU) and x86-64: TAG-K the same bits in every case; RLS/KF (faer):"
+  log "aarch64 (${TAGK_KERNELS:-NEON} kernels, QEMU) and x86-64: TAG-K the same bits in every case; RLS/KF (faer):"
   paste -d' ' <(grep -v '^tagk' "$OUT/x86_64-native.bits" | sed 's/.*sum=/x86-64 sum=/') \
     <(grep -v '^tagk' "$OUT/aarch64.bits" | sed 's/.*sum=/aarch64 sum=/') >&2
-  if [[ -f $src ]]; then
-    check aarch64 "aarch64 NEON kernels under qemu-aarch64 $(qemu-aarch64 --version | sed -n 's/.*version \([0-9.]*\).*/\1/p;q'), insncount plugin"
+  if [[ -n $src && -f $src ]]; then
+    local kernels="NEON kernels"
+    [[ ${TAGK_KERNELS:-} == portable ]] && kernels="portable kernels"
+    check aarch64 "aarch64 $kernels under qemu-aarch64 $(qemu-aarch64 --version | sed -n 's/.*version \([0-9.]*\).*/\1/p;q'), insncount plugin"
   fi
 }
 
