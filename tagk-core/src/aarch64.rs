@@ -1,8 +1,9 @@
 //! NEON kernels of the greedy iterations on aarch64 (NEON is part of the base instruction
 //! set there, so they are chosen at compile time, with or without `std`).
 //!
-//! For `f64` the Gram matrix is built from a transposed copy of the window with 4 × 8 tiles
-//! in sixteen `q` registers (for `f32`, and the residual, the portable loops); the greedy loop
+//! The Gram matrix is built from a transposed copy of the window in sixteen `q` accumulators:
+//! `f64` in 4 × 8 tiles, with the prior residual computed in the transposing pass; `f32` in
+//! 8 × 8 tiles (its residual from the portable loop); the greedy loop
 //! is the eight-lane loop of the `lanes` module, `f64` as four `q` registers per chunk and
 //! `f32` as two. Same operations in the same order as [`crate::greedy::Portable`] (multiplies and adds
 //! separate, never fused), so estimates are bit-identical to x86-64's and a microcontroller's.
@@ -80,6 +81,17 @@ impl<T: Real> Kernels<T> for Neon {
         gram: &mut [T],
         resid: &mut [T],
     ) {
+        if is::<T, f32>() {
+            // The portable order (a transposed copy, then 8 × 8 tiles) in NEON registers.
+            let p = padded(m);
+            let (at32, gram32): (&mut [f32], &mut [f32]) = (same_mut(at), same_mut(gram));
+            assert!(at32.len() >= n * p && gram32.len() >= p * p);
+            crate::linalg::transpose_padded(same::<T, f32>(a), n, m, at32);
+            // SAFETY: the lengths were checked above.
+            unsafe { gram_f32(at32.as_ptr(), n, p, gram32.as_mut_ptr()) };
+            crate::linalg::residual_rows(a, n, m, x, b, resid);
+            return;
+        }
         if !is::<T, f64>() {
             return Portable.gram_and_residual(a, b, x, n, m, at, gram, resid);
         }
@@ -355,6 +367,81 @@ unsafe fn tile_step<const Q: usize>(
             c[2][q] = vaddq_f64(vmulq_laneq_f64::<0>(v[q], u23), c[2][q]);
             c[3][q] = vaddq_f64(vmulq_laneq_f64::<1>(v[q], u23), c[3][q]);
         }
+    }
+}
+
+/// `G = A Aᵀ` for `f32` from the transposed window `at` (`n × p`, stride `p`, zero in the
+/// padding columns): for each block pair `I ≤ J` of eight rows an 8 × 8 tile in sixteen `q`
+/// accumulators, each entry summed in order of `k` (multiply, then add) as `gram_transposed`
+/// does, stored with its mirror image `G[J, I]` (the same products in the same order).
+///
+/// # Safety
+/// `at` must hold `n · p` entries and `gram` `p · p`, `p` a multiple of 8.
+#[inline(never)]
+unsafe fn gram_f32(at: *const f32, n: usize, p: usize, gram: *mut f32) {
+    // SAFETY: every access is below n · p of `at` and p · p of `gram` (bi, bj + 8 ≤ p).
+    unsafe {
+        let mut bj = 0;
+        while bj < p {
+            let mut bi = 0;
+            while bi <= bj {
+                let mut c = [[vdupq_n_f32(0.0); 2]; 8];
+                for k in 0..n {
+                    let row = at.add(k * p);
+                    let v = [vld1q_f32(row.add(bj)), vld1q_f32(row.add(bj + 4))];
+                    let u = [vld1q_f32(row.add(bi)), vld1q_f32(row.add(bi + 4))];
+                    for h in 0..2 {
+                        c[0][h] = vaddq_f32(vmulq_laneq_f32::<0>(v[h], u[0]), c[0][h]);
+                        c[1][h] = vaddq_f32(vmulq_laneq_f32::<1>(v[h], u[0]), c[1][h]);
+                        c[2][h] = vaddq_f32(vmulq_laneq_f32::<2>(v[h], u[0]), c[2][h]);
+                        c[3][h] = vaddq_f32(vmulq_laneq_f32::<3>(v[h], u[0]), c[3][h]);
+                        c[4][h] = vaddq_f32(vmulq_laneq_f32::<0>(v[h], u[1]), c[4][h]);
+                        c[5][h] = vaddq_f32(vmulq_laneq_f32::<1>(v[h], u[1]), c[5][h]);
+                        c[6][h] = vaddq_f32(vmulq_laneq_f32::<2>(v[h], u[1]), c[6][h]);
+                        c[7][h] = vaddq_f32(vmulq_laneq_f32::<3>(v[h], u[1]), c[7][h]);
+                    }
+                }
+                for (s, cs) in c.iter().enumerate() {
+                    vst1q_f32(gram.add((bi + s) * p + bj), cs[0]);
+                    vst1q_f32(gram.add((bi + s) * p + bj + 4), cs[1]);
+                }
+                if bi < bj {
+                    for g in 0..2 {
+                        for h in 0..2 {
+                            let t = transpose4_f32([
+                                c[4 * g][h],
+                                c[4 * g + 1][h],
+                                c[4 * g + 2][h],
+                                c[4 * g + 3][h],
+                            ]);
+                            for (l, tl) in t.iter().enumerate() {
+                                vst1q_f32(gram.add((bj + 4 * h + l) * p + bi + 4 * g), *tl);
+                            }
+                        }
+                    }
+                }
+                bi += 8;
+            }
+            bj += 8;
+        }
+    }
+}
+
+/// The transpose of a 4 × 4 block of `f32` held as four row registers.
+#[inline(always)]
+fn transpose4_f32(r: [float32x4_t; 4]) -> [float32x4_t; 4] {
+    // SAFETY: NEON is baseline on aarch64.
+    unsafe {
+        let t0 = vreinterpretq_f64_f32(vtrn1q_f32(r[0], r[1])); // a0 b0 a2 b2
+        let t1 = vreinterpretq_f64_f32(vtrn2q_f32(r[0], r[1])); // a1 b1 a3 b3
+        let t2 = vreinterpretq_f64_f32(vtrn1q_f32(r[2], r[3])); // c0 d0 c2 d2
+        let t3 = vreinterpretq_f64_f32(vtrn2q_f32(r[2], r[3])); // c1 d1 c3 d3
+        [
+            vreinterpretq_f32_f64(vtrn1q_f64(t0, t2)),
+            vreinterpretq_f32_f64(vtrn1q_f64(t1, t3)),
+            vreinterpretq_f32_f64(vtrn2q_f64(t0, t2)),
+            vreinterpretq_f32_f64(vtrn2q_f64(t1, t3)),
+        ]
     }
 }
 

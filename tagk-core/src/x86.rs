@@ -131,6 +131,18 @@ impl<T: Real> Kernels<T> for Avx2 {
         gram: &mut [T],
         resid: &mut [T],
     ) {
+        if is::<T, f32>() {
+            // The portable order (a transposed copy, then 8 × 8 tiles: one `ymm` of eight
+            // `f32` columns per row) in explicit AVX2.
+            let p = padded(m);
+            let (at32, gram32): (&mut [f32], &mut [f32]) = (same_mut(at), same_mut(gram));
+            assert!(at32.len() >= n * p && gram32.len() >= p * p);
+            crate::linalg::transpose_padded(same::<T, f32>(a), n, m, at32);
+            // SAFETY: `self` proves AVX2 support; the lengths were checked above.
+            unsafe { gram_f32(at32, n, p, gram32) };
+            crate::linalg::residual_rows(a, n, m, x, b, resid);
+            return;
+        }
         if !is_f64::<T>() {
             return Portable.gram_and_residual(a, b, x, n, m, at, gram, resid);
         }
@@ -826,6 +838,83 @@ unsafe fn step_4x4(c: &mut [__m256d; 4], rows: [*const f64; 4], v: *const f64, k
     }
 }
 
+/// `G = A Aᵀ` for `f32` from the transposed window `at` (`n × p`, stride `p`, zero in the
+/// padding columns): for each block pair `I ≤ J` of eight rows, an 8 × 8 tile (eight `ymm`
+/// accumulators, one per row of `I`), each entry summed in order of `k` (multiply, then add)
+/// as `gram_transposed` does, stored with its mirror image `G[J, I]` (the same products in
+/// the same order: the same bits).
+///
+/// # Safety
+/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
+/// of 8.
+#[target_feature(enable = "avx2")]
+unsafe fn gram_f32(at: &[f32], n: usize, p: usize, gram: &mut [f32]) {
+    let (t, g) = (at.as_ptr(), gram.as_mut_ptr());
+    let mut bj = 0;
+    while bj < p {
+        let mut bi = 0;
+        while bi <= bj {
+            // SAFETY: reads `at` below n · p, writes `gram` below p · p (bi, bj + 8 ≤ p).
+            unsafe {
+                let mut c = [_mm256_setzero_ps(); 8];
+                for k in 0..n {
+                    let row = t.add(k * p);
+                    let v = _mm256_loadu_ps(row.add(bj));
+                    for (s, cs) in c.iter_mut().enumerate() {
+                        let u = _mm256_set1_ps(*row.add(bi + s));
+                        *cs = _mm256_add_ps(_mm256_mul_ps(u, v), *cs);
+                    }
+                }
+                for (s, cs) in c.iter().enumerate() {
+                    _mm256_storeu_ps(g.add((bi + s) * p + bj), *cs);
+                }
+                if bi < bj {
+                    for (l, tl) in transpose8_ps(c).iter().enumerate() {
+                        _mm256_storeu_ps(g.add((bj + l) * p + bi), *tl);
+                    }
+                }
+            }
+            bi += 8;
+        }
+        bj += 8;
+    }
+}
+
+/// The transpose of an 8 × 8 block of `f32` held as eight row vectors.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transpose8_ps(r: [__m256; 8]) -> [__m256; 8] {
+    // Pairs of rows interleaved, then pairs of pairs, then the 128-bit halves.
+    let t: [__m256; 8] = core::array::from_fn(|q| {
+        let (a, b) = (r[2 * (q / 2)], r[2 * (q / 2) + 1]);
+        if q % 2 == 0 {
+            _mm256_unpacklo_ps(a, b)
+        } else {
+            _mm256_unpackhi_ps(a, b)
+        }
+    });
+    let u: [__m256; 8] = [
+        _mm256_shuffle_ps::<0x44>(t[0], t[2]),
+        _mm256_shuffle_ps::<0xee>(t[0], t[2]),
+        _mm256_shuffle_ps::<0x44>(t[1], t[3]),
+        _mm256_shuffle_ps::<0xee>(t[1], t[3]),
+        _mm256_shuffle_ps::<0x44>(t[4], t[6]),
+        _mm256_shuffle_ps::<0xee>(t[4], t[6]),
+        _mm256_shuffle_ps::<0x44>(t[5], t[7]),
+        _mm256_shuffle_ps::<0xee>(t[5], t[7]),
+    ];
+    [
+        _mm256_permute2f128_ps::<0x20>(u[0], u[4]),
+        _mm256_permute2f128_ps::<0x20>(u[1], u[5]),
+        _mm256_permute2f128_ps::<0x20>(u[2], u[6]),
+        _mm256_permute2f128_ps::<0x20>(u[3], u[7]),
+        _mm256_permute2f128_ps::<0x31>(u[0], u[4]),
+        _mm256_permute2f128_ps::<0x31>(u[1], u[5]),
+        _mm256_permute2f128_ps::<0x31>(u[2], u[6]),
+        _mm256_permute2f128_ps::<0x31>(u[3], u[7]),
+    ]
+}
+
 /// The transpose of an 8 × 8 block held as eight row vectors.
 #[target_feature(enable = "avx512f")]
 fn transpose8(r: [__m512d; 8]) -> [__m512d; 8] {
@@ -1064,6 +1153,27 @@ fn scan8(x: __m512d) -> __m512d {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f32_transpose_is_a_transpose() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let rows: [__m256; 8] = core::array::from_fn(|r| {
+            let v: [f32; 8] = core::array::from_fn(|c| (10 * r + c) as f32);
+            // SAFETY: reads eight f32 from an array of eight (AVX2 detected above).
+            unsafe { _mm256_loadu_ps(v.as_ptr()) }
+        });
+        // SAFETY: AVX2 detected above.
+        let t = unsafe { transpose8_ps(rows) };
+        for (c, tc) in t.iter().enumerate() {
+            let mut out = [0.0f32; 8];
+            // SAFETY: writes eight f32 into an array of eight.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), *tc) };
+            let want: [f32; 8] = core::array::from_fn(|r| (10 * r + c) as f32);
+            assert_eq!(out, want, "column {c}");
+        }
+    }
 
     #[test]
     fn transposes_are_transposes() {
