@@ -40,6 +40,13 @@ pub(crate) const LANES: usize = 8;
 /// anything else / unset for the best the CPU supports. Every choice computes the same bits;
 /// the variable exists to measure and compare the kernels on one machine.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
 pub(crate) enum Requested {
     /// The best kernels the CPU supports.
     Best,
@@ -51,6 +58,13 @@ pub(crate) enum Requested {
 
 /// What `TAGK_KERNELS` asks for (see [`Requested`]).
 #[cfg(feature = "std")]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
 pub(crate) fn requested() -> Requested {
     static CHOICE: std::sync::OnceLock<Requested> = std::sync::OnceLock::new();
     *CHOICE.get_or_init(|| match std::env::var("TAGK_KERNELS").as_deref() {
@@ -62,6 +76,13 @@ pub(crate) fn requested() -> Requested {
 
 /// Without `std` there is no environment: the best kernels.
 #[cfg(not(feature = "std"))]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
 pub(crate) fn requested() -> Requested {
     Requested::Best
 }

@@ -5,9 +5,10 @@
 //! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy` module),
 //! so every operation below is one of the portable loop's, lane for lane, in the same order:
 //! separate multiplies and adds (never fused), the same sums in the same association, the
-//! same comparisons. Residual, ratios `r_j²/‖a_j‖²` and reciprocal norms of a window of up to
-//! 32 rows stay in registers (or the compiler's spill slots) across the iterations, and the
-//! row choice is a bit scan instead of a search through memory.
+//! same comparisons. The squares `r_j²`, ratios `r_j²/‖a_j‖²` and reciprocal norms of a
+//! window of up to 32 rows stay in registers (or the compiler's spill slots) across the
+//! iterations, the residual is stored once per iteration and read once by the next update,
+//! and the row choice is a bit scan over lane masks instead of a search through memory.
 
 use rand_chacha::ChaCha8Rng;
 
