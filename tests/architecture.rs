@@ -12,6 +12,7 @@ const RULES: &[(&str, u8, &[&str], &[&str])] = &[
     ("tagk-baselines", 1, &["tagk-core"], &[]),
     ("tagk-dynamics", 1, &["tagk-core"], &[]),
     ("tagk-mcu", 2, &["tagk-core", "tagk-baselines"], &[]),
+    ("tagk-insncount", 2, &["tagk-core", "tagk-baselines"], &[]),
     ("tagk-control", 2, &["tagk-core", "tagk-dynamics"], &[]),
     (
         "tagk-sim",

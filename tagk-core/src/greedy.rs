@@ -1,6 +1,7 @@
 //! The greedy iterations of GRK and TAG-K on one window, behind a small kernel interface
-//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones for
-//! `f64` on x86-64 (in `x86.rs`).
+//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones on
+//! x86-64 (`x86.rs`) and aarch64 (`aarch64.rs`), whose greedy loops without AVX-512 are one
+//! loop over eight-lane chunks (`lanes.rs`).
 //!
 //! Every floating-point operation happens in an order fixed here, and every implementation
 //! follows it, so a microcontroller, a host without AVX2 and a host with AVX-512 compute the
@@ -33,6 +34,58 @@ use crate::Real;
 
 /// Lanes per chunk of the window vectors.
 pub(crate) const LANES: usize = 8;
+
+/// The kernels the environment variable `TAGK_KERNELS` asks for (read once per process, with
+/// the `std` feature): `portable`, `avx2` (x86-64: no AVX-512 even where the CPU has it), or
+/// anything else / unset for the best the CPU supports. Every choice computes the same bits;
+/// the variable exists to measure and compare the kernels on one machine.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
+pub(crate) enum Requested {
+    /// The best kernels the CPU supports.
+    Best,
+    /// At most AVX2 on x86-64 (no AVX-512).
+    Avx2,
+    /// The portable kernels.
+    Portable,
+}
+
+/// What `TAGK_KERNELS` asks for (see [`Requested`]).
+#[cfg(feature = "std")]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
+pub(crate) fn requested() -> Requested {
+    static CHOICE: std::sync::OnceLock<Requested> = std::sync::OnceLock::new();
+    *CHOICE.get_or_init(|| match std::env::var("TAGK_KERNELS").as_deref() {
+        Ok("portable") => Requested::Portable,
+        Ok("avx2") => Requested::Avx2,
+        _ => Requested::Best,
+    })
+}
+
+/// Without `std` there is no environment: the best kernels.
+#[cfg(not(feature = "std"))]
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
+pub(crate) fn requested() -> Requested {
+    Requested::Best
+}
 
 /// One window's state for the greedy iterations. Every vector has `p` entries (a multiple of
 /// 8), zero from `m` on; `gram` is `p × p` with row stride `p`.
@@ -214,16 +267,12 @@ impl<T: Real> Kernels<T> for Portable {
         resid: &mut [T],
     ) {
         // Two tilings of the same sums, chosen for the target: an 8-wide tile over a
-        // transposed copy of A where SIMD units are wide (x86-64), a 2 × 4 tile on the rows
-        // where registers are few (a Cortex-M7 FPU has sixteen).
-        #[cfg(target_arch = "x86_64")]
-        {
+        // transposed copy of A where SIMD units are wide (x86-64, aarch64), a 2 × 4 tile on
+        // the rows where registers are few (a Cortex-M7 FPU has sixteen).
+        if crate::linalg::GRAM_FROM_TRANSPOSED {
             crate::linalg::transpose_padded(a, n, m, at);
             crate::linalg::gram_transposed(at, n, m, gram);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            let _ = at;
+        } else {
             crate::linalg::gram_rows(a, n, m, gram);
         }
         crate::linalg::residual_rows(a, n, m, x, b, resid);

@@ -42,15 +42,18 @@
 //! the 30 greedy iterations take about 1.1 µs and, at `n = 120`, the Gram matrix about 2.5 µs.
 //!
 //! # Kernels and bit-identical results
-//! The greedy variants run on one of three kernel sets, chosen at run time, which perform the
-//! same floating-point operations in the same order (the order is fixed in the `greedy` module
-//! and documented there; multiplies and adds are never fused), so the same seed gives the
-//! same bits on every machine:
+//! The greedy variants run on one of four kernel sets, chosen at run time on x86-64 and at
+//! compile time on aarch64, which perform the same floating-point operations in the same
+//! order (the order is fixed in the `greedy` module and documented there; multiplies and adds
+//! are never fused), so the same seed gives the same bits on every machine:
 //! - portable loops (any target, any scalar; what a Cortex-M7 runs);
-//! - `f64` on x86-64 with AVX2 (`std` feature): the Gram matrix built GEMM-style from packed
-//!   panels of 8 rows with 4 × 8 register tiles;
-//! - `f64` on x86-64 with AVX-512F and BMI2: 8 × 8 Gram tiles, and for windows of up to 32
-//!   rows the greedy loop with the window held in `zmm` registers across iterations.
+//! - x86-64 with AVX2 (`std` feature): for `f64` the Gram matrix built GEMM-style from packed
+//!   panels of 8 rows with 4 × 8 register tiles; for `f64` and `f32`, windows of up to 32 rows,
+//!   the greedy loop with the window held in `ymm` registers across iterations;
+//! - x86-64 with AVX-512F and BMI2: for `f64`, 8 × 8 Gram tiles and the greedy loop in `zmm`
+//!   and mask registers (`f32` as with AVX2);
+//! - aarch64 (NEON, with or without `std`): the portable Gram loops and, for `f64` and `f32`,
+//!   windows of up to 32 rows, the greedy loop in NEON registers.
 //!
 //! The update never allocates: every buffer is laid out at construction in storage the
 //! caller chooses (a `Vec`, an array, or a `&mut [T]` in static memory on a microcontroller).
@@ -60,6 +63,8 @@ use core::marker::PhantomData;
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 
+#[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+use crate::aarch64::Neon;
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
 use crate::greedy::{self, Kernels, Portable, Schedule, Window};
 use crate::linalg::{add_combination, axpy, dot, norm2_and_dot, padded};
@@ -202,19 +207,26 @@ impl KaczmarzConfig {
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
 /// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
 /// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
-/// `n·p` on x86-64 for a transposed copy of the window.
+/// `n·p` on x86-64 and aarch64 for a transposed copy of the window.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     let p = padded(m_max);
-    // The transposed copy of a window is only kept on x86-64 (see the Gram kernels).
-    let transposed = if cfg!(target_arch = "x86_64") {
+    // The transposed copy of a window is only kept where SIMD units are wide (see the Gram
+    // kernels).
+    let transposed = if crate::linalg::TRANSPOSED_COPY {
         n * p
     } else {
         0
     };
     2 * n + 7 * p + p * p + ALIGN_SLACK + transposed
 }
+
+/// Whether the final check that the new estimate is finite visits every entry branch-free (a
+/// vectorisable pass, on hosts with wide SIMD units) or stops at the first non-finite one (on
+/// microcontrollers, the loop their Table III instruction counts were taken with). The same
+/// answer either way.
+const FINITE_CHECK_BRANCH_FREE: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
 /// Scalars skipped at most to start the per-update work area on a 64-byte boundary (a cache
 /// line, and the width of an AVX-512 register): 16 `f32` or 8 `f64`.
@@ -340,7 +352,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (coef_avg, rest) = rest.split_at_mut(m);
         let (scratch, rest) = rest.split_at_mut(m);
         let (prefix, rest) = rest.split_at_mut(m);
-        let (transposed, rest) = if cfg!(target_arch = "x86_64") {
+        let (transposed, rest) = if crate::linalg::TRANSPOSED_COPY {
             rest.split_at_mut(n * m)
         } else {
             rest.split_at_mut(0)
@@ -503,7 +515,12 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             // The rows used (nonzero coefficient), row by row, accumulated in registers.
             add_combination(p.work, a, coef, n, m);
         }
-        if p.work.iter().any(|v| !v.is_finite()) {
+        let finite = if FINITE_CHECK_BRANCH_FREE {
+            p.work.iter().fold(true, |ok, v| ok & v.is_finite())
+        } else {
+            !p.work.iter().any(|v| !v.is_finite())
+        };
+        if !finite {
             rng.set_word_pos(rng_start);
             return Err(EstimatorError::Diverged);
         }
@@ -559,6 +576,10 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> OnlineEsti
             // SAFETY: `k` proves that the CPU supports AVX2.
             return unsafe { self.run_avx2(k, a, b) };
         }
+        #[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+        if greedy::requested() != greedy::Requested::Portable {
+            return self.run(Neon, a, b);
+        }
         self.run(Portable, a, b)
     }
 
@@ -587,11 +608,21 @@ impl<T: Real, const GREEDY: bool, const AVERAGE: bool>
     }
 }
 
-#[cfg(all(test, feature = "std", target_arch = "x86_64"))]
+#[cfg(all(
+    test,
+    feature = "std",
+    any(
+        target_arch = "x86_64",
+        all(target_arch = "aarch64", target_feature = "neon")
+    )
+))]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "aarch64")]
+    use crate::aarch64::Neon as Fast;
     use crate::greedy::Portable;
-    use crate::x86::Avx2;
+    #[cfg(target_arch = "x86_64")]
+    use crate::x86::Avx2 as Fast;
     use rand_core::Rng;
     use std::vec;
     use std::vec::Vec;
@@ -600,21 +631,46 @@ mod tests {
         greedy::uniform(rng) * 2.0 - 1.0
     }
 
-    /// The AVX2 kernels must reproduce the portable ones bit for bit (the portable ones are
+    /// One update on the SIMD kernels `k`.
+    fn run_fast<T: Real, const G: bool, const A: bool>(
+        e: &mut Kaczmarz<T, Vec<T>, G, A>,
+        k: Fast,
+        a: &[T],
+        b: &[T],
+    ) -> Result<UpdateInfo, EstimatorError> {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `k` proves AVX2 support.
+        return unsafe { e.run_avx2(k, a, b) };
+        #[cfg(target_arch = "aarch64")]
+        return e.run(k, a, b);
+    }
+
+    /// The SIMD kernels must reproduce the portable ones bit for bit (the portable ones are
     /// what a microcontroller runs), over window sizes that change between calls, zero rows,
-    /// tolerances and iteration counts beyond one pass.
+    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`: on x86-64 the
+    /// kernels detected (AVX-512 where the CPU has it) and, forced, the AVX2 ones; on aarch64
+    /// the NEON ones.
     #[test]
-    fn avx2_and_portable_kernels_give_the_same_bits() {
-        let Some(detected) = Avx2::detect() else {
-            std::eprintln!("no AVX2 on this CPU: nothing to compare");
-            return;
+    fn simd_and_portable_kernels_give_the_same_bits() {
+        #[cfg(target_arch = "x86_64")]
+        let kernels = {
+            let Some(detected) = Fast::detect() else {
+                std::eprintln!(
+                    "no AVX2 on this CPU (or TAGK_KERNELS=portable): nothing to compare"
+                );
+                return;
+            };
+            [detected.without_avx512(), detected]
         };
-        for k in [detected, detected.without_avx512()] {
-            compare_with_portable(k);
+        #[cfg(target_arch = "aarch64")]
+        let kernels = [Neon];
+        for k in kernels {
+            compare_with_portable::<f64>(k);
+            compare_with_portable::<f32>(k);
         }
     }
 
-    fn compare_with_portable(k: Avx2) {
+    fn compare_with_portable<T: Real>(k: Fast) {
         let mut data = ChaCha8Rng::seed_from_u64(7);
         for (n, m_max) in [
             (1, 1),
@@ -634,10 +690,10 @@ mod tests {
                     .with_seed(data.next_u64())
                     .with_iterations(iterations)
                     .with_tolerance(tolerance);
-                let mut portable = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut avx2 = TagK::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut grk_portable = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
-                let mut grk_avx2 = GreedyKaczmarz::<f64, Vec<f64>>::new(n, m_max, cfg).unwrap();
+                let mut portable = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut fast = TagK::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut grk_portable = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
+                let mut grk_fast = GreedyKaczmarz::<T, Vec<T>>::new(n, m_max, cfg).unwrap();
                 let theta: Vec<f64> = (0..n).map(|_| value(&mut data)).collect();
                 for w in 0..10 {
                     let m = 1 + (w * 7 + 3) % m_max;
@@ -651,26 +707,35 @@ mod tests {
                             ax + 1e-2 * value(&mut data)
                         })
                         .collect();
+                    let (a, b): (Vec<T>, Vec<T>) = (
+                        a.iter().map(|&v| T::cast(v)).collect(),
+                        b.iter().map(|&v| T::cast(v)).collect(),
+                    );
                     let want = portable.run(Portable, &a, &b).unwrap();
-                    // SAFETY: `k` proves AVX2 support.
-                    let got = unsafe { avx2.run_avx2(k, &a, &b) }.unwrap();
-                    assert_eq!(want, got, "n={n} m={m} window {w}");
-                    let same = |x: &[f64], y: &[f64]| {
-                        x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+                    let got = run_fast(&mut fast, k, &a, &b).unwrap();
+                    assert_eq!(
+                        want,
+                        got,
+                        "{} n={n} m={m} window {w}",
+                        core::any::type_name::<T>()
+                    );
+                    let same = |x: &[T], y: &[T]| {
+                        x.iter()
+                            .zip(y)
+                            .all(|(p, q)| p.as_f64().to_bits() == q.as_f64().to_bits())
                     };
                     assert!(
-                        same(portable.estimate(), avx2.estimate()),
+                        same(portable.estimate(), fast.estimate()),
                         "TAG-K n={n} m={m} window {w}"
                     );
                     grk_portable.run(Portable, &a, &b).unwrap();
-                    // SAFETY: as above.
-                    unsafe { grk_avx2.run_avx2(k, &a, &b) }.unwrap();
+                    run_fast(&mut grk_fast, k, &a, &b).unwrap();
                     assert!(
-                        same(grk_portable.estimate(), grk_avx2.estimate()),
+                        same(grk_portable.estimate(), grk_fast.estimate()),
                         "GRK n={n} m={m} window {w}"
                     );
                 }
-                assert_ne!(portable.estimate(), vec![0.0; n].as_slice());
+                assert_ne!(portable.estimate(), vec![T::zero(); n].as_slice());
             }
         }
     }

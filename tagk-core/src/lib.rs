@@ -6,10 +6,17 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+#[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+mod aarch64;
 mod error;
 mod estimator;
 mod greedy;
 pub mod kaczmarz;
+#[cfg(any(
+    all(feature = "std", target_arch = "x86_64"),
+    all(target_arch = "aarch64", target_feature = "neon")
+))]
+mod lanes;
 pub mod linalg;
 mod real;
 pub mod synthetic;

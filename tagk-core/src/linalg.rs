@@ -156,9 +156,23 @@ pub(crate) const fn padded(m: usize) -> usize {
     m.div_ceil(8) * 8
 }
 
+/// Whether the portable kernels build the Gram matrix from a transposed copy of the window
+/// (`transpose_padded`, then `gram_transposed`: 8-wide tiles for wide SIMD units, x86-64) or
+/// from its rows (`gram_rows`: 2 × 4 tiles for few registers, a Cortex-M7; on aarch64 the
+/// NEON kernels take the transposed path themselves). The two give the same bits.
+pub(crate) const GRAM_FROM_TRANSPOSED: bool = cfg!(target_arch = "x86_64");
+
+/// Whether the estimators' buffers hold a transposed copy of the window (`n · p` scalars):
+/// where a Gram kernel reads one (x86-64, aarch64).
+pub(crate) const TRANSPOSED_COPY: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
+
 /// Writes `Aᵀ` of a row-major `m × n` matrix into `at` as an `n × stride` row-major matrix
 /// (`stride = padded(m)`), zero in the padding columns.
 #[inline(always)]
+#[cfg_attr(
+    not(any(target_arch = "x86_64", target_arch = "aarch64")),
+    allow(dead_code)
+)]
 pub(crate) fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T]) {
     let stride = padded(m);
     let (m4, n4) = (m - m % 4, n - n % 4);
@@ -202,6 +216,7 @@ pub(crate) fn transpose_padded<T: Real>(a: &[T], n: usize, m: usize, at: &mut [T
 /// independent accumulator vectors, with no horizontal reductions. `G_ij = Σ_k a_ik a_jk` is
 /// summed in order of `k`; `G_ij` and `G_ji` are the same value.
 #[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut [T]) {
     let p = padded(m);
     let (at, gram) = (&at[..n * p], &mut gram[..p * p]);

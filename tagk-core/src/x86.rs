@@ -1,10 +1,14 @@
-//! AVX2 kernels of the greedy iterations for `f64` on x86-64 (detected at run time).
+//! AVX2 and AVX-512 kernels of the greedy iterations on x86-64 (detected at run time).
 //!
 //! They perform the operations of the portable kernels ([`crate::greedy::Portable`]) in the
 //! same order — separate multiplies and adds, never fused — so estimates are bit-identical
 //! with and without AVX2 and to a microcontroller's; only the instructions differ (explicit
 //! 4-wide vectors, a register-blocked Gram tile that the compiler would otherwise spill, and a
-//! branch-free candidate pass). Other scalar types fall back to the portable kernels.
+//! register-resident greedy loop). For windows of up to 32 rows the greedy loop runs in
+//! registers: with AVX-512F in `zmm` registers and mask registers ([`iterate_avx512`]), else
+//! the eight-lane loop of the `lanes` module on AVX2 (`f64` as two `ymm` per chunk, `f32` as
+//! one). The Gram kernels are `f64` only; `f32` builds its Gram matrix with the portable loops
+//! (compiled for AVX2), and other scalar types run the portable kernels throughout.
 
 use core::any::TypeId;
 use core::arch::x86_64::*;
@@ -13,7 +17,11 @@ use crate::Real;
 use rand_chacha::ChaCha8Rng;
 
 use crate::greedy::{
-    Draws, Kernels, LANES, Portable, Schedule, Window, argmax_ratio, iterate_portable,
+    Draws, Kernels, LANES, Portable, Requested, Schedule, Window, argmax_ratio, iterate_portable,
+    requested,
+};
+use crate::lanes::{
+    KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, LANE_MAJOR_U64, Lanes8, MAX_CHUNKS, iterate_any,
 };
 use crate::linalg::padded;
 
@@ -26,12 +34,16 @@ pub(crate) struct Avx2 {
 }
 
 impl Avx2 {
-    /// `Some` if this CPU supports AVX2 (cached by the standard library after the first call).
+    /// `Some` if this CPU supports AVX2 (cached by the standard library after the first call)
+    /// and `TAGK_KERNELS` does not ask for the portable kernels; AVX-512 where the CPU has it
+    /// and `TAGK_KERNELS` is not `avx2`.
     #[inline]
     pub(crate) fn detect() -> Option<Self> {
-        std::is_x86_feature_detected!("avx2").then(|| Self {
+        let requested = requested();
+        (std::is_x86_feature_detected!("avx2") && requested != Requested::Portable).then(|| Self {
             avx512f: std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("bmi2"),
+                && std::is_x86_feature_detected!("bmi2")
+                && requested == Requested::Best,
         })
     }
 
@@ -43,24 +55,67 @@ impl Avx2 {
 }
 
 #[inline(always)]
+fn is<T: 'static, U: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<U>()
+}
+
+#[inline(always)]
 fn is_f64<T: 'static>() -> bool {
-    TypeId::of::<T>() == TypeId::of::<f64>()
+    is::<T, f64>()
+}
+
+/// `s` as `&[U]` when `T` is `U`.
+#[inline(always)]
+fn same<T: 'static, U: 'static>(s: &[T]) -> &[U] {
+    assert!(is::<T, U>());
+    // SAFETY: T and U are the same type (checked above), so this is the identity cast.
+    unsafe { core::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+}
+
+/// `s` as `&mut [U]` when `T` is `U`.
+#[inline(always)]
+fn same_mut<T: 'static, U: 'static>(s: &mut [T]) -> &mut [U] {
+    assert!(is::<T, U>());
+    // SAFETY: T and U are the same type (checked above), so this is the identity cast.
+    unsafe { core::slice::from_raw_parts_mut(s.as_mut_ptr().cast(), s.len()) }
 }
 
 /// `s` as `&[f64]` when `T` is `f64`.
 #[inline(always)]
 fn f64s<T: 'static>(s: &[T]) -> &[f64] {
-    debug_assert!(is_f64::<T>());
-    // SAFETY: callers check `T == f64` first, so this is the identity cast.
-    unsafe { core::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+    same(s)
 }
 
 /// `s` as `&mut [f64]` when `T` is `f64`.
 #[inline(always)]
 fn f64s_mut<T: 'static>(s: &mut [T]) -> &mut [f64] {
-    debug_assert!(is_f64::<T>());
-    // SAFETY: callers check `T == f64` first, so this is the identity cast.
-    unsafe { core::slice::from_raw_parts_mut(s.as_mut_ptr().cast(), s.len()) }
+    same_mut(s)
+}
+
+/// The window and schedule of scalar `T` as those of `U` (the same type).
+#[inline(always)]
+pub(crate) fn same_window<T: Real, U: Real>(
+    w: Window<'_, T>,
+    s: Schedule<T>,
+) -> (Window<'_, U>, Schedule<U>) {
+    (
+        Window {
+            p: w.p,
+            resid: same_mut(w.resid),
+            inv_norm2: same(w.inv_norm2),
+            gram: same(w.gram),
+            coef: same_mut(w.coef),
+            coef_avg: same_mut(w.coef_avg),
+            weights: same_mut(w.weights),
+            prefix: same_mut(w.prefix),
+        },
+        Schedule {
+            t_total: s.t_total,
+            t_b: s.t_b,
+            tol2: U::cast(s.tol2.as_f64()),
+            half_inv_fro2: U::cast(s.half_inv_fro2.as_f64()),
+        },
+    )
 }
 
 impl<T: Real> Kernels<T> for Avx2 {
@@ -76,6 +131,18 @@ impl<T: Real> Kernels<T> for Avx2 {
         gram: &mut [T],
         resid: &mut [T],
     ) {
+        if is::<T, f32>() {
+            // The portable order (a transposed copy, then 8 × 8 tiles: one `ymm` of eight
+            // `f32` columns per row) in explicit AVX2.
+            let p = padded(m);
+            let (at32, gram32): (&mut [f32], &mut [f32]) = (same_mut(at), same_mut(gram));
+            assert!(at32.len() >= n * p && gram32.len() >= p * p);
+            crate::linalg::transpose_padded(same::<T, f32>(a), n, m, at32);
+            // SAFETY: `self` proves AVX2 support; the lengths were checked above.
+            unsafe { gram_f32(at32, n, p, gram32) };
+            crate::linalg::residual_rows(a, n, m, x, b, resid);
+            return;
+        }
         if !is_f64::<T>() {
             return Portable.gram_and_residual(a, b, x, n, m, at, gram, resid);
         }
@@ -104,35 +171,307 @@ impl<T: Real> Kernels<T> for Avx2 {
         s: Schedule<T>,
         rng: &mut ChaCha8Rng,
     ) -> (usize, bool) {
-        if !(is_f64::<T>() && self.avx512f && w.p <= LANES * MAX_CHUNKS) {
+        if w.p > LANES * MAX_CHUNKS {
             return iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng);
         }
-        let w64 = Window {
-            p: w.p,
-            resid: f64s_mut(w.resid),
-            inv_norm2: f64s(w.inv_norm2),
-            gram: f64s(w.gram),
-            coef: f64s_mut(w.coef),
-            coef_avg: f64s_mut(w.coef_avg),
-            weights: f64s_mut(w.weights),
-            prefix: f64s_mut(w.prefix),
-        };
-        let s64 = Schedule {
-            t_total: s.t_total,
-            t_b: s.t_b,
-            tol2: s.tol2.as_f64(),
-            half_inv_fro2: s.half_inv_fro2.as_f64(),
-        };
-        let (rnorm2, max_ratio) = (rnorm2.as_f64(), max_ratio.as_f64());
-        // SAFETY: `self.avx512f` says the CPU supports AVX-512F and BMI2.
+        let chunks = w.p / LANES;
+        // SAFETY: `self` proves AVX2 support, and AVX-512F with BMI2 where it says so; the
+        // casts are between identical types.
         unsafe {
-            match w.p / LANES {
-                1 => iterate_avx512::<1, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                2 => iterate_avx512::<2, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                3 => iterate_avx512::<3, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
-                _ => iterate_avx512::<4, AVERAGE>(w64, rnorm2, max_ratio, s64, rng),
+            if is::<T, f64>() {
+                let (w, s) = same_window::<T, f64>(w, s);
+                let (rnorm2, max_ratio) = (rnorm2.as_f64(), max_ratio.as_f64());
+                if self.avx512f {
+                    match chunks {
+                        1 => iterate_avx512::<1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        2 => iterate_avx512::<2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        3 => iterate_avx512::<3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                        _ => iterate_avx512::<4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+                    }
+                } else {
+                    iterate_avx2::<F64x8, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng)
+                }
+            } else if is::<T, f32>() {
+                let (w, s) = same_window::<T, f32>(w, s);
+                let (rnorm2, max_ratio) = (rnorm2.as_f64() as f32, max_ratio.as_f64() as f32);
+                iterate_avx2::<F32x8, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng)
+            } else {
+                iterate_portable::<T, AVERAGE>(w, rnorm2, max_ratio, s, rng)
             }
         }
+    }
+}
+
+/// [`iterate_chunks`] compiled for AVX2, for a window of `chunks ≤ 4` chunks.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn iterate_avx2<V: Lanes8, const AVERAGE: bool>(
+    chunks: usize,
+    w: Window<'_, V::T>,
+    rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    // SAFETY: compiled for AVX2, which `V`'s instructions need.
+    unsafe { iterate_any::<V, AVERAGE>(chunks, w, rnorm2, max_ratio, s, rng) }
+}
+
+/// Eight `f64` lanes as two AVX `ymm` registers (lanes 0–3, 4–7).
+#[derive(Clone, Copy)]
+struct F64x8(__m256d, __m256d);
+
+/// Eight `f32` lanes in one AVX `ymm` register.
+#[derive(Clone, Copy)]
+struct F32x8(__m256);
+
+// SAFETY (every block in the two implementations): they are only called from functions
+// compiled for AVX2 (`iterate_avx2`), and pointers are the callers' promise.
+impl Lanes8 for F64x8 {
+    type T = f64;
+    #[inline(always)]
+    unsafe fn load(p: *const f64) -> Self {
+        unsafe { Self(_mm256_loadu_pd(p), _mm256_loadu_pd(p.add(4))) }
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f64) {
+        unsafe {
+            _mm256_storeu_pd(p, self.0);
+            _mm256_storeu_pd(p.add(4), self.1);
+        }
+    }
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        unsafe { Self(_mm256_set1_pd(x), _mm256_set1_pd(x)) }
+    }
+    #[inline(always)]
+    fn first(self) -> f64 {
+        unsafe { _mm256_cvtsd_f64(self.0) }
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        unsafe { Self(_mm256_add_pd(self.0, o.0), _mm256_add_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        unsafe { Self(_mm256_sub_pd(self.0, o.0), _mm256_sub_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        unsafe { Self(_mm256_mul_pd(self.0, o.0), _mm256_mul_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        unsafe { Self(_mm256_and_pd(self.0, o.0), _mm256_and_pd(self.1, o.1)) }
+    }
+    #[inline(always)]
+    fn max_onto(self, best: Self) -> Self {
+        // MAXPD returns its second operand when they are unordered or equal.
+        unsafe { Self(_mm256_max_pd(self.0, best.0), _mm256_max_pd(self.1, best.1)) }
+    }
+    #[inline(always)]
+    fn select_ge(self, t: Self, v: Self) -> Self {
+        unsafe {
+            Self(
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0), v.0),
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1), v.1),
+            )
+        }
+    }
+    #[inline(always)]
+    fn gt_mask(self, t: Self) -> Self {
+        unsafe {
+            Self(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, t.0),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1),
+            )
+        }
+    }
+    #[inline(always)]
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        unsafe {
+            let (mut lo, mut hi) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+            for (c, m) in masks.iter().enumerate() {
+                let bits = LANE_MAJOR_U64[c].as_ptr().cast::<f64>();
+                lo = _mm256_or_pd(lo, _mm256_and_pd(m.0, _mm256_loadu_pd(bits)));
+                hi = _mm256_or_pd(hi, _mm256_and_pd(m.1, _mm256_loadu_pd(bits.add(4))));
+            }
+            let x = _mm256_castpd_si256(_mm256_or_pd(lo, hi));
+            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
+            _mm_cvtsi128_si64(_mm_or_si128(y, _mm_unpackhi_epi64(y, y))) as u32
+        }
+    }
+    #[inline(always)]
+    fn shift<const D: usize>(self) -> Self {
+        unsafe {
+            let (lo, hi) = (self.0, self.1);
+            match D {
+                1 => {
+                    // (0, 0, lo0, lo1) and (lo2, lo3, hi0, hi1), then odd lanes from the
+                    // unshifted halves: (0, lo0, lo1, lo2) and (lo3, hi0, hi1, hi2).
+                    let a = _mm256_permute2f128_pd::<0x08>(lo, lo);
+                    let b = _mm256_permute2f128_pd::<0x21>(lo, hi);
+                    Self(
+                        _mm256_shuffle_pd::<0b0101>(a, lo),
+                        _mm256_shuffle_pd::<0b0101>(b, hi),
+                    )
+                }
+                2 => Self(
+                    _mm256_permute2f128_pd::<0x08>(lo, lo),
+                    _mm256_permute2f128_pd::<0x21>(lo, hi),
+                ),
+                _ => Self(_mm256_setzero_pd(), lo),
+            }
+        }
+    }
+    #[inline(always)]
+    fn broadcast_last(self) -> Self {
+        unsafe {
+            let x = _mm256_permute4x64_pd::<0xff>(self.1);
+            Self(x, x)
+        }
+    }
+    #[inline(always)]
+    fn sum_all(self) -> Self {
+        unsafe {
+            let t = _mm256_add_pd(self.0, self.1);
+            let u = _mm256_add_pd(t, _mm256_permute2f128_pd::<0x01>(t, t));
+            let v = _mm256_add_pd(u, _mm256_permute_pd::<0b0101>(u));
+            Self(v, v)
+        }
+    }
+    #[inline(always)]
+    fn max_all(self) -> Self {
+        unsafe {
+            let t = _mm256_max_pd(self.0, self.1);
+            let u = _mm256_max_pd(t, _mm256_permute2f128_pd::<0x01>(t, t));
+            let v = _mm256_max_pd(u, _mm256_permute_pd::<0b0101>(u));
+            Self(v, v)
+        }
+    }
+    #[inline(always)]
+    fn keep_table() -> &'static [f64; KEEP_LEN] {
+        &KEEP_F64
+    }
+}
+
+impl Lanes8 for F32x8 {
+    type T = f32;
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        unsafe { Self(_mm256_loadu_ps(p)) }
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f32) {
+        unsafe { _mm256_storeu_ps(p, self.0) }
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        unsafe { Self(_mm256_set1_ps(x)) }
+    }
+    #[inline(always)]
+    fn first(self) -> f32 {
+        unsafe { _mm256_cvtss_f32(self.0) }
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        unsafe { Self(_mm256_add_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        unsafe { Self(_mm256_sub_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        unsafe { Self(_mm256_mul_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        unsafe { Self(_mm256_and_ps(self.0, o.0)) }
+    }
+    #[inline(always)]
+    fn max_onto(self, best: Self) -> Self {
+        // MAXPS returns its second operand when they are unordered or equal.
+        unsafe { Self(_mm256_max_ps(self.0, best.0)) }
+    }
+    #[inline(always)]
+    fn select_ge(self, t: Self, v: Self) -> Self {
+        unsafe { Self(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0), v.0)) }
+    }
+    #[inline(always)]
+    fn gt_mask(self, t: Self) -> Self {
+        unsafe { Self(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) }
+    }
+    #[inline(always)]
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
+        self.gt_mask(t).and(prefix.gt_mask(target))
+    }
+    #[inline(always)]
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        unsafe {
+            let mut acc = _mm256_setzero_ps();
+            for (c, m) in masks.iter().enumerate() {
+                let bits = _mm256_loadu_ps(LANE_MAJOR_U32[c].as_ptr().cast::<f32>());
+                acc = _mm256_or_ps(acc, _mm256_and_ps(m.0, bits));
+            }
+            let x = _mm256_castps_si256(acc);
+            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
+            let z = _mm_or_si128(y, _mm_unpackhi_epi64(y, y));
+            _mm_cvtsi128_si32(_mm_or_si128(z, _mm_srli_epi64::<32>(z))) as u32
+        }
+    }
+    #[inline(always)]
+    fn shift<const D: usize>(self) -> Self {
+        unsafe {
+            let x = _mm256_castps_si256(self.0);
+            // (0, 0, 0, 0, x0, x1, x2, x3); then each 128-bit half takes its own lanes
+            // shifted up by D with the lanes below from the half before it.
+            let below = _mm256_permute2x128_si256::<0x08>(x, x);
+            let y = match D {
+                1 => _mm256_alignr_epi8::<12>(x, below),
+                2 => _mm256_alignr_epi8::<8>(x, below),
+                _ => below,
+            };
+            Self(_mm256_castsi256_ps(y))
+        }
+    }
+    #[inline(always)]
+    fn broadcast_last(self) -> Self {
+        unsafe { Self(_mm256_permutevar8x32_ps(self.0, _mm256_set1_epi32(7))) }
+    }
+    #[inline(always)]
+    fn sum_all(self) -> Self {
+        unsafe {
+            let t = _mm_add_ps(
+                _mm256_castps256_ps128(self.0),
+                _mm256_extractf128_ps::<1>(self.0),
+            );
+            let u = _mm_add_ps(t, _mm_movehl_ps(t, t));
+            let v = _mm_add_ss(u, _mm_shuffle_ps::<0b01>(u, u));
+            Self(_mm256_broadcastss_ps(v))
+        }
+    }
+    #[inline(always)]
+    fn max_all(self) -> Self {
+        unsafe {
+            let t = _mm_max_ps(
+                _mm256_castps256_ps128(self.0),
+                _mm256_extractf128_ps::<1>(self.0),
+            );
+            let u = _mm_max_ps(t, _mm_movehl_ps(t, t));
+            let v = _mm_max_ss(u, _mm_shuffle_ps::<0b01>(u, u));
+            Self(_mm256_broadcastss_ps(v))
+        }
+    }
+    #[inline(always)]
+    fn keep_table() -> &'static [f32; KEEP_LEN] {
+        &KEEP_F32
     }
 }
 
@@ -360,7 +699,10 @@ unsafe fn gram_panel_avx512(
     }
 }
 
-/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles.
+/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles; in the
+/// diagonal block, the lower four rows only right of its 4 × 4 split (a 4 × 4 tile), their
+/// left quarter being the upper-right one transposed (`a_i·a_j` and `a_j·a_i` are the same
+/// products summed in the same order: the same bits).
 ///
 /// # Safety
 /// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
@@ -379,38 +721,198 @@ unsafe fn gram_panel_avx2(
     prefetch_spread(next, n);
     let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
     let mut bi = 0;
-    while bi < bj + PANEL {
+    while bi <= bj {
         let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
         // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
         // columns < p of `gram` (bi + 4 ≤ p, bj + 8 ≤ p).
         unsafe {
-            let mut c = [_mm256_setzero_pd(); 8];
-            for k in 0..n {
-                let v0 = _mm256_loadu_pd(v.add(k * PANEL));
-                let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
-                for s in 0..4 {
-                    let u = _mm256_set1_pd(*rows[s].add(k));
-                    c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
-                    c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
-                }
-            }
+            let c = tile_4x8(rows, v, n);
             for s in 0..4 {
                 _mm256_storeu_pd(g.add((bi + s) * p + bj), c[2 * s]);
                 _mm256_storeu_pd(g.add((bi + s) * p + bj + 4), c[2 * s + 1]);
             }
-            // Off the diagonal block, the mirror image: rows bj..bj+8, columns bi..bi+4
-            // (inside it, the two tiles of the block already cover every entry).
-            if bi < bj {
-                for h in 0..2 {
-                    let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
-                    for (l, tl) in t.iter().enumerate() {
-                        _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
-                    }
+            // The mirror image: rows bj..bj+8, columns bi..bi+4 (in the diagonal block only
+            // rows bj+4..bj+8, the upper tile's right half).
+            for h in usize::from(bi == bj)..2 {
+                let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
+                for (l, tl) in t.iter().enumerate() {
+                    _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
                 }
             }
         }
         bi += 4;
     }
+    // The diagonal block's lower-right quarter.
+    let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bj + 4 + s));
+    // SAFETY: as above, with panel columns 4..8.
+    unsafe {
+        let c = tile_4x4(rows, v.add(4), n);
+        for (s, cs) in c.iter().enumerate() {
+            _mm256_storeu_pd(g.add((bj + 4 + s) * p + bj + 4), *cs);
+        }
+    }
+}
+
+/// `c[2s + h][l] = Σ_k rows[s][k] · v[8k + 4h + l]`, summed in order of `k` (multiply, then
+/// add; the loop is unrolled by four without changing the order).
+///
+/// # Safety
+/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n`.
+#[inline(always)]
+unsafe fn tile_4x8(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 8] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut c = [_mm256_setzero_pd(); 8];
+        let mut k = 0;
+        while k + 4 <= n {
+            step_4x8(&mut c, rows, v, k);
+            step_4x8(&mut c, rows, v, k + 1);
+            step_4x8(&mut c, rows, v, k + 2);
+            step_4x8(&mut c, rows, v, k + 3);
+            k += 4;
+        }
+        while k < n {
+            step_4x8(&mut c, rows, v, k);
+            k += 1;
+        }
+        c
+    }
+}
+
+/// One `k` of [`tile_4x8`].
+///
+/// # Safety
+/// As [`tile_4x8`], with `k < n`.
+#[inline(always)]
+unsafe fn step_4x8(c: &mut [__m256d; 8], rows: [*const f64; 4], v: *const f64, k: usize) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let v0 = _mm256_loadu_pd(v.add(k * PANEL));
+        let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
+        for s in 0..4 {
+            let u = _mm256_set1_pd(*rows[s].add(k));
+            c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
+            c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
+        }
+    }
+}
+
+/// `c[s][l] = Σ_k rows[s][k] · v[8k + l]`, summed in order of `k` (as [`tile_4x8`]).
+///
+/// # Safety
+/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n − 4`.
+#[inline(always)]
+unsafe fn tile_4x4(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 4] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut c = [_mm256_setzero_pd(); 4];
+        let mut k = 0;
+        while k + 4 <= n {
+            step_4x4(&mut c, rows, v, k);
+            step_4x4(&mut c, rows, v, k + 1);
+            step_4x4(&mut c, rows, v, k + 2);
+            step_4x4(&mut c, rows, v, k + 3);
+            k += 4;
+        }
+        while k < n {
+            step_4x4(&mut c, rows, v, k);
+            k += 1;
+        }
+        c
+    }
+}
+
+/// One `k` of [`tile_4x4`].
+///
+/// # Safety
+/// As [`tile_4x4`], with `k < n`.
+#[inline(always)]
+unsafe fn step_4x4(c: &mut [__m256d; 4], rows: [*const f64; 4], v: *const f64, k: usize) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let vk = _mm256_loadu_pd(v.add(k * PANEL));
+        for (s, cs) in c.iter_mut().enumerate() {
+            let u = _mm256_set1_pd(*rows[s].add(k));
+            *cs = _mm256_add_pd(_mm256_mul_pd(u, vk), *cs);
+        }
+    }
+}
+
+/// `G = A Aᵀ` for `f32` from the transposed window `at` (`n × p`, stride `p`, zero in the
+/// padding columns): for each block pair `I ≤ J` of eight rows, an 8 × 8 tile (eight `ymm`
+/// accumulators, one per row of `I`), each entry summed in order of `k` (multiply, then add)
+/// as `gram_transposed` does, stored with its mirror image `G[J, I]` (the same products in
+/// the same order: the same bits).
+///
+/// # Safety
+/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
+/// of 8.
+#[target_feature(enable = "avx2")]
+unsafe fn gram_f32(at: &[f32], n: usize, p: usize, gram: &mut [f32]) {
+    let (t, g) = (at.as_ptr(), gram.as_mut_ptr());
+    let mut bj = 0;
+    while bj < p {
+        let mut bi = 0;
+        while bi <= bj {
+            // SAFETY: reads `at` below n · p, writes `gram` below p · p (bi, bj + 8 ≤ p).
+            unsafe {
+                let mut c = [_mm256_setzero_ps(); 8];
+                for k in 0..n {
+                    let row = t.add(k * p);
+                    let v = _mm256_loadu_ps(row.add(bj));
+                    for (s, cs) in c.iter_mut().enumerate() {
+                        let u = _mm256_set1_ps(*row.add(bi + s));
+                        *cs = _mm256_add_ps(_mm256_mul_ps(u, v), *cs);
+                    }
+                }
+                for (s, cs) in c.iter().enumerate() {
+                    _mm256_storeu_ps(g.add((bi + s) * p + bj), *cs);
+                }
+                if bi < bj {
+                    for (l, tl) in transpose8_ps(c).iter().enumerate() {
+                        _mm256_storeu_ps(g.add((bj + l) * p + bi), *tl);
+                    }
+                }
+            }
+            bi += 8;
+        }
+        bj += 8;
+    }
+}
+
+/// The transpose of an 8 × 8 block of `f32` held as eight row vectors.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transpose8_ps(r: [__m256; 8]) -> [__m256; 8] {
+    // Pairs of rows interleaved, then pairs of pairs, then the 128-bit halves.
+    let t: [__m256; 8] = core::array::from_fn(|q| {
+        let (a, b) = (r[2 * (q / 2)], r[2 * (q / 2) + 1]);
+        if q % 2 == 0 {
+            _mm256_unpacklo_ps(a, b)
+        } else {
+            _mm256_unpackhi_ps(a, b)
+        }
+    });
+    let u: [__m256; 8] = [
+        _mm256_shuffle_ps::<0x44>(t[0], t[2]),
+        _mm256_shuffle_ps::<0xee>(t[0], t[2]),
+        _mm256_shuffle_ps::<0x44>(t[1], t[3]),
+        _mm256_shuffle_ps::<0xee>(t[1], t[3]),
+        _mm256_shuffle_ps::<0x44>(t[4], t[6]),
+        _mm256_shuffle_ps::<0xee>(t[4], t[6]),
+        _mm256_shuffle_ps::<0x44>(t[5], t[7]),
+        _mm256_shuffle_ps::<0xee>(t[5], t[7]),
+    ];
+    [
+        _mm256_permute2f128_ps::<0x20>(u[0], u[4]),
+        _mm256_permute2f128_ps::<0x20>(u[1], u[5]),
+        _mm256_permute2f128_ps::<0x20>(u[2], u[6]),
+        _mm256_permute2f128_ps::<0x20>(u[3], u[7]),
+        _mm256_permute2f128_ps::<0x31>(u[0], u[4]),
+        _mm256_permute2f128_ps::<0x31>(u[1], u[5]),
+        _mm256_permute2f128_ps::<0x31>(u[2], u[6]),
+        _mm256_permute2f128_ps::<0x31>(u[3], u[7]),
+    ]
 }
 
 /// The transpose of an 8 × 8 block held as eight row vectors.
@@ -634,9 +1136,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
 /// Every fourth bit: `pdep` spreads a chunk's 8 lane bits to bits `4l + c`.
 const LANE_MAJOR: u32 = 0x1111_1111;
 
-/// Chunks a window may have for [`iterate_avx512`] (`p ≤ 32`, windows of up to 32 rows).
-const MAX_CHUNKS: usize = 4;
-
 /// The in-chunk prefix sums of the documented order: `x_l ← x_l + x_{l−d}` for `d = 1, 2, 4`,
 /// each shift one lane permutation with zeroing (cheaper on Zen 4 than `valignq`, which the
 /// compiler turns into `vexpandpd`).
@@ -654,6 +1153,27 @@ fn scan8(x: __m512d) -> __m512d {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f32_transpose_is_a_transpose() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let rows: [__m256; 8] = core::array::from_fn(|r| {
+            let v: [f32; 8] = core::array::from_fn(|c| (10 * r + c) as f32);
+            // SAFETY: reads eight f32 from an array of eight (AVX2 detected above).
+            unsafe { _mm256_loadu_ps(v.as_ptr()) }
+        });
+        // SAFETY: AVX2 detected above.
+        let t = unsafe { transpose8_ps(rows) };
+        for (c, tc) in t.iter().enumerate() {
+            let mut out = [0.0f32; 8];
+            // SAFETY: writes eight f32 into an array of eight.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), *tc) };
+            let want: [f32; 8] = core::array::from_fn(|r| (10 * r + c) as f32);
+            assert_eq!(out, want, "column {c}");
+        }
+    }
 
     #[test]
     fn transposes_are_transposes() {

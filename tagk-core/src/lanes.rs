@@ -1,0 +1,309 @@
+//! The greedy loop of [`crate::greedy::iterate_portable`] written once over chunks of eight
+//! lanes ([`Lanes8`]), for the SIMD units without AVX-512's masks and 512-bit registers: AVX2
+//! (`f64` as two `ymm`, `f32` as one) and NEON (`f64` as four `q` registers, `f32` as two).
+//!
+//! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy` module),
+//! so every operation below is one of the portable loop's, lane for lane, in the same order:
+//! separate multiplies and adds (never fused), the same sums in the same association, the
+//! same comparisons. The squares `r_j²`, ratios `r_j²/‖a_j‖²` and reciprocal norms of a
+//! window of up to 32 rows stay in registers (or the compiler's spill slots) across the
+//! iterations, the residual is stored once per iteration and read once by the next update,
+//! and the row choice is a bit scan over lane masks instead of a search through memory.
+
+use rand_chacha::ChaCha8Rng;
+
+use crate::Real;
+use crate::greedy::{Draws, LANES, Schedule, Window, argmax_ratio};
+
+/// Chunks a window may have for [`iterate_chunks`] (`p ≤ 32`, windows of up to 32 rows).
+pub(crate) const MAX_CHUNKS: usize = 4;
+
+/// Entries of a [`Lanes8::keep_table`]: all-ones bit patterns except a zero at
+/// [`KEEP_ZERO`], so that the eight entries from `KEEP_ZERO − i + 8c` mask out lane `i` of
+/// chunk `c` and nothing else.
+pub(crate) const KEEP_LEN: usize = 2 * LANES * MAX_CHUNKS;
+/// Where the zero of a keep table sits.
+pub(crate) const KEEP_ZERO: usize = LANES * MAX_CHUNKS;
+
+/// A keep table of `f64` (see [`KEEP_LEN`]): `r & keep` zeroes one lane exactly (`+0`).
+pub(crate) static KEEP_F64: [f64; KEEP_LEN] = {
+    let mut t = [f64::from_bits(u64::MAX); KEEP_LEN];
+    t[KEEP_ZERO] = 0.0;
+    t
+};
+/// A keep table of `f32` (see [`KEEP_LEN`]).
+pub(crate) static KEEP_F32: [f32; KEEP_LEN] = {
+    let mut t = [f32::from_bits(u32::MAX); KEEP_LEN];
+    t[KEEP_ZERO] = 0.0;
+    t
+};
+
+/// `LANE_MAJOR_U64[c][l] = 1 << (4l + c)`: the bit of row `8c + l` in lane-major order, for
+/// [`Lanes8::lane_major_bits`] of 64-bit lanes (AND with a lane mask, OR across chunks).
+pub(crate) static LANE_MAJOR_U64: [[u64; LANES]; MAX_CHUNKS] = {
+    let mut t = [[0u64; LANES]; MAX_CHUNKS];
+    let mut c = 0;
+    while c < MAX_CHUNKS {
+        let mut l = 0;
+        while l < LANES {
+            t[c][l] = 1 << (4 * l + c);
+            l += 1;
+        }
+        c += 1;
+    }
+    t
+};
+/// [`LANE_MAJOR_U64`] for 32-bit lanes.
+pub(crate) static LANE_MAJOR_U32: [[u32; LANES]; MAX_CHUNKS] = {
+    let mut t = [[0u32; LANES]; MAX_CHUNKS];
+    let mut c = 0;
+    while c < MAX_CHUNKS {
+        let mut l = 0;
+        while l < LANES {
+            t[c][l] = 1 << (4 * l + c);
+            l += 1;
+        }
+        c += 1;
+    }
+    t
+};
+
+/// Eight lanes of a SIMD unit. Every method is a lane-wise IEEE-754 operation (or a bit
+/// operation) with the semantics written next to it; implementations must be
+/// `#[inline(always)]` and are only ever called from functions compiled for the instruction
+/// set they use.
+pub(crate) trait Lanes8: Copy {
+    /// The scalar of a lane.
+    type T: Real;
+
+    /// Eight scalars from `p`.
+    ///
+    /// # Safety
+    /// `p` must be valid for reading eight scalars.
+    unsafe fn load(p: *const Self::T) -> Self;
+    /// Eight scalars to `p`.
+    ///
+    /// # Safety
+    /// `p` must be valid for writing eight scalars.
+    unsafe fn store(self, p: *mut Self::T);
+    /// `x` in every lane.
+    fn splat(x: Self::T) -> Self;
+    /// Lane 0.
+    fn first(self) -> Self::T;
+    /// `self + o`.
+    fn add(self, o: Self) -> Self;
+    /// `self − o`.
+    fn sub(self, o: Self) -> Self;
+    /// `self · o`.
+    fn mul(self, o: Self) -> Self;
+    /// Bitwise `self & o` (with a keep table's entries: lanes kept or set to `+0`).
+    fn and(self, o: Self) -> Self;
+    /// `if self > best { self } else { best }` (so a NaN in `self` keeps `best`).
+    fn max_onto(self, best: Self) -> Self;
+    /// `v` where `self ≥ t`, else `+0` (false on NaN).
+    fn select_ge(self, t: Self, v: Self) -> Self;
+    /// All-ones lanes where `self > t`, zero elsewhere (false on NaN).
+    fn gt_mask(self, t: Self) -> Self;
+    /// All-ones lanes where `self > t` and `prefix > target`, zero elsewhere (false on NaN).
+    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self;
+    /// The lane masks of `C` chunks as bits in lane-major order: bit `4l + c` set when lane
+    /// `l` of `masks[c]` is (see [`LANE_MAJOR_U64`]).
+    fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
+    /// Lane `l` takes lane `l − D` (`D ∈ {1, 2, 4}`), lanes below `D` take `+0`.
+    fn shift<const D: usize>(self) -> Self;
+    /// Lane 7 in every lane.
+    fn broadcast_last(self) -> Self;
+    /// In every lane: `t_l = x_l + x_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)` (the documented sum).
+    fn sum_all(self) -> Self;
+    /// In every lane: the largest lane (no lane may be NaN).
+    fn max_all(self) -> Self;
+    /// The keep table of this scalar.
+    fn keep_table() -> &'static [Self::T; KEEP_LEN];
+}
+
+/// The documented in-chunk scan `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4`. Lanes below `d` add
+/// `+0` instead of nothing, which changes no bit: they hold sums of weights, never `−0`.
+#[inline(always)]
+fn scan8<V: Lanes8>(x: V) -> V {
+    let x = x.add(x.shift::<1>());
+    let x = x.add(x.shift::<2>());
+    x.add(x.shift::<4>())
+}
+
+/// The greedy loop of [`crate::greedy::iterate_portable`] on a window of `p = 8C ≤ 32` rows
+/// held in chunks of [`Lanes8`]: the same operations in the same order, the same bits.
+///
+/// # Safety
+/// Must be inlined into a function compiled for `V`'s instruction set.
+#[inline(always)]
+pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bool>(
+    w: Window<'_, V::T>,
+    mut rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    let p = LANES * C;
+    assert!(
+        C <= MAX_CHUNKS
+            && w.p == p
+            && w.resid.len() >= p
+            && w.inv_norm2.len() >= p
+            && w.gram.len() >= p * p
+            && w.coef.len() >= p
+            && w.coef_avg.len() >= p
+    );
+    let (rp, ip, gp) = (w.resid.as_mut_ptr(), w.inv_norm2.as_ptr(), w.gram.as_ptr());
+    let keep = V::keep_table().as_ptr();
+    // SAFETY (every pointer access below): below p entries of the residual and the reciprocal
+    // norms, below p² of the Gram matrix, below KEEP_LEN of the keep table (checked above).
+    // Squares r_j² and ratios r_j²/‖a_j‖² of the current residual; the residual itself lives
+    // in memory (stored every iteration, read once per iteration by the update).
+    // (Loops, not `array::from_fn`: a closure the compiler leaves out of line is not compiled
+    // for the SIMD instruction set.)
+    let zero = V::splat(V::T::cast(0.0));
+    let (mut sq, mut inv, mut ratio) = ([zero; C], [zero; C], [zero; C]);
+    for c in 0..C {
+        let r = unsafe { V::load(rp.add(LANES * c)) };
+        sq[c] = r.mul(r);
+        inv[c] = unsafe { V::load(ip.add(LANES * c)) };
+        ratio[c] = sq[c].mul(inv[c]);
+    }
+    let half = V::splat(V::T::cast(0.5));
+    let half_inv_fro2 = V::splat(s.half_inv_fro2);
+
+    let mut sum_v = V::splat(rnorm2);
+    let mut max_v = V::splat(max_ratio);
+    let mut draws = Draws::new(rng, s.t_total);
+    let mut iterations = 0;
+    let mut converged = rnorm2 <= s.tol2;
+    while !converged && iterations < s.t_total {
+        iterations += 1;
+        // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
+        let threshold = max_v.mul(half).add(sum_v.mul(half_inv_fro2));
+        // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
+        // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
+        // candidate's weight can be zero when θ underflows to zero).
+        let mut weights = [zero; C];
+        for c in 0..C {
+            weights[c] = ratio[c].select_ge(threshold, sq[c]);
+        }
+        let mut down = weights;
+        for c in 1..C {
+            down[c] = down[c - 1].add(weights[c]);
+        }
+        let across = scan8(down[C - 1]);
+        let before = across.shift::<1>();
+        let total = across.broadcast_last();
+        let mut chosen = None;
+        if total.first() > V::T::cast(0.0) {
+            let target = V::splat(V::T::cast(draws.next())).mul(total);
+            // Bits in lane-major order (bit 4l + c for row 8c + l).
+            let mut hits = [zero; C];
+            for c in 0..C {
+                hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
+            }
+            let hit = V::lane_major_bits(&hits);
+            let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
+            chosen = if hit != 0 {
+                Some(row(hit.trailing_zeros()))
+            } else {
+                // Round-off: the last candidate in lane-major order.
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    positive[c] = weights[c].gt_mask(zero);
+                }
+                let positive = V::lane_major_bits(&positive);
+                (positive != 0).then(|| row(31 - positive.leading_zeros()))
+            };
+        }
+        // The residual in memory is the current one (stored every iteration).
+        // SAFETY: p entries of each, and no other live reference to the residual.
+        let i = match chosen {
+            Some(i) => i,
+            None => unsafe { argmax_in_memory(rp, ip, p) },
+        };
+        // SAFETY: i < p.
+        let alpha = unsafe { *rp.add(i) * *ip.add(i) };
+        w.coef[i] += alpha;
+        if AVERAGE {
+            // In the burn-in the weight is (T − t_b)/(T − t_b) = 1 exactly, and α · 1 = α:
+            // the division is skipped, not the bits.
+            w.coef_avg[i] += if iterations > s.t_b {
+                alpha * s.weight(iterations)
+            } else {
+                alpha
+            };
+        }
+        // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual: squares summed
+        // chunk by chunk into eight lane sums (the first chunk's squares are the sums:
+        // 0 + x = x, squares are never −0), then across the lanes.
+        let a = V::splat(alpha);
+        // SAFETY: row i < p of the Gram matrix; KEEP_ZERO − i + 8c + 8 ≤ KEEP_LEN.
+        let (g, k) = unsafe { (gp.add(i * p), keep.add(KEEP_ZERO - i)) };
+        let mut sum = zero;
+        let mut best = zero;
+        for c in 0..C {
+            // SAFETY: as above.
+            let v = unsafe {
+                let v = V::load(rp.add(LANES * c))
+                    .sub(a.mul(V::load(g.add(LANES * c))))
+                    .and(V::load(k.add(LANES * c)));
+                v.store(rp.add(LANES * c));
+                v
+            };
+            sq[c] = v.mul(v);
+            ratio[c] = sq[c].mul(inv[c]);
+            best = ratio[c].max_onto(best);
+            sum = if c == 0 { sq[c] } else { sum.add(sq[c]) };
+        }
+        sum_v = sum.sum_all();
+        max_v = best.max_all();
+        rnorm2 = sum_v.first();
+        converged = rnorm2 <= s.tol2;
+    }
+    draws.finish();
+    (iterations, converged)
+}
+
+/// [`argmax_ratio`] over the residual and reciprocal norms in memory, out of line: the loop
+/// calls it only when every weight is zero, and inlined the compiler would keep copies of the
+/// residual's lanes ready for it on every iteration.
+///
+/// # Safety
+/// `r` and `inv_norm2` must be valid for reading `p` scalars, and not written meanwhile.
+#[cold]
+#[inline(never)]
+unsafe fn argmax_in_memory<T: Real>(r: *const T, inv_norm2: *const T, p: usize) -> usize {
+    // SAFETY: the caller's promise.
+    unsafe {
+        argmax_ratio(
+            core::slice::from_raw_parts(r, p),
+            core::slice::from_raw_parts(inv_norm2, p),
+        )
+    }
+}
+
+/// [`iterate_chunks`] for a window of `chunks ≤ 4` chunks.
+///
+/// # Safety
+/// As [`iterate_chunks`].
+#[inline(always)]
+pub(crate) unsafe fn iterate_any<V: Lanes8, const AVERAGE: bool>(
+    chunks: usize,
+    w: Window<'_, V::T>,
+    rnorm2: V::T,
+    max_ratio: V::T,
+    s: Schedule<V::T>,
+    rng: &mut ChaCha8Rng,
+) -> (usize, bool) {
+    // SAFETY: the caller's promise.
+    unsafe {
+        match chunks {
+            1 => iterate_chunks::<V, 1, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            2 => iterate_chunks::<V, 2, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            3 => iterate_chunks::<V, 3, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+            _ => iterate_chunks::<V, 4, AVERAGE>(w, rnorm2, max_ratio, s, rng),
+        }
+    }
+}
