@@ -239,6 +239,18 @@ pub(crate) fn diagnose_against(
     assemble(model, s, opts, floor, fit, missing)
 }
 
+/// [`diagnose_against`] with the model's fit already at hand (a new floor, the same fit).
+pub(crate) fn diagnose_with_fit(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+    fit: Fit,
+) -> Result<Diagnosis, DiagnoseError> {
+    let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
+    assemble(model, s, opts, floor, fit, missing)
+}
+
 /// The diagnosis from a model's fit and its judged ranking: where it fails, the parameters,
 /// the verdict.
 fn assemble(

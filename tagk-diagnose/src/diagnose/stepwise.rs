@@ -21,6 +21,7 @@ use crate::diagnose::{
 use crate::error::DiagnoseError;
 use crate::fit::{Coefficient, Model};
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
+use tagk_dynamics::EffectKind;
 
 /// One channel of one step.
 #[derive(Debug, Clone, Serialize)]
@@ -128,7 +129,11 @@ pub fn discover_from(
             // The floor was measured from the starting model: candidates implausible then
             // (a drag whose vertical coefficient soaked up an unmodelled lag) may be plausible
             // now. Measure it again from here; a lower floor reopens the search.
-            if floor.source == FloorSource::Data && floor_updates < 2 && !added.is_empty() {
+            if floor.source == FloorSource::Data
+                && floor_updates < 2
+                && !added.is_empty()
+                && new_family_plausible(current, &floor)
+            {
                 floor_updates += 1;
                 let again = noise_floor(&model, s, opts, &current.fit, &current.ranking)?;
                 if (0..6).any(|c| again.rms[c] < (1.0 - FLOOR_MARGIN) * floor.rms[c]) {
@@ -140,7 +145,9 @@ pub fn discover_from(
                         }
                     }
                     floor.saturated_model = again.saturated_model;
-                    let rejudged = diagnose_against(&model, s, opts, &floor)?;
+                    let fit = current.fit.clone();
+                    let rejudged =
+                        crate::diagnose::diagnose_with_fit(&model, s, opts, &floor, fit)?;
                     let last = diagnoses.len() - 1;
                     diagnoses[last] = rejudged;
                     continue;
@@ -249,6 +256,28 @@ pub fn discover_from(
     })
 }
 
+/// `true` when a candidate plausible now belongs to an effect family that the floor's
+/// saturated model lacks: only then can measuring the floor again lower it.
+fn new_family_plausible(current: &Diagnosis, floor: &NoiseFloor) -> bool {
+    let family = |name: &str| {
+        EffectKind::from_name(name).map_or_else(|| name.to_string(), |k| k.family().to_string())
+    };
+    let mut covered: Vec<String> = floor.saturated_model.iter().map(|n| family(n)).collect();
+    // A wind carries its drag.
+    if floor
+        .saturated_model
+        .iter()
+        .any(|n| EffectKind::from_name(n).is_some_and(EffectKind::includes_drag))
+    {
+        covered.push(EffectKind::LinearDrag.family().to_string());
+    }
+    current
+        .ranking
+        .iter()
+        .filter(|c| c.plausible)
+        .any(|c| !covered.contains(&family(&c.effect)))
+}
+
 /// Among the effects of the floor's saturated model not yet in `model`, the one whose full
 /// refit (every scan redone) qualifies and lowers the held-out residual most: plausible in the
 /// refit, the rigid body's mass within [`crate::MAX_MASS_CHANGE`], no channel worsened
@@ -261,7 +290,7 @@ fn best_by_refit(
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
 ) -> Result<Option<(String, Diagnosis)>, DiagnoseError> {
-    let mut best: Option<(f64, String, Diagnosis)> = None;
+    let mut best: Option<(f64, String, Model)> = None;
     for name in &floor.saturated_model {
         if model.has(name) {
             continue;
@@ -270,35 +299,34 @@ fn best_by_refit(
             continue;
         };
         let trial = model.clone().with_ref(effect.clone());
-        let next = diagnose_against(&trial, s, opts, floor)?;
-        let plausible = next.effects.iter().all(|f| f.plausible);
-        let (m0, m1) = (current.parameters[0].value, next.parameters[0].value);
+        // The fit and its held-out residual first; the whole diagnosis only for a step.
+        let fit = crate::fit::fit_model(&trial, s, None)?;
+        let ev = crate::diagnose::floor::held_out_evaluation(&trial, s, &fit, opts.folds);
+        let held_out = crate::diagnose::floor::held_out_rms(&ev, &fit.weights, s.len());
+        let plausible = fit.effects.iter().all(|f| f.plausible);
+        let (m0, m1) = (current.parameters[0].value, fit.theta.mass());
         let mass_ok = crate::diagnose::sanity::mass_kept(m0, m1);
         let worse = (0..6).any(|c| {
-            crate::diagnose::ranking::worsens(
-                next.held_out_rms[c],
-                current.held_out_rms[c],
-                floor.rms[c],
-            )
+            crate::diagnose::ranking::worsens(held_out[c], current.held_out_rms[c], floor.rms[c])
         });
         let material = (0..6).any(|c| {
-            current.held_out_rms[c] - next.held_out_rms[c]
+            current.held_out_rms[c] - held_out[c]
                 >= crate::diagnose::MIN_GAIN_OF_FLOOR * floor.rms[c]
         });
         if !(plausible && mass_ok && !worse && material) {
             continue;
         }
         let gain: f64 = (0..6)
-            .map(|c| {
-                (current.held_out_rms[c].powi(2) - next.held_out_rms[c].powi(2))
-                    / floor.rms[c].powi(2)
-            })
+            .map(|c| (current.held_out_rms[c].powi(2) - held_out[c].powi(2)) / floor.rms[c].powi(2))
             .sum();
         if best.as_ref().is_none_or(|(g, _, _)| gain > *g) {
-            best = Some((gain, name.clone(), next));
+            best = Some((gain, name.clone(), trial));
         }
     }
-    Ok(best.map(|(_, name, d)| (name, d)))
+    match best {
+        None => Ok(None),
+        Some((_, name, trial)) => Ok(Some((name, diagnose_against(&trial, s, opts, floor)?))),
+    }
 }
 
 /// The staircase entry of a step's diagnosis `d` (after adding `effect`; `previous` is the

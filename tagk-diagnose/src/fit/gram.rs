@@ -54,6 +54,28 @@ impl<'a> GramEngine<'a> {
         target: Option<&[[f64; 6]]>,
         folds: usize,
     ) -> Self {
+        Self::with_stride(s, w, base, target, folds, 1)
+    }
+
+    /// An engine for a scan from the start ([`GramEngine::for_scan`] without the full-size
+    /// cross products first): no folds, every `n / SCAN_SAMPLES`-th sample.
+    pub fn new_for_scan(
+        s: &'a Signals,
+        w: &[f64; 6],
+        base: &[ColData],
+        target: Option<&[[f64; 6]]>,
+    ) -> Self {
+        Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
+    }
+
+    fn with_stride(
+        s: &'a Signals,
+        w: &[f64; 6],
+        base: &[ColData],
+        target: Option<&[[f64; 6]]>,
+        folds: usize,
+        stride: usize,
+    ) -> Self {
         let n = s.len();
         let tgt = target.unwrap_or(&s.target);
         let y: ColData =
@@ -83,7 +105,7 @@ impl<'a> GramEngine<'a> {
         }
         let mut all: Vec<&ColData> = vec![&y];
         all.extend(base.iter());
-        let base_gram = cross_tensor(&all, &all, &pieces, 1);
+        let base_gram = cross_tensor(&all, &all, &pieces, stride);
         Self {
             s,
             w: *w,
@@ -92,7 +114,7 @@ impl<'a> GramEngine<'a> {
             pieces,
             folds,
             base_gram,
-            stride: 1,
+            stride,
         }
     }
 

@@ -283,7 +283,7 @@ fn scan_parameters(
                 }
             }
         }
-        let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1).for_scan();
+        let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
         let (best, _) = scan_min(&spec.grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
             engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
