@@ -191,7 +191,7 @@ pub(crate) fn scan_min(grid: &[f64], mut f: impl FnMut(f64) -> f64) -> (f64, f64
     let mut x2 = a + r * (b - a);
     let mut f1 = f(x1);
     let mut f2 = f(x2);
-    for _ in 0..12 {
+    for _ in 0..8 {
         if f1 < f2 {
             b = x2;
             x2 = x1;

@@ -185,7 +185,7 @@ pub fn fit_model(
         // most three; one when fewer than two effects are scanned).
         for _ in 0..if scanned > 1 { 3 } else { 1 } {
             let round = params.clone();
-            scan_parameters(model, s, &rigid, &target, &w, &mut params);
+            scan_parameters(model, s, &rigid, &target, &w, &mut params, pass > 0);
             if params == round {
                 break;
             }
@@ -269,9 +269,16 @@ fn scan_parameters(
     target: &[[f64; 6]],
     w: &[f64; 6],
     params: &mut [Option<f64>],
+    near_previous: bool,
 ) {
     for (k, e) in model.effects().iter().enumerate() {
         let Some(spec) = e.scan() else { continue };
+        // After the first weighting pass a parameter only moves near where it was: the scan
+        // covers the two grid values on each side of it (and it).
+        let grid = match params[k] {
+            Some(p) if near_previous => local_grid(&spec.grid, p),
+            _ => spec.grid.clone(),
+        };
         let mut fixed: Vec<ColData> = rigid.to_vec();
         let mut shifted_target = target.to_vec();
         for (j, f) in model.effects().iter().enumerate() {
@@ -284,12 +291,24 @@ fn scan_parameters(
             }
         }
         let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
-        let (best, _) = scan_min(&spec.grid, |g| {
+        let (best, _) = scan_min(&grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
             engine.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
         });
         params[k] = Some(best);
     }
+}
+
+/// The grid values within two places of `p` in the sorted grid, and `p` itself.
+fn local_grid(grid: &[f64], p: f64) -> Vec<f64> {
+    let mut g: Vec<f64> = grid.iter().copied().filter(|x| x.is_finite()).collect();
+    g.sort_by(|a, b| a.total_cmp(b));
+    let at = g.partition_point(|x| *x < p);
+    let lo = at.saturating_sub(2);
+    let hi = (at + 2).min(g.len());
+    let mut local = g[lo..hi].to_vec();
+    local.push(p);
+    local
 }
 
 /// Subtracts `offset` (a sum of fixed columns) from per-sample values.
