@@ -204,6 +204,7 @@ pub(crate) fn noise_floor(
     opts: &DiagnoseOptions,
     start_fit: &Fit,
     alone: &[Candidate],
+    known_noise: Option<[f64; 6]>,
 ) -> Result<NoiseFloor, DiagnoseError> {
     let (saturated, fit) = saturated_fit(model, s, opts, start_fit, alone)?;
     let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
@@ -211,29 +212,11 @@ pub(crate) fn noise_floor(
     // The noise is measured on a residual whose target is the measured wrench itself: a lag
     // (a fixed column: the target becomes the lagged wrench) filters the target, which also
     // averages the wrench's measurement noise away.
-    let filters = |e: &EffectRef| EffectKind::from_name(e.name()) == Some(EffectKind::MotorLag);
-    let unfiltered_fit;
-    let noise_fit = if saturated.effects().iter().any(filters) {
-        let mut plain = Model::rigid_body();
-        if let Some(m) = model.known_mass() {
-            plain = plain.with_known_mass(m);
-        }
-        for e in saturated.effects().iter().filter(|e| !filters(e)) {
-            plain = plain.with_ref(e.clone());
-        }
-        unfiltered_fit = fit_model(&plain, s, None)?;
-        &unfiltered_fit
-    } else {
-        &fit
+    let noise_estimate = match known_noise {
+        // Measured already (the noise does not change with the model).
+        Some(n) => n,
+        None => unfiltered_noise(model, s, &saturated, &fit)?,
     };
-    let noise_estimate: [f64; 6] = std::array::from_fn(|c| {
-        let r = &noise_fit.residual;
-        if r.len() < 2 {
-            return 0.0;
-        }
-        let d2: f64 = r.windows(2).map(|w| (w[1][c] - w[0][c]).powi(2)).sum();
-        (d2 / (2.0 * (r.len() - 1) as f64)).sqrt()
-    });
     let force_rms = (s
         .wrench
         .iter()
@@ -285,4 +268,38 @@ pub(crate) fn noise_floor(
             .map(|e| e.name().to_string())
             .collect(),
     })
+}
+
+/// The high-frequency noise estimate per channel (module docs): first differences of the
+/// residual of the saturated model without a lag.
+fn unfiltered_noise(
+    model: &Model,
+    s: &Signals,
+    saturated: &Model,
+    fit: &Fit,
+) -> Result<[f64; 6], DiagnoseError> {
+    let filters = |e: &EffectRef| EffectKind::from_name(e.name()) == Some(EffectKind::MotorLag);
+    let unfiltered_fit;
+    let noise_fit = if saturated.effects().iter().any(filters) {
+        let mut plain = Model::rigid_body();
+        if let Some(m) = model.known_mass() {
+            plain = plain.with_known_mass(m);
+        }
+        for e in saturated.effects().iter().filter(|e| !filters(e)) {
+            plain = plain.with_ref(e.clone());
+        }
+        // The saturated fit's weights: one pass.
+        unfiltered_fit = fit_model(&plain, s, Some(fit.weights))?;
+        &unfiltered_fit
+    } else {
+        fit
+    };
+    Ok(std::array::from_fn(|c| {
+        let r = &noise_fit.residual;
+        if r.len() < 2 {
+            return 0.0;
+        }
+        let d2: f64 = r.windows(2).map(|w| (w[1][c] - w[0][c]).powi(2)).sum();
+        (d2 / (2.0 * (r.len() - 1) as f64)).sqrt()
+    }))
 }

@@ -222,7 +222,7 @@ pub fn diagnose(
     opts.validate_for(s.len())?;
     let fit = fit_model(model, s, None)?;
     let scored = ranking::score_candidates(model, s, &fit, opts);
-    let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking)?;
+    let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking, None)?;
     let missing = ranking::judge_scored(scored, &floor, opts);
     assemble(model, s, opts, &floor, fit, missing)
 }

@@ -135,7 +135,14 @@ pub fn discover_from(
                 && new_family_plausible(current, &floor)
             {
                 floor_updates += 1;
-                let again = noise_floor(&model, s, opts, &current.fit, &current.ranking)?;
+                let again = noise_floor(
+                    &model,
+                    s,
+                    opts,
+                    &current.fit,
+                    &current.ranking,
+                    Some(floor.noise_estimate),
+                )?;
                 if (0..6).any(|c| again.rms[c] < (1.0 - FLOOR_MARGIN) * floor.rms[c]) {
                     for c in 0..6 {
                         if again.rms[c] < floor.rms[c] {

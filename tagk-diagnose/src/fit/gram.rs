@@ -326,18 +326,27 @@ fn cross_tensor(
 ) -> Vec<f64> {
     let (pa, pb) = (a.len(), b.len());
     let mut out = vec![0.0; pieces.len() * 6 * pa * pb];
+    // The Gram of a set with itself is symmetric: the upper triangle is mirrored.
+    let symmetric = pa == pb && a.iter().zip(b).all(|(x, y)| std::ptr::eq(*x, *y));
     for (j, aj) in a.iter().enumerate() {
         for (k, bk) in b.iter().enumerate() {
+            if symmetric && k < j {
+                continue;
+            }
             for c in 0..6 {
                 let (Some(x), Some(y)) = (&aj[c], &bk[c]) else {
                     continue;
                 };
                 for (pi, &(lo, hi)) in pieces.iter().enumerate() {
-                    out[((pi * 6 + c) * pa + j) * pb + k] = if stride == 1 {
+                    let v = if stride == 1 {
                         dot(&x[lo..hi], &y[lo..hi])
                     } else {
                         (lo..hi).step_by(stride).map(|i| x[i] * y[i]).sum()
                     };
+                    out[((pi * 6 + c) * pa + j) * pb + k] = v;
+                    if symmetric {
+                        out[((pi * 6 + c) * pa + k) * pb + j] = v;
+                    }
                 }
             }
         }

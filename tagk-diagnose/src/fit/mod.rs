@@ -161,7 +161,7 @@ pub fn fit_model(
     let mut w = weights.unwrap_or_else(|| initial_weights(s));
     // Weighting passes: the measurement scale first, then 1 / residual RMS of the previous
     // pass; with scanned effects the weights and the scanned parameters are iterated until the
-    // parameters settle (at most four passes), since a parameter chosen under poor weights
+    // parameters settle (at most three passes), since a parameter chosen under poor weights
     // gives poor weights in turn.
     let scanned = model
         .effects()
@@ -171,7 +171,7 @@ pub fn fit_model(
     let passes = match (weights.is_some(), scanned) {
         (true, _) => 1,
         (false, 0) => 2,
-        (false, _) => 4,
+        (false, _) => 3,
     };
     let mut params = initial_scan_parameters(model);
     let mut last: Option<Pass> = None;
