@@ -58,6 +58,8 @@ pub struct Signals {
     pub log: FlightLog,
     /// The rotor mixer identified from the log, computed on first use.
     rotor_mixer: std::sync::OnceLock<Option<RotorMixer>>,
+    /// The rigid-body regressor columns, computed on first use.
+    pub(crate) rigid_columns_cache: std::sync::OnceLock<Vec<[Option<Vec<f64>>; 6]>>,
     /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
     /// log). Effects with a time history (lags, delays, start transients) are computed per
     /// log and never across the joins.
@@ -159,6 +161,7 @@ impl Signals {
             derived_omega_dot,
             log: log.clone(),
             rotor_mixer: std::sync::OnceLock::new(),
+            rigid_columns_cache: std::sync::OnceLock::new(),
             parts: Vec::new(),
         };
         let vs: Vec<Vec<f64>> = (0..3)
@@ -317,6 +320,7 @@ impl Signals {
             derived_omega_dot: parts.iter().any(|p| p.derived_omega_dot),
             log,
             rotor_mixer: std::sync::OnceLock::new(),
+            rigid_columns_cache: std::sync::OnceLock::new(),
             parts,
         })
     }

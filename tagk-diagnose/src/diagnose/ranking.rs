@@ -342,13 +342,26 @@ fn score_candidate(
     let rows = (6 * s.len()) as f64;
     let q = cols.len();
     let dof = q + usize::from(spec.is_some());
-    let res = base.engine.residual(cols, design.offset.as_ref(), &ev.beta);
-    let mut kappa = 0.0;
-    for c in 0..6 {
-        let r: Vec<f64> = res.iter().map(|x| x[c]).collect();
-        kappa += stats::batch_means_factor(&r);
-    }
-    kappa /= 6.0;
+    let reduction = if base_ev.sse_cv > 0.0 {
+        1.0 - ev.sse_cv / base_ev.sse_cv
+    } else {
+        0.0
+    };
+    // The autocorrelation factor of the candidate's residual; a candidate that makes the
+    // held-out residual worse is judged `worse` whatever its test says, so its test uses the
+    // current fit's factor instead of a residual of its own.
+    let kappa = if reduction < 0.0 {
+        base.sanity.fit.kappa
+    } else {
+        let res = base.engine.residual(cols, design.offset.as_ref(), &ev.beta);
+        (0..6)
+            .map(|c| {
+                let r: Vec<f64> = res.iter().map(|x| x[c]).collect();
+                stats::batch_means_factor(&r)
+            })
+            .sum::<f64>()
+            / 6.0
+    };
     let p_tot = (p_base + q) as f64;
     let sigma2 = ev.sse_full / (rows - p_tot).max(1.0);
     let drop = (base_ev.sse_full - ev.sse_full).max(0.0);
@@ -358,11 +371,6 @@ fn score_candidate(
         f64::INFINITY
     };
     let p_value = stats::chi2_survival(statistic, dof as f64);
-    let reduction = if base_ev.sse_cv > 0.0 {
-        1.0 - ev.sse_cv / base_ev.sse_cv
-    } else {
-        0.0
-    };
     let reduction_per_channel: Vec<f64> = (0..6)
         .map(|c| {
             if base_ev.sse_cv_ch[c] > 0.0 {

@@ -11,8 +11,15 @@ use crate::stats;
 /// A regressor column: one value per sample on each channel it touches.
 pub(crate) type ColData = [Option<Vec<f64>>; 6];
 
-/// The ten rigid-body columns on a log.
+/// The ten rigid-body columns on a log (computed once per log, then copied).
 pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
+    s.rigid_columns_cache
+        .get_or_init(|| compute_rigid_columns(s))
+        .clone()
+}
+
+/// The ten rigid-body columns, computed.
+fn compute_rigid_columns(s: &Signals) -> Vec<ColData> {
     let n = s.len();
     let mut cols: Vec<ColData> = (0..10)
         .map(|j| {
