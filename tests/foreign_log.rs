@@ -34,7 +34,13 @@ fn tmpdir(name: &str) -> PathBuf {
 /// A noise-free 25 s figure-8 flight (seed 3) with `effects` in the plant, as the simulator
 /// logs it (with its exact accelerations).
 fn simulate(effects: PlantEffects) -> FlightLog {
-    let config = SimConfig {
+    fly(&flight_config(effects))
+}
+
+/// The flights of these tests: a noise-free 25 s figure-8 (seed 3), no payload, nominal
+/// controller, logged.
+fn flight_config(effects: PlantEffects) -> SimConfig {
+    SimConfig {
         trajectory: TrajectoryKind::Figure8,
         duration: 25.0,
         seed: 3,
@@ -45,8 +51,12 @@ fn simulate(effects: PlantEffects) -> FlightLog {
         record_log: true,
         stop_on_abort: false,
         ..SimConfig::default()
-    };
-    let out = tagk::sim::simulate(&config).expect("simulation runs");
+    }
+}
+
+/// The log of a flight (panics if it aborted: the data would not be a flight).
+fn fly(config: &SimConfig) -> FlightLog {
+    let out = tagk::sim::simulate(config).expect("simulation runs");
     assert!(!out.metrics.aborted);
     out.log
 }
@@ -589,21 +599,11 @@ const SHIPPED: &str = "examples/data/foreign-flight";
 
 fn shipped_flight() -> FlightLog {
     let config = SimConfig {
-        trajectory: TrajectoryKind::Figure8,
-        duration: 25.0,
-        seed: 3,
         noise: NoiseLevel::Medium,
-        payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::RotorDrag).unwrap(),
-        adaptation: Adaptation::Nominal,
-        record_log: true,
-        stop_on_abort: false,
-        ..SimConfig::default()
+        ..flight_config(PlantEffects::only(EffectKind::RotorDrag).unwrap())
     };
-    let out = tagk::sim::simulate(&config).expect("simulation runs");
-    assert!(!out.metrics.aborted);
     // The accelerometer is logged (the simulator's noisy one, as specific force in `imu.csv`).
-    with_accelerometer(out.log)
+    with_accelerometer(fly(&config))
 }
 
 /// Rewrites the shipped example files (`cargo test --test foreign_log -- --ignored`).
@@ -819,19 +819,12 @@ fn without_the_accelerometer_the_derived_accelerations_still_run() {
 fn at_500_hz_imu_and_100_hz_motion_capture_the_diagnosis_is_the_same() {
     let dir = tmpdir("rates");
     let config = SimConfig {
-        trajectory: TrajectoryKind::Figure8,
         duration: 10.0,
-        seed: 3,
         noise: NoiseLevel::Medium,
-        payload: PayloadSchedule::None,
-        effects: PlantEffects::only(EffectKind::RotorDrag).unwrap(),
-        adaptation: Adaptation::Nominal,
-        record_log: true,
-        stop_on_abort: false,
         log_rate: tagk::sim::LogRate::Physics,
-        ..SimConfig::default()
+        ..flight_config(PlantEffects::only(EffectKind::RotorDrag).unwrap())
     };
-    let original = tagk::sim::simulate(&config).expect("simulation runs").log;
+    let original = fly(&config);
     assert!(
         (original.t[1] - original.t[0] - 0.002).abs() < 1e-12,
         "500 Hz"
