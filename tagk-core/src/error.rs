@@ -67,6 +67,13 @@ pub enum EstimatorError {
     /// The update would have produced a non-finite estimate (overflow); it was discarded.
     #[error("the update produced a non-finite estimate; the previous estimate is kept")]
     Diverged,
+    /// A row weight handed to [`FrontEnd::update_weighted`](crate::FrontEnd::update_weighted)
+    /// is negative or not finite, or the weights are not one per row.
+    #[error("invalid row weight at row {row}: weights must be finite, non-negative, one per row")]
+    InvalidWeight {
+        /// Row index in the window (0-based); the window's row count for a length mismatch.
+        row: usize,
+    },
     /// A factorisation failed (for example an innovation covariance that is not positive
     /// definite in RLS or the Kalman filter).
     #[error("numerical failure: {0}")]

@@ -41,6 +41,16 @@ pub trait OnlineEstimator<T: Real = f64> {
     /// Returns the estimator to its just-constructed state with `θ̂ = estimate`: covariances
     /// back to their initial value, random generators re-seeded.
     fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError>;
+
+    /// Sets the residual tolerance `‖b − A θ‖₂` (measurement units) at which an iterative
+    /// estimator stops a window's iterations, and returns `true`; estimators without such a
+    /// stop (the recursive filters, whose noise model is their covariance) ignore it and return
+    /// `false` (the default). A negative or non-finite value is ignored too. Used by the
+    /// noise-aware stop of [`FrontEnd`](crate::FrontEnd).
+    fn set_tolerance(&mut self, tolerance: f64) -> bool {
+        let _ = tolerance;
+        false
+    }
 }
 
 impl<T: Real, E: OnlineEstimator<T> + ?Sized> OnlineEstimator<T> for &mut E {
@@ -61,6 +71,9 @@ impl<T: Real, E: OnlineEstimator<T> + ?Sized> OnlineEstimator<T> for &mut E {
     }
     fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
         (**self).reset(estimate)
+    }
+    fn set_tolerance(&mut self, tolerance: f64) -> bool {
+        (**self).set_tolerance(tolerance)
     }
 }
 
@@ -83,6 +96,9 @@ impl<T: Real, E: OnlineEstimator<T> + ?Sized> OnlineEstimator<T> for alloc::boxe
     }
     fn reset(&mut self, estimate: &[T]) -> Result<(), EstimatorError> {
         (**self).reset(estimate)
+    }
+    fn set_tolerance(&mut self, tolerance: f64) -> bool {
+        (**self).set_tolerance(tolerance)
     }
 }
 

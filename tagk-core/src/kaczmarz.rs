@@ -590,6 +590,15 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool> OnlineEsti
         self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
         Ok(())
     }
+
+    fn set_tolerance(&mut self, tolerance: f64) -> bool {
+        if tolerance >= 0.0 && tolerance.is_finite() {
+            self.config.tolerance = tolerance;
+            true
+        } else {
+            false
+        }
+    }
 }
 
 #[cfg(feature = "alloc")]

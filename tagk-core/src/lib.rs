@@ -10,6 +10,7 @@ extern crate std;
 mod aarch64;
 mod error;
 mod estimator;
+pub mod front_end;
 mod greedy;
 pub mod kaczmarz;
 #[cfg(any(
@@ -27,6 +28,9 @@ pub use error::{ConfigError, EstimatorError, NotPositiveDefinite};
 pub use estimator::{
     OnlineEstimator, UpdateInfo, check_dimensions, check_window_finite, check_window_shape,
     validate_estimate, validate_window,
+};
+pub use front_end::{
+    FrontEnd, FrontEndConfig, FrontEndInfo, front_end_buffer_len, scales_from_prior,
 };
 pub use kaczmarz::{
     BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
