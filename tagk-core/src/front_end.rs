@@ -153,7 +153,7 @@ impl FrontEndConfig {
 
     /// The noise floor `σ √(weight_sum)` of rows whose weights sum to `weight_sum`.
     pub fn noise_floor(&self, weight_sum: f64) -> f64 {
-        self.row_noise * weight_sum.sqrt()
+        self.row_noise * num_traits::Float::sqrt(weight_sum)
     }
 }
 
@@ -363,7 +363,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> FrontEnd<T, E, S> {
             total += r * r;
             weight_sum += weight(i).as_f64();
         }
-        let prior_residual_norm = total.sqrt();
+        let prior_residual_norm = num_traits::Float::sqrt(total);
         let noise_floor = self.config.noise_floor(weight_sum);
         let kappa_e = self.config.event_multiple;
         let event = kappa_e > 0.0 && prior_residual_norm > kappa_e * noise_floor;
@@ -380,7 +380,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> FrontEnd<T, E, S> {
                     r2 += r * r;
                     ws += weight(i).as_f64();
                 }
-                if r2.sqrt() > kappa_e * self.config.noise_floor(ws) {
+                if num_traits::Float::sqrt(r2) > kappa_e * self.config.noise_floor(ws) {
                     first_row = start;
                     break;
                 }
