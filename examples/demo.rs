@@ -46,7 +46,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         out: Some(args.out.join("flights")),
         threads: None,
     };
-    let flights = run_noise_sweep(&options, false, &mut common::Progress::new(true))?;
+    let flights = run_noise_sweep(
+        &options,
+        tagk::sim::ExperimentProfile::Paper,
+        false,
+        &mut common::Progress::new(true),
+    )?;
     common::print_sweep_summary(&flights);
 
     println!("\n== 2. Model diagnosis on a flight with a hidden effect ==\n");

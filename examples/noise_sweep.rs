@@ -7,6 +7,7 @@
 mod common;
 
 use clap::Parser;
+use tagk::sim::ExperimentProfile;
 use tagk::sim::experiments::run_noise_sweep;
 
 /// Table II: every estimator x 4 noise levels, closed-loop Monte Carlo.
@@ -19,13 +20,28 @@ struct Args {
     /// tuned TAG-K row.
     #[arg(long)]
     paper_only: bool,
+    /// Sensing and actuation profile: `paper` (ideal, the paper's setting) or `realistic`
+    /// (a Crazyflie's sensors and actuators; see `tagk_sim::ExperimentProfile`).
+    #[arg(long, default_value = "realistic")]
+    profile: ExperimentProfile,
+    /// Print only the accuracy table as Markdown (every column a function of the seeds; what
+    /// `scripts/table2.sh` puts in the READMEs).
+    #[arg(long)]
+    markdown: bool,
 }
 
 fn main() {
     let args = Args::parse();
     let mut progress = args.common.progress();
-    match run_noise_sweep(&args.common.options(), args.paper_only, &mut progress) {
+    match run_noise_sweep(
+        &args.common.options(),
+        args.profile,
+        args.paper_only,
+        &mut progress,
+    ) {
+        Ok(report) if args.markdown => print!("{}", report.result.markdown_accuracy()),
         Ok(report) => {
+            println!("profile {}", args.profile);
             common::print_sweep_summary(&report);
         }
         Err(e) => {

@@ -29,36 +29,92 @@ pub struct EstimatorSpec {
     pub early_tagk: bool,
     /// Column equilibration: the estimator sees the window `A D` and estimates `D⁻¹θ`, with
     /// `D = diag(m₀, m₀L, m₀L, m₀L, ī, …, ī)` from the nominal mass `m₀`, `L = L_arm` and
-    /// `ī = tr(I₀)/3` (see `column_scales`). The paper's estimators work in SI units
+    /// `ī = tr(I₀)/3` (see `spec_scales`). The paper's estimators work in SI units
     /// (`false`).
     pub scaled: bool,
     /// Noise-aware stopping of the Kaczmarz variants, as a multiple `κ` of the expected
     /// noise floor of the window's residual: iterations stop once
-    /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(3k)` (the force rows' share of accelerometer noise,
-    /// `k` frames; see `noise_floor`). `0` (the default) never stops early.
+    /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(Σ w_i)` (tagk-core's [`FrontEnd`](tagk_core::FrontEnd)
+    /// with row noise `m₀ σ_a`, the force rows' share of accelerometer noise, and the row
+    /// weights `w_i`). `0` (the default) never stops early.
     pub noise_tolerance: f64,
-    /// Feed only the actuated rows (`f_z`, `τ`) of each frame: the lateral force rows, whose
-    /// measurement is identically zero for a quadrotor (`b_x = b_y = 0`) and whose regressor
-    /// `[a_x, (S(ω̇) + S(ω)²)_x, 0]` is nearly zero in smooth flight, are zeroed (estimators
-    /// skip zero rows). Kaczmarz projects onto each chosen row exactly, so these weak rows turn
-    /// accelerometer noise into first-moment errors with gain `m / ‖ω̇‖`; see the README.
-    pub actuated_rows_only: bool,
+    /// Weight of the lateral force rows (rows 0 and 1 of every frame), 1 by default. Their
+    /// measurement is identically zero for a quadrotor (`b_x = b_y = 0`) and their regressor
+    /// `[a_x, (S(ω̇) + S(ω)²)_x, 0]` is nearly zero in smooth flight; Kaczmarz projects onto
+    /// each chosen row exactly, so these weak rows turn accelerometer noise into
+    /// first-moment errors with gain `m / ‖ω̇‖` (see the README). `0` drops them (the
+    /// actuated rows `f_z`, `τ` only, which leaves `h_z` unobservable); a weight in between
+    /// keeps their information and makes them count less.
+    pub lateral_weight: f64,
+    /// Event-aware windows (tagk-core's front end): a window whose prior residual exceeds
+    /// this multiple of its noise floor is shortened to its frames from the first one that
+    /// does not fit the current estimate, and the estimator is restarted. `0` (the default):
+    /// off. Needs accelerometer noise (a floor to compare to).
+    #[serde(default)]
+    pub event_multiple: f64,
 }
 
-/// Expected norm of the residual `b − A θ` at the true `θ` caused by accelerometer noise of
-/// standard deviation `sigma_accel` [m/s²] on a window of `frames` frames of a body of mass
-/// `mass` \[kg\]: each of the `3·frames` force rows carries `m·n` with `n ~ N(0, σ_a²)` \[N\].
-pub(crate) fn noise_floor(mass: f64, sigma_accel: f64, frames: usize) -> f64 {
-    mass * sigma_accel * ((3 * frames) as f64).sqrt()
-}
+/// Rows per frame of a rigid body's window (the wrapped estimator sees `6 k` rows for `k`
+/// frames: force x, y, z, torque x, y, z).
+const ROWS_PER_FRAME: usize = 6;
 
 /// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal` (the order
 /// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\]: typical magnitudes of each parameter,
-/// so that every column of `A D` has the units of the measurement.
-pub(crate) fn column_scales(nominal: &[f64; 10], arm: f64) -> [f64; 10] {
+/// so that every column of `A D` has the units of the measurement (the first moment's prior is
+/// zero, so its scale is the largest the safety gate admits, `m₀ L`); all ones unless the spec
+/// is scaled.
+pub(crate) fn spec_scales(spec: &EstimatorSpec, nominal: &[f64; 10], arm: f64) -> [f64; 10] {
+    if !spec.scaled {
+        return [1.0; 10];
+    }
     let m = nominal[0];
     let i = (nominal[4] + nominal[6] + nominal[9]) / 3.0;
     [m, m * arm, m * arm, m * arm, i, i, i, i, i, i]
+}
+
+/// The tagk-core front end of `spec` for a body of nominal mass `mass` \[kg\] whose accelerometer
+/// noise is `sigma_accel` `[m/s²]`: the row noise is the force rows' `m σ_a` \[N\], the stop
+/// multiple [`EstimatorSpec::noise_tolerance`], the event multiple
+/// [`EstimatorSpec::event_multiple`] with one frame (6 rows) per block.
+pub(crate) fn front_end_config(
+    spec: &EstimatorSpec,
+    mass: f64,
+    sigma_accel: f64,
+) -> tagk_core::FrontEndConfig {
+    let row_noise = mass * sigma_accel;
+    tagk_core::FrontEndConfig {
+        row_noise,
+        stop_multiple: if spec.kind.is_kaczmarz() {
+            spec.noise_tolerance
+        } else {
+            0.0
+        },
+        // Event detection needs a floor to compare to: off without noise.
+        event_multiple: if row_noise > 0.0 {
+            spec.event_multiple
+        } else {
+            0.0
+        },
+        block_rows: ROWS_PER_FRAME,
+        average_horizon: 0,
+    }
+}
+
+/// The row weights of a full window of `m_max` rows for `spec` (`None`: every row 1):
+/// [`EstimatorSpec::lateral_weight`] on the lateral force rows (rows 0 and 1 of every frame,
+/// whose measurement is identically zero), 1 on the others.
+pub(crate) fn row_weights(spec: &EstimatorSpec, m_max: usize) -> Option<Vec<f64>> {
+    (spec.lateral_weight != 1.0).then(|| {
+        (0..m_max)
+            .map(|r| {
+                if r % ROWS_PER_FRAME < 2 {
+                    spec.lateral_weight
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    })
 }
 
 /// The default TAG-K burn-in fraction (see the crate README's burn-in study).
@@ -73,13 +129,27 @@ impl EstimatorSpec {
             early_tagk: false,
             scaled: false,
             noise_tolerance: 0.0,
-            actuated_rows_only: false,
+            lateral_weight: 1.0,
+            event_multiple: 0.0,
         }
     }
 
-    /// Feeds only the actuated rows ([`EstimatorSpec::actuated_rows_only`]).
+    /// Feeds only the actuated rows: lateral row weight 0 ([`EstimatorSpec::lateral_weight`]).
     pub fn with_actuated_rows_only(mut self) -> Self {
-        self.actuated_rows_only = true;
+        self.lateral_weight = 0.0;
+        self
+    }
+
+    /// Sets the lateral force rows' weight ([`EstimatorSpec::lateral_weight`]).
+    pub fn with_lateral_weight(mut self, weight: f64) -> Self {
+        self.lateral_weight = weight;
+        self
+    }
+
+    /// Turns on event-aware windows at `multiple` noise floors
+    /// ([`EstimatorSpec::event_multiple`]).
+    pub fn with_event_windows(mut self, multiple: f64) -> Self {
+        self.event_multiple = multiple;
         self
     }
 
@@ -123,8 +193,13 @@ impl EstimatorSpec {
         if self.noise_tolerance > 0.0 && self.kind.is_kaczmarz() {
             options.push(format!("tol {}σ", self.noise_tolerance));
         }
-        if self.actuated_rows_only {
+        if self.lateral_weight == 0.0 {
             options.push("fz+τ rows".to_string());
+        } else if self.lateral_weight != 1.0 {
+            options.push(format!("lateral w {}", self.lateral_weight));
+        }
+        if self.event_multiple > 0.0 {
+            options.push(format!("events {}σ", self.event_multiple));
         }
         if !options.is_empty() {
             s.push_str(&format!(" ({})", options.join(", ")));

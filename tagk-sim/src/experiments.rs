@@ -13,7 +13,9 @@ use crate::estimators::{EstimatorKind, EstimatorSpec};
 pub use crate::estimators::{table_ii_estimators, tagk_tuned, tuned};
 use crate::monte_carlo::{ErrorCurves, Sweep, SweepObserver, SweepResult};
 use crate::plot::{ChartSeries, LineChart, Path3, cdf, line_chart, path_chart_3d};
-use crate::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, TrialMetrics, simulate};
+use crate::sim::{
+    Adaptation, ExperimentProfile, NoiseLevel, PayloadSchedule, SimConfig, TrialMetrics, simulate,
+};
 use crate::trajectory::TrajectoryKind;
 
 /// Options every experiment takes.
@@ -230,14 +232,30 @@ fn write_common(
     Ok(())
 }
 
-/// Runs Table II (default 500 trials per cell; `paper_only`: the paper's five estimators,
-/// without the tuned TAG-K row) and writes `table.csv`, `table.md`, `results.json` and figures
-/// (metric vs noise level, position-error CDFs) to the output folder.
+/// The Table II sweep of `profile`: `estimators` plus the `nominal` and `oracle` reference
+/// columns, 4 noise levels, `trials` per cell from base seed `seed`.
+pub fn table_ii_sweep(
+    profile: ExperimentProfile,
+    estimators: Vec<EstimatorSpec>,
+    trials: usize,
+    seed: u64,
+) -> Sweep {
+    let mut sweep = Sweep::new(estimators, trials, seed);
+    profile.apply(&mut sweep.base);
+    sweep.references = vec![Adaptation::Nominal, Adaptation::Oracle];
+    sweep
+}
+
+/// Runs Table II in `profile` (default 500 trials per cell; `paper_only`: the paper's five
+/// estimators, without the tuned TAG-K row; the `nominal` and `oracle` reference rows always)
+/// and writes `table.csv`, `table.md`, `table_accuracy.md`, `results.json` and figures (metric
+/// vs noise level, position-error CDFs) to the output folder.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.
 pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     c: &ExperimentOptions,
+    profile: ExperimentProfile,
     paper_only: bool,
     observer: &mut O,
 ) -> Result<ExperimentReport, SimError> {
@@ -246,9 +264,10 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     if paper_only {
         estimators.pop();
     }
-    let sweep = Sweep::new(estimators, c.trials.unwrap_or(500), c.seed);
+    let sweep = table_ii_sweep(profile, estimators, c.trials.unwrap_or(500), c.seed);
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
+    std::fs::write(dir.join("table_accuracy.md"), result.markdown_accuracy())?;
     let x = "noise level (0 none, 1 low, 2 medium, 3 high)";
     for (name, title, ylab, log, f) in [
         (
@@ -500,8 +519,12 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
     let burn: Vec<(f64, &crate::CellSummary)> = result
         .cells
         .iter()
-        .filter(|c| c.estimator.kind == EstimatorKind::TagK)
-        .map(|c| (c.estimator.burn_in, c))
+        .filter_map(|c| match c.adaptation {
+            Adaptation::Estimator(spec) if spec.kind == EstimatorKind::TagK => {
+                Some((spec.burn_in, c))
+            }
+            _ => None,
+        })
         .collect();
     let mut burn_sorted = burn.clone();
     burn_sorted.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -194,6 +194,9 @@ pub struct Sweep {
     pub base: SimConfig,
     /// If set, every trial flies this trajectory kind instead of cycling through all five.
     pub trajectory: Option<TrajectoryKind>,
+    /// Reference columns after the estimators: [`Adaptation::Nominal`] (never adapts) and
+    /// [`Adaptation::Oracle`] (the true parameters from each event on); empty by default.
+    pub references: Vec<Adaptation>,
 }
 
 impl Sweep {
@@ -206,6 +209,7 @@ impl Sweep {
             seed,
             base: SimConfig::default(),
             trajectory: None,
+            references: Vec::new(),
         }
     }
 }
@@ -221,14 +225,31 @@ pub fn trial_seed(seed: u64, level: usize, trial: usize) -> u64 {
 pub struct CellSummary {
     /// Noise level.
     pub noise: NoiseLevel,
-    /// Estimator.
-    pub estimator: EstimatorSpec,
-    /// Estimator label.
+    /// What adapts the controller: an estimator, or a reference (nominal, oracle).
+    pub adaptation: Adaptation,
+    /// Label: the estimator's, `nominal` or `oracle`.
     pub label: String,
     /// Trials flown.
     pub trials: usize,
     /// Mean position error over the trials that did not abort \[cm\].
     pub position_error_cm: f64,
+    /// Mean position error over all trials, an aborted trial's missing steps at the abort
+    /// threshold (`metrics::position_error_all_cm`) \[cm\].
+    pub position_error_all_cm: f64,
+    /// Standard error of [`position_error_all_cm`](Self::position_error_all_cm) \[cm\].
+    pub position_error_all_se: f64,
+    /// Standard error of [`parameter_error`](Self::parameter_error).
+    pub parameter_error_se: f64,
+    /// Mean (t+1) error over the events whose first window held only post-event frames.
+    pub t1_error_clean: f64,
+    /// Mean (t+1) error over the events whose first window mixed pre- and post-event frames.
+    pub t1_error_mixed: f64,
+    /// Standard error of [`t1_error`](Self::t1_error).
+    pub t1_error_se: f64,
+    /// Share of trials with a mixed first window [%].
+    pub t1_mixed_pct: f64,
+    /// The paper's success rule (5 cm, 10 control steps after each event) [%].
+    pub success_paper_pct: f64,
     /// Mean parameter error `‖θ̂ − θ‖₂` over trials (each the mean over its updates).
     pub parameter_error: f64,
     /// Mean relative mass error.
@@ -239,7 +260,7 @@ pub struct CellSummary {
     pub rel_inertia: f64,
     /// Mean (t+1) error over trials that have one.
     pub t1_error: f64,
-    /// Success rate [%].
+    /// Success rate, Table II's rule (`metrics::is_settled`: 1 cm, 2 s after each event) [%].
     pub success_pct: f64,
     /// Success rate judged after the first post-event update [%].
     pub success_after_update_pct: f64,
@@ -253,11 +274,47 @@ pub struct CellSummary {
     pub position_errors: Vec<f64>,
 }
 
+/// Running count, sum and sum of squares (mean and standard error of the mean).
+#[derive(Default)]
+struct Moments {
+    n: usize,
+    sum: f64,
+    sum2: f64,
+}
+
+impl Moments {
+    fn add(&mut self, x: f64) {
+        if x.is_finite() {
+            self.n += 1;
+            self.sum += x;
+            self.sum2 += x * x;
+        }
+    }
+    fn mean(&self) -> f64 {
+        mean(self.sum, self.n)
+    }
+    /// Standard error of the mean, `s / √n` with the sample standard deviation `s`.
+    fn se(&self) -> f64 {
+        if self.n < 2 {
+            return f64::NAN;
+        }
+        let n = self.n as f64;
+        let var = ((self.sum2 - self.sum * self.sum / n) / (n - 1.0)).max(0.0);
+        (var / n).sqrt()
+    }
+}
+
 #[derive(Default)]
 struct Accumulator {
     trials: usize,
     pos_sum: f64,
     pos_n: usize,
+    pos_all: Moments,
+    pe: Moments,
+    t1: Moments,
+    t1_clean: Moments,
+    t1_mixed: Moments,
+    settled: usize,
     pe_sum: f64,
     pe_n: usize,
     mass: f64,
@@ -333,13 +390,26 @@ impl Sweep {
         self.base.validate()
     }
 
+    /// Columns of the cell grid: the estimators, then the references.
+    fn columns(&self) -> usize {
+        self.estimators.len() + self.references.len()
+    }
+
+    /// What adapts the controller in column `c`.
+    fn column(&self, c: usize) -> Adaptation {
+        match self.estimators.get(c) {
+            Some(spec) => Adaptation::Estimator(*spec),
+            None => self.references[c - self.estimators.len()],
+        }
+    }
+
     fn run_observed<O: SweepObserver + ?Sized>(
         &self,
         observer: &mut O,
     ) -> Result<SweepResult, SimError> {
         self.validate()?;
         let start = std::time::Instant::now();
-        let n_est = self.estimators.len();
+        let n_est = self.columns();
         let n_cells = self.noise_levels.len() * n_est;
         let total = n_cells * self.trials;
         let done = AtomicUsize::new(0);
@@ -368,10 +438,7 @@ impl Sweep {
         let cells = acc
             .into_iter()
             .enumerate()
-            .map(|(c, a)| {
-                let spec = self.estimators[c % n_est];
-                finish(self.noise_levels[c / n_est], spec, a)
-            })
+            .map(|(c, a)| finish(self.noise_levels[c / n_est], self.column(c % n_est), a))
             .collect();
         Ok(SweepResult {
             cells,
@@ -390,16 +457,15 @@ impl Sweep {
     ) -> Result<FinishedTrial, SimError> {
         let trial = job / n_cells;
         let cell = job % n_cells;
-        let n_est = self.estimators.len();
+        let n_est = self.columns();
         let level = cell / n_est;
-        let spec = self.estimators[cell % n_est];
         let mut cfg = self.base.clone();
         cfg.seed = trial_seed(self.seed, level, trial);
         cfg.trajectory = self
             .trajectory
             .unwrap_or(TrajectoryKind::ALL[trial % TrajectoryKind::ALL.len()]);
         cfg.noise = self.noise_levels[level];
-        cfg.adaptation = Adaptation::Estimator(spec);
+        cfg.adaptation = self.column(cell % n_est);
         cfg.record_trace = observer.wants_trace(cell, trial);
         cfg.record_log = false;
         let output = simulate(&cfg)?;
@@ -434,6 +500,12 @@ fn fold(a: &mut Accumulator, output: &SimOutput) {
         a.t1_n += 1;
     }
     a.success += usize::from(m.success);
+    a.settled += usize::from(m.settled);
+    a.pos_all.add(m.position_error_all_cm);
+    a.pe.add(m.parameter_error);
+    a.t1.add(m.t1_error);
+    a.t1_clean.add(m.t1_error_clean);
+    a.t1_mixed.add(m.t1_error_mixed);
     a.success_upd += usize::from(m.success_after_update);
     for u in &output.updates {
         a.times.record(u.micros);
@@ -444,20 +516,37 @@ fn mean(sum: f64, n: usize) -> f64 {
     if n == 0 { f64::NAN } else { sum / n as f64 }
 }
 
-fn finish(noise: NoiseLevel, spec: EstimatorSpec, a: Accumulator) -> CellSummary {
+/// The table label of a column.
+fn adaptation_label(adaptation: &Adaptation) -> String {
+    match adaptation {
+        Adaptation::Nominal => "nominal".into(),
+        Adaptation::Oracle => "oracle".into(),
+        Adaptation::Estimator(spec) => spec.label(),
+    }
+}
+
+fn finish(noise: NoiseLevel, adaptation: Adaptation, a: Accumulator) -> CellSummary {
     let pct = |k: usize| 100.0 * k as f64 / a.trials.max(1) as f64;
     CellSummary {
         noise,
-        estimator: spec,
-        label: spec.label(),
+        adaptation,
+        label: adaptation_label(&adaptation),
         trials: a.trials,
         position_error_cm: mean(a.pos_sum, a.pos_n),
+        position_error_all_cm: a.pos_all.mean(),
+        position_error_all_se: a.pos_all.se(),
+        parameter_error_se: a.pe.se(),
+        t1_error_clean: a.t1_clean.mean(),
+        t1_error_mixed: a.t1_mixed.mean(),
+        t1_error_se: a.t1.se(),
+        t1_mixed_pct: pct(a.t1_mixed.n),
+        success_paper_pct: pct(a.success),
         parameter_error: mean(a.pe_sum, a.pe_n),
         rel_mass: mean(a.mass, a.pe_n),
         rel_first_moment: mean(a.fm, a.pe_n),
         rel_inertia: mean(a.inertia, a.pe_n),
         t1_error: mean(a.t1_sum, a.t1_n),
-        success_pct: pct(a.success),
+        success_pct: pct(a.settled),
         success_after_update_pct: pct(a.success_upd),
         aborted_pct: pct(a.aborted),
         update_median_us: a.times.median(),
@@ -467,31 +556,40 @@ fn finish(noise: NoiseLevel, spec: EstimatorSpec, a: Accumulator) -> CellSummary
 }
 
 impl SweepResult {
-    /// The Table II layout as fixed-width text.
+    /// The Table II layout as fixed-width text (with the wall-clock update times).
     pub fn table(&self) -> String {
         let mut s = String::new();
         s.push_str(&format!(
-            "{:<7} {:<38} {:>9} {:>10} {:>10} {:>8} {:>8} {:>9} {:>9}\n",
+            "{:<7} {:<38} {:>16} {:>10} {:>10} {:>10} {:>10} {:>7} {:>7} {:>8} {:>8} {:>9} {:>9}\n",
             "noise",
             "estimator",
-            "pos [cm]",
+            "pos all [cm]",
             "param",
             "(t+1)",
+            "clean",
+            "mixed",
             "succ %",
+            "paper %",
             "abort %",
+            "pos [cm]",
             "med [us]",
             "P95 [us]"
         ));
         for c in &self.cells {
             s.push_str(&format!(
-                "{:<7} {:<38} {:>9.3} {:>10.3e} {:>10.3e} {:>8.1} {:>8.1} {:>9.2} {:>9.2}\n",
+                "{:<7} {:<38} {:>8.3} ± {:<5.3} {:>10.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>7.1} {:>7.1} {:>8.1} {:>8.3} {:>9.2} {:>9.2}\n",
                 c.noise.name(),
                 c.label,
-                c.position_error_cm,
+                c.position_error_all_cm,
+                c.position_error_all_se,
                 c.parameter_error,
                 c.t1_error,
+                c.t1_error_clean,
+                c.t1_error_mixed,
                 c.success_pct,
+                c.success_paper_pct,
                 c.aborted_pct,
+                c.position_error_cm,
                 c.update_median_us,
                 c.update_p95_us
             ));
@@ -499,20 +597,50 @@ impl SweepResult {
         s
     }
 
-    /// The table as Markdown (for READMEs).
-    pub fn markdown(&self) -> String {
+    /// The accuracy table as Markdown, every column a deterministic function of the seeds
+    /// (no wall-clock times): what the READMEs show and CI compares.
+    pub fn markdown_accuracy(&self) -> String {
         let mut s = String::from(
-            "| noise | estimator | position error [cm] | parameter error | (t+1) error | success % | aborted % | update median / P95 [µs] |\n|---|---|---|---|---|---|---|---|\n",
+            "| noise | estimator | position error, all trials \\[cm\\] | parameter error | (t+1) error | (t+1) clean / mixed | success % | paper success % | aborted % |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
         );
         for c in &self.cells {
             s.push_str(&format!(
-                "| {} | {} | {:.3} | {:.2e} | {:.2e} | {:.1} | {:.1} | {:.2} / {:.2} |\n",
+                "| {} | {} | {:.3} ± {:.3} | {:.2e} ± {:.1e} | {:.2e} | {:.2e} / {:.2e} | {:.1} | {:.1} | {:.1} |\n",
                 c.noise.name(),
                 c.label,
-                c.position_error_cm,
+                c.position_error_all_cm,
+                c.position_error_all_se,
+                c.parameter_error,
+                c.parameter_error_se,
+                c.t1_error,
+                c.t1_error_clean,
+                c.t1_error_mixed,
+                c.success_pct,
+                c.success_paper_pct,
+                c.aborted_pct,
+            ));
+        }
+        s
+    }
+
+    /// The table as Markdown (for READMEs), with the update times of this run.
+    pub fn markdown(&self) -> String {
+        let mut s = String::from(
+            "| noise | estimator | position error, all trials [cm] | parameter error | (t+1) error | (t+1) clean / mixed | success % | paper success % | aborted % | update median / P95 [µs] |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        );
+        for c in &self.cells {
+            s.push_str(&format!(
+                "| {} | {} | {:.3} ± {:.3} | {:.2e} | {:.2e} | {:.2e} / {:.2e} | {:.1} | {:.1} | {:.1} | {:.2} / {:.2} |\n",
+                c.noise.name(),
+                c.label,
+                c.position_error_all_cm,
+                c.position_error_all_se,
                 c.parameter_error,
                 c.t1_error,
+                c.t1_error_clean,
+                c.t1_error_mixed,
                 c.success_pct,
+                c.success_paper_pct,
                 c.aborted_pct,
                 c.update_median_us,
                 c.update_p95_us
@@ -538,7 +666,14 @@ impl SweepResult {
             "rel_inertia",
             "t1_error",
             "success_pct",
+            "success_paper_pct",
             "success_after_update_pct",
+            "position_error_all_cm",
+            "position_error_all_se",
+            "parameter_error_se",
+            "t1_error_clean",
+            "t1_error_mixed",
+            "t1_mixed_pct",
             "aborted_pct",
             "update_median_us",
             "update_p95_us",
@@ -555,7 +690,14 @@ impl SweepResult {
                 c.rel_inertia.to_string(),
                 c.t1_error.to_string(),
                 c.success_pct.to_string(),
+                c.success_paper_pct.to_string(),
                 c.success_after_update_pct.to_string(),
+                c.position_error_all_cm.to_string(),
+                c.position_error_all_se.to_string(),
+                c.parameter_error_se.to_string(),
+                c.t1_error_clean.to_string(),
+                c.t1_error_mixed.to_string(),
+                c.t1_mixed_pct.to_string(),
                 c.aborted_pct.to_string(),
                 c.update_median_us.to_string(),
                 c.update_p95_us.to_string(),

@@ -19,7 +19,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use tagk_control::hover_trim;
-use tagk_core::OnlineEstimator;
+use tagk_core::{FrontEnd, OnlineEstimator};
 use tagk_dynamics::log::{FlightLog, LogSample};
 use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
 use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
@@ -33,16 +33,17 @@ pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord
 pub use sensing::{
     BMI088_ACCEL_NOISE_DENSITY_G, BMI088_ACCEL_OFFSET_G, BMI088_GYRO_NOISE_DENSITY_DEG,
     BMI088_GYRO_OFFSET_DRIFT_DEG, CRAZYFLIE_ACCEL_BANDWIDTH, CRAZYFLIE_GYRO_BANDWIDTH,
-    PROPELLER_VIBRATION_FACTOR, Sensing, SensingProfile, WARM_UP_KELVIN,
+    ExperimentProfile, MOCAP_ATTITUDE_NOISE, MOCAP_POSITION_NOISE, PROPELLER_VIBRATION_FACTOR,
+    REALISTIC_THRUST_GAIN_ERROR, Sensing, SensingProfile, WARM_UP_KELVIN,
 };
 pub(crate) use sensors::sub_rng;
 
 use crate::EstimatorKind;
 use crate::SimError;
-use crate::estimators::{N_PARAMS, build_kind, column_scales, noise_floor};
+use crate::estimators::{N_PARAMS, build_kind, front_end_config, row_weights, spec_scales};
 use crate::metrics::{
-    ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_success, parameter_error,
-    position_error_cm, t_plus_one_error,
+    ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_settled, is_success,
+    parameter_error, position_error_all_cm, position_error_cm, t_plus_one_error,
 };
 use crate::plant::{Accelerations, Plant, PlantState};
 use crate::trajectory::Trajectory;
@@ -56,19 +57,21 @@ struct ScheduledEvent {
     payload: InertialParams,
 }
 
+/// An estimator behind tagk-core's front end (column scales, row weights, noise-aware stop,
+/// event-aware windows), in the caller's units.
+type Fronted = FrontEnd<f64, Box<dyn OnlineEstimator<f64> + Send>, Vec<f64>>;
+
 /// The estimator of a flight with what turns frames into its windows.
 struct EstimatorStage {
-    main: Box<dyn OnlineEstimator<f64> + Send>,
+    main: Fronted,
     /// TAG-K run alongside for early adaptation (its first post-event estimate replaces the
     /// main estimator's state).
-    early: Option<Box<dyn OnlineEstimator<f64> + Send>>,
+    early: Option<Fronted>,
     window: WindowBuilder,
     a_buf: Vec<f64>,
     b_buf: Vec<f64>,
-    /// Column scales `d` (the estimator works on `θ / d`).
-    scales: [f64; 10],
-    /// Zero the lateral-force rows (their measurement is always 0).
-    actuated_rows_only: bool,
+    /// Row weights of a full window (`None`: every row 1).
+    weights: Option<Vec<f64>>,
 }
 
 /// The state of a flight in progress.
@@ -92,10 +95,14 @@ struct Flight<'a> {
     commands: Vec<([f64; 4], [f64; 6])>,
     trace: Vec<TraceSample>,
     tracking: Vec<f64>,
-    first_after_event: Vec<(Vec<f64>, InertialParams)>,
+    /// Per event: the first estimate after it, the truth, and whether its window mixed
+    /// pre- and post-event frames.
+    first_after_event: Vec<(Vec<f64>, InertialParams, bool)>,
     pending_event: bool,
     first_update_steps: Vec<usize>,
     latest_estimate: [f64; 10],
+    /// Control steps of the whole flight.
+    planned_steps: usize,
 }
 
 /// Flies one trial (see the crate docs for the loop, the measurement model and the timing).
@@ -175,35 +182,28 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     };
     let nominal = config.vehicle.params;
     let m_max = 6 * config.window_frames;
-    let scales = if spec.scaled {
-        column_scales(&nominal.to_array(), CRAZYFLIE_ARM_OFFSET)
-    } else {
-        [1.0; 10]
-    };
-    let prior: Vec<f64> = nominal
-        .as_slice()
-        .iter()
-        .zip(&scales)
-        .map(|(t, d)| t / d)
-        .collect();
-    let tol = spec.noise_tolerance
-        * noise_floor(
-            nominal.mass(),
+    let scales = spec_scales(spec, &nominal.to_array(), CRAZYFLIE_ARM_OFFSET);
+    let front = front_end_config(
+        spec,
+        nominal.mass(),
+        Sensing::combined(
             config.noise.sigma_acceleration(),
-            config.window_frames,
-        );
-    let mut main = spec.build(m_max, seed, tol)?;
-    main.reset(&prior)?;
+            config.sensing.accel_noise,
+        ),
+    );
+    let mut main = FrontEnd::new(spec.build(m_max, seed, 0.0)?, &scales, front)?;
+    main.reset(nominal.as_slice())?;
     let early = if spec.early_tagk {
-        let mut e = build_kind(
+        let tagk = build_kind(
             EstimatorKind::TagK,
             N_PARAMS,
             spec.burn_in,
             m_max,
             seed,
-            tol,
+            0.0,
         )?;
-        e.reset(&prior)?;
+        let mut e = FrontEnd::new(tagk, &scales, front)?;
+        e.reset(nominal.as_slice())?;
         Some(e)
     } else {
         None
@@ -214,8 +214,7 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
         window: WindowBuilder::new(config.window_frames)?,
         a_buf: vec![0.0; m_max * N_PARAMS],
         b_buf: vec![0.0; m_max],
-        scales,
-        actuated_rows_only: spec.actuated_rows_only,
+        weights: row_weights(spec, m_max),
     }))
 }
 
@@ -269,6 +268,7 @@ impl<'a> Flight<'a> {
             sub_rng(config.seed, 4),
             sub_rng(config.seed, 5),
             sub_rng(config.seed, 6),
+            sub_rng(config.seed, 7),
             config.noise,
             &config.sensing,
             plant.state().body_rate,
@@ -294,6 +294,7 @@ impl<'a> Flight<'a> {
             pending_event: false,
             first_update_steps: Vec::new(),
             latest_estimate: nominal.to_array(),
+            planned_steps: steps,
         })
     }
 
@@ -541,27 +542,14 @@ impl<'a> Flight<'a> {
             return Ok(());
         }
         let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
-        for row in stage.a_buf[..rows * N_PARAMS].chunks_exact_mut(N_PARAMS) {
-            for (x, d) in row.iter_mut().zip(&stage.scales) {
-                *x *= d;
-            }
-        }
-        if stage.actuated_rows_only {
-            // Rows 0 and 1 of every frame: the lateral forces, whose measurement is always 0.
-            for r in 0..rows {
-                if r % 6 < 2 {
-                    stage.a_buf[r * N_PARAMS..(r + 1) * N_PARAMS].fill(0.0);
-                    stage.b_buf[r] = 0.0;
-                }
-            }
-        }
         let (a, b) = (&stage.a_buf[..rows * N_PARAMS], &stage.b_buf[..rows]);
+        let weights = stage.weights.as_deref().map(|w| &w[..rows]);
         let start = Instant::now();
-        let result = stage.main.update(a, b);
+        let result = stage.main.update_weighted(a, b, weights);
         let micros = start.elapsed().as_secs_f64() * 1e6;
         if let Some(e) = stage.early.as_mut() {
             // Estimator errors leave the state unchanged; the flight goes on.
-            let _ = e.update(a, b);
+            let _ = e.update_weighted(a, b, weights);
         }
         if result.is_err() {
             return Ok(());
@@ -572,12 +560,17 @@ impl<'a> Flight<'a> {
             let tagk_estimate = e.estimate().to_vec();
             stage.main.reset(&tagk_estimate)?;
         }
-        let estimate: [f64; 10] =
-            core::array::from_fn(|i| stage.main.estimate()[i] * stage.scales[i]);
+        let estimate: [f64; 10] = core::array::from_fn(|i| stage.main.estimate()[i]);
         self.latest_estimate = estimate;
         let truth = *self.plant.params();
         if self.pending_event {
-            self.first_after_event.push((estimate.to_vec(), truth));
+            // The window holds the frames of steps k − frames + 1 ..= k; the event applied at
+            // the start of its step, so the window is clean when that step is the first frame
+            // or earlier.
+            let event_step = self.events.last().map_or(0, |e| e.step);
+            let mixed = k + 1 < event_step + self.config.window_frames;
+            self.first_after_event
+                .push((estimate.to_vec(), truth, mixed));
             self.first_update_steps.push(k + 1);
             self.pending_event = false;
         }
@@ -602,13 +595,27 @@ impl<'a> Flight<'a> {
         let success = is_success(&tracking, &event_steps, aborted);
         let success_after_update = is_success(&tracking, &self.first_update_steps, aborted);
         let finite: Vec<f64> = tracking.iter().copied().filter(|e| e.is_finite()).collect();
+        let split = |keep: fn(bool) -> bool| -> Vec<(Vec<f64>, InertialParams)> {
+            self.first_after_event
+                .iter()
+                .filter(|(_, _, mixed)| keep(*mixed))
+                .map(|(e, t, _)| (e.clone(), *t))
+                .collect()
+        };
+        let t1_all = split(|_| true);
+        let t1_clean = split(|mixed| !mixed);
+        let t1_mixed = split(|mixed| mixed);
         let (pe, ge) = mean_update_errors(&self.updates);
         let metrics = TrialMetrics {
             position_error_cm: position_error_cm(&finite),
             max_tracking_error_cm: 100.0 * tracking.iter().copied().fold(0.0, f64::max),
             parameter_error: pe,
             group_errors: ge,
-            t1_error: t_plus_one_error(&self.first_after_event),
+            t1_error: t_plus_one_error(&t1_all),
+            t1_error_clean: t_plus_one_error(&t1_clean),
+            t1_error_mixed: t_plus_one_error(&t1_mixed),
+            position_error_all_cm: position_error_all_cm(&tracking, self.planned_steps),
+            settled: is_settled(&tracking, &event_steps, aborted),
             success,
             success_after_update,
             aborted,

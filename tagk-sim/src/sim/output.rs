@@ -62,7 +62,19 @@ pub struct TrialMetrics {
     pub group_errors: GroupErrors,
     /// (t+1) error (NaN without an event followed by an update).
     pub t1_error: f64,
-    /// Success (docs/CONVENTIONS.md §5: judged 10 control steps after each payload event).
+    /// (t+1) error over the events whose first window held only post-event frames (NaN
+    /// without one).
+    pub t1_error_clean: f64,
+    /// (t+1) error over the events whose first window mixed frames from before and after
+    /// the event (NaN without one).
+    pub t1_error_mixed: f64,
+    /// Position error over the planned flight, an aborted flight's missing steps at the abort
+    /// threshold (`metrics::position_error_all_cm`) \[cm\].
+    pub position_error_all_cm: f64,
+    /// Table II's success: settled after each payload event (`metrics::is_settled`).
+    pub settled: bool,
+    /// The paper's success rule (docs/CONVENTIONS.md §5: 5 cm, judged 10 control steps after
+    /// each payload event).
     pub success: bool,
     /// Success judged instead 10 control steps after the first estimator update following
     /// each payload event (the window in which an estimator can act; equals the controller's

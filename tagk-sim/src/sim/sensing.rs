@@ -33,6 +33,18 @@ pub const BMI088_GYRO_OFFSET_DRIFT_DEG: f64 = 0.015;
 pub const WARM_UP_KELVIN: f64 = 10.0;
 /// BMI088 accelerometer zero-g offset, typical \[g\] (data sheet: 20 mg).
 pub const BMI088_ACCEL_OFFSET_G: f64 = 20e-3;
+/// Motion-capture position noise, σ per axis \[m\] (0.5 mm: OptiTrack and Vicon systems quote
+/// sub-millimetre 3-D accuracy for small markers in a room-sized volume; a chosen figure at
+/// the upper end of that range, for a small quadrotor's few markers).
+pub const MOCAP_POSITION_NOISE: f64 = 0.5e-3;
+/// Motion-capture attitude noise, σ per axis \[rad\] (0.2 deg: 0.5 mm marker noise over the
+/// Crazyflie's ≈ 10 cm marker baseline gives ≈ 5 mrad per marker, averaged over 4 markers; a
+/// chosen figure; two independent marker pairs: 5/√2 ≈ 3.5 mrad).
+pub const MOCAP_ATTITUDE_NOISE: f64 = 3.5e-3;
+/// Relative thrust-coefficient error of the `realistic` experiment profile (−5 %: half the
+/// battery-sag and propeller-wear range that Förster 2015 measured on the Crazyflie's thrust
+/// map, for a map identified on the same battery; a chosen figure).
+pub const REALISTIC_THRUST_GAIN_ERROR: f64 = -0.05;
 /// Standard gravity \[m/s²\] (to convert the data sheet's `g` units).
 const STANDARD_GRAVITY: f64 = 9.806_65;
 
@@ -76,6 +88,13 @@ pub struct Sensing {
     pub velocity_noise: f64,
     /// White noise on each measured rotor speed, σ per rotor per sample \[rad/s\].
     pub rotor_speed_noise: f64,
+    /// Motion-capture position white noise seen by the controller, σ per axis \[m\].
+    #[serde(default)]
+    pub position_noise: f64,
+    /// Motion-capture attitude white noise seen by the controller, σ per axis of a small
+    /// rotation \[rad\].
+    #[serde(default)]
+    pub attitude_noise: f64,
 }
 
 impl Default for Sensing {
@@ -96,6 +115,8 @@ impl Sensing {
             accel_bias: 0.0,
             velocity_noise: 0.0,
             rotor_speed_noise: 0.0,
+            position_noise: 0.0,
+            attitude_noise: 0.0,
         }
     }
 
@@ -128,6 +149,8 @@ impl Sensing {
             accel_bias: BMI088_ACCEL_OFFSET_G * STANDARD_GRAVITY,
             velocity_noise: 0.01,
             rotor_speed_noise: 20.0,
+            position_noise: 0.0,
+            attitude_noise: 0.0,
         }
     }
 
@@ -137,6 +160,16 @@ impl Sensing {
         Self {
             accel_bias: 0.0,
             ..Self::realistic()
+        }
+    }
+
+    /// This profile with motion-capture noise on the controller's position \[m\] and attitude
+    /// \[rad\] ([`MOCAP_POSITION_NOISE`], [`MOCAP_ATTITUDE_NOISE`] for a typical system).
+    pub fn with_motion_capture(self, position_noise: f64, attitude_noise: f64) -> Self {
+        Self {
+            position_noise,
+            attitude_noise,
+            ..self
         }
     }
 
@@ -170,6 +203,8 @@ impl Sensing {
             ("sensing.accel_bias", self.accel_bias),
             ("sensing.velocity_noise", self.velocity_noise),
             ("sensing.rotor_speed_noise", self.rotor_speed_noise),
+            ("sensing.position_noise", self.position_noise),
+            ("sensing.attitude_noise", self.attitude_noise),
         ] {
             if !(value >= 0.0 && value.is_finite()) {
                 return Err(SimError::InvalidParameter {
@@ -180,6 +215,90 @@ impl Sensing {
             }
         }
         Ok(())
+    }
+}
+
+/// The experiment profiles of Table II (`noise_sweep --profile NAME`): what the vehicle's
+/// sensors and actuators add on top of the swept [`NoiseLevel`](crate::NoiseLevel).
+///
+/// | profile | sensing | plant |
+/// |---|---|---|
+/// | `paper` | [`Sensing::ideal`] | ideal rotors (the TAG-K paper's setting, reproduces the earlier tables) |
+/// | `realistic` | [`Sensing::realistic`] (BMI088 gyro and accelerometer noise and bias, velocity noise, 1 % rotor-speed noise) plus motion capture ([`MOCAP_POSITION_NOISE`], [`MOCAP_ATTITUDE_NOISE`]) | motor lag `τ = 0.02 s` ([`MotorLag::crazyflie`](crate::plant_effects::MotorLag::crazyflie)) and a thrust-coefficient error [`REALISTIC_THRUST_GAIN_ERROR`] |
+///
+/// Every figure's source is in the doc comment of its constant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum ExperimentProfile {
+    /// The paper's ideal sensing and actuation.
+    #[default]
+    Paper,
+    /// A Crazyflie's real sensors and actuators (the default for new experiments).
+    Realistic,
+}
+
+impl ExperimentProfile {
+    /// Every profile.
+    pub const ALL: [ExperimentProfile; 2] =
+        [ExperimentProfile::Paper, ExperimentProfile::Realistic];
+
+    /// Name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExperimentProfile::Paper => "paper",
+            ExperimentProfile::Realistic => "realistic",
+        }
+    }
+
+    /// The sensing of this profile.
+    pub fn sensing(self) -> Sensing {
+        match self {
+            ExperimentProfile::Paper => Sensing::ideal(),
+            ExperimentProfile::Realistic => {
+                Sensing::realistic().with_motion_capture(MOCAP_POSITION_NOISE, MOCAP_ATTITUDE_NOISE)
+            }
+        }
+    }
+
+    /// The plant effects of this profile.
+    pub fn effects(self) -> crate::PlantEffects {
+        match self {
+            ExperimentProfile::Paper => crate::PlantEffects::none(),
+            ExperimentProfile::Realistic => crate::PlantEffects {
+                motor_lag: Some(crate::plant_effects::MotorLag::crazyflie()),
+                thrust_gain: Some(crate::plant_effects::ThrustGain {
+                    relative_error: REALISTIC_THRUST_GAIN_ERROR,
+                }),
+                ..crate::PlantEffects::none()
+            },
+        }
+    }
+
+    /// `config` with this profile's sensing and plant effects.
+    pub fn apply(self, config: &mut crate::SimConfig) {
+        config.sensing = self.sensing();
+        config.effects = self.effects();
+    }
+}
+
+impl fmt::Display for ExperimentProfile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for ExperimentProfile {
+    type Err = SimError;
+
+    /// Parses [`ExperimentProfile::name`].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        ExperimentProfile::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| SimError::Unknown {
+                what: "experiment profile",
+                value: s.to_string(),
+                expected: "paper, realistic",
+            })
     }
 }
 

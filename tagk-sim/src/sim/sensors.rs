@@ -70,6 +70,9 @@ pub(crate) struct Sensors {
     rotor_rng: ChaCha8Rng,
     /// Stream of the physics-rate log's IMU noise.
     imu_rng: ChaCha8Rng,
+    mocap_rng: ChaCha8Rng,
+    sigma_position: f64,
+    sigma_attitude: f64,
     sigma_velocity: f64,
     sigma_acceleration: f64,
     sigma_gyro: f64,
@@ -94,6 +97,7 @@ impl Sensors {
         mut bias_rng: ChaCha8Rng,
         rotor_rng: ChaCha8Rng,
         imu_rng: ChaCha8Rng,
+        mocap_rng: ChaCha8Rng,
         noise: NoiseLevel,
         sensing: &Sensing,
         initial_rate: Vector3<f64>,
@@ -105,6 +109,9 @@ impl Sensors {
             rng,
             rotor_rng,
             imu_rng,
+            mocap_rng,
+            sigma_position: sensing.position_noise,
+            sigma_attitude: sensing.attitude_noise,
             sigma_velocity: Sensing::combined(noise.sigma_velocity(), sensing.velocity_noise),
             sigma_acceleration: Sensing::combined(noise.sigma_acceleration(), sensing.accel_noise),
             sigma_gyro: sensing.gyro_noise,
@@ -134,10 +141,27 @@ impl Sensors {
     /// What the controller sees at the start of an interval: mocap position and attitude,
     /// noisy velocity (draws 3 velocity noises), the interval's first gyro reading.
     pub(crate) fn controller_measurement(&mut self, s: &PlantState) -> QuadrotorState {
+        // Motion-capture noise from its own stream (nothing drawn at σ = 0), so that profiles
+        // without it fly bit-identically to the simulator before it.
+        let velocity = s.velocity + noise3(&mut self.rng, self.sigma_velocity);
+        let position = if self.sigma_position > 0.0 {
+            s.position + noise3(&mut self.mocap_rng, self.sigma_position)
+        } else {
+            s.position
+        };
+        let attitude = if self.sigma_attitude > 0.0 {
+            s.attitude
+                * nalgebra::UnitQuaternion::from_scaled_axis(noise3(
+                    &mut self.mocap_rng,
+                    self.sigma_attitude,
+                ))
+        } else {
+            s.attitude
+        };
         QuadrotorState {
-            position: s.position,
-            velocity: s.velocity + noise3(&mut self.rng, self.sigma_velocity),
-            attitude: s.attitude,
+            position,
+            velocity,
+            attitude,
             body_rate: self.gyro_start,
         }
     }
@@ -208,6 +232,7 @@ mod tests {
             sub_rng(seed, 4),
             sub_rng(seed, 5),
             sub_rng(seed, 6),
+            sub_rng(seed, 7),
             noise,
             sensing,
             Vector3::zeros(),
