@@ -39,7 +39,18 @@ fn main() {
         args.paper_only,
         &mut progress,
     ) {
-        Ok(report) if args.markdown => print!("{}", report.result.markdown_accuracy()),
+        Ok(report) if args.markdown => {
+            let r = &report.result;
+            eprintln!(
+                "Table II, profile {}: {} trials per cell, {} cells, {:.1} s on {} threads",
+                args.profile,
+                r.trials,
+                r.cells.len(),
+                r.elapsed_s,
+                r.threads
+            );
+            print!("{}", r.markdown_accuracy());
+        }
         Ok(report) => {
             println!("profile {}", args.profile);
             common::print_sweep_summary(&report);

@@ -92,6 +92,9 @@ impl Sensors {
     /// profile's σ's: a seed fixes the bias direction whatever the σ), the rotor-speed noise
     /// from `rotor_rng`, the physics-rate log's noise from `imu_rng`. Draws the first gyro
     /// reading of the body rate `initial_rate`.
+    // One independent, named random stream per sensor (so that adding one leaves the others'
+    // draws unchanged), plus the noise level, the profile and the initial rate.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         mut rng: ChaCha8Rng,
         mut bias_rng: ChaCha8Rng,
