@@ -22,3 +22,19 @@ fn every_estimator_survives_a_short_soak() {
         assert_eq!(r.recovered, r.steps, "{name}: {r:?}");
     }
 }
+
+/// Without the guard, RLS-high's covariance winds up over a long rank-deficient stretch; the
+/// guard holds its trace at `p₀ n` (it shrinks `P` uniformly, so the excited directions learn
+/// more slowly too: the example prints the cost).
+#[test]
+fn the_windup_guard_bounds_the_covariance_of_rls_high() {
+    let mut by_name = subjects(3);
+    let mut trace_of = |name: &str| {
+        let (_, subject) = by_name.iter_mut().find(|(n, _)| n == name).unwrap();
+        soak::windup(subject, 600, 3).0
+    };
+    let free = trace_of("RLS-high");
+    let guarded = trace_of("RLS-high+guard");
+    assert!(free > 1e6, "{free:e}");
+    assert!(guarded <= 1e4 * (1.0 + 1e-9), "{guarded:e}");
+}
