@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log, plan, run_diagnose};
+use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log, diagnose_logs, plan, run_diagnose};
 use tagk::cli::simulate::{SimulateArgs, run_simulate};
 use tagk::diagnose::{DiagnoseError, FlightLog, Model, Signals, fit_model};
 use tagk::dynamics::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
@@ -108,6 +108,17 @@ fn a_log_with_a_gap_is_reported_and_split_never_differentiated_across() {
     run_diagnose(&args).unwrap();
     let report = diagnose_log(&log, &args).unwrap();
     assert_eq!(report.before.samples, log.len());
+    // With other logs, a log whose segments are all too short to stand alone is refused,
+    // naming it.
+    let err = diagnose_logs(
+        vec![
+            ("full.csv".into(), flight(6.0)),
+            ("gap.csv".into(), log.clone()),
+        ],
+        &args,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("gap.csv"), "{err}");
     // Resampling (the user's choice) keeps the gap and the split.
     args.resample = Some(0.01);
     let resampled = diagnose_log(&log, &args).unwrap();

@@ -435,8 +435,18 @@ pub fn diagnose_logs(
         // A log with gaps: each segment long enough to be fitted is a log of its own.
         log.validate().map_err(|e| in_file(e.into()))?;
         let count = segments.len();
+        let min_rows = crate::dynamics::log::MIN_ROWS;
+        if segments.iter().all(|r| r.len() < min_rows) {
+            return Err(DiagnoseError::InvalidOption {
+                field: "logs",
+                reason: format!(
+                    "{name}: its gaps leave no segment of at least {min_rows} samples to fit \
+                     with the other logs (diagnose it alone: its segments are then fitted jointly)"
+                ),
+            });
+        }
         for (k, r) in segments.into_iter().enumerate() {
-            if r.len() < crate::dynamics::log::MIN_ROWS {
+            if r.len() < min_rows {
                 continue;
             }
             let segment = log.slice(r.clone());
