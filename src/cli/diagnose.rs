@@ -4,8 +4,9 @@
 use std::path::PathBuf;
 
 use crate::diagnose::{
-    CustomEffect, DiagnoseError, DiagnoseOptions, EffectKind, EffectRef, FlightLog, Model, Report,
-    Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_logs, run_loop,
+    CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef, FlightLog, Model,
+    Report, Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_logs,
+    run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -71,6 +72,11 @@ pub struct DiagnoseArgs {
         num_args = 6
     )]
     pub noise_floor: Option<Vec<f64>>,
+    /// Resample the log onto a uniform time grid of this step [s] before the diagnosis, by
+    /// linear interpolation (the attitude by normalised linear interpolation), each segment
+    /// between gaps on its own grid: for irregular sampling. Gaps are never bridged.
+    #[arg(long, value_name = "S")]
+    pub resample: Option<f64>,
     /// Most effects the stepwise search adds.
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_steps: usize,
@@ -137,6 +143,7 @@ impl DiagnoseArgs {
             mass: None,
             airframe_radius: None,
             noise_floor: None,
+            resample: None,
             max_steps: 5,
             quiet: false,
         }
@@ -181,6 +188,9 @@ impl DiagnoseArgs {
         if let Some(f) = &self.noise_floor {
             let v: Vec<String> = f.iter().map(|x| format!("{x:e}")).collect();
             cmd.push_str(&format!(" --noise-floor {}", v.join(",")));
+        }
+        if let Some(dt) = self.resample {
+            cmd.push_str(&format!(" --resample {dt}"));
         }
         if !effects.is_empty() {
             cmd.push_str(&format!(" --with {}", effects.join(",")));
@@ -262,6 +272,16 @@ pub fn plan_with_vehicle(
     let mut customs: Vec<EffectRef> = Vec::new();
     for spec in &args.custom {
         let custom = CustomEffect::parse(spec)?;
+        if let Some(kind) = crate::dynamics::EffectKind::from_name(custom.name()) {
+            return Err(DiagnoseError::BadCustomSpec {
+                spec: spec.clone(),
+                reason: format!(
+                    "`{}` already names the built-in effect `{}`; give the custom effect another name",
+                    custom.name(),
+                    kind.name()
+                ),
+            });
+        }
         custom.require_columns(log)?;
         customs.push(std::sync::Arc::new(custom));
     }
@@ -292,6 +312,16 @@ pub fn plan_with_vehicle(
             }
         },
     };
+    if let Some(m) = mass
+        && !(m > 0.0 && m.is_finite())
+    {
+        return Err(DiagnoseError::InvalidModel(match args.mass {
+            Some(KnownMass::Vehicle) => format!(
+                "`--mass vehicle`: the vehicle's mass prior {m} kg is not positive and finite"
+            ),
+            _ => format!("`--mass {m}`: the known mass must be a positive, finite number of kg"),
+        }));
+    }
     if let Some(m) = mass {
         base = base.with_known_mass(m);
     }
@@ -329,7 +359,10 @@ pub fn plan_with_vehicle(
 }
 
 /// Runs the whole loop on a log in memory (what [`run_diagnose`] does after reading the file):
-/// a log without the wrench gets it from `--vehicle` ([`log_with_wrench`]).
+/// a log without the wrench gets it from `--vehicle` ([`log_with_wrench`]); `--resample`
+/// resamples it ([`FlightLog::resample_linear`]); a log with gaps in its time stamps is split
+/// at them and its segments are fitted jointly ([`Signals::from_log_split`]: nothing is
+/// differentiated, lagged or shifted across a gap).
 ///
 /// # Errors
 /// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass`].
@@ -343,7 +376,15 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
         computed = log_with_wrench(log.clone(), vehicle.as_ref())?;
         &computed
     };
-    let s = Signals::from_log(log)?;
+    let resampled;
+    let log = match args.resample {
+        Some(dt) => {
+            resampled = log.resample_linear(dt)?;
+            &resampled
+        }
+        None => log,
+    };
+    let (s, _) = Signals::from_log_split(log)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     if args.online {
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
@@ -354,7 +395,8 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
 
 /// Runs the joint loop on several logs of one vehicle ([`run_logs`]): each gets its wrench
 /// from `--vehicle` when it has none; the report compares each log's own staircase with the
-/// joint one.
+/// joint one. A log with gaps is split at them and each segment of at least
+/// [`MIN_ROWS`](crate::dynamics::log::MIN_ROWS) samples joins as a log of its own.
 ///
 /// # Errors
 /// As [`diagnose_log`], for any of the logs (naming its file).
@@ -380,8 +422,43 @@ pub fn diagnose_logs(
             other => other,
         };
         let log = log_with_wrench(log, vehicle.as_ref()).map_err(in_file)?;
-        let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
-        parts.push((name, s));
+        let log = match args.resample {
+            Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
+            None => log,
+        };
+        let segments = log.sampling().segments();
+        if segments.len() == 1 {
+            let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
+            parts.push((name, s));
+            continue;
+        }
+        // A log with gaps: each segment long enough to be fitted is a log of its own.
+        log.validate().map_err(|e| in_file(e.into()))?;
+        let count = segments.len();
+        let min_rows = crate::dynamics::log::MIN_ROWS;
+        if segments.iter().all(|r| r.len() < min_rows) {
+            return Err(DiagnoseError::InvalidOption {
+                field: "logs",
+                reason: format!(
+                    "{name}: its gaps leave no segment of at least {min_rows} samples to fit \
+                     with the other logs (diagnose it alone: its segments are then fitted jointly)"
+                ),
+            });
+        }
+        for (k, r) in segments.into_iter().enumerate() {
+            if r.len() < min_rows {
+                continue;
+            }
+            let segment = log.slice(r.clone());
+            let label = format!(
+                "{name} (segment {} of {count}, t = {:.3}..{:.3} s)",
+                k + 1,
+                log.t[r.start],
+                log.t[r.end - 1]
+            );
+            let s = Signals::from_log(&segment).map_err(|e| in_file(e.into()))?;
+            parts.push((label, s));
+        }
     }
     let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
@@ -464,6 +541,10 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
                 ..args.clone()
             };
             let (log, _) = read_log(&one)?;
+            if !args.quiet {
+                println!("{}:", path.display());
+                print_sampling(&log, args);
+            }
             logs.push((path.display().to_string(), log));
         }
         let report = diagnose_logs(logs, args)?;
@@ -477,6 +558,9 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         && let Some(merge) = &merge
     {
         println!("{}", merge_summary(merge));
+    }
+    if !args.quiet {
+        print_sampling(&log, args);
     }
     if let Some(v) = vehicle
         .as_ref()
@@ -499,6 +583,27 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     })?;
     let report = diagnose_log(&log, args)?;
     write_outputs(&report, args)
+}
+
+/// Prints how the log is sampled when it has gaps or irregular steps (where, how long), and
+/// what the diagnosis does about it.
+fn print_sampling(log: &FlightLog, args: &DiagnoseArgs) {
+    let sampling = log.sampling();
+    if sampling.is_regular() {
+        return;
+    }
+    println!("{sampling}");
+    if let Some(dt) = args.resample {
+        println!("resampled: linear interpolation onto a uniform {dt} s grid within each segment");
+    } else if sampling.irregular_steps > 0 {
+        println!("(`--resample S` resamples it onto a uniform grid by linear interpolation)");
+    }
+    if !sampling.gaps.is_empty() {
+        println!(
+            "split at the gaps into {} segments: nothing is differentiated, lagged or shifted across a gap",
+            sampling.gaps.len() + 1
+        );
+    }
 }
 
 /// Prints the report (unless `--quiet`) and writes the `--json` and `--report` files.

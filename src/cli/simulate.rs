@@ -60,13 +60,13 @@ pub struct SimulateArgs {
     #[arg(long, value_enum, default_value_t = PayloadArg::None)]
     pub payload: PayloadArg,
     /// Fixed payload mass [kg].
-    #[arg(long, default_value_t = 0.014)]
+    #[arg(long, default_value_t = FIXED_PAYLOAD_DEFAULTS.0, allow_negative_numbers = true)]
     pub payload_mass: f64,
     /// Fixed payload offset in the body frame [m], as `x,y,z`.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.008, 0.0, 0.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = FIXED_PAYLOAD_DEFAULTS.1, allow_negative_numbers = true)]
     pub payload_offset: Vec<f64>,
     /// Fixed payload attach time [s].
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = FIXED_PAYLOAD_DEFAULTS.2)]
     pub attach: f64,
     /// Fixed payload removal time [s] (omit to keep it).
     #[arg(long)]
@@ -99,6 +99,7 @@ impl SimulateArgs {
     /// [`SimError::InvalidParameter`] for a payload offset without three values;
     /// [`SimError::UnsupportedEffect`] for an effect the simulator cannot produce.
     pub fn config(&self) -> Result<SimConfig, SimError> {
+        self.check_payload_flags()?;
         let payload = match self.payload {
             PayloadArg::None => PayloadSchedule::None,
             PayloadArg::Protocol => PayloadSchedule::Protocol,
@@ -145,6 +146,48 @@ impl SimulateArgs {
             log_rate: self.log_rate,
             ..SimConfig::default()
         })
+    }
+}
+
+/// The defaults of the fixed-payload flags (`--payload-mass`, `--payload-offset`,
+/// `--attach`), to tell a flag given without `--payload fixed`.
+const FIXED_PAYLOAD_DEFAULTS: (f64, [f64; 3], f64) = (0.014, [0.008, 0.0, 0.0], 5.0);
+
+impl SimulateArgs {
+    /// The fixed-payload flags: a mass that is positive and finite, and no flag of the fixed
+    /// payload changed from its default without `--payload fixed` (it would be ignored).
+    fn check_payload_flags(&self) -> Result<(), SimError> {
+        if !(self.payload_mass > 0.0 && self.payload_mass.is_finite()) {
+            return Err(SimError::NonPositiveMass {
+                what: "`--payload-mass`: the payload",
+                mass: self.payload_mass,
+            });
+        }
+        let (mass, offset, attach) = FIXED_PAYLOAD_DEFAULTS;
+        if self.payload != PayloadArg::Fixed {
+            let changed = [
+                ("payload_mass", self.payload_mass != mass, self.payload_mass),
+                (
+                    "payload_offset",
+                    self.payload_offset[..] != offset[..],
+                    self.payload_offset.first().copied().unwrap_or(f64::NAN),
+                ),
+                ("attach", self.attach != attach, self.attach),
+                (
+                    "remove",
+                    self.remove.is_some(),
+                    self.remove.unwrap_or(f64::NAN),
+                ),
+            ];
+            if let Some((name, _, value)) = changed.into_iter().find(|c| c.1) {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "a fixed-payload flag, used only with `--payload fixed`",
+                });
+            }
+        }
+        Ok(())
     }
 }
 

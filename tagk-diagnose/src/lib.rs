@@ -33,7 +33,7 @@ pub use report::{
     ChannelChange, FinalModel, LogVerdict, RankingEntry, Report, add_recommended, diagnosis_table,
     report_table, run_logs, run_loop, staircase_table,
 };
-pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, RotorMixer, Signals};
+pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;

@@ -15,6 +15,11 @@ pub const CHANNEL_UNITS: [&str; 6] = ["N", "N", "N", "N m", "N m", "N m"];
 /// A wrench channel, `0..6` = `fx, fy, fz, tx, ty, tz` (body frame, torques about the origin).
 pub type Channel = usize;
 
+/// Fewest samples a segment between two gaps must have to be kept
+/// ([`Signals::from_log_split`]): the velocity smoothing window (`2 × 7 + 1`), so that no
+/// derivative or smoothing of a segment shrinks below its full window.
+pub const MIN_SEGMENT_ROWS: usize = 2 * VELOCITY_SMOOTHING_HALF_WIDTH + 1;
+
 /// Half-width of the Savitzky–Golay smoothing of the velocity used by the drag effects.
 pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 
@@ -127,6 +132,11 @@ impl Signals {
     /// The log's validation error.
     pub fn from_log(log: &FlightLog) -> Result<Self, LogError> {
         log.validate()?;
+        Self::derive(log)
+    }
+
+    /// The signals of a validated log (or segment of one).
+    fn derive(log: &FlightLog) -> Result<Self, LogError> {
         let n = log.len();
         let derived_accel = log.accel.is_none();
         let accel_world = match &log.accel {
@@ -197,6 +207,61 @@ impl Signals {
         }
         s.target = target;
         Ok(s)
+    }
+
+    /// [`Signals::from_log`] for a log that may have gaps in its time stamps
+    /// ([`FlightLog::sampling`]): the log is validated as a whole, split at every gap into
+    /// segments, each segment's signals are derived on their own (derivatives and smoothing
+    /// never run across a gap) and the segments are joined like several logs
+    /// ([`Signals::concat`]: effects with a time history — lags, delays, start transients —
+    /// are computed per segment), keeping the log's own time stamps. Segments with fewer than
+    /// [`MIN_SEGMENT_ROWS`] samples are left out. Returns the signals and the segments kept
+    /// (sample ranges of `log`). A log without gaps gives [`Signals::from_log`] and one
+    /// segment.
+    ///
+    /// # Errors
+    /// The log's validation error; [`LogError::TooShort`] if the segments kept hold fewer
+    /// than [`MIN_ROWS`](crate::log::MIN_ROWS) samples.
+    pub fn from_log_split(
+        log: &FlightLog,
+    ) -> Result<(Self, Vec<std::ops::Range<usize>>), DiagnoseError> {
+        log.validate()?;
+        let sampling = log.sampling();
+        if sampling.gaps.is_empty() {
+            return Ok((Self::from_log(log)?, sampling.segments()));
+        }
+        let kept: Vec<std::ops::Range<usize>> = sampling
+            .segments()
+            .into_iter()
+            .filter(|r| r.len() >= MIN_SEGMENT_ROWS)
+            .collect();
+        let rows: usize = kept.iter().map(|r| r.len()).sum();
+        if rows < crate::log::MIN_ROWS {
+            return Err(LogError::TooShort {
+                rows,
+                needed: crate::log::MIN_ROWS,
+            }
+            .into());
+        }
+        let parts = kept
+            .iter()
+            .map(|r| Self::from_segment(&log.slice(r.clone())))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut joined = Self::concat(parts)?;
+        // Keep the log's own time stamps (they increase across the gaps already).
+        let t: Vec<f64> = kept
+            .iter()
+            .flat_map(|r| log.t[r.clone()].iter().copied())
+            .collect();
+        joined.log.t.clone_from(&t);
+        joined.t = t;
+        Ok((joined, kept))
+    }
+
+    /// The signals of one segment of a validated log: [`Signals::from_log`] without the
+    /// validation (a segment may be shorter than [`MIN_ROWS`](crate::log::MIN_ROWS)).
+    fn from_segment(log: &FlightLog) -> Result<Self, LogError> {
+        Self::derive(log)
     }
 
     /// Applies the differentiator's smoothing (Savitzky–Golay, the half-width of the

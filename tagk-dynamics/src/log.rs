@@ -49,6 +49,18 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
 /// and the 5 blocks of the cross-validation need a few hundred samples).
 pub const MIN_ROWS: usize = 200;
 
+/// A time step longer than `GAP_FACTOR` × the log's (or stream's) median step is a gap
+/// ([`Sampling`]).
+pub const GAP_FACTOR: f64 = 3.0;
+
+/// A step that differs from the median step by more than this fraction of it (and is not a
+/// gap) is irregular ([`Sampling::irregular_steps`]).
+pub const IRREGULAR_STEP_TOLERANCE: f64 = 0.1;
+
+/// Most rows [`FlightLog::resample_linear`] may produce (10⁸, about 24 GB of signals would
+/// be far beyond any use; this bounds a mistyped step).
+pub const MAX_RESAMPLED_ROWS: usize = 100_000_000;
+
 /// Required columns, in the order of the [format](self) (the wrench, the last six, may be
 /// replaced by the rotor speeds [`ROTOR_SPEED_COLUMNS`] and a [vehicle](crate::vehicle)).
 pub const REQUIRED_COLUMNS: [&str; 20] = [
@@ -103,6 +115,134 @@ pub struct FlightLog {
     pub rotor_speeds: Option<Vec<[f64; 4]>>,
     /// Any other columns, by name (kept and offered as signals for custom effects).
     pub extra: Vec<(String, Vec<f64>)>,
+}
+
+/// A gap in a log's time stamps: a step longer than [`GAP_FACTOR`] × the median step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeGap {
+    /// Index of the first sample after the gap (the gap lies between samples `index − 1` and
+    /// `index`).
+    pub index: usize,
+    /// Time of the last sample before the gap \[s\].
+    pub start: f64,
+    /// Length of the gap \[s\] (the step across it).
+    pub duration: f64,
+}
+
+/// How a log is sampled ([`FlightLog::sampling`]): its median step, its gaps and how many
+/// other steps are irregular.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sampling {
+    /// Median time step \[s\] (0 for fewer than two samples).
+    pub median_step: f64,
+    /// Steps longer than [`GAP_FACTOR`] × the median step, in time order.
+    pub gaps: Vec<TimeGap>,
+    /// Steps that are not gaps but differ from the median step by more than
+    /// [`IRREGULAR_STEP_TOLERANCE`] of it.
+    pub irregular_steps: usize,
+    /// Largest relative deviation `|Δt − median| / median` among the steps that are not gaps.
+    pub max_deviation: f64,
+    /// Number of steps (samples − 1).
+    pub steps: usize,
+}
+
+impl Sampling {
+    /// Measures the sampling of the time stamps `t` \[s\] (increasing).
+    pub fn of(t: &[f64]) -> Self {
+        let median_step = median_step(t);
+        let mut gaps = Vec::new();
+        let mut irregular_steps = 0;
+        let mut max_deviation: f64 = 0.0;
+        for (i, w) in t.windows(2).enumerate() {
+            let d = w[1] - w[0];
+            if d > GAP_FACTOR * median_step {
+                gaps.push(TimeGap {
+                    index: i + 1,
+                    start: w[0],
+                    duration: d,
+                });
+                continue;
+            }
+            let dev = if median_step > 0.0 {
+                (d - median_step).abs() / median_step
+            } else {
+                0.0
+            };
+            max_deviation = max_deviation.max(dev);
+            if dev > IRREGULAR_STEP_TOLERANCE {
+                irregular_steps += 1;
+            }
+        }
+        Self {
+            median_step,
+            gaps,
+            irregular_steps,
+            max_deviation,
+            steps: t.len().saturating_sub(1),
+        }
+    }
+
+    /// `true` without gaps and without irregular steps.
+    pub fn is_regular(&self) -> bool {
+        self.gaps.is_empty() && self.irregular_steps == 0
+    }
+
+    /// The sample ranges between the gaps (`0..n` for a log without gaps).
+    pub fn segments(&self) -> Vec<std::ops::Range<usize>> {
+        let n = self.steps + 1;
+        let mut out = Vec::with_capacity(self.gaps.len() + 1);
+        let mut start = 0;
+        for g in &self.gaps {
+            out.push(start..g.index);
+            start = g.index;
+        }
+        out.push(start..n);
+        out
+    }
+}
+
+impl std::fmt::Display for Sampling {
+    /// One line per finding: the median step, each gap (where, how long), the irregular steps.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "sampling: median step {:.4} s ({:.1} Hz)",
+            self.median_step,
+            if self.median_step > 0.0 {
+                1.0 / self.median_step
+            } else {
+                0.0
+            }
+        )?;
+        for g in &self.gaps {
+            write!(
+                f,
+                "\ngap: {:.3} s long after t = {:.3} s (sample {})",
+                g.duration, g.start, g.index
+            )?;
+        }
+        if self.irregular_steps > 0 {
+            write!(
+                f,
+                "\nirregular sampling: {} of {} steps differ from the median by more than {:.0} % (at most {:.0} %)",
+                self.irregular_steps,
+                self.steps,
+                100.0 * IRREGULAR_STEP_TOLERANCE,
+                100.0 * self.max_deviation
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Median of the time steps of `t` \[s\] (0 for fewer than two samples).
+pub fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// One sample, for [`FlightLog::push`].
@@ -242,6 +382,130 @@ impl FlightLog {
             .map(|(_, v)| v.clone())
     }
 
+    /// The sampling of the log's time stamps: median step, gaps, irregular steps.
+    pub fn sampling(&self) -> Sampling {
+        Sampling::of(&self.t)
+    }
+
+    /// The samples `range` as a log of their own (every signal, extra columns included).
+    ///
+    /// # Panics
+    /// If `range` is out of bounds for a signal (use ranges of [`Sampling::segments`]).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> FlightLog {
+        let cut = |v: &Vec<[f64; 3]>| v[range.clone()].to_vec();
+        FlightLog {
+            t: self.t[range.clone()].to_vec(),
+            position: cut(&self.position),
+            velocity: cut(&self.velocity),
+            attitude: self.attitude[range.clone()].to_vec(),
+            omega: cut(&self.omega),
+            wrench: if self.wrench.is_empty() {
+                Vec::new()
+            } else {
+                self.wrench[range.clone()].to_vec()
+            },
+            accel: self.accel.as_ref().map(cut),
+            omega_dot: self.omega_dot.as_ref().map(cut),
+            rotor_speeds: self
+                .rotor_speeds
+                .as_ref()
+                .map(|r| r[range.clone()].to_vec()),
+            extra: self
+                .extra
+                .iter()
+                .map(|(n, v)| (n.clone(), v[range.clone()].to_vec()))
+                .collect(),
+        }
+    }
+
+    /// The log resampled onto a uniform time grid of step `dt` \[s\] by **linear
+    /// interpolation** of every signal between the two neighbouring samples (the attitude by
+    /// normalised linear interpolation, after flipping the later quaternion onto the earlier
+    /// one's hemisphere). Each segment between gaps ([`Sampling::segments`]) is resampled on
+    /// its own grid, starting at its first sample: a gap is never bridged, it stays a gap.
+    /// Segments shorter than `dt` keep their first sample only.
+    ///
+    /// # Errors
+    /// [`LogError::InvalidResampleStep`] for a step that is not positive and finite, or so
+    /// small that the grid would have more than [`MAX_RESAMPLED_ROWS`] rows; the errors of
+    /// [`FlightLog::check_writable`] for a log that is not a log.
+    pub fn resample_linear(&self, dt: f64) -> Result<FlightLog, LogError> {
+        self.check_writable()?;
+        let span = match (self.t.first(), self.t.last()) {
+            (Some(a), Some(b)) => b - a,
+            _ => 0.0,
+        };
+        if !(dt > 0.0 && dt.is_finite()) || span / dt > MAX_RESAMPLED_ROWS as f64 {
+            return Err(LogError::InvalidResampleStep { dt, span });
+        }
+        let mut out = self.slice(0..0);
+        let lerp = |a: &[f64], b: &[f64], f: f64, o: &mut [f64]| {
+            for ((o, x), y) in o.iter_mut().zip(a).zip(b) {
+                *o = x + (y - x) * f;
+            }
+        };
+        for seg in self.sampling().segments() {
+            let (first, last) = (seg.start, seg.end - 1);
+            let t0 = self.t[first];
+            // A grid point within rounding of the segment's last sample is kept (at it).
+            let count = ((self.t[last] - t0) / dt + 1e-9).floor() as usize + 1;
+            let mut k = first;
+            for j in 0..count {
+                let tq = (t0 + j as f64 * dt).min(self.t[last]);
+                while k + 1 < last && self.t[k + 1] <= tq {
+                    k += 1;
+                }
+                let (i, f) = if k >= last || tq <= self.t[k] {
+                    (k.min(last), 0.0)
+                } else {
+                    (k, ((tq - self.t[k]) / (self.t[k + 1] - self.t[k])).min(1.0))
+                };
+                let j2 = (i + 1).min(last);
+                let v3 = |v: &Vec<[f64; 3]>| {
+                    let mut o = [0.0; 3];
+                    lerp(&v[i], &v[j2], f, &mut o);
+                    o
+                };
+                out.t.push(tq);
+                out.position.push(v3(&self.position));
+                out.velocity.push(v3(&self.velocity));
+                out.omega.push(v3(&self.omega));
+                let (qa, mut qb) = (self.attitude[i], self.attitude[j2]);
+                if qa.iter().zip(&qb).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+                    qb = qb.map(|x| -x);
+                }
+                let mut q = [0.0; 4];
+                lerp(&qa, &qb, f, &mut q);
+                let norm_a = qa.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if norm > 0.0 {
+                    q = q.map(|x| x * norm_a / norm);
+                }
+                out.attitude.push(q);
+                if !self.wrench.is_empty() {
+                    let mut w = [0.0; 6];
+                    lerp(&self.wrench[i], &self.wrench[j2], f, &mut w);
+                    out.wrench.push(w);
+                }
+                if let (Some(a), Some(o)) = (&self.accel, &mut out.accel) {
+                    o.push(v3(a));
+                }
+                if let (Some(a), Some(o)) = (&self.omega_dot, &mut out.omega_dot) {
+                    o.push(v3(a));
+                }
+                if let (Some(r), Some(o)) = (&self.rotor_speeds, &mut out.rotor_speeds) {
+                    let mut w = [0.0; 4];
+                    lerp(&r[i], &r[j2], f, &mut w);
+                    o.push(w);
+                }
+                for ((_, v), (_, o)) in self.extra.iter().zip(&mut out.extra) {
+                    o.push(v[i] + (v[j2] - v[i]) * f);
+                }
+            }
+        }
+        Ok(out)
+    }
+
     /// Checks that every signal has one value per sample.
     fn check_lengths(&self) -> Result<(), LogError> {
         let n = self.t.len();
@@ -370,15 +634,12 @@ impl FlightLog {
     /// Reads and validates a CSV flight log from a file.
     ///
     /// # Errors
-    /// [`LogError::Io`] if the file cannot be opened, otherwise the error of
+    /// [`LogError::Io`] if the file cannot be opened or is a directory, otherwise the error of
     /// [`FlightLog::from_csv_reader`] wrapped in [`LogError::InFile`] (so that the message
     /// names the file as well as the line and column).
     pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
         let path = path.as_ref();
-        let file = std::fs::File::open(path).map_err(|e| LogError::Io {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let file = open_log_file(path)?;
         Self::from_csv_reader(std::io::BufReader::new(file)).map_err(|e| LogError::InFile {
             path: path.display().to_string(),
             source: Box::new(e),
@@ -671,6 +932,20 @@ pub enum LogError {
         /// Allowed deviation `|‖q‖ − 1|`.
         tolerance: f64,
     },
+    /// A resampling step that is not positive and finite, or far too small for the log.
+    #[error(
+        "resampling step {dt} s: must be positive and finite, and give at most {max} rows over the log's {span} s",
+        max = MAX_RESAMPLED_ROWS
+    )]
+    InvalidResampleStep {
+        /// The step asked for \[s\].
+        dt: f64,
+        /// The log's time span \[s\].
+        span: f64,
+    },
+    /// The file has no content at all (not even a header).
+    #[error("empty file: no header and no rows")]
+    EmptyFile,
     /// A row with the wrong number of fields, or a CSV syntax error.
     #[error("line {line}: malformed CSV row: {message}")]
     Malformed {
@@ -743,6 +1018,7 @@ impl LogError {
     pub fn line(&self) -> Option<usize> {
         match self {
             LogError::MissingColumn { .. }
+            | LogError::EmptyFile
             | LogError::DuplicateColumn { .. }
             | LogError::MissingWrench { .. } => Some(1),
             LogError::NotANumber { line, .. }
@@ -797,6 +1073,20 @@ fn missing_wrench_message(has_rotor_speeds: bool) -> String {
     }
 }
 
+/// Opens a log file for reading: [`LogError::Io`] naming the path if it cannot be opened or
+/// is a directory (which opens, but does not read).
+pub(crate) fn open_log_file(path: &Path) -> Result<std::fs::File, LogError> {
+    let io = |message: String| LogError::Io {
+        path: path.display().to_string(),
+        message,
+    };
+    let file = std::fs::File::open(path).map_err(|e| io(e.to_string()))?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(io("is a directory, not a CSV file".into()));
+    }
+    Ok(file)
+}
+
 fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
     match (first, x) {
         (true, Some(x)) => *v = Some(vec![x]),
@@ -837,6 +1127,9 @@ impl<R: Read> NumericRows<R> {
             .iter()
             .map(str::to_string)
             .collect();
+        if header.iter().all(String::is_empty) && rdr.is_done() {
+            return Err(LogError::EmptyFile);
+        }
         for (j, name) in header.iter().enumerate() {
             if let Some(k) = header[..j].iter().position(|h| h == name) {
                 return Err(LogError::DuplicateColumn {

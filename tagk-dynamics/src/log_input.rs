@@ -75,7 +75,7 @@
 //! step longer than [`GAP_FACTOR`] times its median step; a primary sample that falls inside a
 //! gap of a stream it interpolates, or outside that stream's time range, is **dropped** (never
 //! interpolated over) and counted in the [`MergeReport`]. Gaps of the primary stream itself
-//! are reported (the diagnosis's derivatives then span them).
+//! are reported too (the diagnosis splits the log at every gap, [`FlightLog::sampling`]).
 //!
 //! Derived columns: a stream with position but no velocity gets its velocity by the
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
@@ -98,8 +98,8 @@ use crate::log::{FlightLog, LogError, NumericRows};
 use crate::rigid_body::GRAVITY_WORLD;
 use crate::vehicle::Vehicle;
 
-/// A step longer than `GAP_FACTOR` × the stream's median step is a gap.
-pub const GAP_FACTOR: f64 = 3.0;
+pub use crate::log::GAP_FACTOR;
+use crate::log::{Sampling, median_step};
 
 /// The project columns of the accelerometer: the specific force `f = Rᵀ (p̈ − g_w)` of the
 /// body origin, body frame \[m/s²\] (module docs, "The accelerometer"). Mapping-only: the
@@ -721,10 +721,7 @@ impl ColumnMapping {
                 source: Box::new(e),
             })
         };
-        let file = std::fs::File::open(path).map_err(|e| LogError::Io {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let file = crate::log::open_log_file(path)?;
         let (header, cols, lines) = read_table(std::io::BufReader::new(file)).map_err(in_file)?;
         let per = self.streams.get(&name).cloned().unwrap_or_default();
         let mut columns = self.columns.clone();
@@ -899,23 +896,14 @@ pub fn world_acceleration(attitude: &[[f64; 4]], specific_force: &[[f64; 3]]) ->
         .collect()
 }
 
-fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
-}
-
 fn gaps_of(s: &Stream) -> Vec<Gap> {
-    let m = median_step(&s.t);
-    s.t.windows(2)
-        .filter(|w| w[1] - w[0] > GAP_FACTOR * m)
-        .map(|w| Gap {
+    Sampling::of(&s.t)
+        .gaps
+        .into_iter()
+        .map(|g| Gap {
             stream: s.name.clone(),
-            start: w[0],
-            duration: w[1] - w[0],
+            start: g.start,
+            duration: g.duration,
         })
         .collect()
 }

@@ -2,7 +2,7 @@
 //! the reader's errors name the file, line and column.
 
 use proptest::prelude::*;
-use tagk_dynamics::log::{FlightLog, LogError, LogSample, MIN_ROWS};
+use tagk_dynamics::log::{FlightLog, GAP_FACTOR, LogError, LogSample, MIN_ROWS, Sampling};
 
 fn finite() -> impl Strategy<Value = f64> {
     prop_oneof![-1e3..1e3f64, -1e-6..1e-6f64, Just(0.0), Just(-0.0)]
@@ -63,6 +63,29 @@ fn flight_log() -> impl Strategy<Value = FlightLog> {
         })
 }
 
+/// A valid log written to CSV, then damaged by a few random byte edits.
+fn damaged_csv() -> impl Strategy<Value = Vec<u8>> {
+    (
+        flight_log(),
+        prop::collection::vec((any::<prop::sample::Index>(), any::<u8>(), 0u8..3), 1..6),
+    )
+        .prop_map(|(log, edits)| {
+            let mut csv = Vec::new();
+            log.write_csv(&mut csv).unwrap();
+            for (at, byte, kind) in edits {
+                let i = at.index(csv.len());
+                match kind {
+                    0 => csv[i] = byte,
+                    1 => csv.insert(i, byte),
+                    _ => {
+                        csv.truncate(i);
+                    }
+                }
+            }
+            csv
+        })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
@@ -72,6 +95,48 @@ proptest! {
         log.write_csv(&mut csv).unwrap();
         let back = FlightLog::from_csv_reader(csv.as_slice()).unwrap();
         prop_assert_eq!(back, log);
+    }
+
+    /// Damaged files give a log that validates (and round-trips) or a typed error with a
+    /// line: never a panic.
+    #[test]
+    fn damaged_files_give_a_log_or_a_typed_error(csv in damaged_csv()) {
+        match FlightLog::from_csv_reader(csv.as_slice()) {
+            Ok(log) => {
+                let mut again = Vec::new();
+                log.write_csv(&mut again).unwrap();
+                prop_assert_eq!(FlightLog::from_csv_reader(again.as_slice()).unwrap(), log);
+            }
+            Err(e) => prop_assert!(
+                e.line().is_some() || matches!(e, LogError::TooShort { .. } | LogError::EmptyFile),
+                "{e}"
+            ),
+        }
+    }
+
+    /// Resampling a uniformly sampled log at its own step gives it back (up to rounding), and
+    /// a signal linear in time is interpolated exactly at any step.
+    #[test]
+    fn resampling_at_the_own_step_is_the_identity(log in flight_log(), frac in 0.05..0.95f64) {
+        let dt = log.t[1] - log.t[0];
+        let same = log.resample_linear(dt).unwrap();
+        prop_assert_eq!(same.len(), log.len());
+        for (a, b) in same.t.iter().zip(&log.t) {
+            prop_assert!((a - b).abs() <= 1e-9 * dt.max(b.abs()));
+        }
+        // px = 2 t + 1 everywhere: the resampled px at t' is 2 t' + 1 (closed form).
+        let mut linear = log.clone();
+        for (p, t) in linear.position.iter_mut().zip(&log.t) {
+            p[0] = 2.0 * t + 1.0;
+        }
+        let fine = linear.resample_linear(dt * frac).unwrap();
+        for (p, t) in fine.position.iter().zip(&fine.t) {
+            prop_assert!((p[0] - (2.0 * t + 1.0)).abs() <= 1e-9 * (1.0 + t.abs()));
+        }
+        for q in &fine.attitude {
+            let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+            prop_assert!((n - 1.0).abs() < 1e-9);
+        }
     }
 }
 
@@ -128,5 +193,97 @@ fn reader_errors_name_file_line_and_column() {
         message.contains("bad.csv") && message.contains("line 9"),
         "{message}"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `n` hover samples every 20 ms with `cut` seconds removed after `at` seconds.
+fn gappy_log(n: usize, at: f64, cut: f64) -> FlightLog {
+    let mut log = hover_log(n);
+    for t in &mut log.t {
+        *t *= 2.0;
+        if *t > at {
+            *t += cut;
+        }
+    }
+    log
+}
+
+#[test]
+fn sampling_reports_gaps_where_and_how_long_and_irregular_steps() {
+    let log = gappy_log(500, 3.0, 4.0);
+    let s = log.sampling();
+    assert!((s.median_step - 0.02).abs() < 1e-12);
+    assert_eq!(s.gaps.len(), 1);
+    let g = s.gaps[0];
+    assert_eq!(g.index, 151);
+    assert!(
+        (g.start - 3.0).abs() < 1e-9 && (g.duration - 4.02).abs() < 1e-9,
+        "{g:?}"
+    );
+    assert_eq!(s.segments(), vec![0..151, 151..500]);
+    assert_eq!(s.irregular_steps, 0);
+    let text = s.to_string();
+    assert!(
+        text.contains("gap: 4.020 s long after t = 3.000 s"),
+        "{text}"
+    );
+    // A step of 1.5 x the median is irregular, not a gap; 3 x + a bit is a gap.
+    let t = [
+        0.0,
+        1.0,
+        2.0,
+        3.5,
+        4.5,
+        5.5,
+        5.5 + GAP_FACTOR + 0.01,
+        7.0 + GAP_FACTOR,
+    ];
+    let s = Sampling::of(&t);
+    assert_eq!((s.gaps.len(), s.irregular_steps), (1, 2), "{s:?}");
+    assert!(
+        s.to_string().contains("irregular sampling: 2 of 7 steps"),
+        "{s}"
+    );
+}
+
+#[test]
+fn resampling_keeps_gaps_and_rejects_bad_steps() {
+    let log = gappy_log(500, 3.0, 4.0);
+    let r = log.resample_linear(0.01).unwrap();
+    let s = r.sampling();
+    assert_eq!(s.gaps.len(), 1, "{s}");
+    assert!((s.median_step - 0.01).abs() < 1e-12);
+    assert!((s.gaps[0].start - 3.0).abs() < 1e-9);
+    assert_eq!(r.t.first(), log.t.first());
+    for dt in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-12] {
+        assert!(
+            matches!(
+                log.resample_linear(dt),
+                Err(LogError::InvalidResampleStep { .. })
+            ),
+            "{dt}"
+        );
+    }
+}
+
+#[test]
+fn empty_files_and_directories_say_so() {
+    let dir = std::env::temp_dir().join(format!("tagk-log-empty-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("empty.csv");
+    std::fs::write(&path, "").unwrap();
+    let e = FlightLog::from_csv_path(&path).unwrap_err();
+    let message = e.to_string();
+    assert!(
+        message.contains("empty.csv") && message.contains("empty file"),
+        "{message}"
+    );
+    let e = FlightLog::from_csv_path(&dir).unwrap_err();
+    let message = e.to_string();
+    assert!(
+        message.contains(&dir.display().to_string()) && message.contains("is a directory"),
+        "{message}"
+    );
+    assert!(!message.contains("line"), "{message}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -24,6 +24,22 @@ pub enum SimError {
         /// The offending value \[s\].
         value: f64,
     },
+    /// The flight would keep more in memory than the budget allows (its log, trace and
+    /// tracking error grow with the duration): shorten it, or split it into several flights.
+    #[error(
+        "duration {duration} s would keep {gib:.1} GiB in memory, above the {budget_gib:.1} GiB budget (at most {max_s:.0} s with these settings); shorten the flight or split it",
+        gib = *bytes as f64 / f64::from(1u32 << 30),
+        budget_gib = *budget as f64 / f64::from(1u32 << 30),
+        max_s = *duration * (*budget as f64 / *bytes as f64)
+    )]
+    OverMemoryBudget {
+        /// The requested duration \[s\].
+        duration: f64,
+        /// The memory it would keep \[bytes\].
+        bytes: u64,
+        /// The budget \[bytes\] ([`MEMORY_BUDGET_BYTES`](crate::sim::MEMORY_BUDGET_BYTES)).
+        budget: u64,
+    },
     /// The vehicle with its payload cannot hover: a rotor would need more than its limit.
     #[error(
         "payload needs {required:.4} N on one rotor to hover, above the {available:.4} N limit"

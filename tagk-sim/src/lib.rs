@@ -21,7 +21,8 @@ pub use monte_carlo::{
 pub use plant::{Plant, PlantState};
 pub use plant_effects::PlantEffects;
 pub use sim::{
-    Adaptation, Controller, ExperimentProfile, LogRate, NoiseLevel, Payload, PayloadSchedule,
+    Adaptation, Controller, ExperimentProfile, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload,
+    PayloadSchedule,
     PayloadShape, Sensing, SensingProfile, SimConfig, SimOutput, TrialMetrics, simulate,
 };
 /// The flight-log type the simulator records (re-exported from `tagk-dynamics`).

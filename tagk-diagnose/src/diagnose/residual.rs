@@ -66,12 +66,16 @@ pub(crate) struct FailureAnalysis {
 /// windows, regimes, and the findings — regime trends of the structured (clearly non-white)
 /// channels, the non-white channels, the failure windows.
 pub(crate) fn where_it_fails(s: &Signals, fit: &Fit) -> FailureAnalysis {
-    let whiteness = whiteness(fit);
-    let failure_windows = failure_windows(&s.t, fit);
+    let rounding = at_rounding_level(s, fit);
+    let whiteness = whiteness(fit, &rounding);
+    let failure_windows = failure_windows(&s.t, fit, &rounding);
     let regimes = regimes(s, fit);
     let structured: Vec<bool> = whiteness
         .iter()
-        .map(|w| w.lags_outside * 4 >= w.autocorrelation.len().max(1) && w.lags_outside >= 5)
+        .zip(rounding)
+        .map(|(w, r)| {
+            !r && w.lags_outside * 4 >= w.autocorrelation.len().max(1) && w.lags_outside >= 5
+        })
         .collect();
     let mut findings = regime_findings(&regimes, &structured);
     for wn in &whiteness {
@@ -101,8 +105,34 @@ pub(crate) fn where_it_fails(s: &Signals, fit: &Fit) -> FailureAnalysis {
     }
 }
 
-/// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band.
-fn whiteness(fit: &Fit) -> Vec<Whiteness> {
+/// A residual RMS below this fraction of the measured wrench's RMS (the channel's, or its
+/// group's — forces or torques — when larger) is floating-point rounding, not a model error:
+/// such a channel is fitted exactly (a noise-free log), counts as white and has no failure
+/// windows.
+pub(crate) const ROUNDING_LEVEL: f64 = 1e-9;
+
+/// Per channel: is the residual at the rounding level ([`ROUNDING_LEVEL`])?
+pub(crate) fn at_rounding_level(s: &Signals, fit: &Fit) -> [bool; 6] {
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = v.fold((0.0, 0usize), |(a, n), x| (a + x * x, n + 1));
+        if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+    };
+    let measured: [f64; 6] = std::array::from_fn(|c| rms(&mut s.target.iter().map(|w| w[c])));
+    std::array::from_fn(|c| {
+        let group = if c < 3 {
+            &measured[..3]
+        } else {
+            &measured[3..]
+        };
+        let scale = group.iter().fold(measured[c], |a, &b| a.max(b));
+        let residual = rms(&mut fit.residual.iter().map(|r| r[c]));
+        scale > 0.0 && residual <= ROUNDING_LEVEL * scale
+    })
+}
+
+/// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band (a
+/// channel at the rounding level counts as white).
+fn whiteness(fit: &Fit, rounding: &[bool; 6]) -> Vec<Whiteness> {
     let n = fit.residual.len();
     let max_lag = 20.min(n / 4).max(1);
     let band = 1.96 / (n as f64).sqrt();
@@ -119,7 +149,7 @@ fn whiteness(fit: &Fit) -> Vec<Whiteness> {
                 autocorrelation: ac,
                 band,
                 lags_outside: outside,
-                white: outside <= allowed,
+                white: rounding[c] || outside <= allowed,
             }
         })
         .collect()
@@ -127,8 +157,8 @@ fn whiteness(fit: &Fit) -> Vec<Whiteness> {
 
 /// Sliding windows (about 1 s, half overlapping) whose residual mean square exceeds the
 /// channel's median window by a threshold corrected for autocorrelation; overlapping flagged
-/// windows are merged.
-fn failure_windows(t: &[f64], fit: &Fit) -> Vec<FailureWindow> {
+/// windows are merged. Channels at the rounding level are skipped.
+fn failure_windows(t: &[f64], fit: &Fit, rounding: &[bool; 6]) -> Vec<FailureWindow> {
     let n = t.len();
     let dt = if n > 1 {
         (t[n - 1] - t[0]) / (n - 1) as f64
@@ -139,7 +169,7 @@ fn failure_windows(t: &[f64], fit: &Fit) -> Vec<FailureWindow> {
     let step = (win / 2).max(1);
     // flags[i] = set of channels flagged for the window starting at i
     let mut intervals: Vec<(usize, usize, usize, f64)> = Vec::new(); // (start, end, channel, ratio)
-    for c in 0..6 {
+    for c in (0..6).filter(|&c| !rounding[c]) {
         let r = fit.residual_channel(c);
         let mut starts = Vec::new();
         let mut ms = Vec::new();

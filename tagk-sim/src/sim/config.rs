@@ -327,6 +327,20 @@ impl Default for SimConfig {
     }
 }
 
+/// Largest memory a flight may plan to keep \[bytes\] (2 GiB): the recorded log, the trace
+/// and the per-step tracking error grow with the duration, and a request above the budget is
+/// refused up front by [`SimConfig::validate`] ([`SimError::OverMemoryBudget`]) instead of
+/// aborting the process on a failed allocation. At 50 Hz with the log recorded, it allows
+/// about 48 hours of flight (control-rate log) or about 5 hours (physics-rate log).
+pub const MEMORY_BUDGET_BYTES: u64 = 2 << 30;
+
+/// Bytes one flight-log sample takes in memory (every signal of
+/// [`FlightLog`](tagk_dynamics::log::FlightLog), the optional ones included).
+const LOG_SAMPLE_BYTES: u64 = (std::mem::size_of::<f64>()
+    + std::mem::size_of::<[f64; 3]>() * 5
+    + std::mem::size_of::<[f64; 4]>() * 2
+    + std::mem::size_of::<[f64; 6]>()) as u64;
+
 fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
     if value > 0.0 && value.is_finite() {
         Ok(())
@@ -336,7 +350,44 @@ fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
 }
 
 impl SimConfig {
+    /// Control steps the flight takes (`duration / control_dt`, rounded, at least one);
+    /// `None` for a duration or period that is not positive and finite.
+    pub fn control_steps(&self) -> Option<u64> {
+        let steps = (self.duration / self.control_dt).round().max(1.0);
+        (self.duration > 0.0 && self.control_dt > 0.0 && steps.is_finite()).then_some(
+            if steps >= u64::MAX as f64 {
+                u64::MAX
+            } else {
+                steps as u64
+            },
+        )
+    }
+
+    /// The memory the flight's growing outputs will hold at its end \[bytes\]: the tracking
+    /// error of every control step, the recorded log (one sample per control step, or per
+    /// physics step with [`LogRate::Physics`]) and the trace, if recorded. Saturates instead
+    /// of overflowing; `u64::MAX` for a duration that is not positive and finite.
+    pub fn memory_estimate_bytes(&self) -> u64 {
+        let Some(steps) = self.control_steps() else {
+            return u64::MAX;
+        };
+        let mut per_step = std::mem::size_of::<f64>() as u64;
+        if self.record_log {
+            let samples = match self.log_rate {
+                LogRate::Control => 1,
+                LogRate::Physics => (self.control_dt / self.physics_dt).round().max(1.0) as u64,
+            };
+            per_step = per_step.saturating_add(samples.saturating_mul(LOG_SAMPLE_BYTES));
+        }
+        if self.record_trace {
+            per_step =
+                per_step.saturating_add(std::mem::size_of::<crate::sim::TraceSample>() as u64);
+        }
+        steps.saturating_mul(per_step)
+    }
+
     /// Checks the configuration without flying: durations and steps, sensing, altitude, the
+    /// memory the flight would hold ([`MEMORY_BUDGET_BYTES`]), the
     /// safety gate's thresholds, the vehicle, the effects, fixed payloads (positive mass, and
     /// hover feasible within the rotor limits) and the estimator's burn-in.
     ///
@@ -346,6 +397,14 @@ impl SimConfig {
         positive("duration", self.duration)?;
         positive("physics_dt", self.physics_dt)?;
         positive("control_dt", self.control_dt)?;
+        let bytes = self.memory_estimate_bytes();
+        if bytes > MEMORY_BUDGET_BYTES {
+            return Err(SimError::OverMemoryBudget {
+                duration: self.duration,
+                bytes,
+                budget: MEMORY_BUDGET_BYTES,
+            });
+        }
         if self.physics_dt > 0.002 + 1e-15 {
             return Err(SimError::InvalidParameter {
                 name: "physics_dt",

@@ -25,8 +25,8 @@ use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
 use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
 
 pub use config::{
-    Adaptation, LogRate, NoiseLevel, Payload, PayloadSchedule, PayloadShape, SimConfig,
-    check_payload, tracking_weights,
+    Adaptation, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule, PayloadShape,
+    SimConfig, check_payload, tracking_weights,
 };
 pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
 pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
@@ -113,7 +113,8 @@ struct Flight<'a> {
 /// flight are not errors: the controller keeps its previous parameters.
 pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
     config.validate()?;
-    let steps = (config.duration / config.control_dt).round().max(1.0) as usize;
+    // Validated: finite, and within the memory budget, so it fits a usize.
+    let steps = usize::try_from(config.control_steps().unwrap_or(1)).unwrap_or(usize::MAX);
     let mut flight = Flight::new(config, steps)?;
     for k in 0..steps {
         if flight.step(k)?.is_break() {

@@ -1,0 +1,37 @@
+//! Reads a flight log (the project's CSV format) and prints its size, how it is sampled (gaps
+//! where and how long, irregular steps) and the time and memory the reader took: the reader's
+//! share of a `tagk diagnose` run.
+//!
+//! ```text
+//! cargo run --release --example log_sampling -- flight.csv
+//! /usr/bin/time -v target/release/examples/log_sampling flight.csv   # peak memory
+//! ```
+
+use tagk::dynamics::log::FlightLog;
+
+fn main() {
+    let Some(path) = std::env::args().nth(1) else {
+        eprintln!("usage: log_sampling FILE.csv");
+        std::process::exit(2);
+    };
+    let start = std::time::Instant::now();
+    let log = match FlightLog::from_csv_path(&path) {
+        Ok(log) => log,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    };
+    let read = start.elapsed().as_secs_f64();
+    let columns = 20
+        + 3 * usize::from(log.accel.is_some())
+        + 3 * usize::from(log.omega_dot.is_some())
+        + 4 * usize::from(log.rotor_speeds.is_some())
+        + log.extra.len();
+    println!(
+        "{path}: {} rows, {columns} columns ({:.0} MB of f64) read in {read:.2} s",
+        log.len(),
+        (log.len() * columns * 8) as f64 / 1e6
+    );
+    println!("{}", log.sampling());
+}

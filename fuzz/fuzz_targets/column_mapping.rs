@@ -1,0 +1,33 @@
+//! The column mapping and the stream merge on arbitrary input: the bytes up to the first NUL are
+//! a mapping (TOML), the rest a stream (CSV) read through it. Every outcome must be a mapping
+//! error, a typed input error or a validated log: never a panic.
+#![no_main]
+
+use std::io::Write;
+
+use libfuzzer_sys::fuzz_target;
+use tagk_dynamics::log_input::{ColumnMapping, ReadOptions, read_streams};
+
+fuzz_target!(|data: &[u8]| {
+    let split = data.iter().position(|&b| b == 0).unwrap_or(data.len());
+    let Ok(toml) = std::str::from_utf8(&data[..split]) else {
+        return;
+    };
+    let Ok(mapping) = ColumnMapping::from_toml_str(toml) else {
+        return;
+    };
+    let csv = data.get(split + 1..).unwrap_or_default();
+    // One file per fuzzing process, in memory-backed /dev/shm when there is one.
+    let dir = if std::path::Path::new("/dev/shm").is_dir() {
+        std::path::PathBuf::from("/dev/shm")
+    } else {
+        std::env::temp_dir()
+    };
+    let path = dir.join(format!("tagk-fuzz-{}.csv", std::process::id()));
+    let mut file = std::fs::File::create(&path).expect("temporary file");
+    file.write_all(csv).expect("temporary file");
+    drop(file);
+    if let Ok((log, _)) = read_streams(&[path], &mapping, &ReadOptions::default()) {
+        log.validate().expect("a merged log validates");
+    }
+});
