@@ -236,6 +236,22 @@ fn reports_end_with_the_next_command_and_define_a_fit_on_every_channel() {
             .unwrap_or_else(|_| panic!("no err % in {row}"));
         assert!(err.is_finite() && err > 0.0, "{row}");
     }
+    // The wording matches the numbers: a candidate that raises the held-out residual is
+    // called worse, whatever else it is, and ten times the residual reads as a factor.
+    for line in plain.lines().filter(|l| l.contains(": held-out residual ")) {
+        let change = line.split(": held-out residual ").nth(1).unwrap();
+        if change.starts_with('+') || change.starts_with('×') {
+            assert!(
+                line.contains("worse: it raises the held-out residual"),
+                "{line}"
+            );
+        }
+        let percent: Option<f64> = change
+            .split(' ')
+            .next()
+            .and_then(|p| p.trim_start_matches('+').parse().ok());
+        assert!(percent.is_none_or(|p| p < 1000.0), "{line}");
+    }
     let report = dir.join("report");
     let with = run(&[
         "--with",
