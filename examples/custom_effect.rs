@@ -14,7 +14,7 @@
 //! 3. Register the tether as a candidate: it is ranked first and recommended.
 //! 4. Add it: the force channels' residual falls and the stiffness comes out near the truth.
 //!
-//! Run: `cargo run --release --example custom_effect`. `tests/custom_effect.rs` runs the
+//! Run: `cargo run --release --example custom_effect [-- --seed 42 --duration 25]`. `tests/custom_effect.rs` runs the
 //! same functions on a shorter flight.
 
 use std::sync::Arc;
@@ -163,8 +163,21 @@ pub fn diagnose_tether(log: &FlightLog, tether: &Tether) -> Result<Outcome, Diag
     })
 }
 
+/// A user-defined diagnosis effect end to end: a simulated flight with an elastic tether hidden
+/// in its log, diagnosed with the built-in candidates, then with the tether registered.
+#[derive(Debug, clap::Parser)]
+struct Args {
+    /// Seed of the simulated flight.
+    #[arg(long, default_value_t = 42)]
+    seed: u64,
+    /// Flight duration in seconds.
+    #[arg(long, default_value_t = 25.0)]
+    duration: f64,
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let log = tethered_log(&TETHER, STIFFNESS, 25.0, 42)?;
+    let args = <Args as clap::Parser>::parse();
+    let log = tethered_log(&TETHER, STIFFNESS, args.duration, args.seed)?;
     println!(
         "simulated {} samples; a tether of {STIFFNESS} N/m is hidden in the logged wrench\n",
         log.len()

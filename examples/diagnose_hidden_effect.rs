@@ -6,8 +6,9 @@
 //! 3. See where it fails and which effect is missing (blocked cross-validation ranking).
 //! 4. Add the recommended effect and watch the error fall: before/after table.
 //!
-//! Run: `cargo run --release --example diagnose_hidden_effect [-- OUT_DIR]` (with an OUT_DIR
-//! it also writes the CSV log, the JSON and the HTML report there).
+//! Run: `cargo run --release --example diagnose_hidden_effect [-- --out OUT_DIR]` (with
+//! `--out` it also writes the CSV log, the JSON and the HTML report there; `-- --help` lists
+//! the options).
 
 use tagk::diagnose::{
     DiagnoseOptions, FlightLog, Model, Signals, add_recommended, diagnosis_table, report_table,
@@ -16,11 +17,25 @@ mod common;
 
 use tagk::sim::{EffectKind, simulate};
 
+/// The diagnosis loop end to end on a simulated 25 s Crazyflie flight with quadratic drag
+/// hidden in the plant: compare, find what is missing, add it, watch the error fall.
+#[derive(Debug, clap::Parser)]
+struct Args {
+    /// Seed of the simulated flight.
+    #[arg(long, default_value_t = 42)]
+    seed: u64,
+    /// Also write the CSV log, the JSON and the HTML report into this folder (default: write
+    /// nothing).
+    #[arg(long, value_name = "DIR")]
+    out: Option<std::path::PathBuf>,
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out_dir = std::env::args().nth(1);
+    let args = <Args as clap::Parser>::parse();
+    let out_dir = args.out;
 
     // 1. A flight with a hidden effect.
-    let config = common::hidden_effect_flight(EffectKind::QuadraticDrag, 42)?;
+    let config = common::hidden_effect_flight(EffectKind::QuadraticDrag, args.seed)?;
     let flight = simulate(&config)?;
     // The simulator hands its samples over as a user's data would arrive: a CSV flight log.
     let mut csv = Vec::new();
@@ -43,7 +58,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!("{}", report_table(&report));
     if let Some(dir) = out_dir {
-        let dir = std::path::PathBuf::from(dir);
         std::fs::create_dir_all(&dir)?;
         std::fs::write(dir.join("flight.csv"), &csv)?;
         std::fs::write(dir.join("diagnosis.json"), report.to_json()?)?;

@@ -12,7 +12,7 @@ use tagk::sim::experiments::run_dimension_sweep;
 /// Table III: per-update time for n in 40..120, m = 30, synthetic windows.
 #[derive(Debug, Clone, Parser)]
 struct Args {
-    /// Output folder (default `out/dimension_sweep/`).
+    /// Output folder [default: out/dimension_sweep/].
     #[arg(long)]
     out: Option<PathBuf>,
     /// Updates timed per (estimator, n).

@@ -27,7 +27,7 @@ struct Args {
 }
 
 fn main() {
-    let args = Args::parse();
+    let args: Args = common::parse_args(tagk::sim::experiments::ERROR_CURVE_TRIALS);
     let mut progress = args.common.progress();
     match run_kaczmarz_ablation(
         &args.common.options(),

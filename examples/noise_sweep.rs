@@ -31,7 +31,7 @@ struct Args {
 }
 
 fn main() {
-    let args = Args::parse();
+    let args: Args = common::parse_args(tagk::sim::experiments::NOISE_SWEEP_TRIALS);
     let mut progress = args.common.progress();
     match run_noise_sweep(
         &args.common.options(),

@@ -32,21 +32,22 @@ fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }
 
-fn arg(name: &str, default: u64) -> u64 {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map(|v| {
-            v.parse()
-                .unwrap_or_else(|_| panic!("{name} takes a whole number"))
-        })
-        .unwrap_or(default)
+/// Track a quadrotor's inertial parameters through a payload pick-up and drop with every
+/// estimator, and print each one's error and per-update time.
+#[derive(Debug, clap::Parser)]
+struct Args {
+    /// Seed of the excitation and the sensor noise.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Windows in the stream (the payload is attached at a third and dropped at two thirds).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(3..))]
+    windows: u64,
 }
 
 fn main() {
-    let seed = arg("--seed", 7);
-    let windows = arg("--windows", 60) as usize;
+    let args = <Args as clap::Parser>::parse();
+    let seed = args.seed;
+    let windows = args.windows as usize;
     let (attach, drop) = (windows / 3, 2 * windows / 3);
 
     let vehicle = QuadrotorModel::crazyflie_2_1();

@@ -24,10 +24,10 @@ enum Command {
     /// it as a flight log.
     Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
-    /// that are missing, and refit with the ones you add (`--with`).
+    /// that are missing, and refit with the ones you add (--with).
     Diagnose(tagk::cli::diagnose::DiagnoseArgs),
     /// List the vehicle presets or print one as a vehicle file (TOML) to edit
-    /// (`--vehicle` of `diagnose`).
+    /// (--vehicle of diagnose).
     Vehicle(tagk::cli::vehicle::VehicleArgs),
 }
 

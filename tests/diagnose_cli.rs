@@ -161,6 +161,133 @@ fn help_lists_the_effects_with_their_summaries() {
     }
 }
 
+/// Every `--help` is plain terminal text: no rustdoc markup (backticks, intra-doc links,
+/// escaped unit brackets); `diagnose --help` defines both fit measures of its tables.
+#[test]
+fn help_is_plain_text_and_defines_the_fit_measures() {
+    for sub in [
+        &["--help"][..],
+        &["diagnose", "--help"],
+        &["simulate", "--help"],
+        &["vehicle", "--help"],
+        &["vehicle", "show", "--help"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+            .args(sub)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        let help = String::from_utf8_lossy(&out.stdout);
+        for markup in ["`", "\\[", "[`", "\\]"] {
+            assert!(!help.contains(markup), "{markup} in {sub:?}:\n{help}");
+        }
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(["diagnose", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    for line in tagk::diagnose::FIT_MEASURES.lines() {
+        assert!(help.contains(line), "{line} not in\n{help}");
+    }
+}
+
+/// The terminal report's fit measure is defined on every channel (the force channels whose
+/// measurement is constant too), a `--with` run prints the starting model once with a compact
+/// before/after table (not the rigid body's section again), and every report ends with the
+/// next command to run: on the terminal and in the HTML.
+#[test]
+fn reports_end_with_the_next_command_and_define_a_fit_on_every_channel() {
+    let dir = tmpdir("next");
+    let log = write_drag_log(&dir);
+    let run = |extra: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+            .arg("diagnose")
+            .arg(&log)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let plain = run(&[]);
+    let lines: Vec<&str> = plain.lines().filter(|l| !l.trim().is_empty()).collect();
+    let n = lines.len();
+    assert!(lines[n - 2].starts_with("next ("), "{plain}");
+    assert!(
+        lines[n - 1].starts_with("  tagk diagnose ") && lines[n - 1].contains("--with"),
+        "{plain}"
+    );
+    // err % has a number on every channel of the first table, fit % is n/a on fx and fy.
+    for ch in ["fx", "fy", "fz", "tx", "ty", "tz"] {
+        let row = plain
+            .lines()
+            .find(|l| l.starts_with(ch))
+            .unwrap_or_else(|| panic!("no {ch} row in\n{plain}"));
+        let err: f64 = row
+            .split_whitespace()
+            .nth(2)
+            .unwrap()
+            .parse()
+            .unwrap_or_else(|_| panic!("no err % in {row}"));
+        assert!(err.is_finite() && err > 0.0, "{row}");
+    }
+    // The wording matches the numbers: a candidate that raises the held-out residual is
+    // called worse, whatever else it is, and ten times the residual reads as a factor.
+    for line in plain.lines().filter(|l| l.contains(": held-out residual ")) {
+        let change = line.split(": held-out residual ").nth(1).unwrap();
+        if change.starts_with('+') || change.starts_with('×') {
+            assert!(
+                line.contains("worse: it raises the held-out residual"),
+                "{line}"
+            );
+        }
+        let percent: Option<f64> = change
+            .split(' ')
+            .next()
+            .and_then(|p| p.trim_start_matches('+').parse().ok());
+        assert!(percent.is_none_or(|p| p < 1000.0), "{line}");
+    }
+    let report = dir.join("report");
+    let with = run(&[
+        "--with",
+        "quadratic-drag",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(with.matches("=== model").count(), 1, "{with}");
+    assert_eq!(with.matches("parameters (± 1 s.e.)").count(), 1, "{with}");
+    assert!(with.contains("err % before  err % after"), "{with}");
+    let last = with.lines().rfind(|l| !l.trim().is_empty()).unwrap();
+    assert!(
+        last.starts_with("  tagk diagnose ") && last.contains("--online"),
+        "{with}"
+    );
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    let next = html
+        .find("id=\"next-command\"")
+        .expect("the next command in the HTML");
+    assert!(html[next..].contains("--online"));
+    assert!(
+        !html[next..].contains("<h2"),
+        "the next command is the last section"
+    );
+    assert!(!html.contains('`'), "a literal backtick in the HTML");
+    // resid's panels for every diagnosed model: 6 autocorrelations and 6 cross-correlations,
+    // each with its confidence band.
+    let models = html.matches("<h3>Residual autocorrelation</h3>").count();
+    assert!(models >= 2, "before and after");
+    assert_eq!(
+        html.matches("autocorrelation of residual").count(),
+        6 * models
+    );
+    assert_eq!(html.matches("class=\"band\"").count(), 12 * models);
+}
+
 /// Writes the HTML report and opens it in headless Chromium (`apt-get install -y chromium`).
 /// Skips with a message when Chromium is not installed.
 #[test]

@@ -641,8 +641,8 @@ struct ReadmeFigures {
 
 const README_FIGURES: ReadmeFigures = ReadmeFigures {
     rigid_body_rms: [
-        "fx          n/a      2.0940e-3 N",
-        "fy          n/a      1.2742e-3 N",
+        "fx          n/a   0.610      2.0940e-3 N",
+        "fy          n/a   0.371      1.2742e-3 N",
     ],
     verdict: "verdict: missing physics: `rotor-drag` (held-out residual -45 %)",
     staircase: [
@@ -652,12 +652,12 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
     ],
     rotor_drag: "rotor-drag: k_h = 9.202e-7 [9.02e-7, 9.38e-7] N s²/(m rad)",
     refit: [
-        "fx                n/a          n/a    2.0940e-3    2.4185e-5   -98.8 %",
-        "fy                n/a          n/a    1.2742e-3    2.2648e-5   -98.2 %",
+        "fx                n/a          n/a         0.610      0.00704    2.0940e-3    2.4185e-5   -98.8 %",
+        "fy                n/a          n/a         0.371      0.00659    1.2742e-3    2.2648e-5   -98.2 %",
     ],
     remains: [
-        "tx         28.1      1.4272e-5     1.10",
-        "ty         25.5      1.3090e-5     1.02",
+        "tx         28.1    52.2      1.4272e-5     1.10",
+        "ty         25.5    51.0      1.3090e-5     1.02",
     ],
     derived_verdict: "verdict: missing physics: `motor-lag` (held-out residual -20 %)",
     derived_rotor_drag: "rotor-drag: held-out residual -25.6 % (fx -87 %, fy -73 %); \

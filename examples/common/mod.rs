@@ -21,15 +21,27 @@ pub struct CommonArgs {
     /// Base seed.
     #[arg(long, default_value_t = 2025)]
     pub seed: u64,
-    /// Output folder (default `out/<experiment>/`).
+    /// Output folder [default: out/EXPERIMENT/].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Rayon threads (default: all cores).
+    /// Rayon threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Parses the example's arguments, with `--help` showing this experiment's default number of
+/// trials (`trials_default`, one of the `tagk::sim::experiments::*_TRIALS` constants).
+pub fn parse_args<A: clap::Parser>(trials_default: usize) -> A {
+    let command = A::command().mut_arg("trials", |a| {
+        a.help(format!(
+            "Trials per (noise level, estimator) cell [default: {trials_default}]"
+        ))
+    });
+    let matches = command.get_matches();
+    A::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }
 
 impl CommonArgs {

@@ -5,18 +5,18 @@ use std::path::PathBuf;
 
 use crate::diagnose::{
     CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef, FlightLog, Model,
-    Report, Signals, builtin_by_name, builtin_effects, online_pass, report_table, run_logs,
-    run_loop,
+    NextStep, Report, Signals, builtin_by_name, builtin_effects, online_pass, report_table,
+    run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
 
-/// Arguments of `tagk diagnose`.
+/// Arguments of tagk diagnose.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_help = effects_help())]
 pub struct DiagnoseArgs {
     /// Flight log(s) (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
-    /// repository). With `--columns` each is read through the column mapping. Several logs of
+    /// repository). With --columns each is read through the column mapping. Several logs of
     /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients), and
     /// each log's own staircase is compared with the joint one.
     #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
@@ -27,12 +27,12 @@ pub struct DiagnoseArgs {
     pub columns: Option<PathBuf>,
     /// One stream of the flight (a CSV file per topic, each with its own time column);
     /// repeatable. The streams are merged onto the first one's time base (or the mapping's
-    /// `primary`); gaps are reported, never interpolated over. Not several flights: one
+    /// primary); gaps are reported, never interpolated over. Not several flights: one
     /// flight in several files.
     #[arg(long = "stream", value_name = "FILE", conflicts_with = "logs")]
     pub stream: Vec<PathBuf>,
-    /// Effects to add to the rigid-body model, comma separated (e.g. `linear-drag,wind`):
-    /// built-in names or aliases (listed below) or the names of `--custom` effects.
+    /// Effects to add to the rigid-body model, comma separated (e.g. linear-drag,wind):
+    /// built-in names or aliases (listed below) or the names of --custom effects.
     #[arg(long = "with", value_delimiter = ',', value_name = "EFFECT")]
     pub with: Vec<String>,
     /// Write every number as JSON to this file.
@@ -44,33 +44,28 @@ pub struct DiagnoseArgs {
     /// Also run TAG-K online over the log and compare with the batch fit.
     #[arg(long)]
     pub online: bool,
-    /// Custom candidate effect from log signals: `NAME=COL[*COL...]@CH[,CH...]`
-    /// (e.g. `vbat=vbat*fz@fz`); repeatable.
+    /// Custom candidate effect from log signals: NAME=COL[*COL...]@CH[,CH...]
+    /// (e.g. vbat=vbat*fz@fz); repeatable.
     #[arg(long = "custom", value_name = "SPEC")]
     pub custom: Vec<String>,
-    /// Vehicle description: a preset (`crazyflie-2.1`; `tagk vehicle list`) or a vehicle file
-    /// (TOML, docs/VEHICLE.md). A log without the wrench `fx..tz` then gets it from its rotor
-    /// speeds `w1..w4` [rad/s] (a logged wrench is used as it is); the vehicle's airframe
-    /// radius becomes the default `--airframe-radius`.
+    /// Vehicle description: a preset (crazyflie-2.1; tagk vehicle list) or a vehicle file
+    /// (TOML, docs/VEHICLE.md). A log without the wrench fx..tz then gets it from its rotor
+    /// speeds w1..w4 (rad/s) (a logged wrench is used as it is); the vehicle's airframe
+    /// radius becomes the default --airframe-radius.
     #[arg(long, value_name = "NAME|FILE")]
     pub vehicle: Option<String>,
-    /// Known vehicle mass in kg, or `vehicle` for the mass prior of `--vehicle` (fixes the
-    /// mass; makes `thrust-gain` identifiable). Without it the mass is fitted.
+    /// Known vehicle mass in kg, or vehicle for the mass prior of --vehicle (fixes the
+    /// mass; makes thrust-gain identifiable). Without it the mass is fitted.
     #[arg(long, value_name = "KG|vehicle")]
     pub mass: Option<KnownMass>,
     /// Airframe radius in m beyond which a fitted centre of mass is flagged [default: the
-    /// vehicle's `airframe_radius` with `--vehicle`, else 0.0325].
+    /// vehicle's airframe_radius with --vehicle, else 0.0325].
     #[arg(long, value_name = "M")]
     pub airframe_radius: Option<f64>,
-    /// Measurement noise per channel `fx,fy,fz,tx,ty,tz` [N, N m] (e.g. from the sensors'
+    /// Measurement noise per channel fx,fy,fz,tx,ty,tz (N, N m) (e.g. from the sensors'
     /// specification): the noise floor of the stepwise search. Default: from the data (the
     /// held-out residual of every candidate at once; docs/CONVENTIONS.md §7).
-    #[arg(
-        long,
-        value_name = "N,N,N,Nm,Nm,Nm",
-        value_delimiter = ',',
-        num_args = 6
-    )]
+    #[arg(long, value_name = "FX,FY,FZ,TX,TY,TZ", value_delimiter = ',')]
     pub noise_floor: Option<Vec<f64>>,
     /// Resample the log onto a uniform time grid of this step [s] before the diagnosis, by
     /// linear interpolation (the attitude by normalised linear interpolation), each segment
@@ -123,6 +118,10 @@ fn effects_help() -> String {
             format!(" (also: {})", aliases.join(", "))
         };
         text.push_str(&format!("  {:<15} {}{also}\n", kind.name(), kind.summary()));
+    }
+    text.push_str("\nFit measures of the tables:\n");
+    for line in crate::diagnose::FIT_MEASURES.lines() {
+        text.push_str(&format!("  {line}\n"));
     }
     text
 }
@@ -196,6 +195,54 @@ impl DiagnoseArgs {
             cmd.push_str(&format!(" --with {}", effects.join(",")));
         }
         cmd
+    }
+}
+
+impl DiagnoseArgs {
+    /// The command to run after this report, and why: with the effects the stepwise search
+    /// added, the same command with `--with` all of them (before/after on the same log);
+    /// otherwise, without `--report`, the same command with `--report` (the residual plots);
+    /// otherwise with `--online` (does TAG-K converge to the fit?); then the model on a second
+    /// flight (a joint diagnosis of several logs).
+    pub fn next_step(&self, report: &Report) -> NextStep {
+        let effects = &report.final_model.effects;
+        let report_dir = self
+            .report
+            .as_ref()
+            .map_or_else(|| "tagk-report".to_string(), |d| d.display().to_string());
+        let with_report = format!("{} --report {report_dir}", self.command_for(effects));
+        if !report.final_model.added.is_empty() {
+            NextStep {
+                command: with_report,
+                why: format!(
+                    "refit with {} and compare before/after",
+                    report.final_model.added.join(", ")
+                ),
+            }
+        } else if self.report.is_none() {
+            NextStep {
+                command: with_report,
+                why: "nothing more to add: look at the residual plots".into(),
+            }
+        } else if !self.online {
+            NextStep {
+                command: format!("{with_report} --online"),
+                why: "the model is adequate: check that TAG-K online converges to this fit".into(),
+            }
+        } else if self.stream.is_empty() && !self.logs.is_empty() {
+            let mut joint = self.clone();
+            joint.logs.push(PathBuf::from("SECOND_FLIGHT.csv"));
+            NextStep {
+                command: format!("{} --report {report_dir}", joint.command_for(effects)),
+                why: "the model is adequate: check it on a second flight of the vehicle".into(),
+            }
+        } else {
+            NextStep {
+                command: with_report,
+                why: "the model is adequate on this flight: diagnose the next flight the same way"
+                    .into(),
+            }
+        }
     }
 }
 
@@ -390,6 +437,7 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
     }
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
+    report.next = Some(args.next_step(&report));
     Ok(report)
 }
 
@@ -462,12 +510,13 @@ pub fn diagnose_logs(
     }
     let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
+    report.next = Some(args.next_step(&report));
     Ok(report)
 }
 
 /// Reads the flight: `LOG` as it is (the project's format), or with `--columns` and/or
 /// `--stream` through the column mapping and the merge of the streams
-/// ([`read_streams`](crate::dynamics::log_input::read_streams)), whose report is returned.
+/// ([`read_streams`]), whose report is returned.
 ///
 /// # Errors
 /// The log's or the mapping's errors (file, line, column; a missing quantity with the columns
@@ -611,20 +660,24 @@ fn print_sampling(log: &FlightLog, args: &DiagnoseArgs) {
 /// # Errors
 /// [`DiagnoseError::Output`] naming the file that could not be written.
 fn write_outputs(report: &Report, args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
-    if !args.quiet {
-        println!("{}", report_table(report));
-    }
     if let Some(path) = &args.json {
         std::fs::write(path, report.to_json()?).map_err(|e| DiagnoseError::Output {
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
     }
-    if let Some(dir) = &args.report {
-        let file = crate::diagnose::html::write_report(report, dir)?;
-        if !args.quiet {
-            println!("report: {}", file.display());
+    let html = match &args.report {
+        Some(dir) => Some(crate::diagnose::html::write_report(report, dir)?),
+        None => None,
+    };
+    if !args.quiet {
+        let mut table = report_table(report);
+        if let Some(file) = html {
+            // The report's path goes before the closing "next" lines.
+            let at = table.rfind("\nnext (").unwrap_or(table.len());
+            table.insert_str(at, &format!("report: {}\n", file.display()));
         }
+        print!("{table}");
     }
     Ok(())
 }

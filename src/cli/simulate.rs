@@ -24,17 +24,17 @@ pub enum PayloadArg {
     /// The protocol's random payload (30–50 % of the mass, attached at 4–6 s, removed at
     /// 12–14 s).
     Protocol,
-    /// The payload given by `--payload-mass`, `--payload-offset`, `--attach`, `--remove`.
+    /// The payload given by --payload-mass, --payload-offset, --attach, --remove.
     Fixed,
 }
 
-/// Flags of `tagk simulate`.
+/// Flags of tagk simulate.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
     /// Reference trajectory.
     #[arg(long, value_parser = trajectory_parser(), default_value = "figure8")]
     pub trajectory: TrajectoryKind,
-    /// Flight duration [s].
+    /// Flight duration (s).
     #[arg(long, default_value_t = 20.0)]
     pub duration: f64,
     /// Seed of every random choice.
@@ -45,44 +45,44 @@ pub struct SimulateArgs {
     #[arg(long, value_parser = noise_parser(), default_value = "none")]
     pub noise: NoiseLevel,
     /// Sensing profile: the vehicle's gyro, accelerometer, velocity and rotor-speed noise and
-    /// biases (`ideal`: none; `realistic`: a Crazyflie 2.1 in flight; `realistic-calibrated`:
+    /// biases (ideal: none; realistic: a Crazyflie 2.1 in flight; realistic-calibrated:
     /// the same with the accelerometer bias calibrated away).
     #[arg(long, value_parser = sensing_parser(), default_value = "ideal")]
     pub sensing: SensingProfile,
-    /// Rate-gyro noise, standard deviation per axis [rad/s] (replaces the sensing profile's).
+    /// Rate-gyro noise, standard deviation per axis (rad/s) (replaces the sensing profile's).
     #[arg(long)]
     pub gyro_noise: Option<f64>,
-    /// Reference yaw rate [rad/s]: the heading turns at this rate from 0 (default 0: the
+    /// Reference yaw rate (rad/s): the heading turns at this rate from 0 (default 0: the
     /// heading stays along world x).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub yaw_rate: f64,
     /// Payload events.
     #[arg(long, value_enum, default_value_t = PayloadArg::None)]
     pub payload: PayloadArg,
-    /// Fixed payload mass [kg].
+    /// Fixed payload mass (kg).
     #[arg(long, default_value_t = FIXED_PAYLOAD_DEFAULTS.0, allow_negative_numbers = true)]
     pub payload_mass: f64,
-    /// Fixed payload offset in the body frame [m], as `x,y,z`.
+    /// Fixed payload offset in the body frame (m), as x,y,z.
     #[arg(long, value_delimiter = ',', default_values_t = FIXED_PAYLOAD_DEFAULTS.1, allow_negative_numbers = true)]
     pub payload_offset: Vec<f64>,
-    /// Fixed payload attach time [s].
+    /// Fixed payload attach time (s).
     #[arg(long, default_value_t = FIXED_PAYLOAD_DEFAULTS.2)]
     pub attach: f64,
-    /// Fixed payload removal time [s] (omit to keep it).
+    /// Fixed payload removal time (s) (omit to keep it).
     #[arg(long)]
     pub remove: Option<f64>,
     /// Plant effects to switch on at their Crazyflie defaults (repeatable; the names of the
-    /// effect vocabulary shared with `tagk diagnose --with`).
+    /// effect vocabulary shared with tagk diagnose --with).
     #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
     /// Online estimator feeding the controller (omit: the controller keeps the nominal
     /// parameters).
     #[arg(long, value_parser = estimator_parser())]
     pub estimator: Option<EstimatorKind>,
-    /// Height of the trajectory centre [m] (default: random 0.8–1.5 m).
+    /// Height of the trajectory centre (m) (default: random 0.8–1.5 m).
     #[arg(long)]
     pub altitude: Option<f64>,
-    /// Log samples: `control` (one per 50 Hz control interval, at its midpoint) or `physics`
+    /// Log samples: control (one per 50 Hz control interval, at its midpoint) or physics
     /// (one per 2 ms physics step: instantaneous IMU-style samples, no angular-acceleration
     /// columns).
     #[arg(long, value_parser = log_rate_parser(), default_value = "control")]
@@ -198,7 +198,7 @@ pub struct SimulateSummary {
     pub samples: usize,
     /// The log file.
     pub output: PathBuf,
-    /// Position error of the flight [cm].
+    /// Position error of the flight \[cm\].
     pub position_error_cm: f64,
     /// Whether the flight aborted.
     pub aborted: bool,

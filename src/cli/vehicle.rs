@@ -4,7 +4,7 @@
 
 use crate::dynamics::vehicle::{PRESETS, ThrustCurve, Vehicle, VehicleError};
 
-/// Arguments of `tagk vehicle`.
+/// Arguments of tagk vehicle.
 #[derive(Debug, Clone, clap::Args)]
 pub struct VehicleArgs {
     /// What to do.
@@ -12,15 +12,15 @@ pub struct VehicleArgs {
     pub command: VehicleCommand,
 }
 
-/// The subcommands of `tagk vehicle`.
+/// The subcommands of tagk vehicle.
 #[derive(Debug, Clone, clap::Subcommand)]
 pub enum VehicleCommand {
-    /// List the built-in vehicle presets (usable as `--vehicle NAME`).
+    /// List the built-in vehicle presets (usable as --vehicle NAME).
     List,
     /// Print a preset (or check a vehicle file) as a commented TOML vehicle file, a template
     /// to edit for your own vehicle.
     Show {
-        /// A preset name (`tagk vehicle list`) or a vehicle file.
+        /// A preset name (tagk vehicle list) or a vehicle file.
         #[arg(value_name = "NAME|FILE")]
         name: String,
     },

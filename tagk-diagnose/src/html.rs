@@ -7,19 +7,24 @@ use std::path::{Path, PathBuf};
 
 use crate::diagnose::Diagnosis;
 use crate::error::DiagnoseError;
+use crate::format::{change_percent, percent_cell};
 use crate::report::Report;
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS};
+use crate::stats;
 
 /// File name of the report inside the report directory.
 pub const REPORT_FILE: &str = "index.html";
 
 const W: f64 = 460.0;
-const H: f64 = 220.0;
-const ML: f64 = 70.0;
-const MR: f64 = 26.0;
-const MT: f64 = 26.0;
-const MB: f64 = 34.0;
+const H: f64 = 230.0;
+const ML: f64 = 64.0;
+const MR: f64 = 16.0;
+/// Top margin: the title, then the legend row (outside the data).
+const MT: f64 = 40.0;
+const MB: f64 = 38.0;
 const MAX_POINTS: usize = 1200;
+/// Most lags of the correlation plots (`resid`'s default is 25).
+const MAX_LAG: usize = 25;
 
 /// Escapes text for HTML/SVG.
 pub(crate) fn escape(s: &str) -> String {
@@ -29,136 +34,294 @@ pub(crate) fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-fn fmt_tick(v: f64) -> String {
-    if v == 0.0 {
-        "0".into()
-    } else if v.abs() >= 1e-2 && v.abs() < 1e4 {
-        format!("{v:.3}")
-            .trim_end_matches('0')
-            .trim_end_matches('.')
-            .to_string()
-    } else {
-        format!("{v:.2e}")
-    }
-}
-
-/// A line series: label, colour, x, y.
-struct LineSeries<'a> {
-    /// Legend label.
-    pub label: &'a str,
-    /// CSS colour.
-    pub color: &'a str,
-    /// Abscissae.
-    pub x: &'a [f64],
-    /// Ordinates.
-    pub y: &'a [f64],
-}
-
-fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in vals.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if !lo.is_finite() {
-        return (0.0, 1.0);
-    }
-    if hi - lo <= 1e-300 {
-        let d = if lo.abs() > 0.0 { lo.abs() * 0.1 } else { 1.0 };
-        return (lo - d, hi + d);
-    }
-    let pad = 0.05 * (hi - lo);
-    (lo - pad, hi + pad)
-}
-
-fn frame(out: &mut String, title: &str, xr: (f64, f64), yr: (f64, f64), xlabel: &str) {
-    let _ = write!(
-        out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" class="plot"><rect x="0" y="0" width="{W}" height="{H}" fill="white"/><text x="{}" y="16" font-size="13" text-anchor="middle" font-family="sans-serif">{}</text>"#,
-        W / 2.0,
-        escape(title)
-    );
-    let (x0, x1, y0, y1) = (ML, W - MR, MT, H - MB);
-    let _ = write!(
-        out,
-        r##"<rect x="{x0}" y="{y0}" width="{}" height="{}" fill="none" stroke="#444"/>"##,
-        x1 - x0,
-        y1 - y0
-    );
-    for k in 0..=4 {
-        let f = k as f64 / 4.0;
-        let yv = yr.0 + f * (yr.1 - yr.0);
-        let py = y1 - f * (y1 - y0);
-        let xv = xr.0 + f * (xr.1 - xr.0);
-        let px = x0 + f * (x1 - x0);
-        let _ = write!(
-            out,
-            r##"<line x1="{x0}" y1="{py:.1}" x2="{x1}" y2="{py:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" font-size="10" text-anchor="end" font-family="sans-serif">{}</text><text x="{px:.1}" y="{}" font-size="10" text-anchor="middle" font-family="sans-serif">{}</text>"##,
-            x0 - 4.0,
-            py + 3.0,
-            fmt_tick(yv),
-            y1 + 13.0,
-            fmt_tick(xv)
-        );
-    }
-    let _ = write!(
-        out,
-        r#"<text x="{}" y="{}" font-size="11" text-anchor="middle" font-family="sans-serif">{}</text>"#,
-        (x0 + x1) / 2.0,
-        H - 4.0,
-        escape(xlabel)
-    );
-}
-
-fn map(v: f64, r: (f64, f64), a: f64, b: f64) -> f64 {
-    a + (v - r.0) / (r.1 - r.0) * (b - a)
-}
-
-/// A line plot as an SVG element; `shade` are x-intervals drawn as red bands.
-fn line_plot(title: &str, xlabel: &str, series: &[LineSeries<'_>], shade: &[(f64, f64)]) -> String {
-    let xr = {
-        let (lo, hi) = range(series.iter().flat_map(|s| s.x.iter().copied()));
-        let pad = (hi - lo) / 1.1 * 0.05;
-        (lo + pad, hi - pad)
-    };
-    let yr = range(series.iter().flat_map(|s| s.y.iter().copied()));
+/// Escapes text for HTML and sets the spans between backticks (`` `rotor-drag` ``) as code,
+/// so that no literal backtick reaches the page.
+pub(crate) fn text(s: &str) -> String {
     let mut out = String::new();
-    frame(&mut out, title, xr, yr, xlabel);
-    for &(a, b) in shade {
-        let pa = map(a.max(xr.0), xr, ML, W - MR);
-        let pb = map(b.min(xr.1), xr, ML, W - MR);
+    for (k, part) in escape(s).split('`').enumerate() {
+        if k % 2 == 1 {
+            let _ = write!(out, "<code>{part}</code>");
+        } else {
+            out.push_str(part);
+        }
+    }
+    out
+}
+
+/// The same text for an SVG `<text>` element (no markup there): backticks dropped.
+fn svg_text(s: &str) -> String {
+    escape(&s.replace('`', ""))
+}
+
+/// A plot axis with rounded ticks: the range widened to whole steps of 1, 2 or 5 × 10ᵏ,
+/// and the tick labels printed with the decimals that step needs; values beyond 10⁴ or below
+/// 10⁻² are labelled in units of a common power of ten, named by [`Axis::scale_note`].
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Axis {
+    /// Lower end.
+    pub lo: f64,
+    /// Upper end.
+    pub hi: f64,
+    /// Tick positions.
+    pub ticks: Vec<f64>,
+    /// Decimals of the tick labels (after the common power of ten).
+    decimals: usize,
+    /// The common power of ten of the labels.
+    exponent: i32,
+}
+
+impl Axis {
+    /// Rounded ticks (about `target` of them) covering `[lo, hi]`.
+    pub fn new(lo: f64, hi: f64, target: usize) -> Self {
+        let (lo, hi) = if lo.is_finite() && hi.is_finite() && hi > lo {
+            (lo, hi)
+        } else if lo.is_finite() {
+            let d = if lo != 0.0 { 0.1 * lo.abs() } else { 1.0 };
+            (lo - d, lo + d)
+        } else {
+            (0.0, 1.0)
+        };
+        let raw = (hi - lo) / target.max(1) as f64;
+        let mag = 10f64.powf(raw.log10().floor());
+        let step = [1.0, 2.0, 5.0, 10.0]
+            .into_iter()
+            .map(|f| f * mag)
+            .find(|st| *st >= raw * (1.0 - 1e-9))
+            .unwrap_or(10.0 * mag);
+        // Ends on whole steps (a value a hair past a step stays on it).
+        let first = (lo / step + 1e-9).floor();
+        let last = (hi / step - 1e-9).ceil();
+        let ticks: Vec<f64> = (0..=((last - first) as usize))
+            .map(|k| {
+                let v = (first + k as f64) * step;
+                if v.abs() < 1e-12 * step { 0.0 } else { v }
+            })
+            .collect();
+        let largest = ticks.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let exponent = if !(1e-2..1e4).contains(&largest) && largest > 0.0 {
+            largest.log10().floor() as i32
+        } else {
+            0
+        };
+        let scaled_step = step / 10f64.powi(exponent);
+        let decimals = (-(scaled_step.log10().floor()) as i32).max(0) as usize;
+        Self {
+            lo: first * step,
+            hi: last * step,
+            ticks,
+            decimals,
+            exponent,
+        }
+    }
+
+    /// The label of a tick.
+    pub fn label(&self, v: f64) -> String {
+        let x = v / 10f64.powi(self.exponent);
+        let s = format!("{x:.*}", self.decimals);
+        if s.trim_start_matches('-')
+            .chars()
+            .all(|c| c == '0' || c == '.')
+        {
+            "0".to_string()
+        } else {
+            s.replace('-', "−")
+        }
+    }
+
+    /// ` (×10⁻³)` when the labels are in units of a power of ten, else empty.
+    pub fn scale_note(&self) -> String {
+        if self.exponent == 0 {
+            String::new()
+        } else {
+            format!(" (×1e{})", self.exponent)
+        }
+    }
+
+    fn map(&self, v: f64, a: f64, b: f64) -> f64 {
+        a + (v - self.lo) / (self.hi - self.lo) * (b - a)
+    }
+}
+
+/// The data range of some values (finite ones only).
+fn extent(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    vals.filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// A line series: label, colour, dash pattern, x, y.
+struct LineSeries<'a> {
+    label: &'a str,
+    color: &'a str,
+    /// SVG `stroke-dasharray` (empty: solid).
+    dash: &'a str,
+    x: &'a [f64],
+    y: &'a [f64],
+}
+
+/// A shaded x-interval of a time plot.
+struct Span {
+    start: f64,
+    end: f64,
+    /// A start transient (grey) rather than a failure (red).
+    transient: bool,
+}
+
+/// The plot frame: title, legend row above the data, axes with rounded ticks, axis labels.
+fn frame(
+    out: &mut String,
+    title: &str,
+    xa: &Axis,
+    ya: &Axis,
+    xlabel: &str,
+    legend: &[(&str, &str, &str)],
+) {
+    let _ = write!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" class="plot"><rect x="0" y="0" width="{W}" height="{H}" fill="white"/><text x="{}" y="15" font-size="13" text-anchor="middle" font-family="sans-serif">{}{}</text>"#,
+        W / 2.0,
+        svg_text(title),
+        svg_text(&ya.scale_note())
+    );
+    // Legend: one row between the title and the data.
+    let mut lx = ML;
+    for (label, color, dash) in legend {
         let _ = write!(
             out,
-            r##"<rect x="{pa:.1}" y="{MT}" width="{:.1}" height="{}" fill="#e33" fill-opacity="0.18" class="failure"/>"##,
-            (pb - pa).max(1.0),
-            H - MB - MT
+            r#"<line x1="{lx}" y1="29" x2="{}" y2="29" stroke="{color}" stroke-width="2" stroke-dasharray="{dash}"/><text x="{}" y="33" font-size="11" font-family="sans-serif">{}</text>"#,
+            lx + 18.0,
+            lx + 22.0,
+            svg_text(label)
+        );
+        lx += 30.0 + 6.5 * label.chars().count() as f64;
+    }
+    let (x0, x1, y0, y1) = (ML, W - MR, MT, H - MB);
+    for &v in &ya.ticks {
+        let py = ya.map(v, y1, y0);
+        let _ = write!(
+            out,
+            r##"<line x1="{x0}" y1="{py:.1}" x2="{x1}" y2="{py:.1}" stroke="#e4e4e4"/><text x="{}" y="{:.1}" font-size="10" text-anchor="end" font-family="sans-serif">{}</text>"##,
+            x0 - 4.0,
+            py + 3.5,
+            ya.label(v)
         );
     }
-    for (k, s) in series.iter().enumerate() {
+    for &v in &xa.ticks {
+        let px = xa.map(v, x0, x1);
+        let _ = write!(
+            out,
+            r##"<line x1="{px:.1}" y1="{y1}" x2="{px:.1}" y2="{}" stroke="#444"/><text x="{px:.1}" y="{}" font-size="10" text-anchor="middle" font-family="sans-serif">{}</text>"##,
+            y1 + 4.0,
+            y1 + 15.0,
+            xa.label(v)
+        );
+    }
+    let _ = write!(
+        out,
+        r##"<rect x="{x0}" y="{y0}" width="{}" height="{}" fill="none" stroke="#444"/><text x="{}" y="{}" font-size="11" text-anchor="middle" font-family="sans-serif">{}{}</text>"##,
+        x1 - x0,
+        y1 - y0,
+        (x0 + x1) / 2.0,
+        H - 6.0,
+        svg_text(xlabel),
+        svg_text(&xa.scale_note())
+    );
+}
+
+/// A line plot as an SVG element; `spans` are shaded x-intervals, `hlines` dashed horizontal
+/// reference lines `(y, label)` (e.g. the noise floor), named in the legend.
+fn line_plot(
+    title: &str,
+    xlabel: &str,
+    series: &[LineSeries<'_>],
+    spans: &[Span],
+    hlines: &[(f64, &str)],
+) -> String {
+    let (xlo, xhi) = extent(series.iter().flat_map(|s| s.x.iter().copied()));
+    let (ylo, yhi) = extent(
+        series
+            .iter()
+            .flat_map(|s| s.y.iter().copied())
+            .chain(hlines.iter().map(|h| h.0)),
+    );
+    // A few whole-number abscissae (steps, updates) get one tick each.
+    let whole = series
+        .iter()
+        .all(|s| s.x.len() <= 12 && s.x.iter().all(|v| v.fract() == 0.0));
+    let xa = if whole && xhi > xlo {
+        Axis::new(xlo, xhi, (xhi - xlo) as usize)
+    } else {
+        Axis::new(xlo, xhi, 6)
+    };
+    let ya = Axis::new(ylo, yhi, 5);
+    let mut legend: Vec<(&str, &str, &str)> =
+        series.iter().map(|s| (s.label, s.color, s.dash)).collect();
+    if let Some((_, label)) = hlines.first() {
+        legend.push((label, "#36c", "4 3"));
+    }
+    if spans.iter().any(|s| !s.transient) {
+        legend.push(("large residual", "#f3b4b4", ""));
+    }
+    if spans.iter().any(|s| s.transient) {
+        legend.push(("start transient", "#c8c8c8", ""));
+    }
+    let mut out = String::new();
+    frame(&mut out, title, &xa, &ya, xlabel, &legend);
+    let (x0, x1, y0, y1) = (ML, W - MR, MT, H - MB);
+    for sp in spans {
+        let pa = xa.map(sp.start.max(xa.lo), x0, x1);
+        let pb = xa.map(sp.end.min(xa.hi), x0, x1);
+        let (fill, class) = if sp.transient {
+            ("#888", "transient")
+        } else {
+            ("#e33", "failure")
+        };
+        let _ = write!(
+            out,
+            r#"<rect x="{pa:.1}" y="{y0}" width="{:.1}" height="{}" fill="{fill}" fill-opacity="0.2" class="{class}"/>"#,
+            (pb - pa).max(1.0),
+            y1 - y0
+        );
+    }
+    for (y, _) in hlines {
+        let py = ya.map(*y, y1, y0);
+        let _ = write!(
+            out,
+            r##"<line x1="{x0}" y1="{py:.1}" x2="{x1}" y2="{py:.1}" stroke="#36c" stroke-width="1.2" stroke-dasharray="4 3"/>"##
+        );
+    }
+    for s in series {
         let n = s.x.len().min(s.y.len());
         let step = n.div_ceil(MAX_POINTS).max(1);
         let mut pts = String::new();
-        let mut i = 0;
-        while i < n {
+        for i in (0..n).step_by(step) {
             if s.x[i].is_finite() && s.y[i].is_finite() {
                 let _ = write!(
                     pts,
                     "{:.1},{:.1} ",
-                    map(s.x[i], xr, ML, W - MR),
-                    map(s.y[i], yr, H - MB, MT)
+                    xa.map(s.x[i], x0, x1),
+                    ya.map(s.y[i], y1, y0)
                 );
             }
-            i += step;
         }
         let _ = write!(
             out,
-            r#"<polyline points="{pts}" fill="none" stroke="{}" stroke-width="1.2"/><text x="{}" y="{}" font-size="10" fill="{}" font-family="sans-serif">{}</text>"#,
-            s.color,
-            ML + 6.0 + 110.0 * k as f64,
-            MT + 12.0,
-            s.color,
-            escape(s.label)
+            r#"<polyline points="{pts}" fill="none" stroke="{}" stroke-width="1.2" stroke-dasharray="{}"/>"#,
+            s.color, s.dash
         );
+        if whole {
+            // Markers on the few points of a step plot.
+            for i in 0..n {
+                let _ = write!(
+                    out,
+                    r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{}"/>"#,
+                    xa.map(s.x[i], x0, x1),
+                    ya.map(s.y[i], y1, y0),
+                    s.color
+                );
+            }
+        }
     }
     out.push_str("</svg>");
     out
@@ -166,53 +329,134 @@ fn line_plot(title: &str, xlabel: &str, series: &[LineSeries<'_>], shade: &[(f64
 
 /// A scatter plot as an SVG element.
 fn scatter_plot(title: &str, xlabel: &str, x: &[f64], y: &[f64], color: &str) -> String {
-    let xr = range(x.iter().copied());
-    let yr = range(y.iter().copied());
+    let (xlo, xhi) = extent(x.iter().copied());
+    let (ylo, yhi) = extent(y.iter().copied());
+    let xa = Axis::new(xlo, xhi, 6);
+    let ya = Axis::new(ylo, yhi, 5);
     let mut out = String::new();
-    frame(&mut out, title, xr, yr, xlabel);
+    frame(&mut out, title, &xa, &ya, xlabel, &[]);
     let n = x.len().min(y.len());
     let step = n.div_ceil(MAX_POINTS).max(1);
-    let mut i = 0;
-    while i < n {
+    for i in (0..n).step_by(step) {
         if x[i].is_finite() && y[i].is_finite() {
             let _ = write!(
                 out,
                 r#"<circle cx="{:.1}" cy="{:.1}" r="1.6" fill="{color}" fill-opacity="0.6"/>"#,
-                map(x[i], xr, ML, W - MR),
-                map(y[i], yr, H - MB, MT)
+                xa.map(x[i], ML, W - MR),
+                ya.map(y[i], H - MB, MT)
             );
         }
-        i += step;
     }
     out.push_str("</svg>");
     out
 }
 
-/// Horizontal bar chart of `(label, value)` in percent.
-fn bar_chart(title: &str, bars: &[(String, f64, bool)]) -> String {
-    let h = MT + 22.0 * bars.len().max(1) as f64 + 20.0;
-    let mut out = format!(
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" class="plot"><rect width="{W}" height="{h}" fill="white"/><text x="{}" y="16" font-size="13" text-anchor="middle" font-family="sans-serif">{}</text>"#,
-        W / 2.0,
-        escape(title)
+/// A correlation plot as MATLAB's `resid` draws it: one stem per lag, the 95 % band of an
+/// uncorrelated residual (`±1.96/√N`) shaded, the stems outside it in red.
+fn correlation_plot(title: &str, xlabel: &str, lags: &[f64], rho: &[f64], band: f64) -> String {
+    let (lo, hi) = extent(rho.iter().copied().chain([band, -band]));
+    let (xlo, xhi) = extent(lags.iter().copied());
+    let xa = Axis::new(xlo, xhi, 6);
+    let ya = Axis::new(lo.min(-band), hi.max(band), 4);
+    let mut out = String::new();
+    frame(
+        &mut out,
+        title,
+        &xa,
+        &ya,
+        xlabel,
+        &[("95 % band", "#9bd", ""), ("outside", "#c22", "")],
     );
-    let x0 = 130.0;
-    let span = W - x0 - 60.0;
-    for (k, (label, v, good)) in bars.iter().enumerate() {
-        let y = MT + 22.0 * k as f64;
-        let frac = (v / 100.0).clamp(0.0, 1.0);
-        let color = if *good { "#2a7" } else { "#999" };
+    let (x0, x1, y0, y1) = (ML, W - MR, MT, H - MB);
+    let (pb_hi, pb_lo) = (ya.map(band, y1, y0), ya.map(-band, y1, y0));
+    let _ = write!(
+        out,
+        r##"<rect x="{x0}" y="{pb_hi:.1}" width="{}" height="{:.1}" fill="#9bd" fill-opacity="0.35" class="band"/>"##,
+        x1 - x0,
+        pb_lo - pb_hi
+    );
+    let pz = ya.map(0.0, y1, y0);
+    let _ = write!(
+        out,
+        r##"<line x1="{x0}" y1="{pz:.1}" x2="{x1}" y2="{pz:.1}" stroke="#444"/>"##
+    );
+    for (&l, &r) in lags.iter().zip(rho) {
+        if !r.is_finite() {
+            continue;
+        }
+        let px = xa.map(l, x0, x1);
+        let py = ya.map(r, y1, y0);
+        let color = if r.abs() > band { "#c22" } else { "#333" };
         let _ = write!(
             out,
-            r#"<text x="{}" y="{}" font-size="11" text-anchor="end" font-family="sans-serif">{}</text><rect x="{x0}" y="{}" width="{:.1}" height="14" fill="{color}"/><text x="{:.1}" y="{}" font-size="10" font-family="sans-serif">{:.1} %</text>"#,
-            x0 - 6.0,
+            r#"<line x1="{px:.1}" y1="{pz:.1}" x2="{px:.1}" y2="{py:.1}" stroke="{color}" stroke-width="1.5"/><circle cx="{px:.1}" cy="{py:.1}" r="2" fill="{color}"/>"#
+        );
+    }
+    out.push_str("</svg>");
+    out
+}
+
+/// Bar chart of the held-out residual change of each candidate, in percent (negative =
+/// the candidate lowers the residual), bars from a zero line, clipped at ±100 % (the label
+/// gives the value, as the explanation does: [`change_percent`]).
+fn change_chart(title: &str, bars: &[(String, f64, bool)]) -> String {
+    let h = MT + 22.0 * bars.len().max(1) as f64 + 24.0;
+    let mut out = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" class="plot"><rect width="{W}" height="{h}" fill="white"/><text x="{}" y="15" font-size="13" text-anchor="middle" font-family="sans-serif">{}</text>"#,
+        W / 2.0,
+        svg_text(title)
+    );
+    let left = 130.0;
+    let right = W - 70.0;
+    let zero = (left + right) / 2.0;
+    let half = (right - left) / 2.0;
+    let _ = write!(
+        out,
+        r##"<text x="{left}" y="33" font-size="10" font-family="sans-serif">← lowers the residual</text><text x="{right}" y="33" font-size="10" text-anchor="end" font-family="sans-serif">raises it →</text><line x1="{zero}" y1="{}" x2="{zero}" y2="{}" stroke="#444"/>"##,
+        MT - 4.0,
+        h - 20.0
+    );
+    for tick in [-100.0, -50.0, 0.0, 50.0, 100.0] {
+        let x = zero + half * tick / 100.0;
+        let _ = write!(
+            out,
+            r#"<text x="{x:.1}" y="{}" font-size="10" text-anchor="middle" font-family="sans-serif">{}</text>"#,
+            h - 6.0,
+            if tick == 0.0 {
+                "0".to_string()
+            } else {
+                format!("{tick:+.0} %").replace('-', "−")
+            }
+        );
+    }
+    for (k, (label, change, good)) in bars.iter().enumerate() {
+        let y = MT + 22.0 * k as f64;
+        let frac = if change.is_finite() {
+            change.clamp(-1.0, 1.0)
+        } else {
+            0.0
+        };
+        let color = if *good { "#2a7" } else { "#999" };
+        let (bx, bw) = if frac < 0.0 {
+            (zero + half * frac, -half * frac)
+        } else {
+            (zero, half * frac)
+        };
+        let (tx, anchor) = if frac < 0.0 {
+            (zero + 4.0, "start")
+        } else {
+            (zero - 4.0, "end")
+        };
+        let _ = write!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="end" font-family="sans-serif">{}</text><rect x="{bx:.1}" y="{}" width="{:.1}" height="14" fill="{color}"/><text x="{tx:.1}" y="{}" font-size="10" text-anchor="{anchor}" font-family="sans-serif">{}</text>"#,
+            left - 6.0,
             y + 11.0,
-            escape(label),
+            svg_text(label),
             y,
-            (span * frac).max(0.5),
-            x0 + span * frac + 4.0,
+            bw.max(0.5),
             y + 11.0,
-            v
+            svg_text(&change_percent(*change, 1))
         );
     }
     out.push_str("</svg>");
@@ -223,16 +467,19 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     let _ = write!(
         html,
         "<h2>{}</h2><p class=\"verdict\">{}</p>",
-        escape(title),
-        escape(&d.verdict)
+        text(title),
+        text(&d.verdict)
     );
-    html.push_str("<table><tr><th>channel</th><th>fit %</th><th>residual RMS</th></tr>");
+    html.push_str(
+        "<table><tr><th>channel</th><th>fit %</th><th>err %</th><th>residual RMS</th></tr>",
+    );
     for c in &d.channels {
         let _ = write!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{:.4e} {}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.4e} {}</td></tr>",
             c.name,
             c.fit_percent.map_or("n/a".into(), |f| format!("{f:.1}")),
+            percent_cell(c.error_percent, 0),
             c.rms,
             escape(&c.unit)
         );
@@ -256,7 +503,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         d.com[1] * 100.0,
         d.com[2] * 100.0,
         if d.physically_consistent { "yes" } else { "NO" },
-        escape(&d.safety_gate)
+        text(&d.safety_gate)
     );
     for e in &d.effects {
         let coefs: Vec<String> = e
@@ -268,17 +515,17 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
             html,
             "<p>effect <b>{}</b>: {}{}</p>",
             escape(&e.effect),
-            escape(&coefs.join(", ")),
+            text(&coefs.join(", ")),
             if e.plausible { "" } else { " (IMPLAUSIBLE)" }
         );
     }
     for w in &d.warnings {
-        let _ = write!(html, "<p class=\"warn\">⚠ {}</p>", escape(w));
+        let _ = write!(html, "<p class=\"warn\">⚠ {}</p>", text(w));
     }
     if !d.findings.is_empty() {
         html.push_str("<h3>Where it fails</h3><ul>");
         for f in &d.findings {
-            let _ = write!(html, "<li>{}</li>", escape(f));
+            let _ = write!(html, "<li>{}</li>", text(f));
         }
         html.push_str("</ul>");
     }
@@ -294,48 +541,67 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
                 LineSeries {
                     label: "measured",
                     color: "#222",
+                    dash: "",
                     x: &d.t,
                     y: &m,
                 },
                 LineSeries {
                     label: "predicted",
                     color: "#d60",
+                    dash: "5 3",
                     x: &d.t,
                     y: &p,
                 },
             ],
             &[],
+            &[],
         ));
     }
     html.push_str("</div>");
-    // Residual over time with failure windows.
-    html.push_str("<h3>Residual over time (failure windows shaded)</h3><div class=\"grid\">");
+    // Residual over time with the failure windows and the noise floor.
+    html.push_str(
+        "<h3>Residual over time</h3><p class=\"note\">Dashed: ± the channel's noise floor (held-out RMS a model can reach). \
+         A residual outside it throughout is missing physics; red: windows where the residual is \
+         significantly larger than in the rest of the flight; grey: the start transient.</p><div class=\"grid\">",
+    );
     for c in 0..6 {
         let r = d.fit.residual_channel(c);
-        let shade: Vec<(f64, f64)> = d
+        let spans: Vec<Span> = d
             .failure_windows
             .iter()
             .filter(|f| f.channels.iter().any(|n| n == CHANNEL_NAMES[c]))
-            .map(|f| (f.t_start, f.t_end))
+            .map(|f| Span {
+                start: f.t_start,
+                end: f.t_end,
+                transient: f.transient,
+            })
             .collect();
+        let floor = d.noise_floor.rms[c];
+        let ratio = d.held_out_rms[c] / floor;
         html.push_str(&line_plot(
-            &format!("residual {} [{}]", CHANNEL_NAMES[c], CHANNEL_UNITS[c]),
+            &format!(
+                "residual {} [{}], held-out RMS {:.1}× floor",
+                CHANNEL_NAMES[c], CHANNEL_UNITS[c], ratio
+            ),
             "time [s]",
             &[LineSeries {
                 label: "residual",
                 color: "#c22",
+                dash: "",
                 x: &d.t,
                 y: &r,
             }],
-            &shade,
+            &spans,
+            &[(floor, "± noise floor"), (-floor, "")],
         ));
     }
     html.push_str("</div>");
+    section_correlations(html, d);
     // Residual vs the top candidate's driver.
     if let (Some(top), Some((dname, dsig))) = (d.ranking.first(), &d.top_driver) {
         let _ = write!(
             html,
-            "<h3>Residual against the top candidate's signal ({})</h3><div class=\"grid\">",
+            "<h3>Residual against the top candidate's signal (<code>{}</code>)</h3><div class=\"grid\">",
             escape(&top.effect)
         );
         let mut chans: Vec<usize> = top
@@ -355,7 +621,10 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         for c in chans {
             let r = d.fit.residual_channel(c);
             html.push_str(&scatter_plot(
-                &format!("residual {} vs {}", CHANNEL_NAMES[c], dname),
+                &format!(
+                    "residual {} [{}] vs {}",
+                    CHANNEL_NAMES[c], CHANNEL_UNITS[c], dname
+                ),
                 dname,
                 dsig,
                 &r,
@@ -364,23 +633,20 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         }
         html.push_str("</div>");
     }
-    // Ranking.
-    html.push_str("<h3>What is missing: ranking (held-out residual reduction, blocked CV)</h3>");
+    // Ranking: the change of the held-out residual, signed as in the explanations.
+    html.push_str("<h3>What is missing: ranking (held-out residual change, blocked CV)</h3>");
     let bars: Vec<(String, f64, bool)> = d
         .ranking
         .iter()
-        .map(|c| {
-            (
-                c.effect.clone(),
-                100.0 * c.reduction,
-                c.significant && c.plausible,
-            )
-        })
+        .map(|c| (c.effect.clone(), -c.reduction, c.status.qualifies()))
         .collect();
-    html.push_str(&bar_chart("held-out residual reduction", &bars));
+    html.push_str(&change_chart(
+        "held-out residual change per candidate (green: qualifies)",
+        &bars,
+    ));
     html.push_str("<ol>");
     for c in &d.ranking {
-        let _ = write!(html, "<li>{}</li>", escape(&c.explanation));
+        let _ = write!(html, "<li>{}</li>", text(&c.explanation));
     }
     html.push_str("</ol>");
     for u in &d.unavailable {
@@ -388,13 +654,79 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
             html,
             "<p>{}: skipped, {}</p>",
             escape(&u.effect),
-            escape(&u.reason)
+            text(&u.reason)
         );
     }
 }
 
+/// MATLAB `resid`'s two panels per channel: the residual's autocorrelation at lags
+/// `0..=MAX_LAG` and its cross-correlation with the input at lags `−MAX_LAG..=MAX_LAG`, each
+/// with the 95 % band of an uncorrelated residual `±z₀.₉₇₅/√N`. The input is the top
+/// candidate's driving signal when there is one, else the measured thrust `fz`.
+fn section_correlations(html: &mut String, d: &Diagnosis) {
+    let n = d.t.len();
+    if n < 8 {
+        return;
+    }
+    let dt = (d.t[n - 1] - d.t[0]) / (n - 1) as f64;
+    let max_lag = MAX_LAG.min(n / 4);
+    let band = crate::fit::Z_95 / (n as f64).sqrt();
+    let _ = write!(
+        html,
+        "<h3>Residual autocorrelation</h3><p class=\"note\">Lags of {} samples ({:.3} s each); \
+         shaded: the 95 % band of a white residual (±1.96/√N, N = {n}). Stems outside it: the \
+         residual is predictable from its own past, so the model misses a dynamic.</p><div class=\"grid\">",
+        max_lag, dt
+    );
+    for c in 0..6 {
+        let r = d.fit.residual_channel(c);
+        let rho = stats::autocorrelation(&r, max_lag);
+        let lags: Vec<f64> = (0..=max_lag).map(|k| k as f64 * dt).collect();
+        html.push_str(&correlation_plot(
+            &format!("autocorrelation of residual {}", CHANNEL_NAMES[c]),
+            "lag [s]",
+            &lags,
+            &rho,
+            band,
+        ));
+    }
+    html.push_str("</div>");
+    let thrust: Vec<f64>;
+    let (input_name, input): (&str, &[f64]) = match &d.top_driver {
+        Some((name, sig)) => (name.as_str(), sig),
+        None => {
+            thrust = d.measured.iter().map(|w| w[2]).collect();
+            ("measured thrust fz", &thrust)
+        }
+    };
+    let _ = write!(
+        html,
+        "<h3>Residual–input cross-correlation (input: {})</h3><p class=\"note\">Positive lags: the \
+         input leads the residual. Stems outside the band: the residual still depends on the input, \
+         so the model misses how the input acts.</p><div class=\"grid\">",
+        escape(input_name)
+    );
+    let lags: Vec<f64> = (-(max_lag as i64)..=max_lag as i64)
+        .map(|k| k as f64 * dt)
+        .collect();
+    for c in 0..6 {
+        let r = d.fit.residual_channel(c);
+        let rho = stats::cross_correlation(input, &r, max_lag);
+        html.push_str(&correlation_plot(
+            &format!("residual {} vs input", CHANNEL_NAMES[c]),
+            "lag [s]",
+            &lags,
+            &rho,
+            band,
+        ));
+    }
+    html.push_str("</div>");
+}
+
 /// Channel colours of the staircase plot (fx … tz).
 const CHANNEL_COLORS: [&str; 6] = ["#c22", "#2a7", "#36c", "#d60", "#839", "#555"];
+/// Channel dash patterns of the staircase plot, so that equal series stay apart.
+const CHANNEL_DASHES: [&str; 6] = ["", "6 3", "2 2", "8 3 2 3", "1 3", "12 4"];
 
 /// The stepwise search: the staircase table (held-out RMS per channel and step, the floor),
 /// why it stopped, the command that reproduces the final model, each log's own verdict, and a
@@ -438,8 +770,8 @@ fn section_staircase(html: &mut String, report: &Report) {
     let _ = write!(
         html,
         "<p id=\"stopped\">stopped: {}</p><p>final model: <b>{}</b></p>",
-        escape(&report.stopped),
-        escape(&report.final_model.label)
+        text(&report.stopped),
+        text(&report.final_model.label)
     );
     if let Some(cmd) = &report.final_model.command {
         let _ = write!(
@@ -463,6 +795,7 @@ fn section_staircase(html: &mut String, report: &Report) {
             .map(|c| LineSeries {
                 label: CHANNEL_NAMES[c],
                 color: CHANNEL_COLORS[c],
+                dash: CHANNEL_DASHES[c],
                 x: &x,
                 y: &ratios[c],
             })
@@ -471,6 +804,7 @@ fn section_staircase(html: &mut String, report: &Report) {
             "log10(held-out RMS / noise floor) per step (0 = at the floor)",
             "step",
             &series,
+            &[],
             &[],
         ));
     }
@@ -498,7 +832,7 @@ fn section_staircase(html: &mut String, report: &Report) {
 /// The report as one HTML document.
 pub fn render(report: &Report) -> String {
     let mut html = String::from(
-        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.verdict{font-weight:bold;font-size:1.1em}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
     );
     let _ = write!(
         html,
@@ -517,19 +851,21 @@ pub fn render(report: &Report) -> String {
             "<h2>Before / after adding {}</h2>",
             escape(&report.with.join(", "))
         );
-        html.push_str("<table id=\"before-after\"><tr><th>channel</th><th>fit % before</th><th>fit % after</th><th>RMS before</th><th>RMS after</th><th>change</th></tr>");
+        html.push_str("<table id=\"before-after\"><tr><th>channel</th><th>fit % before</th><th>fit % after</th><th>err % before</th><th>err % after</th><th>RMS before</th><th>RMS after</th><th>change</th></tr>");
         for c in change {
             let _ = write!(
                 html,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.1} %</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4e}</td><td>{:.4e}</td><td>{}</td></tr>",
                 c.name,
                 c.fit_percent_before
                     .map_or("n/a".into(), |f| format!("{f:.1}")),
                 c.fit_percent_after
                     .map_or("n/a".into(), |f| format!("{f:.1}")),
+                percent_cell(c.error_percent_before, 0),
+                percent_cell(c.error_percent_after, 0),
                 c.rms_before,
                 c.rms_after,
-                -100.0 * c.rms_reduction
+                change_percent(-c.rms_reduction, 1)
             );
         }
         html.push_str("</table><div class=\"grid\">");
@@ -543,16 +879,19 @@ pub fn render(report: &Report) -> String {
                     LineSeries {
                         label: "before",
                         color: "#c22",
+                        dash: "",
                         x: &report.before.t,
                         y: &rb,
                     },
                     LineSeries {
                         label: "after",
                         color: "#2a7",
+                        dash: "5 3",
                         x: &after.t,
                         y: &ra,
                     },
                 ],
+                &[],
                 &[],
             ));
         }
@@ -586,11 +925,26 @@ pub fn render(report: &Report) -> String {
             &[LineSeries {
                 label: "mass",
                 color: "#36c",
+                dash: "",
                 x: &t,
                 y: &o.mass_history,
             }],
             &[],
+            &[],
         ));
+    }
+    let _ = write!(
+        html,
+        "<p class=\"note\" id=\"fit-measures\">{}</p>",
+        escape(crate::report::FIT_MEASURES).replace('\n', "<br>")
+    );
+    if let Some(next) = report.next_step() {
+        let _ = write!(
+            html,
+            "<h2 id=\"next\">Next</h2><p>{}:</p><pre><code id=\"next-command\">{}</code></pre>",
+            text(&next.why),
+            escape(&next.command)
+        );
     }
     html.push_str("</body></html>\n");
     html
@@ -609,4 +963,63 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<PathBuf, DiagnoseErro
     let path = dir.join(REPORT_FILE);
     std::fs::write(&path, render(report)).map_err(io)?;
     Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_round_and_cover_the_data() {
+        // The issue's case: a time axis from 0.01 to 24.99 s.
+        let a = Axis::new(0.01, 24.99, 6);
+        let labels: Vec<String> = a.ticks.iter().map(|&v| a.label(v)).collect();
+        assert_eq!(labels, ["0", "5", "10", "15", "20", "25"]);
+        assert!(a.lo <= 0.01 && a.hi >= 24.99);
+        // Lags from 0: the axis starts at 0, not a step before it.
+        let lags = Axis::new(0.0, 0.5, 6);
+        assert_eq!(lags.lo, 0.0);
+        assert_eq!(lags.label(0.3), "0.3");
+        // Small values are labelled in units of a power of ten, named once.
+        let small = Axis::new(-2.1e-3, 2.9e-3, 5);
+        assert_eq!(small.scale_note(), " (×1e-3)");
+        assert!(small.ticks.iter().all(|&v| {
+            let l = small.label(v);
+            l.chars().count() <= 2 && !l.contains('e')
+        }));
+        assert_eq!(small.label(-2e-3), "−2");
+    }
+
+    #[test]
+    fn backticks_become_code_and_never_reach_the_page() {
+        assert_eq!(
+            text("missing physics: `rotor-drag` (-45 %) <b>"),
+            "missing physics: <code>rotor-drag</code> (-45 %) &lt;b&gt;"
+        );
+        assert_eq!(svg_text("a `b`"), "a b");
+    }
+
+    #[test]
+    fn the_change_chart_signs_match_the_text() {
+        // A candidate that lowers the residual by 45 % is drawn left of zero and labelled
+        // −45.0 %, as the explanation says; one that makes it 190 times larger is clipped
+        // at +100 % and labelled ×190.
+        let svg = change_chart(
+            "t",
+            &[("good".into(), -0.45, true), ("bad".into(), 189.0, false)],
+        );
+        assert!(svg.contains("-45.0 %"));
+        assert!(svg.contains("×190"));
+        let zero = (130.0 + (W - 70.0)) / 2.0;
+        let good_x: f64 = svg
+            .split("<rect x=\"")
+            .nth(1)
+            .and_then(|r| r.split('"').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap();
+        assert!(
+            good_x < zero,
+            "the good bar starts at {good_x}, zero at {zero}"
+        );
+    }
 }

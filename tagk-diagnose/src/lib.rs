@@ -8,6 +8,7 @@ mod diagnose;
 pub mod effects;
 mod error;
 mod fit;
+pub mod format;
 pub mod html;
 pub mod log;
 mod online;
@@ -30,8 +31,8 @@ pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, Z_95, fit_model
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineSummary, online_pass};
 pub use report::{
-    ChannelChange, FinalModel, LogVerdict, RankingEntry, Report, add_recommended, diagnosis_table,
-    report_table, run_logs, run_loop, staircase_table,
+    ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,
+    add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the

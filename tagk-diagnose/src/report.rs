@@ -10,9 +10,18 @@ use crate::diagnose::{
 use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Model};
+use crate::format::{change_percent, percent_cell};
 use crate::online::OnlineSummary;
 use crate::signals::{CHANNEL_NAMES, Signals};
 use tagk_dynamics::EffectKind;
+
+/// The two per-channel fit measures of the tables, defined once for the terminal help, the
+/// terminal tables and the HTML report.
+pub const FIT_MEASURES: &str = "fit %  MATLAB compare's fit, 100 (1 - |y - y_model| / |y - mean(y)|); \
+100 is perfect; n/a for a channel whose measurement is constant (a quadrotor's fx, fy).\n\
+err %  residual RMS as a percentage of the RMS magnitude of the measured force (about the \
+thrust) for fx, fy, fz, and of the measured torque for tx, ty, tz; defined for every channel; \
+0 is perfect.";
 
 /// One entry of the JSON `ranking`.
 #[derive(Debug, Clone, Serialize)]
@@ -59,6 +68,19 @@ pub struct ChannelChange {
     pub fit_percent_before: Option<f64>,
     /// Fit % after.
     pub fit_percent_after: Option<f64>,
+    /// Error % before ([`ChannelFit::error_percent`]).
+    pub error_percent_before: Option<f64>,
+    /// Error % after.
+    pub error_percent_after: Option<f64>,
+}
+
+/// What to run next, with the reason: the last line of every report.
+#[derive(Debug, Clone, Serialize)]
+pub struct NextStep {
+    /// The command line.
+    pub command: String,
+    /// Why this is the next step.
+    pub why: String,
 }
 
 /// The whole loop on one log: diagnose the rigid-body model (`before`); if effects were added
@@ -102,6 +124,9 @@ pub struct Report {
     /// With several logs ([`run_logs`]): each log's own staircase against the joint one
     /// (empty for one log).
     pub logs: Vec<LogVerdict>,
+    /// The next command to run (filled in by the command-line tool, which knows the files
+    /// and flags; without it the report suggests the `--with` list, see [`Report::next`]).
+    pub next: Option<NextStep>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -138,6 +163,17 @@ impl Report {
     /// The starting model's diagnosis (after, or before if nothing was added).
     pub fn last(&self) -> &Diagnosis {
         self.after.as_ref().unwrap_or(&self.before)
+    }
+
+    /// The next step: [`Report::next`] when the command-line tool set it, otherwise the
+    /// effects to add (`--with …`) when the staircase added some, otherwise `None`.
+    pub fn next_step(&self) -> Option<NextStep> {
+        self.next.clone().or_else(|| {
+            (!self.final_model.added.is_empty()).then(|| NextStep {
+                command: format!("--with {}", self.final_model.effects.join(",")),
+                why: "refit with the effects the stepwise search added".into(),
+            })
+        })
     }
 
     /// The final model's diagnosis (the staircase's last step).
@@ -225,6 +261,8 @@ fn loop_from(
                 },
                 fit_percent_before: b.fit_percent,
                 fit_percent_after: a.fit_percent,
+                error_percent_before: b.error_percent,
+                error_percent_after: a.error_percent,
             })
             .collect();
         (Some(after), Some(change))
@@ -256,6 +294,7 @@ fn loop_from(
         final_diagnosis,
         online: None,
         logs: Vec::new(),
+        next: None,
     })
 }
 
@@ -365,12 +404,13 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
             ""
         }
     ));
-    s.push_str("channel   fit %        residual RMS\n");
+    s.push_str("channel   fit %   err %   residual RMS\n");
     for c in &d.channels {
         s.push_str(&format!(
-            "{:<8} {}   {:>12.4e} {}\n",
+            "{:<8} {} {}   {:>12.4e} {}\n",
             c.name,
             fmt_fit(c.fit_percent),
+            percent_cell(c.error_percent, 7),
             c.rms,
             c.unit
         ));
@@ -446,7 +486,7 @@ pub fn staircase_table(r: &Report) -> String {
         s.push_str(&format!("{label:<26}"));
         for ch in &step.channels {
             let change = if step.effect.is_some() {
-                format!("({:+.0}%)", 100.0 * ch.change)
+                format!("({})", change_percent(ch.change, 0).replace(' ', ""))
             } else {
                 String::new()
             };
@@ -515,16 +555,20 @@ pub fn report_table(r: &Report) -> String {
         s.push_str(&format!("=== model with {} ===\n", r.with.join(", ")));
         s.push_str(&diagnosis_table(a));
         s.push_str("\n=== rigid body / with the added effects (in-sample residual) ===\n");
-        s.push_str("channel   fit % before  fit % after   RMS before    RMS after   change\n");
+        s.push_str(
+            "channel   fit % before  fit % after  err % before  err % after   RMS before    RMS after    change\n",
+        );
         for c in ch {
             s.push_str(&format!(
-                "{:<8}  {:>11}  {:>11}  {:>11.4e}  {:>11.4e}  {:>6.1} %\n",
+                "{:<8}  {:>11}  {:>11}  {}  {}  {:>11.4e}  {:>11.4e}  {:>8}\n",
                 c.name,
                 fmt_fit(c.fit_percent_before),
                 fmt_fit(c.fit_percent_after),
+                percent_cell(c.error_percent_before, 12),
+                percent_cell(c.error_percent_after, 11),
                 c.rms_before,
                 c.rms_after,
-                -100.0 * c.rms_reduction
+                change_percent(-c.rms_reduction, 1)
             ));
         }
     } else {
@@ -571,18 +615,22 @@ pub fn report_table(r: &Report) -> String {
             o.updates, o.final_estimate[0], o.batch_estimate[0], o.distance_to_batch
         ));
     }
+    if let Some(next) = r.next_step() {
+        s.push_str(&format!("\nnext ({}):\n  {}\n", next.why, next.command));
+    }
     s
 }
 
 /// The final model in a few lines: its channels against the floor, its parameters' warnings
 /// and where it still fails.
 fn remains(d: &Diagnosis) -> String {
-    let mut s = String::from("channel   fit %   held-out RMS   / floor\n");
+    let mut s = String::from("channel   fit %   err %   held-out RMS   / floor\n");
     for (c, ch) in d.channels.iter().enumerate() {
         s.push_str(&format!(
-            "{:<8} {}   {:>12.4e}   {:>6.2}\n",
+            "{:<8} {} {}   {:>12.4e}   {:>6.2}\n",
             ch.name,
             fmt_fit(ch.fit_percent),
+            percent_cell(ch.error_percent, 7),
             d.held_out_rms[c],
             d.held_out_rms[c] / d.noise_floor.rms[c]
         ));

@@ -175,3 +175,77 @@ pub fn rms(x: &[f64]) -> f64 {
     }
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
+
+/// Sample cross-correlation of two series at lags `−max_lag..=max_lag` (index `k + max_lag`):
+/// `ρ_xy(k) = Σᵢ x̃ᵢ ỹᵢ₊ₖ / √(Σ x̃² Σ ỹ²)` of the mean-removed series (positive `k`: `x` leads
+/// `y`), the normalisation of MATLAB's `resid`. Zeros when either series is constant.
+pub fn cross_correlation(x: &[f64], y: &[f64], max_lag: usize) -> Vec<f64> {
+    let n = x.len().min(y.len());
+    let mut out = vec![0.0; 2 * max_lag + 1];
+    if n == 0 {
+        return out;
+    }
+    let mx = x[..n].iter().sum::<f64>() / n as f64;
+    let my = y[..n].iter().sum::<f64>() / n as f64;
+    let sx: f64 = x[..n].iter().map(|v| (v - mx) * (v - mx)).sum();
+    let sy: f64 = y[..n].iter().map(|v| (v - my) * (v - my)).sum();
+    let norm = (sx * sy).sqrt();
+    if norm <= 0.0 || !norm.is_finite() {
+        return out;
+    }
+    for (idx, o) in out.iter_mut().enumerate() {
+        let k = idx as i64 - max_lag as i64;
+        let mut s = 0.0;
+        for i in 0..n as i64 {
+            let j = i + k;
+            if j >= 0 && j < n as i64 {
+                s += (x[i as usize] - mx) * (y[j as usize] - my);
+            }
+        }
+        *o = s / norm;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic irregular series (no RNG needed).
+    fn series(n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|i| ((i * 7919 % 113) as f64 - 56.0) / 13.0 + (0.37 * i as f64).sin())
+            .collect()
+    }
+
+    #[test]
+    fn cross_correlation_of_a_series_with_itself_is_its_autocorrelation() {
+        let x = series(400);
+        let acf = autocorrelation(&x, 10);
+        let ccf = cross_correlation(&x, &x, 10);
+        for k in 0..=10 {
+            assert!((ccf[10 + k] - acf[k]).abs() < 1e-12, "lag {k}");
+            assert!((ccf[10 - k] - acf[k]).abs() < 1e-12, "lag -{k}");
+        }
+    }
+
+    #[test]
+    fn a_delayed_copy_peaks_at_its_delay() {
+        let x = series(500);
+        // y lags x by 3 samples: y[i] = x[i − 3].
+        let y: Vec<f64> = (0..500)
+            .map(|i| if i >= 3 { x[i - 3] } else { 0.0 })
+            .collect();
+        let ccf = cross_correlation(&x, &y, 6);
+        let peak = (0..ccf.len())
+            .max_by(|&a, &b| ccf[a].total_cmp(&ccf[b]))
+            .unwrap();
+        assert_eq!(peak as i64 - 6, 3);
+        assert!(ccf[peak] > 0.95, "{}", ccf[peak]);
+        assert!(
+            cross_correlation(&x, &[1.0; 500], 2)
+                .iter()
+                .all(|v| *v == 0.0)
+        );
+    }
+}

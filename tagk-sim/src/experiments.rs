@@ -79,6 +79,14 @@ impl ExperimentOptions {
 /// Payload attach and removal times of the error-over-time experiments \[s\].
 const EVENTS: [f64; 2] = [5.0, 13.0];
 
+/// Trials per cell of the error-curve sweeps ([`run_single_trial`], [`run_kaczmarz_ablation`])
+/// when [`ExperimentOptions::trials`] is not given.
+pub const ERROR_CURVE_TRIALS: usize = 100;
+/// Trials per cell of [`run_noise_sweep`] (Table II) when none are given.
+pub const NOISE_SWEEP_TRIALS: usize = 500;
+/// Trials per cell of [`run_early_adaptation`] when none are given.
+pub const EARLY_ADAPTATION_TRIALS: usize = 200;
+
 /// A sweep at one noise level with the payload attached and removed at [`EVENTS`] (Fig. 3
 /// and Fig. 4b; run it with an [`ErrorCurves`] observer).
 fn error_curve_sweep(
@@ -86,7 +94,7 @@ fn error_curve_sweep(
     c: &ExperimentOptions,
     noise: NoiseLevel,
 ) -> Sweep {
-    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(100), c.seed);
+    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(ERROR_CURVE_TRIALS), c.seed);
     sweep.noise_levels = vec![noise];
     sweep.base.payload = PayloadSchedule::ProtocolAt {
         attach: EVENTS[0],
@@ -110,8 +118,8 @@ fn parameter_error_chart(
         &dir.join("parameter_error_time"),
         &LineChart {
             title,
-            x_label: "time [s]".into(),
-            y_label: "|theta_hat - theta|".into(),
+            x_label: "time t [s]".into(),
+            y_label: "parameter error ‖Δθ‖₂".into(),
             log_y: true,
             series: result
                 .cells
@@ -129,6 +137,7 @@ fn parameter_error_chart(
                 })
                 .collect(),
             markers: EVENTS.to_vec(),
+            x_categories: vec![],
         },
     )
 }
@@ -176,11 +185,12 @@ fn cdf_chart(
         path,
         &LineChart {
             title,
-            x_label: "mean position error of a trial [cm]".into(),
+            x_label: "mean position error of a trial ē [cm]".into(),
             y_label: "fraction of trials (aborted excluded)".into(),
             log_y: false,
             series,
             markers: vec![],
+            x_categories: vec![],
         },
     )
 }
@@ -264,11 +274,11 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     if paper_only {
         estimators.pop();
     }
-    let sweep = table_ii_sweep(profile, estimators, c.trials.unwrap_or(500), c.seed);
+    let sweep = table_ii_sweep(profile, estimators, c.trials.unwrap_or(NOISE_SWEEP_TRIALS), c.seed);
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
     std::fs::write(dir.join("table_accuracy.md"), result.markdown_accuracy())?;
-    let x = "noise level (0 none, 1 low, 2 medium, 3 high)";
+    let x = "noise level";
     for (name, title, ylab, log, f) in [
         (
             "position_error",
@@ -286,14 +296,14 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
         (
             "parameter_error",
             "Parameter error",
-            "|theta_hat - theta|",
+            "parameter error ‖Δθ‖₂",
             true,
             |c| c.parameter_error,
         ),
         (
             "t1_error",
             "(t+1) error",
-            "|theta_hat - theta| after event",
+            "‖Δθ‖₂ of the first estimate after an event",
             true,
             |c| c.t1_error,
         ),
@@ -307,6 +317,7 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
                 log_y: log,
                 series: by_noise(&result, f),
                 markers: vec![],
+                x_categories: NoiseLevel::ALL.map(|n| n.name().to_string()).to_vec(),
             },
         )?;
     }
@@ -456,7 +467,11 @@ pub fn run_early_adaptation<O: SweepObserver + ?Sized>(
         early.burn_in = tuned.burn_in;
         estimators.push(early);
     }
-    let mut sweep = Sweep::new(estimators, c.trials.unwrap_or(200), c.seed);
+    let mut sweep = Sweep::new(
+        estimators,
+        c.trials.unwrap_or(EARLY_ADAPTATION_TRIALS),
+        c.seed,
+    );
     sweep.noise_levels = vec![noise];
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
@@ -532,8 +547,8 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
         &dir.join("burn_in_sweep"),
         &LineChart {
             title: "TAG-K burn-in sweep".into(),
-            x_label: "burn-in t_b / T".into(),
-            y_label: "mean parameter error".into(),
+            x_label: "burn-in fraction t_b / T".into(),
+            y_label: "mean parameter error ‖Δθ‖₂".into(),
             log_y: true,
             series: vec![
                 ChartSeries {
@@ -549,6 +564,7 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
                 },
             ],
             markers: vec![],
+            x_categories: vec![],
         },
     )?;
     let burn_in = burn_sorted
@@ -644,7 +660,7 @@ pub fn run_dimension_sweep(
         &LineChart {
             title: format!("Per-update time, m = {m} (median)"),
             x_label: "parameter dimension n".into(),
-            y_label: "update time [us]".into(),
+            y_label: "update time [µs]".into(),
             log_y: true,
             series: names
                 .iter()
@@ -658,6 +674,7 @@ pub fn run_dimension_sweep(
                 })
                 .collect(),
             markers: vec![],
+            x_categories: vec![],
         },
     )?;
     Ok((rows, dir))

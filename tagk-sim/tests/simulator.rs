@@ -627,11 +627,40 @@ fn figures_render_with_the_embedded_font() {
             points: vec![(0.0, 1.0), (1.0, 10.0)],
         }],
         markers: vec![0.5],
+        x_categories: vec![],
     };
     plot::line_chart(&dir.join("c"), &chart).unwrap();
     assert!(std::fs::metadata(dir.join("c.png")).unwrap().len() > 1000);
     let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
     assert!(svg.contains("test"));
+    // A categorical axis labels its categories; Unicode symbols survive; the PNG is drawn at
+    // twice the SVG's size (1800 px wide: 300 dpi at 6 in).
+    let categorical = plot::LineChart {
+        title: "categories".into(),
+        x_label: "noise level".into(),
+        y_label: "‖Δθ‖₂ [µs]".into(),
+        series: vec![
+            plot::ChartSeries {
+                label: "same".into(),
+                points: vec![(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)],
+            },
+            plot::ChartSeries {
+                label: "same again".into(),
+                points: vec![(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)],
+            },
+        ],
+        x_categories: vec!["none".into(), "low".into(), "medium".into()],
+        ..Default::default()
+    };
+    plot::line_chart(&dir.join("k"), &categorical).unwrap();
+    let svg = std::fs::read_to_string(dir.join("k.svg")).unwrap();
+    for label in ["none", "low", "medium", "‖Δθ‖₂ [µs]", "same again"] {
+        assert!(svg.contains(label), "{label} missing");
+    }
+    let png = std::fs::read(dir.join("k.png")).unwrap();
+    // PNG header: width and height as big-endian u32 at bytes 16..24.
+    let width = u32::from_be_bytes(png[16..20].try_into().unwrap());
+    assert_eq!(width, 900 * plot::PNG_SCALE);
     std::fs::remove_dir_all(&dir).ok();
 }
 

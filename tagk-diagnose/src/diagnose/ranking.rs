@@ -11,6 +11,7 @@ use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
     Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
 };
+use crate::format::change_percent;
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
 
@@ -539,7 +540,7 @@ fn explain(c: &Candidate, _opts: &DiagnoseOptions, _at_floor: bool) -> String {
             .iter()
             .map(|ch| {
                 let k = CHANNEL_NAMES.iter().position(|n| n == ch).unwrap_or(0);
-                format!("{ch} {:+.0} %", -c.reduction_per_channel[k] * 100.0)
+                format!("{ch} {}", change_percent(-c.reduction_per_channel[k], 0))
             })
             .collect();
         format!(" ({})", per.join(", "))
@@ -573,13 +574,15 @@ fn explain(c: &Candidate, _opts: &DiagnoseOptions, _at_floor: bool) -> String {
         CandidateStatus::AtFloor => "not needed: the model is at the noise floor".to_string(),
         CandidateStatus::BelowFloor => "gain below the noise floor".to_string(),
     };
+    // Coefficients and the scanned value (either may be absent), comma separated.
+    let mut fitted = coefs;
+    fitted.extend(scan.strip_prefix(", ").map(str::to_string));
     format!(
-        "{}: held-out residual {:+.1} %{}; {}{}; {}",
+        "{}: held-out residual {}{}; {}; {}",
         c.effect,
-        -c.reduction * 100.0,
+        change_percent(-c.reduction, 1),
         chans,
-        coefs.join(", "),
-        scan,
+        fitted.join(", "),
         status
     )
 }

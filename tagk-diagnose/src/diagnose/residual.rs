@@ -33,6 +33,9 @@ pub struct FailureWindow {
     pub channels: Vec<String>,
     /// Peak ratio of the window's residual RMS to the channel's typical (median-window) RMS.
     pub peak_ratio: f64,
+    /// `true` for a window at the very start of the log: the start transient (take-off,
+    /// filters settling) rather than a failure of the model in flight.
+    pub transient: bool,
 }
 
 /// Residual RMS by regime bin.
@@ -89,12 +92,21 @@ pub(crate) fn where_it_fails(s: &Signals, fit: &Fit) -> FailureAnalysis {
             ));
         }
     }
-    if !failure_windows.is_empty() {
-        let total: f64 = failure_windows.iter().map(|f| f.t_end - f.t_start).sum();
+    let (transients, in_flight): (Vec<&FailureWindow>, Vec<&FailureWindow>) =
+        failure_windows.iter().partition(|f| f.transient);
+    if !in_flight.is_empty() {
+        let total: f64 = in_flight.iter().map(|f| f.t_end - f.t_start).sum();
         findings.push(format!(
             "{} time window(s) with a significantly large residual, {:.1} s in total",
-            failure_windows.len(),
+            in_flight.len(),
             total
+        ));
+    }
+    if let Some(f) = transients.first() {
+        findings.push(format!(
+            "a start transient: the residual of {} is large for the first {:.1} s",
+            f.channels.join(", "),
+            f.t_end - f.t_start
         ));
     }
     FailureAnalysis {
@@ -214,6 +226,7 @@ fn failure_windows(t: &[f64], fit: &Fit, rounding: &[bool; 6]) -> Vec<FailureWin
                 t_end: t[(b - 1).min(n - 1)],
                 channels: cs.iter().map(|c| CHANNEL_NAMES[*c].to_string()).collect(),
                 peak_ratio: r,
+                transient: a == 0,
             }
         })
         .collect()

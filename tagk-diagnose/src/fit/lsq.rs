@@ -130,9 +130,19 @@ pub(crate) fn predict(cols: &[ColData], beta: &[f64], n: usize) -> Vec<[f64; 6]>
     out
 }
 
-/// Per-channel fit % and RMS.
+/// Per-channel fit %, RMS and RMS relative to the channel group's scale
+/// ([`ChannelFit::error_percent`]).
 pub(crate) fn channel_stats(b: &[[f64; 6]], res: &[[f64; 6]]) -> Vec<ChannelFit> {
     let n = b.len() as f64;
+    // RMS magnitude of the measured force (the thrust) and of the measured torque.
+    let group_scale = |range: std::ops::Range<usize>| {
+        (b.iter()
+            .map(|x| x[range.clone()].iter().map(|v| v * v).sum::<f64>())
+            .sum::<f64>()
+            / n)
+            .sqrt()
+    };
+    let scales = [group_scale(0..3), group_scale(3..6)];
     (0..6)
         .map(|c| {
             let mean = b.iter().map(|x| x[c]).sum::<f64>() / n;
@@ -144,11 +154,14 @@ pub(crate) fn channel_stats(b: &[[f64; 6]], res: &[[f64; 6]]) -> Vec<ChannelFit>
             } else {
                 None
             };
+            let rms = rn / n.sqrt();
+            let group = scales[c / 3];
             ChannelFit {
                 name: CHANNEL_NAMES[c].into(),
                 unit: CHANNEL_UNITS[c].into(),
                 fit_percent,
-                rms: rn / n.sqrt(),
+                error_percent: (group > 0.0 && group.is_finite()).then(|| 100.0 * rms / group),
+                rms,
             }
         })
         .collect()

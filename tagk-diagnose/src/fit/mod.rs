@@ -96,6 +96,12 @@ pub struct ChannelFit {
     /// MATLAB `compare` fit `100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖)` \[%\]; `null` for a constant
     /// measurement (e.g. a quadrotor's `fx`, always 0), where it is undefined.
     pub fit_percent: Option<f64>,
+    /// Residual RMS as a percentage of the channel group's scale, defined for every channel
+    /// of a flight: `100 · RMS(r_c) / RMS(|f|)` for `fx`, `fy`, `fz` (the RMS magnitude of the
+    /// measured force, i.e. the thrust) and `100 · RMS(r_c) / RMS(|τ|)` for `tx`, `ty`, `tz`
+    /// (the RMS magnitude of the measured torque) \[%\]; lower is better. `null` only when the
+    /// whole group is zero.
+    pub error_percent: Option<f64>,
     /// Residual RMS \[channel unit\].
     pub rms: f64,
 }
