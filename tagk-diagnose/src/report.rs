@@ -102,6 +102,10 @@ pub struct Report {
     /// With several logs ([`run_logs`]): each log's own staircase against the joint one
     /// (empty for one log).
     pub logs: Vec<LogVerdict>,
+    /// The timing of each sensor stream against the pose, and the offsets removed before the
+    /// fit ([`crate::streams::align_streams`]; filled in by the caller that aligned the log,
+    /// empty otherwise).
+    pub streams: Vec<crate::streams::StreamAlignment>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -256,6 +260,7 @@ fn loop_from(
         final_diagnosis,
         online: None,
         logs: Vec::new(),
+        streams: Vec::new(),
     })
 }
 
@@ -511,6 +516,10 @@ pub fn staircase_table(r: &Report) -> String {
 /// before/after table instead of a second full section), the staircase, and what remains.
 pub fn report_table(r: &Report) -> String {
     let mut s = String::new();
+    if !r.streams.is_empty() {
+        s.push_str(&crate::streams::streams_table(&r.streams));
+        s.push('\n');
+    }
     if let (Some(a), Some(ch)) = (&r.after, &r.change) {
         s.push_str(&format!("=== model with {} ===\n", r.with.join(", ")));
         s.push_str(&diagnosis_table(a));
