@@ -844,7 +844,13 @@ fn at_500_hz_imu_and_100_hz_motion_capture_the_diagnosis_is_the_same() {
     plain.quiet = true;
     let a = diagnose_log(&reference, &plain).unwrap();
     let b = diagnose_log(&read, &args).unwrap();
-    assert_eq!(a.final_model.effects, b.final_model.effects);
+    assert_eq!(
+        a.final_model.effects,
+        b.final_model.effects,
+        "{}{}",
+        tagk::diagnose::streams_table(&a.streams),
+        tagk::diagnose::streams_table(&b.streams)
+    );
     assert!(!a.final_model.effects.is_empty(), "{}", a.stopped);
     let (ta, tb) = (
         &a.final_diagnosis().parameters,

@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 
 use crate::diagnose::{
-    CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef, FlightLog, Model,
-    NextStep, Report, Signals, builtin_by_name, builtin_effects, online_pass, report_table,
-    run_logs, run_loop,
+    AlignOptions, CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef,
+    FlightLog, Model, NextStep, Report, Signals, align_streams, builtin_by_name, builtin_effects,
+    online_pass, parse_shift, report_table, run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -72,6 +72,17 @@ pub struct DiagnoseArgs {
     /// between gaps on its own grid: for irregular sampling. Gaps are never bridged.
     #[arg(long, value_name = "S")]
     pub resample: Option<f64>,
+    /// Only report the time offset of each sensor stream (gyro, accelerometer, velocity)
+    /// against the pose; by default a significant one (its 95 % interval excludes zero and it
+    /// is at least half a sampling period) is removed before the fit (docs/CONVENTIONS.md
+    /// §7.2).
+    #[arg(long)]
+    pub no_align: bool,
+    /// Shift a stream by a known time offset in seconds, positive when the stream is late
+    /// (e.g. `gyro=0.012`); repeatable. Streams: gyro, accelerometer, velocity, actuators. A
+    /// shifted stream is not measured.
+    #[arg(long = "shift", value_name = "STREAM=SECONDS")]
+    pub shift: Vec<String>,
     /// Most effects the stepwise search adds.
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_steps: usize,
@@ -145,7 +156,25 @@ impl DiagnoseArgs {
             resample: None,
             max_steps: 5,
             quiet: false,
+            no_align: false,
+            shift: Vec::new(),
         }
+    }
+
+    /// The stream alignment these arguments ask for (`--no-align`, `--shift`).
+    ///
+    /// # Errors
+    /// [`DiagnoseError::InvalidOption`] (field `shift`) for a malformed `--shift`.
+    pub fn align_options(&self) -> Result<AlignOptions, DiagnoseError> {
+        Ok(AlignOptions {
+            auto: !self.no_align,
+            shifts: self
+                .shift
+                .iter()
+                .map(|s| parse_shift(s))
+                .collect::<Result<_, _>>()?,
+            ..AlignOptions::default()
+        })
     }
 
     /// The command line that reproduces the final model of a report: these arguments with
@@ -190,6 +219,12 @@ impl DiagnoseArgs {
         }
         if let Some(dt) = self.resample {
             cmd.push_str(&format!(" --resample {dt}"));
+        }
+        if self.no_align {
+            cmd.push_str(" --no-align");
+        }
+        for shift in &self.shift {
+            cmd.push_str(&format!(" --shift {}", shift.replace(' ', "")));
         }
         if !effects.is_empty() {
             cmd.push_str(&format!(" --with {}", effects.join(",")));
@@ -431,8 +466,10 @@ pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, Diag
         }
         None => log,
     };
-    let (s, _) = Signals::from_log_split(log)?;
+    let (log, streams) = align_streams(log, &args.align_options()?)?;
+    let (s, _) = Signals::from_log_split(&log)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
+    report.streams = streams;
     if args.online {
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
     }
@@ -460,7 +497,9 @@ pub fn diagnose_logs(
         });
     };
     let plan = plan_with_vehicle(args, first, vehicle.as_ref())?;
+    let align = args.align_options()?;
     let mut parts = Vec::new();
+    let mut streams = Vec::new();
     for (name, log) in logs {
         let in_file = |e: DiagnoseError| match e {
             DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
@@ -474,6 +513,11 @@ pub fn diagnose_logs(
             Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
             None => log,
         };
+        let (log, timing) = align_streams(&log, &align).map_err(in_file)?;
+        streams.extend(timing.into_iter().map(|mut t| {
+            t.log = name.clone();
+            t
+        }));
         let segments = log.sampling().segments();
         if segments.len() == 1 {
             let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
@@ -509,6 +553,7 @@ pub fn diagnose_logs(
         }
     }
     let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
+    report.streams = streams;
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
     report.next = Some(args.next_step(&report));
     Ok(report)

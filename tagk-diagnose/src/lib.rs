@@ -15,6 +15,7 @@ mod online;
 pub mod report;
 mod signals;
 mod stats;
+pub mod streams;
 
 pub use diagnose::{
     Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, Discovery, FLOOR_MARGIN,
@@ -35,9 +36,11 @@ pub use report::{
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
+pub use streams::{AlignOptions, StreamAlignment, align_streams, parse_shift, streams_table};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;
+pub use tagk_dynamics::alignment::{DelayEstimate, Sensor};
 
 #[cfg(test)]
 pub(crate) mod testdata;

@@ -127,6 +127,10 @@ pub struct Report {
     /// The next command to run (filled in by the command-line tool, which knows the files
     /// and flags; without it the report suggests the `--with` list, see [`Report::next`]).
     pub next: Option<NextStep>,
+    /// The timing of each sensor stream against the pose, and the offsets removed before the
+    /// fit ([`crate::streams::align_streams`]; filled in by the caller that aligned the log,
+    /// empty otherwise).
+    pub streams: Vec<crate::streams::StreamAlignment>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -295,6 +299,7 @@ fn loop_from(
         online: None,
         logs: Vec::new(),
         next: None,
+        streams: Vec::new(),
     })
 }
 
@@ -551,6 +556,10 @@ pub fn staircase_table(r: &Report) -> String {
 /// before/after table instead of a second full section), the staircase, and what remains.
 pub fn report_table(r: &Report) -> String {
     let mut s = String::new();
+    if !r.streams.is_empty() {
+        s.push_str(&crate::streams::streams_table(&r.streams));
+        s.push('\n');
+    }
     if let (Some(a), Some(ch)) = (&r.after, &r.change) {
         s.push_str(&format!("=== model with {} ===\n", r.with.join(", ")));
         s.push_str(&diagnosis_table(a));

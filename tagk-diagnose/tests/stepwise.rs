@@ -465,3 +465,65 @@ fn a_log_that_misses_an_effect_is_flagged_with_the_reason() {
     let calm = report.logs.iter().find(|l| l.log == "calm").unwrap();
     assert!(calm.note.contains("misses `"), "{calm:?}");
 }
+
+/// Battery state as a per-log nuisance: two flights of one vehicle whose batteries deliver
+/// 5 % and 15 % less thrust than logged (thrust gain −0.05, −0.15) are fitted jointly with a
+/// known mass; `thrust-gain` gets one coefficient per log (`kappa@1`, `kappa@2`) whose ratio is
+/// the flights' true ratio, and the joint fit's thrust residual is as good as each flight
+/// fitted alone.
+#[test]
+fn battery_is_a_per_log_nuisance() {
+    use tagk_diagnose::{builtin, fit_model};
+    use tagk_sim::plant_effects::ThrustGain;
+    let truth = [-0.05, -0.15];
+    let logs: Vec<Signals> = truth
+        .iter()
+        .enumerate()
+        .map(|(k, eps)| {
+            let mut cfg = config(
+                &[],
+                TrajectoryKind::Figure8,
+                NoiseLevel::Medium,
+                91 + k as u64,
+            );
+            cfg.effects.thrust_gain = Some(ThrustGain {
+                relative_error: *eps,
+            });
+            Signals::from_log(&log(&cfg)).unwrap()
+        })
+        .collect();
+    let model = Model::rigid_body()
+        .with_known_mass(tagk_dynamics::quadrotor::CRAZYFLIE_MASS)
+        .with_ref(builtin(EffectKind::ThrustGain).unwrap());
+    let alone: Vec<f64> = logs
+        .iter()
+        .map(|s| fit_model(&model, s, None).unwrap().channels[2].rms)
+        .collect();
+    let joint = Signals::concat(logs).unwrap();
+    let fit = fit_model(&model, &joint, None).unwrap();
+    let gain = &fit.effects[0];
+    assert_eq!(gain.coefficients.len(), 2, "{gain:?}");
+    for (k, c) in gain.coefficients.iter().enumerate() {
+        assert_eq!(c.name, format!("kappa@{}", k + 1));
+    }
+    // Both the simulator's ε and the diagnosis' κ are delivered / logged − 1. The ratio of the
+    // two flights' gains is free of anything they share (the known mass against the plant's,
+    // a common scale of the logged thrust): (1 + κ₁) / (1 + κ₂) = (1 + ε₁) / (1 + ε₂).
+    let (k1, k2) = (gain.coefficients[0].value, gain.coefficients[1].value);
+    let ratio = (1.0 + k1) / (1.0 + k2);
+    let expected = (1.0 + truth[0]) / (1.0 + truth[1]);
+    assert!(
+        (ratio - expected).abs() < 0.005,
+        "gain ratio {ratio} against {expected}: {:?}",
+        gain.coefficients
+    );
+    // Apart and significant: two flights, two batteries.
+    let se = gain.coefficients[0].std_error.unwrap() + gain.coefficients[1].std_error.unwrap();
+    assert!(k1 - k2 > 10.0 * se, "{:?}", gain.coefficients);
+    let worst_alone = alone.iter().copied().fold(0.0, f64::max);
+    assert!(
+        fit.channels[2].rms <= 1.05 * worst_alone,
+        "joint fz RMS {} against alone {alone:?}",
+        fit.channels[2].rms
+    );
+}

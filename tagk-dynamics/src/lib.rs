@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod alignment;
 pub mod deriv;
 pub mod effect;
 mod error;

@@ -274,7 +274,12 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     if paper_only {
         estimators.pop();
     }
-    let sweep = table_ii_sweep(profile, estimators, c.trials.unwrap_or(NOISE_SWEEP_TRIALS), c.seed);
+    let sweep = table_ii_sweep(
+        profile,
+        estimators,
+        c.trials.unwrap_or(NOISE_SWEEP_TRIALS),
+        c.seed,
+    );
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
     std::fs::write(dir.join("table_accuracy.md"), result.markdown_accuracy())?;

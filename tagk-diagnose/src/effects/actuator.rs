@@ -350,7 +350,8 @@ impl Effect for TimeDelay {
 
 /// Thrust-gain error: the delivered collective thrust is `(1 + κ)` times the logged one
 /// (a wrong thrust coefficient, battery sag), and so are the rotor torques. Column
-/// `[0, 0, f_z, τ_x, τ_y, τ_z]`. Identifiable only with a known mass.
+/// `[0, 0, f_z, τ_x, τ_y, τ_z]`. Identifiable only with a known mass. In a joint fit of several
+/// logs each log gets its own `κ` (a battery's charge differs from flight to flight).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct ThrustGain;
 
@@ -367,6 +368,9 @@ impl Effect for ThrustGain {
     fn needs_known_mass(&self) -> bool {
         true
     }
+    fn per_log(&self) -> bool {
+        true
+    }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         for (c, d) in data.iter_mut().enumerate().skip(2) {
@@ -380,10 +384,11 @@ impl Effect for ThrustGain {
         }]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
-        if coef[0].abs() > 0.5 {
+        // One coefficient, or one per log in a joint fit.
+        if let Some(k) = coef.iter().find(|k| k.abs() > 0.5) {
             Plausibility::broken(
                 "thrust-gain-range",
-                format!("thrust gain error {:.2} beyond ±50 %", coef[0]),
+                format!("thrust gain error {k:.2} beyond ±50 %"),
             )
         } else {
             Plausibility::ok()

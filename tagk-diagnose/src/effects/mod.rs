@@ -139,6 +139,13 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn needs_known_mass(&self) -> bool {
         false
     }
+    /// `true` when, in a joint fit of several logs ([`Signals::concat`]), each log gets its own
+    /// coefficients for this effect: a per-log nuisance such as a battery's state of charge
+    /// (the thrust gain). Default `false`: one coefficient shared by every log. Start-of-log
+    /// transients (columns named `start_…`) are per log in any case.
+    fn per_log(&self) -> bool {
+        false
+    }
     /// The nonlinear parameter to scan, if any.
     fn scan(&self) -> Option<ScanSpec> {
         None
@@ -323,8 +330,9 @@ pub fn builtin_by_name(name: &str) -> Result<EffectRef, DiagnoseError> {
 
 /// The columns of an effect on a log, computed per joined log ([`Signals::concat`]) so that no
 /// time history (a lag, a delay, a derivative) runs across a join. Columns named `start_…`
-/// (start-of-log transients) become one column per log (`start_fz@2` for the second log):
-/// per-log nuisance; all other columns are shared. For a single log, [`Effect::columns`].
+/// (start-of-log transients) and every column of an effect with [`Effect::per_log`] become one
+/// column per log (`start_fz@2`, `kappa@2` for the second log): per-log nuisance; all other
+/// columns are shared. For a single log, [`Effect::columns`].
 pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> Vec<EffectColumn> {
     let parts = s.parts();
     if parts.is_empty() {
@@ -341,7 +349,7 @@ pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> V
     let mut out = Vec::new();
     for j in 0..count {
         let first = &per_part[0][j];
-        if first.name.starts_with("start_") {
+        if first.name.starts_with("start_") || effect.per_log() {
             let mut offset = 0;
             for (k, cols) in per_part.iter().enumerate() {
                 let mut data: [Option<Vec<f64>>; 6] = Default::default();
