@@ -479,11 +479,20 @@ impl Lanes8 for F32x8 {
 const PANEL: usize = 8;
 
 /// `G = A Aᵀ` (`p × p`) and `r = b − A x` for `f64`, in the order of the portable kernels
-/// (every Gram entry summed in order of `k`). The Gram matrix is built GEMM-style: for each
-/// block of eight rows `J`, the rows are packed transposed into `panel` (`n × 8`, small
-/// enough to stay in L1), then every tile `G[I, J]` with `I ≤ J`, whose other factor is broadcast
-/// straight from the rows of `A`. Tiles are 8 × 8 with AVX-512F (eight `zmm` accumulators)
-/// or 4 × 8 with AVX2 (eight `ymm` accumulators); `G[J, I]` is written as the transposed tile.
+/// (every Gram entry summed in order of `k`).
+///
+/// With AVX-512F the Gram matrix is built GEMM-style: for each block of eight rows `J`, the
+/// rows are packed transposed into `at` (`n × 8`, small enough to stay in L1), then every
+/// 8 × 8 tile `G[I, J]` with `I ≤ J` (eight `zmm` accumulators), whose other factor is
+/// broadcast straight from the rows of `A`; `G[J, I]` is written as the transposed tile.
+///
+/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then each
+/// row `i < m` is one strip `G[i, 4⌊i/4⌋..p]` (see [`gram_strip_avx2`]): per `k` one broadcast
+/// of `a_ik` and, per four columns, a multiply with the transposed window as its memory operand
+/// and an add, the fewest instructions per product that separate multiplies and adds allow
+/// (a 4 × 8 register tile needs two more loads and four broadcasts per `k` for 32 products,
+/// and computes the diagonal blocks' lower-left quarters too). The blocks left of the strips
+/// are their mirror images, transposed 4 × 4 at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2, and AVX-512F if `avx512f`.
@@ -496,7 +505,7 @@ unsafe fn gram_and_residual_f64(
     x: &[f64],
     n: usize,
     m: usize,
-    panel: &mut [f64],
+    at: &mut [f64],
     gram: &mut [f64],
     resid: &mut [f64],
 ) {
@@ -505,22 +514,29 @@ unsafe fn gram_and_residual_f64(
         a.len() >= m * n
             && b.len() >= m
             && x.len() >= n
-            && panel.len() >= n * PANEL
+            && at.len() >= n * p
             && gram.len() >= p * p
             && resid.len() >= p
     );
+    if !avx512f {
+        let mut bj = 0;
+        while bj < p {
+            // SAFETY: `at` holds n · p entries (checked above), columns bj..bj+8 ≤ p.
+            unsafe { pack_panel_f64(a, b, x, n, m, bj, at.as_mut_ptr().add(bj), p, resid) };
+            bj += PANEL;
+        }
+        // SAFETY: the slices were checked above; AVX2 is the caller's promise.
+        unsafe { gram_strips_avx2(at, n, m, p, gram) };
+        return;
+    }
     let mut bj = 0;
     while bj < p {
         // SAFETY: the slices were checked above; the CPU features are the caller's promise.
         unsafe {
-            pack_panel_f64(a, b, x, n, m, bj, panel, resid);
+            pack_panel_f64(a, b, x, n, m, bj, at.as_mut_ptr(), PANEL, resid);
             // The next panel's rows, fetched into cache while this panel's tiles compute.
             let next = &a[((bj + PANEL) * n).min(m * n)..((bj + 2 * PANEL) * n).min(m * n)];
-            if avx512f {
-                gram_panel_avx512(a, n, m, p, bj, panel, next, gram);
-            } else {
-                gram_panel_avx2(a, n, m, p, bj, panel, next, gram);
-            }
+            gram_panel_avx512(a, n, m, p, bj, at, next, gram);
         }
         bj += PANEL;
     }
@@ -528,7 +544,6 @@ unsafe fn gram_and_residual_f64(
     // leaves unspecified; columns `≥ m` of the other rows are exact zeros, as the panels are
     // zero there, and mirror images only ever come from rows below `m`.
 }
-
 /// Prefetches `data` into L1 (one hint per 64-byte line) before a panel's tiles compute, for
 /// rows long enough (`n ≥ 32`) that a window may not be in cache: the hints are cheap next to
 /// the loads they save when the window comes from L3 or memory.
@@ -552,14 +567,16 @@ fn row_ptr(a: &[f64], n: usize, m: usize, i: usize) -> *const f64 {
     a[i.min(m - 1) * n..].as_ptr()
 }
 
-/// `panel[k·8 + l] = a[(bj + l)·n + k]`: rows `bj..bj+8` of `A` transposed, zero for rows
-/// `≥ m`, through 4 × 4 blocks in registers where four rows exist; from the same loads, the
-/// residuals `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four
-/// interleaved partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order).
+/// `dst[k·stride + l] = a[(bj + l)·n + k]` for `l < 8`: rows `bj..bj+8` of `A` transposed,
+/// zero for rows `≥ m`, through 4 × 4 blocks in registers where four rows exist; from the same
+/// loads, the residuals `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`]
+/// does (four interleaved partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the
+/// remainder in order). `stride` 8 packs one panel; `stride = p` with `dst` at column `bj`
+/// builds the whole transposed window, one panel of columns at a time.
 ///
 /// # Safety
-/// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n`, `panel` `8n` and `resid`
-/// `bj + 8` entries.
+/// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n` and `resid` `bj + 8`
+/// entries, and `dst` is writable at `k·stride + l` for `k < n`, `l < 8`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 unsafe fn pack_panel_f64(
@@ -569,18 +586,19 @@ unsafe fn pack_panel_f64(
     n: usize,
     m: usize,
     bj: usize,
-    panel: &mut [f64],
+    dst: *mut f64,
+    stride: usize,
     resid: &mut [f64],
 ) {
     let n4 = n - n % 4;
-    let (dst, xp) = (panel.as_mut_ptr(), x.as_ptr());
+    let xp = x.as_ptr();
     for half in 0..2 {
         let j = bj + 4 * half;
         // Rows past m are zero; their pointers stand in for loads that are not made.
         let valid: [bool; 4] = core::array::from_fn(|r| j + r < m);
         let src: [*const f64; 4] = core::array::from_fn(|r| row_ptr(a, n, m, j + r));
         let full = j + 4 <= m;
-        // SAFETY: reads rows < m at columns < n and x below n; writes panel rows < n.
+        // SAFETY: reads rows < m at columns < n and x below n; writes `dst` rows < n.
         unsafe {
             let mut acc = [_mm256_setzero_pd(); 4];
             let mut k = 0;
@@ -601,13 +619,13 @@ unsafe fn pack_panel_f64(
                     *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
                 }
                 for (q, col) in transpose4(rows).iter().enumerate() {
-                    _mm256_storeu_pd(dst.add((k + q) * PANEL + 4 * half), *col);
+                    _mm256_storeu_pd(dst.add((k + q) * stride + 4 * half), *col);
                 }
                 k += 4;
             }
             for k in n4..n {
                 for r in 0..4 {
-                    *dst.add(k * PANEL + 4 * half + r) =
+                    *dst.add(k * stride + 4 * half + r) =
                         if valid[r] { *src[r].add(k) } else { 0.0 };
                 }
             }
@@ -699,141 +717,133 @@ unsafe fn gram_panel_avx512(
     }
 }
 
-/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles; in the
-/// diagonal block, the lower four rows only right of its 4 × 4 split (a 4 × 4 tile), their
-/// left quarter being the upper-right one transposed (`a_i·a_j` and `a_j·a_i` are the same
-/// products summed in the same order: the same bits).
+/// `G = A Aᵀ` for `f64` from the transposed window `at` (`n × p`, stride `p`, zero in the
+/// columns `≥ m`): for each row `i < m` the strip `G[i, 4⌊i/4⌋..p]` (in pieces of at most
+/// eight vectors: eight accumulators), then, per block of four rows, the 4 × 4 blocks left of
+/// the strips below them as the transposes of the blocks above (the same products, commuted,
+/// summed in the same order: the same bits). Columns `≥ m` of rows `< m` are exact zeros
+/// (`+0` products of the zero columns, summed from `+0`); rows `≥ m` are left unspecified.
 ///
 /// # Safety
-/// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
+/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
+/// of 8 with `m ≤ p`.
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn gram_panel_avx2(
-    a: &[f64],
+unsafe fn gram_strips_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
+    // SAFETY: the caller's promise; the stride is `p` in each call.
+    unsafe {
+        // The window sizes of a robot's estimator get a compile-time stride (constant
+        // displacements, no address arithmetic in the loop); others the run-time one.
+        match p {
+            8 => gram_strips_stride::<8>(at, n, m, p, gram),
+            16 => gram_strips_stride::<16>(at, n, m, p, gram),
+            24 => gram_strips_stride::<24>(at, n, m, p, gram),
+            32 => gram_strips_stride::<32>(at, n, m, p, gram),
+            _ => gram_strips_stride::<0>(at, n, m, p, gram),
+        }
+    }
+}
+
+/// [`gram_strips_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
+///
+/// # Safety
+/// As [`gram_strips_avx2`], and `P` is `0` or `p`.
+#[inline(always)]
+unsafe fn gram_strips_stride<const P: usize>(
+    at: &[f64],
     n: usize,
     m: usize,
     p: usize,
-    bj: usize,
-    panel: &[f64],
-    next: &[f64],
     gram: &mut [f64],
 ) {
-    prefetch_spread(next, n);
-    let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
-    let mut bi = 0;
-    while bi <= bj {
-        let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
-        // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
-        // columns < p of `gram` (bi + 4 ≤ p, bj + 8 ≤ p).
+    let p = if P == 0 { p } else { P };
+    assert!(at.len() >= n * p && gram.len() >= p * p && m <= p && p % 8 == 0);
+    let g = gram.as_mut_ptr();
+    let mut j0 = 0;
+    while j0 < m {
+        // SAFETY: columns j0..p of `at` and of `gram`'s rows, rows below p (checked above).
         unsafe {
-            let c = tile_4x8(rows, v, n);
-            for s in 0..4 {
-                _mm256_storeu_pd(g.add((bi + s) * p + bj), c[2 * s]);
-                _mm256_storeu_pd(g.add((bi + s) * p + bj + 4), c[2 * s + 1]);
-            }
-            // The mirror image: rows bj..bj+8, columns bi..bi+4 (in the diagonal block only
-            // rows bj+4..bj+8, the upper tile's right half).
-            for h in usize::from(bi == bj)..2 {
-                let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
-                for (l, tl) in t.iter().enumerate() {
-                    _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
+            for i in j0..(j0 + 4).min(m) {
+                let mut c = j0;
+                while c < p {
+                    let v = ((p - c) / 4).min(8);
+                    // The broadcast a_ik = at[k·p + i], relative to the strip's columns.
+                    let (cols, s) = (at.as_ptr().add(c), i as isize - c as isize);
+                    let out = g.add(i * p + c);
+                    match v {
+                        1 => gram_strip_avx2::<1, P>(cols, s, n, p, out),
+                        2 => gram_strip_avx2::<2, P>(cols, s, n, p, out),
+                        3 => gram_strip_avx2::<3, P>(cols, s, n, p, out),
+                        4 => gram_strip_avx2::<4, P>(cols, s, n, p, out),
+                        5 => gram_strip_avx2::<5, P>(cols, s, n, p, out),
+                        6 => gram_strip_avx2::<6, P>(cols, s, n, p, out),
+                        7 => gram_strip_avx2::<7, P>(cols, s, n, p, out),
+                        _ => gram_strip_avx2::<8, P>(cols, s, n, p, out),
+                    }
+                    c += 4 * v;
                 }
             }
+            // The mirror images G[c.., j0..j0+4] of the blocks G[j0..j0+4, c..] right of the
+            // diagonal block (rows j0.. past m, if any, only reach rows ≥ m of G).
+            let mut c = j0 + 4;
+            while c < p {
+                let block: [__m256d; 4] =
+                    core::array::from_fn(|s| _mm256_loadu_pd(g.add((j0 + s) * p + c)));
+                for (l, tl) in transpose4(block).iter().enumerate() {
+                    _mm256_storeu_pd(g.add((c + l) * p + j0), *tl);
+                }
+                c += 4;
+            }
         }
-        bi += 4;
-    }
-    // The diagonal block's lower-right quarter.
-    let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bj + 4 + s));
-    // SAFETY: as above, with panel columns 4..8.
-    unsafe {
-        let c = tile_4x4(rows, v.add(4), n);
-        for (s, cs) in c.iter().enumerate() {
-            _mm256_storeu_pd(g.add((bj + 4 + s) * p + bj + 4), *cs);
-        }
-    }
-}
-
-/// `c[2s + h][l] = Σ_k rows[s][k] · v[8k + 4h + l]`, summed in order of `k` (multiply, then
-/// add; the loop is unrolled by four without changing the order).
-///
-/// # Safety
-/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n`.
-#[inline(always)]
-unsafe fn tile_4x8(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 8] {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let mut c = [_mm256_setzero_pd(); 8];
-        let mut k = 0;
-        while k + 4 <= n {
-            step_4x8(&mut c, rows, v, k);
-            step_4x8(&mut c, rows, v, k + 1);
-            step_4x8(&mut c, rows, v, k + 2);
-            step_4x8(&mut c, rows, v, k + 3);
-            k += 4;
-        }
-        while k < n {
-            step_4x8(&mut c, rows, v, k);
-            k += 1;
-        }
-        c
+        j0 += 4;
     }
 }
 
-/// One `k` of [`tile_4x8`].
+/// `out[4v + l] = Σ_k at[k·p + i] · at[k·p + c + 4v + l]` for `v < V` (`cols` points at
+/// `at + c`, `s = i − c`), summed in order of `k` (multiply, then add): `V` accumulators, one
+/// broadcast per `k`, the transposed window read as the multiplies' memory operand, four `k`
+/// per loop pass. Both factors come from `at`, so one pointer walks the loop; with `P = p`
+/// its displacements are constants.
 ///
 /// # Safety
-/// As [`tile_4x8`], with `k < n`.
+/// The CPU must support AVX2; `cols` is readable at `k·p + s` and `k·p + 4V − 1` for `k < n`,
+/// `out` writable at `4V` entries; `P` is `0` or `p`.
 #[inline(always)]
-unsafe fn step_4x8(c: &mut [__m256d; 8], rows: [*const f64; 4], v: *const f64, k: usize) {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let v0 = _mm256_loadu_pd(v.add(k * PANEL));
-        let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
-        for s in 0..4 {
-            let u = _mm256_set1_pd(*rows[s].add(k));
-            c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
-            c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
+unsafe fn gram_strip_avx2<const V: usize, const P: usize>(
+    cols: *const f64,
+    s: isize,
+    n: usize,
+    p: usize,
+    out: *mut f64,
+) {
+    let p = if P == 0 { p } else { P };
+    #[inline(always)]
+    unsafe fn step<const V: usize>(acc: &mut [__m256d; V], col: *const f64, s: isize) {
+        // SAFETY: the caller's promise.
+        unsafe {
+            let u = _mm256_broadcast_sd(&*col.offset(s));
+            for (v, acc_v) in acc.iter_mut().enumerate() {
+                *acc_v = _mm256_add_pd(_mm256_mul_pd(u, _mm256_loadu_pd(col.add(4 * v))), *acc_v);
+            }
         }
     }
-}
-
-/// `c[s][l] = Σ_k rows[s][k] · v[8k + l]`, summed in order of `k` (as [`tile_4x8`]).
-///
-/// # Safety
-/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n − 4`.
-#[inline(always)]
-unsafe fn tile_4x4(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 4] {
     // SAFETY: the caller's promise.
     unsafe {
-        let mut c = [_mm256_setzero_pd(); 4];
-        let mut k = 0;
-        while k + 4 <= n {
-            step_4x4(&mut c, rows, v, k);
-            step_4x4(&mut c, rows, v, k + 1);
-            step_4x4(&mut c, rows, v, k + 2);
-            step_4x4(&mut c, rows, v, k + 3);
-            k += 4;
+        let mut acc = [_mm256_setzero_pd(); V];
+        let mut col = cols;
+        // k in order: four per pass, then the rest.
+        for _ in 0..n / 4 {
+            step(&mut acc, col, s);
+            step(&mut acc, col.add(p), s);
+            step(&mut acc, col.add(2 * p), s);
+            step(&mut acc, col.add(3 * p), s);
+            col = col.add(4 * p);
         }
-        while k < n {
-            step_4x4(&mut c, rows, v, k);
-            k += 1;
+        for _ in 0..n % 4 {
+            step(&mut acc, col, s);
+            col = col.add(p);
         }
-        c
-    }
-}
-
-/// One `k` of [`tile_4x4`].
-///
-/// # Safety
-/// As [`tile_4x4`], with `k < n`.
-#[inline(always)]
-unsafe fn step_4x4(c: &mut [__m256d; 4], rows: [*const f64; 4], v: *const f64, k: usize) {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let vk = _mm256_loadu_pd(v.add(k * PANEL));
-        for (s, cs) in c.iter_mut().enumerate() {
-            let u = _mm256_set1_pd(*rows[s].add(k));
-            *cs = _mm256_add_pd(_mm256_mul_pd(u, vk), *cs);
+        for (v, acc_v) in acc.iter().enumerate() {
+            _mm256_storeu_pd(out.add(4 * v), *acc_v);
         }
     }
 }
