@@ -236,6 +236,14 @@ pub(crate) trait Kernels<T: Real>: Copy {
         resid: &mut [T],
     );
 
+    /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
+    /// coefficient, each entry summed in order of those rows exactly as
+    /// [`crate::linalg::add_combination`] does (which is the default).
+    #[inline(always)]
+    fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
+        crate::linalg::add_combination(x, a, coef, n, m);
+    }
+
     /// The greedy iterations (GRK's selection; with `AVERAGE`, TAG-K's tail-average
     /// coefficients too) from a residual with statistics `(rnorm2, max_ratio)`.
     /// Returns `(iterations, converged)`.

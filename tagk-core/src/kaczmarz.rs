@@ -67,7 +67,7 @@ use rand_core::SeedableRng;
 use crate::aarch64::Neon;
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
 use crate::greedy::{self, Kernels, Portable, Schedule, Window};
-use crate::linalg::{add_combination, axpy, dot, norm2_and_dot, padded};
+use crate::linalg::{axpy, dot, norm2_and_dot, padded};
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 use crate::x86::Avx2;
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
@@ -513,7 +513,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             let coef: &[T] = if AVERAGE { p.coef_avg } else { p.coef };
             p.work.copy_from_slice(p.estimate);
             // The rows used (nonzero coefficient), row by row, accumulated in registers.
-            add_combination(p.work, a, coef, n, m);
+            k.add_combination(p.work, a, coef, n, m);
         }
         let finite = if FINITE_CHECK_BRANCH_FREE {
             p.work.iter().fold(true, |ok, v| ok & v.is_finite())

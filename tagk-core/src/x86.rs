@@ -163,6 +163,16 @@ impl<T: Real> Kernels<T> for Avx2 {
     }
 
     #[inline(always)]
+    fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
+        if is_f64::<T>() {
+            // SAFETY: `self` proves AVX2 support; the casts are between identical types.
+            unsafe { add_combination_f64(f64s_mut(x), f64s(a), f64s(coef), n, m) }
+        } else {
+            crate::linalg::add_combination(x, a, coef, n, m);
+        }
+    }
+
+    #[inline(always)]
     fn iterate<const AVERAGE: bool>(
         self,
         w: Window<'_, T>,
@@ -475,6 +485,145 @@ impl Lanes8 for F32x8 {
     }
 }
 
+/// Vectors of four `f64` per block of [`add_combination_f64`]: twelve accumulators, one
+/// broadcast and one product in sixteen `ymm` registers.
+const COMBINATION_VECTORS: usize = 12;
+
+/// `x ← x + Aᵀc` for `f64` in the order of [`crate::linalg::add_combination`]: each entry
+/// summed over the rows with a nonzero coefficient in increasing order, `x_k ← a_ik c_i + x_k`
+/// (multiply, then add). Blocks of up to 48 entries of `x` stay in `ymm` accumulators while
+/// the used rows (found by bit scans over masks of nonzero coefficients) stream past, one
+/// broadcast of `c_i` and, per four entries, a multiply with the row as its memory operand and
+/// an add; the last `n mod 4` entries through masked loads and stores (lanes past `n` are
+/// neither read nor written).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn add_combination_f64(x: &mut [f64], a: &[f64], coef: &[f64], n: usize, m: usize) {
+    assert!(x.len() >= n && a.len() >= m * n && coef.len() >= m);
+    let mut k = 0;
+    while k < n {
+        let len = (n - k).min(4 * COMBINATION_VECTORS);
+        let (full, tail) = (len / 4, len % 4);
+        // SAFETY: entries k..k+len of x and of every row (checked above).
+        unsafe {
+            if tail == 0 {
+                match full {
+                    1 => combination_block_f64::<1, false>(x, a, coef, n, m, k, 0),
+                    2 => combination_block_f64::<2, false>(x, a, coef, n, m, k, 0),
+                    3 => combination_block_f64::<3, false>(x, a, coef, n, m, k, 0),
+                    4 => combination_block_f64::<4, false>(x, a, coef, n, m, k, 0),
+                    5 => combination_block_f64::<5, false>(x, a, coef, n, m, k, 0),
+                    6 => combination_block_f64::<6, false>(x, a, coef, n, m, k, 0),
+                    7 => combination_block_f64::<7, false>(x, a, coef, n, m, k, 0),
+                    8 => combination_block_f64::<8, false>(x, a, coef, n, m, k, 0),
+                    9 => combination_block_f64::<9, false>(x, a, coef, n, m, k, 0),
+                    10 => combination_block_f64::<10, false>(x, a, coef, n, m, k, 0),
+                    11 => combination_block_f64::<11, false>(x, a, coef, n, m, k, 0),
+                    _ => combination_block_f64::<12, false>(x, a, coef, n, m, k, 0),
+                }
+            } else {
+                // `full + 1` vectors, the last one masked (len < 48 here).
+                match full {
+                    0 => combination_block_f64::<1, true>(x, a, coef, n, m, k, tail),
+                    1 => combination_block_f64::<2, true>(x, a, coef, n, m, k, tail),
+                    2 => combination_block_f64::<3, true>(x, a, coef, n, m, k, tail),
+                    3 => combination_block_f64::<4, true>(x, a, coef, n, m, k, tail),
+                    4 => combination_block_f64::<5, true>(x, a, coef, n, m, k, tail),
+                    5 => combination_block_f64::<6, true>(x, a, coef, n, m, k, tail),
+                    6 => combination_block_f64::<7, true>(x, a, coef, n, m, k, tail),
+                    7 => combination_block_f64::<8, true>(x, a, coef, n, m, k, tail),
+                    8 => combination_block_f64::<9, true>(x, a, coef, n, m, k, tail),
+                    9 => combination_block_f64::<10, true>(x, a, coef, n, m, k, tail),
+                    10 => combination_block_f64::<11, true>(x, a, coef, n, m, k, tail),
+                    _ => combination_block_f64::<12, true>(x, a, coef, n, m, k, tail),
+                }
+            }
+        }
+        k += len;
+    }
+}
+
+/// Entries `k..k + 4V` of [`add_combination_f64`] (with `TAIL`, the last vector only its first
+/// `tail` lanes, `0 < tail < 4`).
+///
+/// # Safety
+/// The CPU must support AVX2; `x`, `a`, `coef` as checked by [`add_combination_f64`], and the
+/// block's entries below `n`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn combination_block_f64<const V: usize, const TAIL: bool>(
+    x: &mut [f64],
+    a: &[f64],
+    coef: &[f64],
+    n: usize,
+    m: usize,
+    k: usize,
+    tail: usize,
+) {
+    let full = if TAIL { V - 1 } else { V };
+    // SAFETY: the caller's promise: entries k..k + 4·full (+ tail) of x and of the rows.
+    unsafe {
+        // All-ones in the lanes below `tail`.
+        let mask = _mm256_cmpgt_epi64(_mm256_set1_epi64x(tail as i64), _mm256_set_epi64x(3, 2, 1, 0));
+        let xp = x.as_mut_ptr().add(k);
+        let mut acc = [_mm256_setzero_pd(); V];
+        for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
+            *acc_v = _mm256_loadu_pd(xp.add(4 * v));
+        }
+        if TAIL {
+            acc[V - 1] = _mm256_maskload_pd(xp.add(4 * full), mask);
+        }
+        let mut base = 0;
+        while base < m {
+            let chunk = &coef[base..m.min(base + 64)];
+            let mut used = used_rows_f64(chunk);
+            while used != 0 {
+                let i = base + used.trailing_zeros() as usize;
+                used &= used - 1;
+                let c = _mm256_broadcast_sd(coef.get_unchecked(i));
+                let row = a.as_ptr().add(i * n + k);
+                for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
+                    *acc_v = _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(row.add(4 * v)), c), *acc_v);
+                }
+                if TAIL {
+                    let r = _mm256_maskload_pd(row.add(4 * full), mask);
+                    acc[V - 1] = _mm256_add_pd(_mm256_mul_pd(r, c), acc[V - 1]);
+                }
+            }
+            base += 64;
+        }
+        for (v, acc_v) in acc.iter().enumerate().take(full) {
+            _mm256_storeu_pd(xp.add(4 * v), *acc_v);
+        }
+        if TAIL {
+            _mm256_maskstore_pd(xp.add(4 * full), mask, acc[V - 1]);
+        }
+    }
+}
+
+/// Bit `q` set where `c[q] ≠ 0` (`c.len() ≤ 64`), four coefficients per comparison.
+#[inline(always)]
+unsafe fn used_rows_f64(c: &[f64]) -> u64 {
+    let mut bits = 0u64;
+    let mut q = 0;
+    // SAFETY: the caller compiled for AVX2; loads below c.len().
+    unsafe {
+        while q + 4 <= c.len() {
+            let v = _mm256_loadu_pd(c.as_ptr().add(q));
+            let nonzero = _mm256_cmp_pd::<_CMP_NEQ_UQ>(v, _mm256_setzero_pd());
+            bits |= (_mm256_movemask_pd(nonzero) as u64) << q;
+            q += 4;
+        }
+    }
+    while q < c.len() {
+        bits |= u64::from(c[q] != 0.0) << q;
+        q += 1;
+    }
+    bits
+}
+
 /// Rows per panel: the Gram matrix is built one block column of eight rows at a time.
 const PANEL: usize = 8;
 
@@ -568,11 +717,11 @@ fn row_ptr(a: &[f64], n: usize, m: usize, i: usize) -> *const f64 {
 }
 
 /// `dst[k·stride + l] = a[(bj + l)·n + k]` for `l < 8`: rows `bj..bj+8` of `A` transposed,
-/// zero for rows `≥ m`, through 4 × 4 blocks in registers where four rows exist; from the same
-/// loads, the residuals `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`]
-/// does (four interleaved partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the
-/// remainder in order). `stride` 8 packs one panel; `stride = p` with `dst` at column `bj`
-/// builds the whole transposed window, one panel of columns at a time.
+/// zero for rows `≥ m`, through 4 × 4 blocks in registers; from the same loads, the residuals
+/// `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four interleaved
+/// partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order). `stride` 8
+/// packs one panel; `stride = p` with `dst` at column `bj` builds the whole transposed window,
+/// one panel of columns at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n` and `resid` `bj + 8`
@@ -590,56 +739,90 @@ unsafe fn pack_panel_f64(
     stride: usize,
     resid: &mut [f64],
 ) {
-    let n4 = n - n % 4;
-    let xp = x.as_ptr();
+    assert!(a.len() >= m * n && b.len() >= m && x.len() >= n && resid.len() >= bj + 8);
     for half in 0..2 {
         let j = bj + 4 * half;
-        // Rows past m are zero; their pointers stand in for loads that are not made.
-        let valid: [bool; 4] = core::array::from_fn(|r| j + r < m);
-        let src: [*const f64; 4] = core::array::from_fn(|r| row_ptr(a, n, m, j + r));
-        let full = j + 4 <= m;
-        // SAFETY: reads rows < m at columns < n and x below n; writes `dst` rows < n.
+        let (d, rows) = (dst.wrapping_add(4 * half), m.saturating_sub(j).min(4));
+        // SAFETY: rows j..j+rows < m of `a`, `b` and `resid` (checked above); `dst` is the
+        // caller's promise.
         unsafe {
-            let mut acc = [_mm256_setzero_pd(); 4];
-            let mut k = 0;
-            while k < n4 {
-                let rows: [__m256d; 4] = if full {
-                    core::array::from_fn(|r| _mm256_loadu_pd(src[r].add(k)))
-                } else {
-                    core::array::from_fn(|r| {
-                        if valid[r] {
-                            _mm256_loadu_pd(src[r].add(k))
-                        } else {
-                            _mm256_setzero_pd()
-                        }
-                    })
-                };
-                let xv = _mm256_loadu_pd(xp.add(k));
-                for (acc_r, row) in acc.iter_mut().zip(&rows) {
-                    *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
-                }
-                for (q, col) in transpose4(rows).iter().enumerate() {
-                    _mm256_storeu_pd(dst.add((k + q) * stride + 4 * half), *col);
-                }
-                k += 4;
+            match (stride, rows) {
+                (PANEL, 4) => pack_rows_f64::<4, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 3) => pack_rows_f64::<3, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 2) => pack_rows_f64::<2, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 1) => pack_rows_f64::<1, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, _) => pack_rows_f64::<0, PANEL>(a, b, x, n, j, d, stride, resid),
+                (16, 4) => pack_rows_f64::<4, 16>(a, b, x, n, j, d, stride, resid),
+                (24, 4) => pack_rows_f64::<4, 24>(a, b, x, n, j, d, stride, resid),
+                (32, 4) => pack_rows_f64::<4, 32>(a, b, x, n, j, d, stride, resid),
+                (_, 4) => pack_rows_f64::<4, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 3) => pack_rows_f64::<3, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 2) => pack_rows_f64::<2, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 1) => pack_rows_f64::<1, 0>(a, b, x, n, j, d, stride, resid),
+                _ => pack_rows_f64::<0, 0>(a, b, x, n, j, d, stride, resid),
             }
+        }
+    }
+}
+
+/// Four columns `dst[k·stride + l]`, `l < 4`, of [`pack_panel_f64`] from rows `j..j+R` of `A`
+/// (zero columns for `l ≥ R`), and the residuals of those rows; `S` is the stride when known
+/// at compile time (`0`: read `stride`).
+///
+/// # Safety
+/// As [`pack_panel_f64`], with `j + R ≤ m`, and `S` is `0` or `stride`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn pack_rows_f64<const R: usize, const S: usize>(
+    a: &[f64],
+    b: &[f64],
+    x: &[f64],
+    n: usize,
+    j: usize,
+    dst: *mut f64,
+    stride: usize,
+    resid: &mut [f64],
+) {
+    let stride = if S == 0 { stride } else { S };
+    let n4 = n - n % 4;
+    // SAFETY: reads rows j..j+R of `a` at columns < n and x below n; writes `dst` rows < n
+    // (the caller's promise).
+    unsafe {
+        let src = a.as_ptr().add(j * n);
+        let xp = x.as_ptr();
+        let mut acc = [_mm256_setzero_pd(); 4];
+        let mut out = dst;
+        let mut k = 0;
+        while k < n4 {
+            let mut rows = [_mm256_setzero_pd(); 4];
+            for (r, row) in rows.iter_mut().enumerate().take(R) {
+                *row = _mm256_loadu_pd(src.add(r * n + k));
+            }
+            let xv = _mm256_loadu_pd(xp.add(k));
+            for (acc_r, row) in acc.iter_mut().zip(&rows).take(R) {
+                *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
+            }
+            for (q, col) in transpose4(rows).iter().enumerate() {
+                _mm256_storeu_pd(out.add(q * stride), *col);
+            }
+            out = out.add(4 * stride);
+            k += 4;
+        }
+        for k in n4..n {
+            for r in 0..4 {
+                *dst.add(k * stride + r) = if r < R { *src.add(r * n + k) } else { 0.0 };
+            }
+        }
+        for (r, acc_r) in acc.iter().enumerate().take(R) {
+            let u = _mm_add_pd(
+                _mm256_castpd256_pd128(*acc_r),
+                _mm256_extractf128_pd::<1>(*acc_r),
+            );
+            let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
             for k in n4..n {
-                for r in 0..4 {
-                    *dst.add(k * stride + 4 * half + r) =
-                        if valid[r] { *src[r].add(k) } else { 0.0 };
-                }
+                sum += *src.add(r * n + k) * *xp.add(k);
             }
-            for (r, acc_r) in acc.iter().enumerate().filter(|(r, _)| valid[*r]) {
-                let u = _mm_add_pd(
-                    _mm256_castpd256_pd128(*acc_r),
-                    _mm256_extractf128_pd::<1>(*acc_r),
-                );
-                let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-                for (kk, &xk) in x.iter().enumerate().take(n).skip(n4) {
-                    sum += *src[r].add(kk) * xk;
-                }
-                resid[j + r] = b[j + r] - sum;
-            }
+            *resid.get_unchecked_mut(j + r) = *b.get_unchecked(j + r) - sum;
         }
     }
 }
