@@ -983,7 +983,7 @@ unsafe fn gram_strips_stride<const P: usize>(
 
 /// `out[4v + l] = Σ_k at[k·p + i] · at[k·p + c + 4v + l]` for `v < V` (`cols` points at
 /// `at + c`, `s = i − c`), summed in order of `k` (multiply, then add): `V` accumulators, one
-/// broadcast per `k`, the transposed window read as the multiplies' memory operand, four `k`
+/// broadcast per `k`, the transposed window read as the multiplies' memory operand, eight `k`
 /// per loop pass. Both factors come from `at`, so one pointer walks the loop; with `P = p`
 /// its displacements are constants.
 ///
@@ -1013,12 +1013,17 @@ unsafe fn gram_strip_avx2<const V: usize, const P: usize>(
     unsafe {
         let mut acc = [_mm256_setzero_pd(); V];
         let mut col = cols;
-        // k in order: four per pass, then the rest.
-        for _ in 0..n / 4 {
-            step(&mut acc, col, s);
-            step(&mut acc, col.add(p), s);
-            step(&mut acc, col.add(2 * p), s);
-            step(&mut acc, col.add(3 * p), s);
+        // k in order: eight per pass, then four, then the rest.
+        for _ in 0..n / 8 {
+            for q in 0..8 {
+                step(&mut acc, col.add(q * p), s);
+            }
+            col = col.add(8 * p);
+        }
+        if n % 8 >= 4 {
+            for q in 0..4 {
+                step(&mut acc, col.add(q * p), s);
+            }
             col = col.add(4 * p);
         }
         for _ in 0..n % 4 {
