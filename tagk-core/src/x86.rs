@@ -566,7 +566,10 @@ unsafe fn combination_block_f64<const V: usize, const TAIL: bool>(
     // SAFETY: the caller's promise: entries k..k + 4·full (+ tail) of x and of the rows.
     unsafe {
         // All-ones in the lanes below `tail`.
-        let mask = _mm256_cmpgt_epi64(_mm256_set1_epi64x(tail as i64), _mm256_set_epi64x(3, 2, 1, 0));
+        let mask = _mm256_cmpgt_epi64(
+            _mm256_set1_epi64x(tail as i64),
+            _mm256_set_epi64x(3, 2, 1, 0),
+        );
         let xp = x.as_mut_ptr().add(k);
         let mut acc = [_mm256_setzero_pd(); V];
         for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
@@ -585,7 +588,8 @@ unsafe fn combination_block_f64<const V: usize, const TAIL: bool>(
                 let c = _mm256_broadcast_sd(coef.get_unchecked(i));
                 let row = a.as_ptr().add(i * n + k);
                 for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
-                    *acc_v = _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(row.add(4 * v)), c), *acc_v);
+                    *acc_v =
+                        _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(row.add(4 * v)), c), *acc_v);
                 }
                 if TAIL {
                     let r = _mm256_maskload_pd(row.add(4 * full), mask);
@@ -1192,8 +1196,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             && w.coef_avg.len() >= p
     );
     let (rp, ip, gp) = (w.resid.as_mut_ptr(), w.inv_norm2.as_ptr(), w.gram.as_ptr());
-    let last = _mm512_set1_epi64(LANES as i64 - 1);
-    let by_one = _mm512_setr_epi64(0, 0, 1, 2, 3, 4, 5, 6);
     let zero = _mm512_setzero_pd();
     // Held in registers across iterations: r, r²/‖a‖² and 1/‖a‖² (r² is recomputed where
     // needed, which is off the critical path and keeps the loop free of spills).
@@ -1228,42 +1230,18 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             _mm512_mul_pd(max_v, _mm512_set1_pd(0.5)),
             _mm512_mul_pd(sum_v, _mm512_set1_pd(s.half_inv_fro2)),
         );
-        // Weights and their prefix sums, chunk by chunk, carrying the last prefix.
-        // A candidate's weight r_j² is positive: r_j²/‖a_j‖² ≥ θ > 0 (θ is positive while the
-        // residual is, and a NaN θ admits no candidate), so the candidate masks are the
-        // masks of positive weights.
-        let candidate: [u8; C] =
-            core::array::from_fn(|c| _mm512_cmp_pd_mask::<_CMP_GE_OQ>(ratio[c], threshold));
-        let weights: [__m512d; C] =
-            core::array::from_fn(|c| _mm512_maskz_mul_pd(candidate[c], r[c], r[c]));
-        // Running sums down the chunks (lane by lane), then across the lanes.
-        let mut down = weights;
-        for c in 1..C {
-            down[c] = _mm512_add_pd(down[c - 1], weights[c]);
-        }
-        let across = scan8(down[C - 1]);
-        let before = _mm512_maskz_permutexvar_pd(0xfe, by_one, across);
-        let total = _mm512_permutexvar_pd(last, across);
+        // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
+        // lane by lane, then across the lanes; the row drawn by the rule of the portable loop
+        // (`pick_avx512`: among positive weights only, as `lanes::pick_chunks`).
+        let weights: [__m512d; C] = core::array::from_fn(|c| {
+            let candidate = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(ratio[c], threshold);
+            _mm512_maskz_mul_pd(candidate, r[c], r[c])
+        });
+        let (down, before, total) = prefix_avx512(&weights);
         let mut chosen = None;
         if _mm512_cvtsd_f64(total) > 0.0 {
             let target = _mm512_mul_pd(_mm512_set1_pd(draws.next()), total);
-            // Bits in lane-major order (bit 4l + c for row 8c + l).
-            let mut hit = 0u32;
-            for c in 0..C {
-                let prefix = _mm512_add_pd(before, down[c]);
-                let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix, target);
-                hit |= _pdep_u32(u32::from(candidate[c] & past), LANE_MAJOR << c);
-            }
-            let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
-            chosen = if hit != 0 {
-                Some(row(hit.trailing_zeros()))
-            } else {
-                // Round-off: the last candidate in lane-major order.
-                let positive = (0..C).fold(0u32, |acc, c| {
-                    acc | _pdep_u32(u32::from(candidate[c]), LANE_MAJOR << c)
-                });
-                (positive != 0).then(|| row(31 - positive.leading_zeros()))
-            };
+            chosen = pick_avx512(&weights, &down, before, target);
         }
         let i = chosen.unwrap_or_else(|| {
             let mut inv_norm2 = [0.0f64; LANES * MAX_CHUNKS];
@@ -1331,6 +1309,62 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     (iterations, converged)
 }
 
+/// The running sums of `C` chunks of weights in the sampling order (as
+/// `lanes::prefix_chunks`): the sums down the chunks, the in-chunk scan of the lane totals
+/// shifted by one lane (`+0` in lane 0), the total in every lane.
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn prefix_avx512<const C: usize>(weights: &[__m512d; C]) -> ([__m512d; C], __m512d, __m512d) {
+    let mut down = *weights;
+    for c in 1..C {
+        down[c] = _mm512_add_pd(down[c - 1], weights[c]);
+    }
+    let across = scan8(down[C - 1]);
+    let before =
+        _mm512_maskz_permutexvar_pd(0xfe, _mm512_setr_epi64(0, 0, 1, 2, 3, 4, 5, 6), across);
+    (
+        down,
+        before,
+        _mm512_permutexvar_pd(_mm512_set1_epi64(LANES as i64 - 1), across),
+    )
+}
+
+/// The row drawn for `target` by the portable loop's rule (`greedy::draw_row`, as
+/// `lanes::pick_chunks`): the first row in lane-major order with a positive weight and a running
+/// sum past the target; on round-off, the last with a positive weight; `None` if none is
+/// positive. (A candidate's weight is zero when the threshold underflows to zero and its
+/// residual is zero; its running sum can still pass the target by round-off, so candidates are
+/// not the rows that may be drawn.)
+#[target_feature(enable = "avx512f,bmi2")]
+#[inline]
+fn pick_avx512<const C: usize>(
+    weights: &[__m512d; C],
+    down: &[__m512d; C],
+    before: __m512d,
+    target: __m512d,
+) -> Option<usize> {
+    let zero = _mm512_setzero_pd();
+    let positive: [u8; C] =
+        core::array::from_fn(|c| _mm512_cmp_pd_mask::<_CMP_GT_OQ>(weights[c], zero));
+    // Bits in lane-major order (bit 4l + c for row 8c + l).
+    let mut hit = 0u32;
+    for c in 0..C {
+        let prefix = _mm512_add_pd(before, down[c]);
+        let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix, target);
+        hit |= _pdep_u32(u32::from(positive[c] & past), LANE_MAJOR << c);
+    }
+    let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
+    if hit != 0 {
+        Some(row(hit.trailing_zeros()))
+    } else {
+        // Round-off: the last positive weight in lane-major order.
+        let positive = (0..C).fold(0u32, |acc, c| {
+            acc | _pdep_u32(u32::from(positive[c]), LANE_MAJOR << c)
+        });
+        (positive != 0).then(|| row(31 - positive.leading_zeros()))
+    }
+}
+
 /// Every fourth bit: `pdep` spreads a chunk's 8 lane bits to bits `4l + c`.
 const LANE_MAJOR: u32 = 0x1111_1111;
 
@@ -1351,6 +1385,137 @@ fn scan8(x: __m512d) -> __m512d {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::greedy::{draw_row, lane_major_prefix};
+    use crate::lanes::{pick_chunks, prefix_chunks};
+    use rand_chacha::rand_core::SeedableRng;
+    use rand_core::Rng;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// The row the eight-lane loop (AVX2) draws for weights `w` (`8C` entries) and `target`.
+    #[target_feature(enable = "avx2")]
+    unsafe fn draw_lanes<V: Lanes8, const C: usize>(w: &[V::T], target: V::T) -> Option<usize> {
+        // SAFETY: 8C entries.
+        let weights: [V; C] =
+            core::array::from_fn(|c| unsafe { V::load(w.as_ptr().add(LANES * c)) });
+        let (down, before, _) = prefix_chunks(&weights);
+        pick_chunks(&weights, &down, before, V::splat(target))
+    }
+
+    /// The row the AVX-512 loop draws for weights `w` (`8C` entries) and `target`.
+    #[target_feature(enable = "avx512f,bmi2")]
+    unsafe fn draw_avx512<const C: usize>(w: &[f64], target: f64) -> Option<usize> {
+        // SAFETY: 8C entries.
+        let weights: [__m512d; C] =
+            core::array::from_fn(|c| unsafe { _mm512_loadu_pd(w.as_ptr().add(LANES * c)) });
+        let (down, before, _) = prefix_avx512(&weights);
+        pick_avx512(&weights, &down, before, _mm512_set1_pd(target))
+    }
+
+    /// A kernel's row drawing for one chunk count.
+    type Draw<T> = unsafe fn(&[T], T) -> Option<usize>;
+
+    fn by_chunks<T: Real>(w: &[T], f: [Draw<T>; 4], target: T) -> Option<usize> {
+        // SAFETY: the caller checked the CPU features.
+        unsafe { f[w.len() / LANES - 1](w, target) }
+    }
+
+    /// Every kernel set draws the row the portable loop draws (`greedy::draw_row`: the first
+    /// positive weight in lane-major order whose running sum passes the target, else the last
+    /// positive weight), including a row whose weight is zero although its running sum passes
+    /// the target by round-off, as a candidate of a threshold that underflowed to zero would:
+    /// drawing among candidates instead of positive weights (the AVX-512 loop's former
+    /// shortcut) fails here.
+    #[test]
+    fn every_kernel_draws_the_portable_row() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let avx512 =
+            std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("bmi2");
+        let e = f64::EPSILON / 2.0;
+        // Lane sums 1, 0, 2⁻⁵³, 2⁻⁵³, 0, 1, 0, 0: the scan across the lanes gives
+        // x₃ = 1 + 2⁻⁵², the sequential sum up to lane 3 is 1, so row 4 (weight 0) has a
+        // running sum 1 + 2⁻⁵² past the target 1; the row drawn is 5.
+        let crafted = [1.0, 0.0, e, e, 0.0, 1.0, 0.0, 0.0];
+        let mut cases: Vec<(Vec<f64>, f64)> = vec![
+            (crafted.to_vec(), 1.0),
+            (crafted.to_vec(), 4.0), // past the total: the last positive weight
+            (vec![0.0; 8], 0.0),
+            ([crafted.to_vec(), vec![0.0; 8]].concat(), 1.0),
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(16);
+        for c in 1..=MAX_CHUNKS {
+            for _ in 0..300 {
+                let w: Vec<f64> = (0..LANES * c)
+                    .map(|_| match rng.next_u32() % 4 {
+                        0 => 0.0,
+                        1 => f64::from(rng.next_u32() % 4) * e,
+                        _ => crate::greedy::uniform(&mut rng),
+                    })
+                    .collect();
+                let mut prefix = vec![0.0; w.len()];
+                let total = lane_major_prefix(&w, &mut prefix);
+                cases.push((w, crate::greedy::uniform(&mut rng) * total));
+            }
+        }
+        let lanes64 = [
+            draw_lanes::<F64x8, 1> as Draw<f64>,
+            draw_lanes::<F64x8, 2>,
+            draw_lanes::<F64x8, 3>,
+            draw_lanes::<F64x8, 4>,
+        ];
+        let lanes32 = [
+            draw_lanes::<F32x8, 1> as Draw<f32>,
+            draw_lanes::<F32x8, 2>,
+            draw_lanes::<F32x8, 3>,
+            draw_lanes::<F32x8, 4>,
+        ];
+        let wide = [
+            draw_avx512::<1> as Draw<f64>,
+            draw_avx512::<2>,
+            draw_avx512::<3>,
+            draw_avx512::<4>,
+        ];
+        for (k, (w, target)) in cases.iter().enumerate() {
+            let mut prefix = vec![0.0; w.len()];
+            lane_major_prefix(w, &mut prefix);
+            let want = draw_row(w, &prefix, *target);
+            assert_eq!(
+                by_chunks(w, lanes64, *target),
+                want,
+                "AVX2 f64, case {k}: {w:?} {target}"
+            );
+            if avx512 {
+                assert_eq!(
+                    by_chunks(w, wide, *target),
+                    want,
+                    "AVX-512, case {k}: {w:?} {target}"
+                );
+            }
+            let w32: Vec<f32> = w.iter().map(|&v| v as f32).collect();
+            let mut prefix32 = vec![0.0f32; w.len()];
+            lane_major_prefix(&w32, &mut prefix32);
+            let t32 = *target as f32;
+            assert_eq!(
+                by_chunks(&w32, lanes32, t32),
+                draw_row(&w32, &prefix32, t32),
+                "AVX2 f32, case {k}"
+            );
+        }
+        assert_eq!(
+            draw_row(
+                &crafted,
+                &{
+                    let mut p = [0.0; 8];
+                    lane_major_prefix(&crafted, &mut p);
+                    p
+                },
+                1.0
+            ),
+            Some(5)
+        );
+    }
 
     #[test]
     fn f32_transpose_is_a_transpose() {
