@@ -139,8 +139,10 @@ impl<T: Real> Kernels<T> for Avx2 {
             assert!(at32.len() >= n * p && gram32.len() >= p * p);
             crate::linalg::transpose_padded(same::<T, f32>(a), n, m, at32);
             // SAFETY: `self` proves AVX2 support; the lengths were checked above.
-            unsafe { gram_f32(at32, n, p, gram32) };
-            crate::linalg::residual_rows(a, n, m, x, b, resid);
+            unsafe {
+                gram_f32(at32, n, p, gram32);
+                residual_rows_f32(same(a), same(b), same(x), n, m, same_mut(resid));
+            }
             return;
         }
         if !is_f64::<T>() {
@@ -626,6 +628,44 @@ unsafe fn used_rows_f64(c: &[f64]) -> u64 {
         q += 1;
     }
     bits
+}
+
+/// `r_j = b_j − a_jᵀx` for the `m` rows of the `f32` window and `r_j = 0` for `m ≤ j < p`,
+/// each product summed as [`crate::linalg::dot`] does: its four interleaved partial sums are
+/// the four lanes of one `xmm` accumulator (multiply, then add), combined as
+/// `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products added in order.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn residual_rows_f32(a: &[f32], b: &[f32], x: &[f32], n: usize, m: usize, out: &mut [f32]) {
+    let p = padded(m);
+    assert!(a.len() >= m * n && b.len() >= m && x.len() >= n && out.len() >= p);
+    let n4 = n - n % 4;
+    for j in 0..m {
+        let row = &a[j * n..(j + 1) * n];
+        // SAFETY: loads below n of the row and of x (checked above).
+        let sum = unsafe {
+            let mut acc = _mm_setzero_ps();
+            let mut k = 0;
+            while k < n4 {
+                let prod = _mm_mul_ps(
+                    _mm_loadu_ps(row.as_ptr().add(k)),
+                    _mm_loadu_ps(x.as_ptr().add(k)),
+                );
+                acc = _mm_add_ps(prod, acc);
+                k += 4;
+            }
+            let t = _mm_add_ps(acc, _mm_movehl_ps(acc, acc));
+            _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps::<0b01>(t, t)))
+        };
+        let sum = row[n4..]
+            .iter()
+            .zip(&x[n4..n])
+            .fold(sum, |s, (p, q)| p * q + s);
+        out[j] = b[j] - sum;
+    }
+    out[m..p].fill(0.0);
 }
 
 /// Rows per panel: the Gram matrix is built one block column of eight rows at a time.
