@@ -192,6 +192,10 @@ impl<'a> Draws<'a> {
         self.buf[self.next - 1]
     }
 
+    // Cold on x86-64: once per 32 draws, and out of the SIMD loops' way (their registers need
+    // not be saved around it on the common path). Elsewhere as it was: the Cortex-M7's
+    // instruction counts are a reference.
+    #[cfg_attr(target_arch = "x86_64", cold)]
     #[inline(never)]
     fn refill(&mut self) {
         self.len = self.left.clamp(1, DRAW_BATCH);
@@ -235,6 +239,14 @@ pub(crate) trait Kernels<T: Real>: Copy {
         gram: &mut [T],
         resid: &mut [T],
     );
+
+    /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
+    /// coefficient, each entry summed in order of those rows exactly as
+    /// [`crate::linalg::add_combination`] does (which is the default).
+    #[inline(always)]
+    fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
+        crate::linalg::add_combination(x, a, coef, n, m);
+    }
 
     /// The greedy iterations (GRK's selection; with `AVERAGE`, TAG-K's tail-average
     /// coefficients too) from a residual with statistics `(rnorm2, max_ratio)`.
@@ -335,6 +347,15 @@ fn candidates<T: Real>(r: &[T], inv_norm2: &[T], threshold: T, w: &mut [T], pref
             T::zero()
         };
     }
+    lane_major_prefix(w, prefix)
+}
+
+/// The running sums of the weights `w` (`p` entries, a multiple of 8) in the sampling order
+/// (documented order) into `prefix`; returns the total.
+#[inline(always)]
+pub(crate) fn lane_major_prefix<T: Real>(w: &[T], prefix: &mut [T]) -> T {
+    let p = w.len();
+    let prefix = &mut prefix[..p];
     // Down the chunks, lane by lane: V_{c,l} = V_{c−1,l} + w_{8c+l}.
     prefix[..LANES].copy_from_slice(&w[..LANES]);
     for c in 1..p / LANES {
@@ -361,7 +382,7 @@ fn candidates<T: Real>(r: &[T], inv_norm2: &[T], threshold: T, w: &mut [T], pref
 /// The row drawn for `target` (documented order: lanes, then chunks), `None` if every
 /// weight is zero.
 #[inline(always)]
-fn draw_row<T: Real>(w: &[T], prefix: &[T], target: T) -> Option<usize> {
+pub(crate) fn draw_row<T: Real>(w: &[T], prefix: &[T], target: T) -> Option<usize> {
     let chunks = w.len() / LANES;
     let mut last_positive = None;
     for l in 0..LANES {

@@ -47,9 +47,11 @@
 //! order (the order is fixed in the `greedy` module and documented there; multiplies and adds
 //! are never fused), so the same seed gives the same bits on every machine:
 //! - portable loops (any target, any scalar; what a Cortex-M7 runs);
-//! - x86-64 with AVX2 (`std` feature): for `f64` the Gram matrix built GEMM-style from packed
-//!   panels of 8 rows with 4 × 8 register tiles; for `f64` and `f32`, windows of up to 32 rows,
-//!   the greedy loop with the window held in `ymm` registers across iterations;
+//! - x86-64 with AVX2 (`std` feature): for `f64` the window packed transposed (with the prior
+//!   residual from the same loads), the Gram matrix one row strip at a time from it, and
+//!   `x₀ + Aᵀc̄` in `ymm` blocks; for `f32` 8 × 8 Gram tiles; for `f64` and `f32`, windows
+//!   of up to 32 rows, the greedy loop with the window held in `ymm` registers across
+//!   iterations;
 //! - x86-64 with AVX-512F and BMI2: for `f64`, 8 × 8 Gram tiles and the greedy loop in `zmm`
 //!   and mask registers (`f32` as with AVX2);
 //! - aarch64 (NEON, with or without `std`): the portable Gram loops and, for `f64` and `f32`,
@@ -67,7 +69,7 @@ use rand_core::SeedableRng;
 use crate::aarch64::Neon;
 use crate::estimator::{check_window_finite, check_window_shape, validate_estimate};
 use crate::greedy::{self, Kernels, Portable, Schedule, Window};
-use crate::linalg::{add_combination, axpy, dot, norm2_and_dot, padded};
+use crate::linalg::{axpy, dot, norm2_and_dot, padded};
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 use crate::x86::Avx2;
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
@@ -512,8 +514,13 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         if GREEDY || AVERAGE {
             let coef: &[T] = if AVERAGE { p.coef_avg } else { p.coef };
             p.work.copy_from_slice(p.estimate);
-            // The rows used (nonzero coefficient), row by row, accumulated in registers.
-            add_combination(p.work, a, coef, n, m);
+            // The rows used (nonzero coefficient), row by row, accumulated in registers: on
+            // x86-64 by the kernel set (AVX2 has its own), elsewhere by the portable loop
+            // called directly (the code the Cortex-M7's reference counts were taken with).
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            k.add_combination(p.work, a, coef, n, m);
+            #[cfg(not(all(feature = "std", target_arch = "x86_64")))]
+            crate::linalg::add_combination(p.work, a, coef, n, m);
         }
         let finite = if FINITE_CHECK_BRANCH_FREE {
             p.work.iter().fold(true, |ok, v| ok & v.is_finite())

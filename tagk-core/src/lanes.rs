@@ -188,34 +188,11 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         for c in 0..C {
             weights[c] = ratio[c].select_ge(threshold, sq[c]);
         }
-        let mut down = weights;
-        for c in 1..C {
-            down[c] = down[c - 1].add(weights[c]);
-        }
-        let across = scan8(down[C - 1]);
-        let before = across.shift::<1>();
-        let total = across.broadcast_last();
+        let (down, before, total) = prefix_chunks(&weights);
         let mut chosen = None;
         if total.first() > V::T::cast(0.0) {
             let target = V::splat(V::T::cast(draws.next())).mul(total);
-            // Bits in lane-major order (bit 4l + c for row 8c + l).
-            let mut hits = [zero; C];
-            for c in 0..C {
-                hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
-            }
-            let hit = V::lane_major_bits(&hits);
-            let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
-            chosen = if hit != 0 {
-                Some(row(hit.trailing_zeros()))
-            } else {
-                // Round-off: the last candidate in lane-major order.
-                let mut positive = [zero; C];
-                for c in 0..C {
-                    positive[c] = weights[c].gt_mask(zero);
-                }
-                let positive = V::lane_major_bits(&positive);
-                (positive != 0).then(|| row(31 - positive.leading_zeros()))
-            };
+            chosen = pick_chunks(&weights, &down, before, target);
         }
         // The residual in memory is the current one (stored every iteration).
         // SAFETY: p entries of each, and no other live reference to the residual.
@@ -264,6 +241,53 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     }
     draws.finish();
     (iterations, converged)
+}
+
+/// The running sums of the weights in the sampling order (documented order): the sums down
+/// the chunks `V_{c,l}`, the in-chunk scan of the lane totals shifted by one lane (`x_{l−1}`,
+/// `+0` in lane 0) and the total in every lane. `P_{c,l} = x_{l−1} + V_{c,l}`.
+#[inline(always)]
+pub(crate) fn prefix_chunks<V: Lanes8, const C: usize>(weights: &[V; C]) -> ([V; C], V, V) {
+    let mut down = *weights;
+    for c in 1..C {
+        down[c] = down[c - 1].add(weights[c]);
+    }
+    let across = scan8(down[C - 1]);
+    (down, across.shift::<1>(), across.broadcast_last())
+}
+
+/// The row drawn for `target` (documented order, the rule of
+/// [`crate::greedy::draw_row`]): the first row in lane-major order with a positive weight and
+/// `P > target`; on round-off, the last with a positive weight; `None` if no weight is
+/// positive. Rows are drawn among positive weights only: a candidate's weight can be zero
+/// when the threshold underflows to zero, and its running sum can still exceed the target by
+/// round-off (the scan across the lanes is not the sequential sum).
+#[inline(always)]
+pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
+    weights: &[V; C],
+    down: &[V; C],
+    before: V,
+    target: V,
+) -> Option<usize> {
+    let zero = V::splat(V::T::cast(0.0));
+    // Bits in lane-major order (bit 4l + c for row 8c + l).
+    let mut hits = [zero; C];
+    for c in 0..C {
+        hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
+    }
+    let hit = V::lane_major_bits(&hits);
+    let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
+    if hit != 0 {
+        Some(row(hit.trailing_zeros()))
+    } else {
+        // Round-off: the last positive weight in lane-major order.
+        let mut positive = [zero; C];
+        for c in 0..C {
+            positive[c] = weights[c].gt_mask(zero);
+        }
+        let positive = V::lane_major_bits(&positive);
+        (positive != 0).then(|| row(31 - positive.leading_zeros()))
+    }
 }
 
 /// [`argmax_ratio`] over the residual and reciprocal norms in memory, out of line: the loop

@@ -139,8 +139,10 @@ impl<T: Real> Kernels<T> for Avx2 {
             assert!(at32.len() >= n * p && gram32.len() >= p * p);
             crate::linalg::transpose_padded(same::<T, f32>(a), n, m, at32);
             // SAFETY: `self` proves AVX2 support; the lengths were checked above.
-            unsafe { gram_f32(at32, n, p, gram32) };
-            crate::linalg::residual_rows(a, n, m, x, b, resid);
+            unsafe {
+                gram_f32(at32, n, p, gram32);
+                residual_rows_f32(same(a), same(b), same(x), n, m, same_mut(resid));
+            }
             return;
         }
         if !is_f64::<T>() {
@@ -159,6 +161,16 @@ impl<T: Real> Kernels<T> for Avx2 {
                 f64s_mut(gram),
                 f64s_mut(resid),
             )
+        }
+    }
+
+    #[inline(always)]
+    fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
+        if is_f64::<T>() {
+            // SAFETY: `self` proves AVX2 support; the casts are between identical types.
+            unsafe { add_combination_f64(f64s_mut(x), f64s(a), f64s(coef), n, m) }
+        } else {
+            crate::linalg::add_combination(x, a, coef, n, m);
         }
     }
 
@@ -475,15 +487,205 @@ impl Lanes8 for F32x8 {
     }
 }
 
+/// Vectors of four `f64` per block of [`add_combination_f64`]: twelve accumulators, one
+/// broadcast and one product in sixteen `ymm` registers.
+const COMBINATION_VECTORS: usize = 12;
+
+/// `x ← x + Aᵀc` for `f64` in the order of [`crate::linalg::add_combination`]: each entry
+/// summed over the rows with a nonzero coefficient in increasing order, `x_k ← a_ik c_i + x_k`
+/// (multiply, then add). Blocks of up to 48 entries of `x` stay in `ymm` accumulators while
+/// the used rows (found by bit scans over masks of nonzero coefficients) stream past, one
+/// broadcast of `c_i` and, per four entries, a multiply with the row as its memory operand and
+/// an add; the last `n mod 4` entries through masked loads and stores (lanes past `n` are
+/// neither read nor written).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn add_combination_f64(x: &mut [f64], a: &[f64], coef: &[f64], n: usize, m: usize) {
+    assert!(x.len() >= n && a.len() >= m * n && coef.len() >= m);
+    let mut k = 0;
+    while k < n {
+        let len = (n - k).min(4 * COMBINATION_VECTORS);
+        let (full, tail) = (len / 4, len % 4);
+        // SAFETY: entries k..k+len of x and of every row (checked above).
+        unsafe {
+            if tail == 0 {
+                match full {
+                    1 => combination_block_f64::<1, false>(x, a, coef, n, m, k, 0),
+                    2 => combination_block_f64::<2, false>(x, a, coef, n, m, k, 0),
+                    3 => combination_block_f64::<3, false>(x, a, coef, n, m, k, 0),
+                    4 => combination_block_f64::<4, false>(x, a, coef, n, m, k, 0),
+                    5 => combination_block_f64::<5, false>(x, a, coef, n, m, k, 0),
+                    6 => combination_block_f64::<6, false>(x, a, coef, n, m, k, 0),
+                    7 => combination_block_f64::<7, false>(x, a, coef, n, m, k, 0),
+                    8 => combination_block_f64::<8, false>(x, a, coef, n, m, k, 0),
+                    9 => combination_block_f64::<9, false>(x, a, coef, n, m, k, 0),
+                    10 => combination_block_f64::<10, false>(x, a, coef, n, m, k, 0),
+                    11 => combination_block_f64::<11, false>(x, a, coef, n, m, k, 0),
+                    _ => combination_block_f64::<12, false>(x, a, coef, n, m, k, 0),
+                }
+            } else {
+                // `full + 1` vectors, the last one masked (len < 48 here).
+                match full {
+                    0 => combination_block_f64::<1, true>(x, a, coef, n, m, k, tail),
+                    1 => combination_block_f64::<2, true>(x, a, coef, n, m, k, tail),
+                    2 => combination_block_f64::<3, true>(x, a, coef, n, m, k, tail),
+                    3 => combination_block_f64::<4, true>(x, a, coef, n, m, k, tail),
+                    4 => combination_block_f64::<5, true>(x, a, coef, n, m, k, tail),
+                    5 => combination_block_f64::<6, true>(x, a, coef, n, m, k, tail),
+                    6 => combination_block_f64::<7, true>(x, a, coef, n, m, k, tail),
+                    7 => combination_block_f64::<8, true>(x, a, coef, n, m, k, tail),
+                    8 => combination_block_f64::<9, true>(x, a, coef, n, m, k, tail),
+                    9 => combination_block_f64::<10, true>(x, a, coef, n, m, k, tail),
+                    10 => combination_block_f64::<11, true>(x, a, coef, n, m, k, tail),
+                    _ => combination_block_f64::<12, true>(x, a, coef, n, m, k, tail),
+                }
+            }
+        }
+        k += len;
+    }
+}
+
+/// Entries `k..k + 4V` of [`add_combination_f64`] (with `TAIL`, the last vector only its first
+/// `tail` lanes, `0 < tail < 4`).
+///
+/// # Safety
+/// The CPU must support AVX2; `x`, `a`, `coef` as checked by [`add_combination_f64`], and the
+/// block's entries below `n`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn combination_block_f64<const V: usize, const TAIL: bool>(
+    x: &mut [f64],
+    a: &[f64],
+    coef: &[f64],
+    n: usize,
+    m: usize,
+    k: usize,
+    tail: usize,
+) {
+    let full = if TAIL { V - 1 } else { V };
+    // SAFETY: the caller's promise: entries k..k + 4·full (+ tail) of x and of the rows.
+    unsafe {
+        // All-ones in the lanes below `tail`.
+        let mask = _mm256_cmpgt_epi64(
+            _mm256_set1_epi64x(tail as i64),
+            _mm256_set_epi64x(3, 2, 1, 0),
+        );
+        let xp = x.as_mut_ptr().add(k);
+        let mut acc = [_mm256_setzero_pd(); V];
+        for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
+            *acc_v = _mm256_loadu_pd(xp.add(4 * v));
+        }
+        if TAIL {
+            acc[V - 1] = _mm256_maskload_pd(xp.add(4 * full), mask);
+        }
+        let mut base = 0;
+        while base < m {
+            let chunk = &coef[base..m.min(base + 64)];
+            let mut used = used_rows_f64(chunk);
+            while used != 0 {
+                let i = base + used.trailing_zeros() as usize;
+                used &= used - 1;
+                let c = _mm256_broadcast_sd(coef.get_unchecked(i));
+                let row = a.as_ptr().add(i * n + k);
+                for (v, acc_v) in acc.iter_mut().enumerate().take(full) {
+                    *acc_v =
+                        _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(row.add(4 * v)), c), *acc_v);
+                }
+                if TAIL {
+                    let r = _mm256_maskload_pd(row.add(4 * full), mask);
+                    acc[V - 1] = _mm256_add_pd(_mm256_mul_pd(r, c), acc[V - 1]);
+                }
+            }
+            base += 64;
+        }
+        for (v, acc_v) in acc.iter().enumerate().take(full) {
+            _mm256_storeu_pd(xp.add(4 * v), *acc_v);
+        }
+        if TAIL {
+            _mm256_maskstore_pd(xp.add(4 * full), mask, acc[V - 1]);
+        }
+    }
+}
+
+/// Bit `q` set where `c[q] ≠ 0` (`c.len() ≤ 64`), four coefficients per comparison.
+#[inline(always)]
+unsafe fn used_rows_f64(c: &[f64]) -> u64 {
+    let mut bits = 0u64;
+    let mut q = 0;
+    // SAFETY: the caller compiled for AVX2; loads below c.len().
+    unsafe {
+        while q + 4 <= c.len() {
+            let v = _mm256_loadu_pd(c.as_ptr().add(q));
+            let nonzero = _mm256_cmp_pd::<_CMP_NEQ_UQ>(v, _mm256_setzero_pd());
+            bits |= (_mm256_movemask_pd(nonzero) as u64) << q;
+            q += 4;
+        }
+    }
+    while q < c.len() {
+        bits |= u64::from(c[q] != 0.0) << q;
+        q += 1;
+    }
+    bits
+}
+
+/// `r_j = b_j − a_jᵀx` for the `m` rows of the `f32` window and `r_j = 0` for `m ≤ j < p`,
+/// each product summed as [`crate::linalg::dot`] does: its four interleaved partial sums are
+/// the four lanes of one `xmm` accumulator (multiply, then add), combined as
+/// `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products added in order.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn residual_rows_f32(a: &[f32], b: &[f32], x: &[f32], n: usize, m: usize, out: &mut [f32]) {
+    let p = padded(m);
+    assert!(a.len() >= m * n && b.len() >= m && x.len() >= n && out.len() >= p);
+    let n4 = n - n % 4;
+    for j in 0..m {
+        let row = &a[j * n..(j + 1) * n];
+        // SAFETY: loads below n of the row and of x (checked above).
+        let sum = unsafe {
+            let mut acc = _mm_setzero_ps();
+            let mut k = 0;
+            while k < n4 {
+                let prod = _mm_mul_ps(
+                    _mm_loadu_ps(row.as_ptr().add(k)),
+                    _mm_loadu_ps(x.as_ptr().add(k)),
+                );
+                acc = _mm_add_ps(prod, acc);
+                k += 4;
+            }
+            let t = _mm_add_ps(acc, _mm_movehl_ps(acc, acc));
+            _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps::<0b01>(t, t)))
+        };
+        let sum = row[n4..]
+            .iter()
+            .zip(&x[n4..n])
+            .fold(sum, |s, (p, q)| p * q + s);
+        out[j] = b[j] - sum;
+    }
+    out[m..p].fill(0.0);
+}
+
 /// Rows per panel: the Gram matrix is built one block column of eight rows at a time.
 const PANEL: usize = 8;
 
 /// `G = A Aᵀ` (`p × p`) and `r = b − A x` for `f64`, in the order of the portable kernels
-/// (every Gram entry summed in order of `k`). The Gram matrix is built GEMM-style: for each
-/// block of eight rows `J`, the rows are packed transposed into `panel` (`n × 8`, small
-/// enough to stay in L1), then every tile `G[I, J]` with `I ≤ J`, whose other factor is broadcast
-/// straight from the rows of `A`. Tiles are 8 × 8 with AVX-512F (eight `zmm` accumulators)
-/// or 4 × 8 with AVX2 (eight `ymm` accumulators); `G[J, I]` is written as the transposed tile.
+/// (every Gram entry summed in order of `k`).
+///
+/// With AVX-512F the Gram matrix is built GEMM-style: for each block of eight rows `J`, the
+/// rows are packed transposed into `at` (`n × 8`, small enough to stay in L1), then every
+/// 8 × 8 tile `G[I, J]` with `I ≤ J` (eight `zmm` accumulators), whose other factor is
+/// broadcast straight from the rows of `A`; `G[J, I]` is written as the transposed tile.
+///
+/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then each
+/// row `i < m` is one strip `G[i, 4⌊i/4⌋..p]` (see [`gram_strip_avx2`]): per `k` one broadcast
+/// of `a_ik` and, per four columns, a multiply with the transposed window as its memory operand
+/// and an add, the fewest instructions per product that separate multiplies and adds allow
+/// (a 4 × 8 register tile needs two more loads and four broadcasts per `k` for 32 products,
+/// and computes the diagonal blocks' lower-left quarters too). The blocks left of the strips
+/// are their mirror images, transposed 4 × 4 at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2, and AVX-512F if `avx512f`.
@@ -496,7 +698,7 @@ unsafe fn gram_and_residual_f64(
     x: &[f64],
     n: usize,
     m: usize,
-    panel: &mut [f64],
+    at: &mut [f64],
     gram: &mut [f64],
     resid: &mut [f64],
 ) {
@@ -505,22 +707,29 @@ unsafe fn gram_and_residual_f64(
         a.len() >= m * n
             && b.len() >= m
             && x.len() >= n
-            && panel.len() >= n * PANEL
+            && at.len() >= n * p
             && gram.len() >= p * p
             && resid.len() >= p
     );
+    if !avx512f {
+        let mut bj = 0;
+        while bj < p {
+            // SAFETY: `at` holds n · p entries (checked above), columns bj..bj+8 ≤ p.
+            unsafe { pack_panel_f64(a, b, x, n, m, bj, at.as_mut_ptr().add(bj), p, resid) };
+            bj += PANEL;
+        }
+        // SAFETY: the slices were checked above; AVX2 is the caller's promise.
+        unsafe { gram_strips_avx2(at, n, m, p, gram) };
+        return;
+    }
     let mut bj = 0;
     while bj < p {
         // SAFETY: the slices were checked above; the CPU features are the caller's promise.
         unsafe {
-            pack_panel_f64(a, b, x, n, m, bj, panel, resid);
+            pack_panel_f64(a, b, x, n, m, bj, at.as_mut_ptr(), PANEL, resid);
             // The next panel's rows, fetched into cache while this panel's tiles compute.
             let next = &a[((bj + PANEL) * n).min(m * n)..((bj + 2 * PANEL) * n).min(m * n)];
-            if avx512f {
-                gram_panel_avx512(a, n, m, p, bj, panel, next, gram);
-            } else {
-                gram_panel_avx2(a, n, m, p, bj, panel, next, gram);
-            }
+            gram_panel_avx512(a, n, m, p, bj, at, next, gram);
         }
         bj += PANEL;
     }
@@ -528,7 +737,6 @@ unsafe fn gram_and_residual_f64(
     // leaves unspecified; columns `≥ m` of the other rows are exact zeros, as the panels are
     // zero there, and mirror images only ever come from rows below `m`.
 }
-
 /// Prefetches `data` into L1 (one hint per 64-byte line) before a panel's tiles compute, for
 /// rows long enough (`n ≥ 32`) that a window may not be in cache: the hints are cheap next to
 /// the loads they save when the window comes from L3 or memory.
@@ -552,14 +760,16 @@ fn row_ptr(a: &[f64], n: usize, m: usize, i: usize) -> *const f64 {
     a[i.min(m - 1) * n..].as_ptr()
 }
 
-/// `panel[k·8 + l] = a[(bj + l)·n + k]`: rows `bj..bj+8` of `A` transposed, zero for rows
-/// `≥ m`, through 4 × 4 blocks in registers where four rows exist; from the same loads, the
-/// residuals `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four
-/// interleaved partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order).
+/// `dst[k·stride + l] = a[(bj + l)·n + k]` for `l < 8`: rows `bj..bj+8` of `A` transposed,
+/// zero for rows `≥ m`, through 4 × 4 blocks in registers; from the same loads, the residuals
+/// `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four interleaved
+/// partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order). `stride` 8
+/// packs one panel; `stride = p` with `dst` at column `bj` builds the whole transposed window,
+/// one panel of columns at a time.
 ///
 /// # Safety
-/// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n`, `panel` `8n` and `resid`
-/// `bj + 8` entries.
+/// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n` and `resid` `bj + 8`
+/// entries, and `dst` is writable at `k·stride + l` for `k < n`, `l < 8`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 unsafe fn pack_panel_f64(
@@ -569,59 +779,94 @@ unsafe fn pack_panel_f64(
     n: usize,
     m: usize,
     bj: usize,
-    panel: &mut [f64],
+    dst: *mut f64,
+    stride: usize,
     resid: &mut [f64],
 ) {
-    let n4 = n - n % 4;
-    let (dst, xp) = (panel.as_mut_ptr(), x.as_ptr());
+    assert!(a.len() >= m * n && b.len() >= m && x.len() >= n && resid.len() >= bj + 8);
     for half in 0..2 {
         let j = bj + 4 * half;
-        // Rows past m are zero; their pointers stand in for loads that are not made.
-        let valid: [bool; 4] = core::array::from_fn(|r| j + r < m);
-        let src: [*const f64; 4] = core::array::from_fn(|r| row_ptr(a, n, m, j + r));
-        let full = j + 4 <= m;
-        // SAFETY: reads rows < m at columns < n and x below n; writes panel rows < n.
+        let (d, rows) = (dst.wrapping_add(4 * half), m.saturating_sub(j).min(4));
+        // SAFETY: rows j..j+rows < m of `a`, `b` and `resid` (checked above); `dst` is the
+        // caller's promise.
         unsafe {
-            let mut acc = [_mm256_setzero_pd(); 4];
-            let mut k = 0;
-            while k < n4 {
-                let rows: [__m256d; 4] = if full {
-                    core::array::from_fn(|r| _mm256_loadu_pd(src[r].add(k)))
-                } else {
-                    core::array::from_fn(|r| {
-                        if valid[r] {
-                            _mm256_loadu_pd(src[r].add(k))
-                        } else {
-                            _mm256_setzero_pd()
-                        }
-                    })
-                };
-                let xv = _mm256_loadu_pd(xp.add(k));
-                for (acc_r, row) in acc.iter_mut().zip(&rows) {
-                    *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
-                }
-                for (q, col) in transpose4(rows).iter().enumerate() {
-                    _mm256_storeu_pd(dst.add((k + q) * PANEL + 4 * half), *col);
-                }
-                k += 4;
+            match (stride, rows) {
+                (PANEL, 4) => pack_rows_f64::<4, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 3) => pack_rows_f64::<3, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 2) => pack_rows_f64::<2, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, 1) => pack_rows_f64::<1, PANEL>(a, b, x, n, j, d, stride, resid),
+                (PANEL, _) => pack_rows_f64::<0, PANEL>(a, b, x, n, j, d, stride, resid),
+                (16, 4) => pack_rows_f64::<4, 16>(a, b, x, n, j, d, stride, resid),
+                (24, 4) => pack_rows_f64::<4, 24>(a, b, x, n, j, d, stride, resid),
+                (32, 4) => pack_rows_f64::<4, 32>(a, b, x, n, j, d, stride, resid),
+                (_, 4) => pack_rows_f64::<4, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 3) => pack_rows_f64::<3, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 2) => pack_rows_f64::<2, 0>(a, b, x, n, j, d, stride, resid),
+                (_, 1) => pack_rows_f64::<1, 0>(a, b, x, n, j, d, stride, resid),
+                _ => pack_rows_f64::<0, 0>(a, b, x, n, j, d, stride, resid),
             }
+        }
+    }
+}
+
+/// Four columns `dst[k·stride + l]`, `l < 4`, of [`pack_panel_f64`] from rows `j..j+R` of `A`
+/// (zero columns for `l ≥ R`), and the residuals of those rows; `S` is the stride when known
+/// at compile time (`0`: read `stride`).
+///
+/// # Safety
+/// As [`pack_panel_f64`], with `j + R ≤ m`, and `S` is `0` or `stride`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn pack_rows_f64<const R: usize, const S: usize>(
+    a: &[f64],
+    b: &[f64],
+    x: &[f64],
+    n: usize,
+    j: usize,
+    dst: *mut f64,
+    stride: usize,
+    resid: &mut [f64],
+) {
+    let stride = if S == 0 { stride } else { S };
+    let n4 = n - n % 4;
+    // SAFETY: reads rows j..j+R of `a` at columns < n and x below n; writes `dst` rows < n
+    // (the caller's promise).
+    unsafe {
+        let src = a.as_ptr().add(j * n);
+        let xp = x.as_ptr();
+        let mut acc = [_mm256_setzero_pd(); 4];
+        let mut out = dst;
+        let mut k = 0;
+        while k < n4 {
+            let mut rows = [_mm256_setzero_pd(); 4];
+            for (r, row) in rows.iter_mut().enumerate().take(R) {
+                *row = _mm256_loadu_pd(src.add(r * n + k));
+            }
+            let xv = _mm256_loadu_pd(xp.add(k));
+            for (acc_r, row) in acc.iter_mut().zip(&rows).take(R) {
+                *acc_r = _mm256_add_pd(_mm256_mul_pd(*row, xv), *acc_r);
+            }
+            for (q, col) in transpose4(rows).iter().enumerate() {
+                _mm256_storeu_pd(out.add(q * stride), *col);
+            }
+            out = out.add(4 * stride);
+            k += 4;
+        }
+        for k in n4..n {
+            for r in 0..4 {
+                *dst.add(k * stride + r) = if r < R { *src.add(r * n + k) } else { 0.0 };
+            }
+        }
+        for (r, acc_r) in acc.iter().enumerate().take(R) {
+            let u = _mm_add_pd(
+                _mm256_castpd256_pd128(*acc_r),
+                _mm256_extractf128_pd::<1>(*acc_r),
+            );
+            let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
             for k in n4..n {
-                for r in 0..4 {
-                    *dst.add(k * PANEL + 4 * half + r) =
-                        if valid[r] { *src[r].add(k) } else { 0.0 };
-                }
+                sum += *src.add(r * n + k) * *xp.add(k);
             }
-            for (r, acc_r) in acc.iter().enumerate().filter(|(r, _)| valid[*r]) {
-                let u = _mm_add_pd(
-                    _mm256_castpd256_pd128(*acc_r),
-                    _mm256_extractf128_pd::<1>(*acc_r),
-                );
-                let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-                for (kk, &xk) in x.iter().enumerate().take(n).skip(n4) {
-                    sum += *src[r].add(kk) * xk;
-                }
-                resid[j + r] = b[j + r] - sum;
-            }
+            *resid.get_unchecked_mut(j + r) = *b.get_unchecked(j + r) - sum;
         }
     }
 }
@@ -699,141 +944,138 @@ unsafe fn gram_panel_avx512(
     }
 }
 
-/// The tiles `G[I, J]`, `I ≤ J`, of one panel `J = bj..bj+8` with 4 × 8 AVX2 tiles; in the
-/// diagonal block, the lower four rows only right of its 4 × 4 split (a 4 × 4 tile), their
-/// left quarter being the upper-right one transposed (`a_i·a_j` and `a_j·a_i` are the same
-/// products summed in the same order: the same bits).
+/// `G = A Aᵀ` for `f64` from the transposed window `at` (`n × p`, stride `p`, zero in the
+/// columns `≥ m`): for each row `i < m` the strip `G[i, 4⌊i/4⌋..p]` (in pieces of at most
+/// eight vectors: eight accumulators), then, per block of four rows, the 4 × 4 blocks left of
+/// the strips below them as the transposes of the blocks above (the same products, commuted,
+/// summed in the same order: the same bits). Columns `≥ m` of rows `< m` are exact zeros
+/// (`+0` products of the zero columns, summed from `+0`); rows `≥ m` are left unspecified.
 ///
 /// # Safety
-/// The CPU must support AVX2; slices as in [`gram_and_residual_f64`].
+/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
+/// of 8 with `m ≤ p`.
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn gram_panel_avx2(
-    a: &[f64],
+unsafe fn gram_strips_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
+    // SAFETY: the caller's promise; the stride is `p` in each call.
+    unsafe {
+        // The window sizes of a robot's estimator get a compile-time stride (constant
+        // displacements, no address arithmetic in the loop); others the run-time one.
+        match p {
+            8 => gram_strips_stride::<8>(at, n, m, p, gram),
+            16 => gram_strips_stride::<16>(at, n, m, p, gram),
+            24 => gram_strips_stride::<24>(at, n, m, p, gram),
+            32 => gram_strips_stride::<32>(at, n, m, p, gram),
+            _ => gram_strips_stride::<0>(at, n, m, p, gram),
+        }
+    }
+}
+
+/// [`gram_strips_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
+///
+/// # Safety
+/// As [`gram_strips_avx2`], and `P` is `0` or `p`.
+#[inline(always)]
+unsafe fn gram_strips_stride<const P: usize>(
+    at: &[f64],
     n: usize,
     m: usize,
     p: usize,
-    bj: usize,
-    panel: &[f64],
-    next: &[f64],
     gram: &mut [f64],
 ) {
-    prefetch_spread(next, n);
-    let (v, g) = (panel.as_ptr(), gram.as_mut_ptr());
-    let mut bi = 0;
-    while bi <= bj {
-        let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bi + s));
-        // SAFETY: reads rows of `a` at columns < n and panel rows < n; writes rows and
-        // columns < p of `gram` (bi + 4 ≤ p, bj + 8 ≤ p).
+    let p = if P == 0 { p } else { P };
+    assert!(at.len() >= n * p && gram.len() >= p * p && m <= p && p % 8 == 0);
+    let g = gram.as_mut_ptr();
+    let mut j0 = 0;
+    while j0 < m {
+        // SAFETY: columns j0..p of `at` and of `gram`'s rows, rows below p (checked above).
         unsafe {
-            let c = tile_4x8(rows, v, n);
-            for s in 0..4 {
-                _mm256_storeu_pd(g.add((bi + s) * p + bj), c[2 * s]);
-                _mm256_storeu_pd(g.add((bi + s) * p + bj + 4), c[2 * s + 1]);
-            }
-            // The mirror image: rows bj..bj+8, columns bi..bi+4 (in the diagonal block only
-            // rows bj+4..bj+8, the upper tile's right half).
-            for h in usize::from(bi == bj)..2 {
-                let t = transpose4([c[h], c[2 + h], c[4 + h], c[6 + h]]);
-                for (l, tl) in t.iter().enumerate() {
-                    _mm256_storeu_pd(g.add((bj + 4 * h + l) * p + bi), *tl);
+            for i in j0..(j0 + 4).min(m) {
+                let mut c = j0;
+                while c < p {
+                    let v = ((p - c) / 4).min(8);
+                    // The broadcast a_ik = at[k·p + i], relative to the strip's columns.
+                    let (cols, s) = (at.as_ptr().add(c), i as isize - c as isize);
+                    let out = g.add(i * p + c);
+                    match v {
+                        1 => gram_strip_avx2::<1, P>(cols, s, n, p, out),
+                        2 => gram_strip_avx2::<2, P>(cols, s, n, p, out),
+                        3 => gram_strip_avx2::<3, P>(cols, s, n, p, out),
+                        4 => gram_strip_avx2::<4, P>(cols, s, n, p, out),
+                        5 => gram_strip_avx2::<5, P>(cols, s, n, p, out),
+                        6 => gram_strip_avx2::<6, P>(cols, s, n, p, out),
+                        7 => gram_strip_avx2::<7, P>(cols, s, n, p, out),
+                        _ => gram_strip_avx2::<8, P>(cols, s, n, p, out),
+                    }
+                    c += 4 * v;
                 }
             }
+            // The mirror images G[c.., j0..j0+4] of the blocks G[j0..j0+4, c..] right of the
+            // diagonal block (rows j0.. past m, if any, only reach rows ≥ m of G).
+            let mut c = j0 + 4;
+            while c < p {
+                let block: [__m256d; 4] =
+                    core::array::from_fn(|s| _mm256_loadu_pd(g.add((j0 + s) * p + c)));
+                for (l, tl) in transpose4(block).iter().enumerate() {
+                    _mm256_storeu_pd(g.add((c + l) * p + j0), *tl);
+                }
+                c += 4;
+            }
         }
-        bi += 4;
-    }
-    // The diagonal block's lower-right quarter.
-    let rows: [*const f64; 4] = core::array::from_fn(|s| row_ptr(a, n, m, bj + 4 + s));
-    // SAFETY: as above, with panel columns 4..8.
-    unsafe {
-        let c = tile_4x4(rows, v.add(4), n);
-        for (s, cs) in c.iter().enumerate() {
-            _mm256_storeu_pd(g.add((bj + 4 + s) * p + bj + 4), *cs);
-        }
-    }
-}
-
-/// `c[2s + h][l] = Σ_k rows[s][k] · v[8k + 4h + l]`, summed in order of `k` (multiply, then
-/// add; the loop is unrolled by four without changing the order).
-///
-/// # Safety
-/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n`.
-#[inline(always)]
-unsafe fn tile_4x8(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 8] {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let mut c = [_mm256_setzero_pd(); 8];
-        let mut k = 0;
-        while k + 4 <= n {
-            step_4x8(&mut c, rows, v, k);
-            step_4x8(&mut c, rows, v, k + 1);
-            step_4x8(&mut c, rows, v, k + 2);
-            step_4x8(&mut c, rows, v, k + 3);
-            k += 4;
-        }
-        while k < n {
-            step_4x8(&mut c, rows, v, k);
-            k += 1;
-        }
-        c
+        j0 += 4;
     }
 }
 
-/// One `k` of [`tile_4x8`].
+/// `out[4v + l] = Σ_k at[k·p + i] · at[k·p + c + 4v + l]` for `v < V` (`cols` points at
+/// `at + c`, `s = i − c`), summed in order of `k` (multiply, then add): `V` accumulators, one
+/// broadcast per `k`, the transposed window read as the multiplies' memory operand, eight `k`
+/// per loop pass. Both factors come from `at`, so one pointer walks the loop; with `P = p`
+/// its displacements are constants.
 ///
 /// # Safety
-/// As [`tile_4x8`], with `k < n`.
+/// The CPU must support AVX2; `cols` is readable at `k·p + s` and `k·p + 4V − 1` for `k < n`,
+/// `out` writable at `4V` entries; `P` is `0` or `p`.
 #[inline(always)]
-unsafe fn step_4x8(c: &mut [__m256d; 8], rows: [*const f64; 4], v: *const f64, k: usize) {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let v0 = _mm256_loadu_pd(v.add(k * PANEL));
-        let v1 = _mm256_loadu_pd(v.add(k * PANEL + 4));
-        for s in 0..4 {
-            let u = _mm256_set1_pd(*rows[s].add(k));
-            c[2 * s] = _mm256_add_pd(_mm256_mul_pd(u, v0), c[2 * s]);
-            c[2 * s + 1] = _mm256_add_pd(_mm256_mul_pd(u, v1), c[2 * s + 1]);
+unsafe fn gram_strip_avx2<const V: usize, const P: usize>(
+    cols: *const f64,
+    s: isize,
+    n: usize,
+    p: usize,
+    out: *mut f64,
+) {
+    let p = if P == 0 { p } else { P };
+    #[inline(always)]
+    unsafe fn step<const V: usize>(acc: &mut [__m256d; V], col: *const f64, s: isize) {
+        // SAFETY: the caller's promise.
+        unsafe {
+            let u = _mm256_broadcast_sd(&*col.offset(s));
+            for (v, acc_v) in acc.iter_mut().enumerate() {
+                *acc_v = _mm256_add_pd(_mm256_mul_pd(u, _mm256_loadu_pd(col.add(4 * v))), *acc_v);
+            }
         }
     }
-}
-
-/// `c[s][l] = Σ_k rows[s][k] · v[8k + l]`, summed in order of `k` (as [`tile_4x8`]).
-///
-/// # Safety
-/// The CPU must support AVX2; each row has `n` readable entries, `v` has `8n − 4`.
-#[inline(always)]
-unsafe fn tile_4x4(rows: [*const f64; 4], v: *const f64, n: usize) -> [__m256d; 4] {
     // SAFETY: the caller's promise.
     unsafe {
-        let mut c = [_mm256_setzero_pd(); 4];
-        let mut k = 0;
-        while k + 4 <= n {
-            step_4x4(&mut c, rows, v, k);
-            step_4x4(&mut c, rows, v, k + 1);
-            step_4x4(&mut c, rows, v, k + 2);
-            step_4x4(&mut c, rows, v, k + 3);
-            k += 4;
+        let mut acc = [_mm256_setzero_pd(); V];
+        let mut col = cols;
+        // k in order: eight per pass, then four, then the rest.
+        for _ in 0..n / 8 {
+            for q in 0..8 {
+                step(&mut acc, col.add(q * p), s);
+            }
+            col = col.add(8 * p);
         }
-        while k < n {
-            step_4x4(&mut c, rows, v, k);
-            k += 1;
+        if n % 8 >= 4 {
+            for q in 0..4 {
+                step(&mut acc, col.add(q * p), s);
+            }
+            col = col.add(4 * p);
         }
-        c
-    }
-}
-
-/// One `k` of [`tile_4x4`].
-///
-/// # Safety
-/// As [`tile_4x4`], with `k < n`.
-#[inline(always)]
-unsafe fn step_4x4(c: &mut [__m256d; 4], rows: [*const f64; 4], v: *const f64, k: usize) {
-    // SAFETY: the caller's promise.
-    unsafe {
-        let vk = _mm256_loadu_pd(v.add(k * PANEL));
-        for (s, cs) in c.iter_mut().enumerate() {
-            let u = _mm256_set1_pd(*rows[s].add(k));
-            *cs = _mm256_add_pd(_mm256_mul_pd(u, vk), *cs);
+        for _ in 0..n % 4 {
+            step(&mut acc, col, s);
+            col = col.add(p);
+        }
+        for (v, acc_v) in acc.iter().enumerate() {
+            _mm256_storeu_pd(out.add(4 * v), *acc_v);
         }
     }
 }
@@ -994,8 +1236,6 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             && w.coef_avg.len() >= p
     );
     let (rp, ip, gp) = (w.resid.as_mut_ptr(), w.inv_norm2.as_ptr(), w.gram.as_ptr());
-    let last = _mm512_set1_epi64(LANES as i64 - 1);
-    let by_one = _mm512_setr_epi64(0, 0, 1, 2, 3, 4, 5, 6);
     let zero = _mm512_setzero_pd();
     // Held in registers across iterations: r, r²/‖a‖² and 1/‖a‖² (r² is recomputed where
     // needed, which is off the critical path and keeps the loop free of spills).
@@ -1030,42 +1270,18 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
             _mm512_mul_pd(max_v, _mm512_set1_pd(0.5)),
             _mm512_mul_pd(sum_v, _mm512_set1_pd(s.half_inv_fro2)),
         );
-        // Weights and their prefix sums, chunk by chunk, carrying the last prefix.
-        // A candidate's weight r_j² is positive: r_j²/‖a_j‖² ≥ θ > 0 (θ is positive while the
-        // residual is, and a NaN θ admits no candidate), so the candidate masks are the
-        // masks of positive weights.
-        let candidate: [u8; C] =
-            core::array::from_fn(|c| _mm512_cmp_pd_mask::<_CMP_GE_OQ>(ratio[c], threshold));
-        let weights: [__m512d; C] =
-            core::array::from_fn(|c| _mm512_maskz_mul_pd(candidate[c], r[c], r[c]));
-        // Running sums down the chunks (lane by lane), then across the lanes.
-        let mut down = weights;
-        for c in 1..C {
-            down[c] = _mm512_add_pd(down[c - 1], weights[c]);
-        }
-        let across = scan8(down[C - 1]);
-        let before = _mm512_maskz_permutexvar_pd(0xfe, by_one, across);
-        let total = _mm512_permutexvar_pd(last, across);
+        // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
+        // lane by lane, then across the lanes; the row drawn by the rule of the portable loop
+        // (`pick_avx512`: among positive weights only, as `lanes::pick_chunks`).
+        let weights: [__m512d; C] = core::array::from_fn(|c| {
+            let candidate = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(ratio[c], threshold);
+            _mm512_maskz_mul_pd(candidate, r[c], r[c])
+        });
+        let (down, before, total) = prefix_avx512(&weights);
         let mut chosen = None;
         if _mm512_cvtsd_f64(total) > 0.0 {
             let target = _mm512_mul_pd(_mm512_set1_pd(draws.next()), total);
-            // Bits in lane-major order (bit 4l + c for row 8c + l).
-            let mut hit = 0u32;
-            for c in 0..C {
-                let prefix = _mm512_add_pd(before, down[c]);
-                let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix, target);
-                hit |= _pdep_u32(u32::from(candidate[c] & past), LANE_MAJOR << c);
-            }
-            let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
-            chosen = if hit != 0 {
-                Some(row(hit.trailing_zeros()))
-            } else {
-                // Round-off: the last candidate in lane-major order.
-                let positive = (0..C).fold(0u32, |acc, c| {
-                    acc | _pdep_u32(u32::from(candidate[c]), LANE_MAJOR << c)
-                });
-                (positive != 0).then(|| row(31 - positive.leading_zeros()))
-            };
+            chosen = pick_avx512(&weights, &down, before, target);
         }
         let i = chosen.unwrap_or_else(|| {
             let mut inv_norm2 = [0.0f64; LANES * MAX_CHUNKS];
@@ -1133,6 +1349,62 @@ unsafe fn iterate_avx512<const C: usize, const AVERAGE: bool>(
     (iterations, converged)
 }
 
+/// The running sums of `C` chunks of weights in the sampling order (as
+/// `lanes::prefix_chunks`): the sums down the chunks, the in-chunk scan of the lane totals
+/// shifted by one lane (`+0` in lane 0), the total in every lane.
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn prefix_avx512<const C: usize>(weights: &[__m512d; C]) -> ([__m512d; C], __m512d, __m512d) {
+    let mut down = *weights;
+    for c in 1..C {
+        down[c] = _mm512_add_pd(down[c - 1], weights[c]);
+    }
+    let across = scan8(down[C - 1]);
+    let before =
+        _mm512_maskz_permutexvar_pd(0xfe, _mm512_setr_epi64(0, 0, 1, 2, 3, 4, 5, 6), across);
+    (
+        down,
+        before,
+        _mm512_permutexvar_pd(_mm512_set1_epi64(LANES as i64 - 1), across),
+    )
+}
+
+/// The row drawn for `target` by the portable loop's rule (`greedy::draw_row`, as
+/// `lanes::pick_chunks`): the first row in lane-major order with a positive weight and a running
+/// sum past the target; on round-off, the last with a positive weight; `None` if none is
+/// positive. (A candidate's weight is zero when the threshold underflows to zero and its
+/// residual is zero; its running sum can still pass the target by round-off, so candidates are
+/// not the rows that may be drawn.)
+#[target_feature(enable = "avx512f,bmi2")]
+#[inline]
+fn pick_avx512<const C: usize>(
+    weights: &[__m512d; C],
+    down: &[__m512d; C],
+    before: __m512d,
+    target: __m512d,
+) -> Option<usize> {
+    let zero = _mm512_setzero_pd();
+    let positive: [u8; C] =
+        core::array::from_fn(|c| _mm512_cmp_pd_mask::<_CMP_GT_OQ>(weights[c], zero));
+    // Bits in lane-major order (bit 4l + c for row 8c + l).
+    let mut hit = 0u32;
+    for c in 0..C {
+        let prefix = _mm512_add_pd(before, down[c]);
+        let past = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(prefix, target);
+        hit |= _pdep_u32(u32::from(positive[c] & past), LANE_MAJOR << c);
+    }
+    let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
+    if hit != 0 {
+        Some(row(hit.trailing_zeros()))
+    } else {
+        // Round-off: the last positive weight in lane-major order.
+        let positive = (0..C).fold(0u32, |acc, c| {
+            acc | _pdep_u32(u32::from(positive[c]), LANE_MAJOR << c)
+        });
+        (positive != 0).then(|| row(31 - positive.leading_zeros()))
+    }
+}
+
 /// Every fourth bit: `pdep` spreads a chunk's 8 lane bits to bits `4l + c`.
 const LANE_MAJOR: u32 = 0x1111_1111;
 
@@ -1153,6 +1425,137 @@ fn scan8(x: __m512d) -> __m512d {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::greedy::{draw_row, lane_major_prefix};
+    use crate::lanes::{pick_chunks, prefix_chunks};
+    use rand_chacha::rand_core::SeedableRng;
+    use rand_core::Rng;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// The row the eight-lane loop (AVX2) draws for weights `w` (`8C` entries) and `target`.
+    #[target_feature(enable = "avx2")]
+    unsafe fn draw_lanes<V: Lanes8, const C: usize>(w: &[V::T], target: V::T) -> Option<usize> {
+        // SAFETY: 8C entries.
+        let weights: [V; C] =
+            core::array::from_fn(|c| unsafe { V::load(w.as_ptr().add(LANES * c)) });
+        let (down, before, _) = prefix_chunks(&weights);
+        pick_chunks(&weights, &down, before, V::splat(target))
+    }
+
+    /// The row the AVX-512 loop draws for weights `w` (`8C` entries) and `target`.
+    #[target_feature(enable = "avx512f,bmi2")]
+    unsafe fn draw_avx512<const C: usize>(w: &[f64], target: f64) -> Option<usize> {
+        // SAFETY: 8C entries.
+        let weights: [__m512d; C] =
+            core::array::from_fn(|c| unsafe { _mm512_loadu_pd(w.as_ptr().add(LANES * c)) });
+        let (down, before, _) = prefix_avx512(&weights);
+        pick_avx512(&weights, &down, before, _mm512_set1_pd(target))
+    }
+
+    /// A kernel's row drawing for one chunk count.
+    type Draw<T> = unsafe fn(&[T], T) -> Option<usize>;
+
+    fn by_chunks<T: Real>(w: &[T], f: [Draw<T>; 4], target: T) -> Option<usize> {
+        // SAFETY: the caller checked the CPU features.
+        unsafe { f[w.len() / LANES - 1](w, target) }
+    }
+
+    /// Every kernel set draws the row the portable loop draws (`greedy::draw_row`: the first
+    /// positive weight in lane-major order whose running sum passes the target, else the last
+    /// positive weight), including a row whose weight is zero although its running sum passes
+    /// the target by round-off, as a candidate of a threshold that underflowed to zero would:
+    /// drawing among candidates instead of positive weights (the AVX-512 loop's former
+    /// shortcut) fails here.
+    #[test]
+    fn every_kernel_draws_the_portable_row() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let avx512 =
+            std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("bmi2");
+        let e = f64::EPSILON / 2.0;
+        // Lane sums 1, 0, 2⁻⁵³, 2⁻⁵³, 0, 1, 0, 0: the scan across the lanes gives
+        // x₃ = 1 + 2⁻⁵², the sequential sum up to lane 3 is 1, so row 4 (weight 0) has a
+        // running sum 1 + 2⁻⁵² past the target 1; the row drawn is 5.
+        let crafted = [1.0, 0.0, e, e, 0.0, 1.0, 0.0, 0.0];
+        let mut cases: Vec<(Vec<f64>, f64)> = vec![
+            (crafted.to_vec(), 1.0),
+            (crafted.to_vec(), 4.0), // past the total: the last positive weight
+            (vec![0.0; 8], 0.0),
+            ([crafted.to_vec(), vec![0.0; 8]].concat(), 1.0),
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(16);
+        for c in 1..=MAX_CHUNKS {
+            for _ in 0..300 {
+                let w: Vec<f64> = (0..LANES * c)
+                    .map(|_| match rng.next_u32() % 4 {
+                        0 => 0.0,
+                        1 => f64::from(rng.next_u32() % 4) * e,
+                        _ => crate::greedy::uniform(&mut rng),
+                    })
+                    .collect();
+                let mut prefix = vec![0.0; w.len()];
+                let total = lane_major_prefix(&w, &mut prefix);
+                cases.push((w, crate::greedy::uniform(&mut rng) * total));
+            }
+        }
+        let lanes64 = [
+            draw_lanes::<F64x8, 1> as Draw<f64>,
+            draw_lanes::<F64x8, 2>,
+            draw_lanes::<F64x8, 3>,
+            draw_lanes::<F64x8, 4>,
+        ];
+        let lanes32 = [
+            draw_lanes::<F32x8, 1> as Draw<f32>,
+            draw_lanes::<F32x8, 2>,
+            draw_lanes::<F32x8, 3>,
+            draw_lanes::<F32x8, 4>,
+        ];
+        let wide = [
+            draw_avx512::<1> as Draw<f64>,
+            draw_avx512::<2>,
+            draw_avx512::<3>,
+            draw_avx512::<4>,
+        ];
+        for (k, (w, target)) in cases.iter().enumerate() {
+            let mut prefix = vec![0.0; w.len()];
+            lane_major_prefix(w, &mut prefix);
+            let want = draw_row(w, &prefix, *target);
+            assert_eq!(
+                by_chunks(w, lanes64, *target),
+                want,
+                "AVX2 f64, case {k}: {w:?} {target}"
+            );
+            if avx512 {
+                assert_eq!(
+                    by_chunks(w, wide, *target),
+                    want,
+                    "AVX-512, case {k}: {w:?} {target}"
+                );
+            }
+            let w32: Vec<f32> = w.iter().map(|&v| v as f32).collect();
+            let mut prefix32 = vec![0.0f32; w.len()];
+            lane_major_prefix(&w32, &mut prefix32);
+            let t32 = *target as f32;
+            assert_eq!(
+                by_chunks(&w32, lanes32, t32),
+                draw_row(&w32, &prefix32, t32),
+                "AVX2 f32, case {k}"
+            );
+        }
+        assert_eq!(
+            draw_row(
+                &crafted,
+                &{
+                    let mut p = [0.0; 8];
+                    lane_major_prefix(&crafted, &mut p);
+                    p
+                },
+                1.0
+            ),
+            Some(5)
+        );
+    }
 
     #[test]
     fn f32_transpose_is_a_transpose() {
