@@ -4,7 +4,7 @@
 //! the hidden physics and nothing else; a log without an offset must be left alone.
 
 use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log};
-use tagk::diagnose::{EffectKind as Vocabulary, FlightLog, Sensor};
+use tagk::diagnose::{EffectKind as Vocabulary, FlightLog, Report, Sensor, StreamAlignment};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, Sensing, SimConfig,
     TrajectoryKind,
@@ -72,6 +72,20 @@ fn families(names: &[String]) -> Vec<&'static str> {
     f
 }
 
+/// The command that reproduces the report's final model.
+fn command(report: &Report) -> &str {
+    report
+        .final_model
+        .command
+        .as_deref()
+        .expect("the CLI fills it in")
+}
+
+/// The report's entry for one stream.
+fn stream(report: &Report, sensor: Sensor) -> Option<&StreamAlignment> {
+    report.streams.iter().find(|s| s.sensor == sensor)
+}
+
 fn args() -> DiagnoseArgs {
     let mut a = DiagnoseArgs::new("flight.csv");
     a.quiet = true;
@@ -91,11 +105,7 @@ fn late_motion_capture_is_moved_onto_the_imu_clock() {
     let k = 3;
     let shifted = late(&log, k, true, false);
     let report = diagnose_log(&shifted, &args()).unwrap();
-    let gyro = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Gyro)
-        .expect("the gyro is timed");
+    let gyro = stream(&report, Sensor::Gyro).expect("the gyro is timed");
     let est = gyro.estimate.as_ref().expect("the gyro offset is measured");
     // The gyro is early against the late pose.
     let truth = -(k as f64) * dt;
@@ -105,17 +115,9 @@ fn late_motion_capture_is_moved_onto_the_imu_clock() {
         "pose late by {} s: gyro measured {est:?}",
         -truth
     );
-    let pose = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Pose)
-        .expect("the pose is moved");
+    let pose = stream(&report, Sensor::Pose).expect("the pose is moved");
     assert_eq!((pose.action, pose.applied), ("measured", -est.delay));
-    let velocity = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Velocity)
-        .unwrap();
+    let velocity = stream(&report, Sensor::Velocity).unwrap();
     assert!(
         !velocity.estimate.as_ref().unwrap().significant(),
         "{velocity:?}"
@@ -136,6 +138,11 @@ fn late_motion_capture_is_moved_onto_the_imu_clock() {
         text.contains("stream timing") && text.contains("IMU's clock"),
         "{text}"
     );
+    let html = tagk::diagnose::html::render(&report);
+    assert!(
+        html.contains("id=\"stream-timing\"") && html.contains("IMU's clock"),
+        "no stream timing in the HTML report"
+    );
     // The command that reproduces the model needs nothing extra: the alignment is the default.
     let cmd = report.final_model.command.clone().unwrap();
     assert!(
@@ -154,11 +161,7 @@ fn a_late_imu_leaves_the_actuator_offset_to_time_delay() {
     let k = 3;
     let shifted = late(&log, k, false, true);
     let report = diagnose_log(&shifted, &args()).unwrap();
-    let pose = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Pose)
-        .expect("the pose is moved");
+    let pose = stream(&report, Sensor::Pose).expect("the pose is moved");
     assert!((pose.applied + k as f64 * dt).abs() < 0.25 * dt, "{pose:?}");
     let mut expected = vec![
         Vocabulary::RotorDrag.family(),
@@ -209,30 +212,15 @@ fn given_shifts_and_no_align_are_honoured_and_reproduced() {
     let mut a = args();
     a.no_align = true;
     let report = diagnose_log(&shifted, &a).unwrap();
-    let gyro = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Gyro)
-        .unwrap();
+    let gyro = stream(&report, Sensor::Gyro).unwrap();
     assert_eq!(gyro.action, "none");
     assert!(gyro.estimate.as_ref().unwrap().significant());
     assert!(report.streams.iter().all(|s| s.applied == 0.0));
-    assert!(
-        report
-            .final_model
-            .command
-            .as_ref()
-            .unwrap()
-            .contains("--no-align")
-    );
+    assert!(command(&report).contains("--no-align"));
     let mut a = args();
     a.shift = vec!["pose=0.03".into()];
     let report = diagnose_log(&shifted, &a).unwrap();
-    let pose = report
-        .streams
-        .iter()
-        .find(|s| s.sensor == Sensor::Pose)
-        .unwrap();
+    let pose = stream(&report, Sensor::Pose).unwrap();
     assert_eq!((pose.action, pose.applied), ("given", 0.03));
     // With a given shift nothing else moves.
     assert!(
@@ -241,14 +229,7 @@ fn given_shifts_and_no_align_are_honoured_and_reproduced() {
             .iter()
             .all(|s| s.sensor == Sensor::Pose || s.applied == 0.0)
     );
-    assert!(
-        report
-            .final_model
-            .command
-            .as_ref()
-            .unwrap()
-            .contains("--shift pose=0.03")
-    );
+    assert!(command(&report).contains("--shift pose=0.03"));
     for bad in ["gyro=1e9", "lidar=0.1", "gyro=0.01,gyro=0.02"] {
         let mut a = args();
         a.shift = bad.split(',').map(String::from).collect();

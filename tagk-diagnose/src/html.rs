@@ -844,6 +844,18 @@ pub fn render(report: &Report) -> String {
                 .unwrap_or("none — model adequate")
         )
     );
+    if !report.streams.is_empty() {
+        // The terminal's lines: one wording for both (docs/CONVENTIONS.md §7.2).
+        let _ = write!(
+            html,
+            "<h2 id=\"streams\">Stream timing</h2><pre id=\"stream-timing\">{}</pre>",
+            text(
+                crate::streams::streams_table(&report.streams)
+                    .split_once('\n')
+                    .map_or("", |(_, rows)| rows)
+            )
+        );
+    }
     section_staircase(&mut html, report);
     if let (Some(after), Some(change)) = (&report.after, &report.change) {
         let _ = write!(

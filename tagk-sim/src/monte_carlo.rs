@@ -600,12 +600,28 @@ impl SweepResult {
     /// The accuracy table as Markdown, every column a deterministic function of the seeds
     /// (no wall-clock times): what the READMEs show and CI compares.
     pub fn markdown_accuracy(&self) -> String {
+        self.markdown_table(false)
+    }
+
+    /// The table as Markdown: [`SweepResult::markdown_accuracy`] plus the update times of
+    /// this run.
+    pub fn markdown(&self) -> String {
+        self.markdown_table(true)
+    }
+
+    /// The Markdown table, with the update-time column or without.
+    fn markdown_table(&self, times: bool) -> String {
         let mut s = String::from(
-            "| noise | estimator | position error, all trials \\[cm\\] | parameter error | (t+1) error | (t+1) clean / mixed | success % | paper success % | aborted % |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+            "| noise | estimator | position error, all trials \\[cm\\] | parameter error | (t+1) error | (t+1) clean / mixed | success % | paper success % | aborted % |",
         );
+        s.push_str(if times {
+            " update median / P95 \\[µs\\] |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+        } else {
+            "\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n"
+        });
         for c in &self.cells {
             s.push_str(&format!(
-                "| {} | {} | {:.3} ± {:.3} | {:.2e} ± {:.1e} | {:.2e} | {:.2e} / {:.2e} | {:.1} | {:.1} | {:.1} |\n",
+                "| {} | {} | {:.3} ± {:.3} | {:.2e} ± {:.1e} | {:.2e} | {:.2e} / {:.2e} | {:.1} | {:.1} | {:.1} |",
                 c.noise.name(),
                 c.label,
                 c.position_error_all_cm,
@@ -619,32 +635,13 @@ impl SweepResult {
                 c.success_paper_pct,
                 c.aborted_pct,
             ));
-        }
-        s
-    }
-
-    /// The table as Markdown (for READMEs), with the update times of this run.
-    pub fn markdown(&self) -> String {
-        let mut s = String::from(
-            "| noise | estimator | position error, all trials [cm] | parameter error | (t+1) error | (t+1) clean / mixed | success % | paper success % | aborted % | update median / P95 [µs] |\n|---|---|---|---|---|---|---|---|---|---|\n",
-        );
-        for c in &self.cells {
-            s.push_str(&format!(
-                "| {} | {} | {:.3} ± {:.3} | {:.2e} | {:.2e} | {:.2e} / {:.2e} | {:.1} | {:.1} | {:.1} | {:.2} / {:.2} |\n",
-                c.noise.name(),
-                c.label,
-                c.position_error_all_cm,
-                c.position_error_all_se,
-                c.parameter_error,
-                c.t1_error,
-                c.t1_error_clean,
-                c.t1_error_mixed,
-                c.success_pct,
-                c.success_paper_pct,
-                c.aborted_pct,
-                c.update_median_us,
-                c.update_p95_us
-            ));
+            if times {
+                s.push_str(&format!(
+                    " {:.2} / {:.2} |",
+                    c.update_median_us, c.update_p95_us
+                ));
+            }
+            s.push('\n');
         }
         s
     }
