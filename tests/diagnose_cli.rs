@@ -466,3 +466,52 @@ fn several_logs_on_the_command_line_and_a_bad_noise_floor() {
         "{err}"
     );
 }
+
+/// The report's residual-against-signal plots are partial-residual plots: the residual of the
+/// rigid body against the recommended candidate's own regressor column on each channel, which
+/// lines up (a line with the coefficient as slope) where the speed magnitude drew a loop.
+#[test]
+fn partial_residuals_line_up_with_the_missing_column() {
+    let dir = tmpdir("partial");
+    let log = FlightLog::from_csv_path(write_drag_log(&dir)).unwrap();
+    let mut args = DiagnoseArgs::new(dir.join("drag.csv"));
+    args.quiet = true;
+    let report = tagk::cli::diagnose::diagnose_log(&log, &args).unwrap();
+    let d = &report.before;
+    let top = &d.ranking[0].effect;
+    let fx = d
+        .partial_residuals
+        .iter()
+        .find(|p| p.channel == 0)
+        .expect("a partial residual on fx");
+    assert_eq!(&fx.effect, top);
+    assert!(fx.x.len() <= 1200 && fx.x.len() == fx.y.len() && fx.x.len() > 100);
+    let corr = |x: &[f64], y: &[f64]| {
+        let n = x.len() as f64;
+        let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+        let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+        let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
+        let syy: f64 = y.iter().map(|b| (b - my).powi(2)).sum();
+        sxy / (sxx * syy).sqrt()
+    };
+    let along_column = corr(&fx.x, &fx.y).abs();
+    assert!(
+        along_column > 0.9,
+        "residual fx against {}: |r| = {along_column}",
+        fx.column
+    );
+    // The old plot: the same residual against the horizontal speed magnitude.
+    let (_, speed) = d.top_driver.as_ref().unwrap();
+    let step = speed.len().div_ceil(1200).max(1);
+    let s: Vec<f64> = speed.iter().step_by(step).copied().collect();
+    let against_speed = corr(&s, &fx.y).abs();
+    assert!(
+        against_speed < along_column,
+        "{against_speed} vs {along_column}"
+    );
+    let html = tagk::diagnose::html::render(&report);
+    assert!(
+        html.contains(&format!("vs column {} of {top}", fx.column)),
+        "no partial-residual plot"
+    );
+}

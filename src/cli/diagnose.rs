@@ -67,20 +67,20 @@ pub struct DiagnoseArgs {
     /// held-out residual of every candidate at once; docs/CONVENTIONS.md §7).
     #[arg(long, value_name = "FX,FY,FZ,TX,TY,TZ", value_delimiter = ',')]
     pub noise_floor: Option<Vec<f64>>,
-    /// Resample the log onto a uniform time grid of this step [s] before the diagnosis, by
+    /// Resample the log onto a uniform time grid of this step (s) before the diagnosis, by
     /// linear interpolation (the attitude by normalised linear interpolation), each segment
     /// between gaps on its own grid: for irregular sampling. Gaps are never bridged.
     #[arg(long, value_name = "S")]
     pub resample: Option<f64>,
     /// Only report the time offset of each sensor stream (gyro, accelerometer, velocity)
-    /// against the pose; by default a significant one (its 95 % interval excludes zero and it
-    /// is at least half a sampling period) is removed before the fit (docs/CONVENTIONS.md
-    /// §7.2).
+    /// against the pose. By default the IMU is the clock: a significant gyro offset (its 95 %
+    /// interval excludes zero and it is at least half a sampling period) moves the pose and
+    /// the velocity onto it before the fit (docs/CONVENTIONS.md §7.2).
     #[arg(long)]
     pub no_align: bool,
     /// Shift a stream by a known time offset in seconds, positive when the stream is late
-    /// (e.g. `gyro=0.012`); repeatable. Streams: gyro, accelerometer, velocity, actuators. A
-    /// shifted stream is not measured.
+    /// (e.g. pose=-0.012); repeatable. Streams: gyro, accelerometer, velocity, actuators,
+    /// pose. With a shift given, nothing is moved automatically.
     #[arg(long = "shift", value_name = "STREAM=SECONDS")]
     pub shift: Vec<String>,
     /// Most effects the stepwise search adds.

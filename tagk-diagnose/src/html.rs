@@ -22,7 +22,7 @@ const MR: f64 = 16.0;
 /// Top margin: the title, then the legend row (outside the data).
 const MT: f64 = 40.0;
 const MB: f64 = 38.0;
-const MAX_POINTS: usize = 1200;
+pub(crate) const MAX_POINTS: usize = 1200;
 /// Most lags of the correlation plots (`resid`'s default is 25).
 const MAX_LAG: usize = 25;
 
@@ -619,6 +619,24 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
             );
         }
         for c in chans {
+            // The partial-residual plot: the residual against the candidate's own regressor
+            // column on this channel lines up with the coefficient as slope (no loop).
+            if let Some(p) = d.partial_residuals.iter().find(|p| p.channel == c) {
+                html.push_str(&scatter_plot(
+                    &format!(
+                        "residual {} [{}] vs column {} of {}",
+                        CHANNEL_NAMES[c], CHANNEL_UNITS[c], p.column, p.effect
+                    ),
+                    &format!(
+                        "{} column {} on {} [{}/unit]",
+                        p.effect, p.column, CHANNEL_NAMES[c], CHANNEL_UNITS[c]
+                    ),
+                    &p.x,
+                    &p.y,
+                    "#36c",
+                ));
+                continue;
+            }
             let r = d.fit.residual_channel(c);
             html.push_str(&scatter_plot(
                 &format!(

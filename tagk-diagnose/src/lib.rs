@@ -21,7 +21,8 @@ pub use diagnose::{
     Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, Discovery, FLOOR_MARGIN,
     FLOOR_RESOLUTION, FailureWindow, FloorSource, MAX_CHANNEL_WORSENING,
     MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MIN_GAIN_OF_FLOOR, NoiseFloor, Parameter,
-    RegimeStat, Step, StepChannel, Unavailable, Whiteness, diagnose, discover, discover_from,
+    PartialResidual, RegimeStat, Step, StepChannel, Unavailable, Whiteness, diagnose, discover,
+    discover_from,
 };
 pub use effects::{
     BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,

@@ -106,7 +106,8 @@ pub enum SimError {
     /// Drawing a figure failed.
     #[error("plot: {0}")]
     Plot(String),
-    /// A rayon thread pool could not be built.
+    /// A rayon thread pool could not be built (feature `parallel`).
+    #[cfg(feature = "parallel")]
     #[error("thread pool: {0}")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
 }

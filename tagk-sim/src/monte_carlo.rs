@@ -16,6 +16,7 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -420,8 +421,12 @@ impl Sweep {
         while job < total {
             let end = (job + chunk).min(total);
             let shared: &O = observer;
-            let results: Vec<Result<FinishedTrial, SimError>> = (job..end)
-                .into_par_iter()
+            // In parallel with the `parallel` feature, else on this thread: the same bits.
+            #[cfg(feature = "parallel")]
+            let jobs = (job..end).into_par_iter();
+            #[cfg(not(feature = "parallel"))]
+            let jobs = job..end;
+            let results: Vec<Result<FinishedTrial, SimError>> = jobs
                 .map(|j| {
                     let r = self.run_job(j, n_cells, shared);
                     shared.trial_finished(done.fetch_add(1, Ordering::Relaxed) + 1, total);
@@ -445,7 +450,7 @@ impl Sweep {
             trials: self.trials,
             seed: self.seed,
             elapsed_s: start.elapsed().as_secs_f64(),
-            threads: rayon::current_num_threads(),
+            threads: worker_threads(),
         })
     }
 
@@ -719,5 +724,17 @@ impl SweepResult {
         self.cells
             .iter()
             .find(|c| c.noise == noise && c.label == label)
+    }
+}
+
+/// Threads the sweep runs on: rayon's current pool with the `parallel` feature, else 1.
+fn worker_threads() -> usize {
+    #[cfg(feature = "parallel")]
+    {
+        rayon::current_num_threads()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        1
     }
 }

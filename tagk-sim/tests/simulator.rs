@@ -490,6 +490,8 @@ fn log_csv_has_the_conventions_header() {
     ));
 }
 
+// Thread counts need the rayon driver (the root package enables it for the workspace).
+#[cfg(feature = "parallel")]
 #[test]
 fn sweep_is_identical_at_one_and_two_threads() {
     let mut sweep = Sweep::new(
@@ -533,6 +535,7 @@ fn sweep_is_identical_at_one_and_two_threads() {
 }
 
 /// Counts the progress reports and records the order in which trials are folded.
+#[cfg(feature = "parallel")]
 #[derive(Default)]
 struct Recorder {
     finished: std::sync::atomic::AtomicUsize,
@@ -540,6 +543,7 @@ struct Recorder {
     ended: bool,
 }
 
+#[cfg(feature = "parallel")]
 impl SweepObserver for Recorder {
     fn trial_finished(&self, done: usize, total: usize) {
         assert!(done >= 1 && done <= total);
@@ -556,6 +560,8 @@ impl SweepObserver for Recorder {
     }
 }
 
+// Thread counts need the rayon driver (the root package enables it for the workspace).
+#[cfg(feature = "parallel")]
 #[test]
 fn observers_see_every_trial_in_trial_order_at_any_thread_count() {
     let mut sweep = Sweep::new(

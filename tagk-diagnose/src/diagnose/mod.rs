@@ -205,6 +205,61 @@ pub struct Diagnosis {
     /// Top candidate's driver signal (for plots).
     #[serde(skip)]
     pub top_driver: Option<(String, Vec<f64>)>,
+    /// The top candidate's partial residuals (for plots), one per channel it acts on.
+    #[serde(skip)]
+    pub partial_residuals: Vec<PartialResidual>,
+}
+
+/// The residual of a model against one regressor column of a candidate on one channel (the
+/// partial-residual plot): where the candidate is missing, the points line up along the
+/// column with its coefficient as slope. Every `k`-th sample, at most
+/// [`crate::html`]'s plot size.
+#[derive(Debug, Clone)]
+pub struct PartialResidual {
+    /// The candidate effect.
+    pub effect: String,
+    /// The channel (index into [`crate::CHANNEL_NAMES`]).
+    pub channel: usize,
+    /// The column's coefficient name.
+    pub column: String,
+    /// The column's values (external wrench per unit coefficient).
+    pub x: Vec<f64>,
+    /// The model's residual on the channel at the same samples.
+    pub y: Vec<f64>,
+}
+
+/// The top candidate's [`PartialResidual`]s: on each channel, its first column there (start-of-log
+/// nuisance columns left out), at the scanned parameter of its ranking.
+fn partial_residuals(
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    ranking: &[Candidate],
+    fit: &Fit,
+) -> Vec<PartialResidual> {
+    let Some(top) = ranking.first() else {
+        return Vec::new();
+    };
+    let Some(effect) = opts.candidates.iter().find(|e| e.name() == top.effect) else {
+        return Vec::new();
+    };
+    let columns =
+        crate::effects::effect_columns(effect.as_ref(), s, top.scanned.as_ref().map(|p| p.1));
+    let step = s.len().div_ceil(crate::html::MAX_POINTS).max(1);
+    (0..6)
+        .filter_map(|c| {
+            let column = columns
+                .iter()
+                .find(|col| col.data[c].is_some() && !col.name.starts_with("start_"))?;
+            let x = column.data[c].as_ref()?;
+            Some(PartialResidual {
+                effect: top.effect.clone(),
+                channel: c,
+                column: column.name.clone(),
+                x: x.iter().step_by(step).copied().collect(),
+                y: fit.residual.iter().step_by(step).map(|r| r[c]).collect(),
+            })
+        })
+        .collect()
 }
 
 /// Diagnoses `model` on a log: fit and compare, where it fails, and the ranking of the
@@ -270,6 +325,7 @@ fn assemble(
         missing.at_floor,
     );
     let n = s.len();
+    let partial_residuals = partial_residuals(s, opts, &missing.ranking, &fit);
     Ok(Diagnosis {
         model: fit.label.clone(),
         samples: n,
@@ -297,6 +353,7 @@ fn assemble(
         t: s.t.clone(),
         measured: s.wrench.clone(),
         top_driver: missing.top_driver,
+        partial_residuals,
     })
 }
 
