@@ -601,7 +601,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     if let (Some(top), Some((dname, dsig))) = (d.ranking.first(), &d.top_driver) {
         let _ = write!(
             html,
-            "<h3>Residual against the top candidate's signal (<code>{}</code>)</h3><div class=\"grid\">",
+            "<h3>Residual against the top candidate's own columns (<code>{}</code>): a line where it is missing</h3><div class=\"grid\">",
             escape(&top.effect)
         );
         let mut chans: Vec<usize> = top
