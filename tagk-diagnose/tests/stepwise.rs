@@ -468,9 +468,10 @@ fn a_log_that_misses_an_effect_is_flagged_with_the_reason() {
 
 /// Battery state as a per-log nuisance: two flights of one vehicle whose batteries deliver
 /// 5 % and 15 % less thrust than logged (thrust gain −0.05, −0.15) are fitted jointly with a
-/// known mass; `thrust-gain` gets one coefficient per log (`kappa@1`, `kappa@2`) whose ratio is
-/// the flights' true ratio, and the joint fit's thrust residual is as good as each flight
-/// fitted alone.
+/// known mass; `thrust-gain` gets one coefficient per log (`kappa@1`, `kappa@2`), each within
+/// 0.01 of its flight's truth (and within its 95 % interval, widened by 0.003 for the
+/// accelerometer's residual bias), and the joint fit's thrust residual is as good as each
+/// flight fitted alone.
 #[test]
 fn battery_is_a_per_log_nuisance() {
     use tagk_diagnose::{builtin, fit_model};
@@ -506,17 +507,16 @@ fn battery_is_a_per_log_nuisance() {
     for (k, c) in gain.coefficients.iter().enumerate() {
         assert_eq!(c.name, format!("kappa@{}", k + 1));
     }
-    // Both the simulator's ε and the diagnosis' κ are delivered / logged − 1. The ratio of the
-    // two flights' gains is free of anything they share (the known mass against the plant's,
-    // a common scale of the logged thrust): (1 + κ₁) / (1 + κ₂) = (1 + ε₁) / (1 + ε₂).
+    // Both the simulator's ε and the diagnosis' κ are delivered / logged − 1.
+    for (k, c) in gain.coefficients.iter().enumerate() {
+        let [lo, hi] = c.confidence_interval.unwrap();
+        assert!(
+            (c.value - truth[k]).abs() < 0.01 && lo - 0.003 <= truth[k] && truth[k] <= hi + 0.003,
+            "log {k}: {c:?} against {}",
+            truth[k]
+        );
+    }
     let (k1, k2) = (gain.coefficients[0].value, gain.coefficients[1].value);
-    let ratio = (1.0 + k1) / (1.0 + k2);
-    let expected = (1.0 + truth[0]) / (1.0 + truth[1]);
-    assert!(
-        (ratio - expected).abs() < 0.005,
-        "gain ratio {ratio} against {expected}: {:?}",
-        gain.coefficients
-    );
     // Apart and significant: two flights, two batteries.
     let se = gain.coefficients[0].std_error.unwrap() + gain.coefficients[1].std_error.unwrap();
     assert!(k1 - k2 > 10.0 * se, "{:?}", gain.coefficients);
