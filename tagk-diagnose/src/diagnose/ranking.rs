@@ -265,7 +265,7 @@ fn baseline<'a>(
     base_cols: &'a [ColData],
     candidates: usize,
 ) -> Baseline<'a> {
-    let engine = GramEngine::new(s, &fit.weights, &base_cols, Some(&fit.residual), opts.folds);
+    let engine = GramEngine::new(s, &fit.weights, base_cols, Some(&fit.residual), opts.folds);
     let evaluation = engine.evaluate(&[]);
     let held_out_rms = held_out_rms(&evaluation, &fit.weights, s.len());
     let mean_thrust = s.wrench.iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64;
