@@ -1,6 +1,7 @@
 //! `tagk diagnose`: compare the rigid-body model with a flight log, find the missing effect,
 //! add effects with `--with` and print the before/after comparison.
 
+use std::borrow::Cow;
 use std::path::PathBuf;
 
 use crate::diagnose::{
@@ -449,25 +450,36 @@ pub fn plan_with_vehicle(
 /// # Errors
 /// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
+    diagnose_cow_log(Cow::Borrowed(log), args)
+}
+
+/// [`diagnose_log`] of a log it may consume: each intermediate log (with the wrench,
+/// resampled, aligned) replaces the one before it and the last becomes the signals' own
+/// ([`Signals::from_owned_log_split`]), so that a long log is held about once instead of
+/// three times.
+///
+/// # Errors
+/// As [`diagnose_log`].
+pub fn diagnose_owned_log(log: FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
+    diagnose_cow_log(Cow::Owned(log), args)
+}
+
+/// [`diagnose_log`] of a borrowed or owned log.
+fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
     let vehicle = load_vehicle(args)?;
-    let plan = plan_with_vehicle(args, log, vehicle.as_ref())?;
-    let computed;
+    let plan = plan_with_vehicle(args, &log, vehicle.as_ref())?;
     let log = if log.has_wrench() {
         log
     } else {
-        computed = log_with_wrench(log.clone(), vehicle.as_ref())?;
-        &computed
+        Cow::Owned(log_with_wrench(log.into_owned(), vehicle.as_ref())?)
     };
-    let resampled;
     let log = match args.resample {
-        Some(dt) => {
-            resampled = log.resample_linear(dt)?;
-            &resampled
-        }
+        Some(dt) => Cow::Owned(log.resample_linear(dt)?),
         None => log,
     };
-    let (log, streams) = align_streams(log, &args.align_options()?)?;
-    let (s, _) = Signals::from_log_split(&log)?;
+    let (aligned, streams) = align_streams(&log, &args.align_options()?)?;
+    drop(log);
+    let (s, _) = Signals::from_owned_log_split(aligned)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     report.streams = streams;
     if args.online {
@@ -675,7 +687,7 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         }),
         other => other,
     })?;
-    let report = diagnose_log(&log, args)?;
+    let report = diagnose_owned_log(log, args)?;
     write_outputs(&report, args)
 }
 

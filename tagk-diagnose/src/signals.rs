@@ -1,5 +1,7 @@
 //! Signals derived from a validated log: the inputs of the regressor and of the effects.
 
+use std::borrow::Cow;
+
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::GRAVITY_WORLD;
 
@@ -63,8 +65,6 @@ pub struct Signals {
     pub log: FlightLog,
     /// The rotor mixer identified from the log, computed on first use.
     rotor_mixer: std::sync::OnceLock<Option<RotorMixer>>,
-    /// The rigid-body regressor columns, computed on first use.
-    pub(crate) rigid_columns_cache: std::sync::OnceLock<Vec<[Option<Vec<f64>>; 6]>>,
     /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
     /// log). Effects with a time history (lags, delays, start transients) are computed per
     /// log and never across the joins.
@@ -132,21 +132,30 @@ impl Signals {
     /// The log's validation error.
     pub fn from_log(log: &FlightLog) -> Result<Self, LogError> {
         log.validate()?;
-        Self::derive(log)
+        Self::derive(log.clone())
     }
 
-    /// The signals of a validated log (or segment of one).
-    fn derive(log: &FlightLog) -> Result<Self, LogError> {
+    /// The signals of a validated log (or segment of one), which they keep
+    /// ([`Signals::log`]).
+    fn derive(log: FlightLog) -> Result<Self, LogError> {
         let n = log.len();
         let derived_accel = log.accel.is_none();
-        let accel_world = match &log.accel {
-            Some(a) => a.clone(),
-            None => savitzky_golay_derivative3(&log.t, &log.velocity, DEFAULT_HALF_WIDTH),
+        let accel_world: Cow<'_, [[f64; 3]]> = match &log.accel {
+            Some(a) => Cow::Borrowed(a),
+            None => Cow::Owned(savitzky_golay_derivative3(
+                &log.t,
+                &log.velocity,
+                DEFAULT_HALF_WIDTH,
+            )),
         };
         let derived_omega_dot = log.omega_dot.is_none();
-        let omega_dot = match &log.omega_dot {
-            Some(a) => a.clone(),
-            None => savitzky_golay_derivative3(&log.t, &log.omega, DEFAULT_HALF_WIDTH),
+        let omega_dot: Cow<'_, [[f64; 3]]> = match &log.omega_dot {
+            Some(a) => Cow::Borrowed(a),
+            None => Cow::Owned(savitzky_golay_derivative3(
+                &log.t,
+                &log.omega,
+                DEFAULT_HALF_WIDTH,
+            )),
         };
         let mut s = Signals {
             t: log.t.clone(),
@@ -169,9 +178,8 @@ impl Signals {
             rotor_speeds: log.rotor_speeds.clone(),
             derived_accel,
             derived_omega_dot,
-            log: log.clone(),
+            log: FlightLog::new(),
             rotor_mixer: std::sync::OnceLock::new(),
-            rigid_columns_cache: std::sync::OnceLock::new(),
             parts: Vec::new(),
         };
         let vs: Vec<Vec<f64>> = (0..3)
@@ -193,7 +201,8 @@ impl Signals {
             s.omega.push(Vector3::from(log.omega[i]));
             s.omega_dot.push(Vector3::from(omega_dot[i]));
         }
-        s.target = s.wrench.clone();
+        drop((accel_world, omega_dot, vs));
+        s.log = log;
         let mut target = s.wrench.clone();
         let mut data: [Option<Vec<f64>>; 6] =
             std::array::from_fn(|c| Some(s.wrench.iter().map(|b| b[c]).collect()));
@@ -225,10 +234,28 @@ impl Signals {
     pub fn from_log_split(
         log: &FlightLog,
     ) -> Result<(Self, Vec<std::ops::Range<usize>>), DiagnoseError> {
+        Self::split(std::borrow::Cow::Borrowed(log))
+    }
+
+    /// [`Signals::from_log_split`] of a log the signals may keep (a log without gaps becomes
+    /// [`Signals::log`] without a copy: one copy of a long log less in memory).
+    ///
+    /// # Errors
+    /// As [`Signals::from_log_split`].
+    pub fn from_owned_log_split(
+        log: FlightLog,
+    ) -> Result<(Self, Vec<std::ops::Range<usize>>), DiagnoseError> {
+        Self::split(std::borrow::Cow::Owned(log))
+    }
+
+    /// [`Signals::from_log_split`] of a borrowed or owned log.
+    fn split(
+        log: std::borrow::Cow<'_, FlightLog>,
+    ) -> Result<(Self, Vec<std::ops::Range<usize>>), DiagnoseError> {
         log.validate()?;
         let sampling = log.sampling();
         if sampling.gaps.is_empty() {
-            return Ok((Self::from_log(log)?, sampling.segments()));
+            return Ok((Self::derive(log.into_owned())?, sampling.segments()));
         }
         let kept: Vec<std::ops::Range<usize>> = sampling
             .segments()
@@ -245,7 +272,7 @@ impl Signals {
         }
         let parts = kept
             .iter()
-            .map(|r| Self::from_segment(&log.slice(r.clone())))
+            .map(|r| Self::from_segment(log.slice(r.clone())))
             .collect::<Result<Vec<_>, _>>()?;
         let mut joined = Self::concat(parts)?;
         // Keep the log's own time stamps (they increase across the gaps already).
@@ -260,7 +287,7 @@ impl Signals {
 
     /// The signals of one segment of a validated log: [`Signals::from_log`] without the
     /// validation (a segment may be shorter than [`MIN_ROWS`](crate::log::MIN_ROWS)).
-    fn from_segment(log: &FlightLog) -> Result<Self, LogError> {
+    fn from_segment(log: FlightLog) -> Result<Self, LogError> {
         Self::derive(log)
     }
 
@@ -385,7 +412,6 @@ impl Signals {
             derived_omega_dot: parts.iter().any(|p| p.derived_omega_dot),
             log,
             rotor_mixer: std::sync::OnceLock::new(),
-            rigid_columns_cache: std::sync::OnceLock::new(),
             parts,
         })
     }

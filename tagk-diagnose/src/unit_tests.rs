@@ -87,6 +87,40 @@ fn qr_solution_matches_normal_equations() {
     }
 }
 
+/// The blocked QR ([`weighted_qr_solve`] factors 4096 samples at a time) over several blocks,
+/// the last one partial: coefficients and standard errors against the dense normal equations.
+#[test]
+fn blocked_qr_matches_normal_equations_over_several_blocks() {
+    let log = synthetic_log(&crazyflie(), 10_000, 5e-3, 5, &|_, vb| {
+        [-0.02 * vb.x, -0.01 * vb.y, 0.0, 0.0, 0.0, 0.0]
+    });
+    let s = Signals::from_log(&log).unwrap();
+    let cols = rigid_columns(&s);
+    let w = [10.0, 10.0, 5.0, 1e4, 1e4, 2e4];
+    let sol = weighted_qr_solve(&cols, &s.wrench, &w, 1.0).unwrap();
+    let n = s.len();
+    let a = DMatrix::<f64>::from_fn(6 * n, 10, |r, j| {
+        let (i, c) = (r / 6, r % 6);
+        cols[j][c].as_ref().map_or(0.0, |v| v[i]) * w[c]
+    });
+    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench[r / 6][r % 6] * w[r % 6]);
+    let ata_inv = (a.transpose() * &a).try_inverse().unwrap();
+    let x = &ata_inv * (a.transpose() * &b);
+    let rss = (&b - &a * &x).norm_squared();
+    let sigma2 = rss / (6 * n - 10) as f64;
+    for j in 0..10 {
+        assert!(
+            (sol.beta[j] - x[j]).abs() <= 1e-6 * x[j].abs().max(1e-9),
+            "β[{j}]: {} vs {}",
+            sol.beta[j],
+            x[j]
+        );
+        let se = (sigma2 * ata_inv[(j, j)]).sqrt();
+        let got = sol.se[j].unwrap();
+        assert!((got - se).abs() <= 1e-4 * se, "se[{j}]: {got} vs {se}");
+    }
+}
+
 #[test]
 fn gram_cross_validation_matches_brute_force() {
     let log = synthetic_log(&crazyflie(), 500, 5e-3, 4, &|_, vb| {

@@ -11,15 +11,9 @@ use crate::stats;
 /// A regressor column: one value per sample on each channel it touches.
 pub(crate) type ColData = [Option<Vec<f64>>; 6];
 
-/// The ten rigid-body columns on a log (computed once per log, then copied).
+/// The ten rigid-body columns on a log, computed on each call (as fast as copying a cached
+/// set, and a long log does not keep `39 n` values alive between fits).
 pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
-    s.rigid_columns_cache
-        .get_or_init(|| compute_rigid_columns(s))
-        .clone()
-}
-
-/// The ten rigid-body columns, computed.
-fn compute_rigid_columns(s: &Signals) -> Vec<ColData> {
     let n = s.len();
     let mut cols: Vec<ColData> = (0..10)
         .map(|j| {

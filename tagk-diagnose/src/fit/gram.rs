@@ -1,5 +1,8 @@
 //! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
 
+use std::borrow::Borrow;
+use std::rc::Rc;
+
 use nalgebra::{DMatrix, DVector};
 
 use crate::fit::design::ColData;
@@ -28,10 +31,11 @@ pub(crate) struct Evaluation {
 pub(crate) struct GramEngine<'a> {
     s: &'a Signals,
     w: [f64; 6],
-    /// Weighted target.
-    y: ColData,
-    /// Weighted base columns.
-    base: Vec<ColData>,
+    /// Weighted target (shared with the scan engines made by [`GramEngine::for_scan`]).
+    y: Rc<ColData>,
+    /// The base columns, unweighted and borrowed (weighted on the fly by `w` in the cross
+    /// products and the residual: no weighted copy of a long log's design is kept).
+    base: Vec<&'a ColData>,
     pieces: Vec<(usize, usize)>,
     folds: usize,
     /// Every `stride`-th sample enters the cross products (1: all; more in scan engines).
@@ -47,10 +51,10 @@ pub(crate) const SCAN_SAMPLES: usize = 10_000;
 
 impl<'a> GramEngine<'a> {
     /// `target`: the unweighted target (the measured wrench when `None`).
-    pub fn new(
+    pub fn new<C: Borrow<ColData>>(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &[ColData],
+        base: &'a [C],
         target: Option<&[[f64; 6]]>,
         folds: usize,
     ) -> Self {
@@ -59,19 +63,19 @@ impl<'a> GramEngine<'a> {
 
     /// An engine for a scan from the start ([`GramEngine::for_scan`] without the full-size
     /// cross products first): no folds, every `n / SCAN_SAMPLES`-th sample.
-    pub fn new_for_scan(
+    pub fn new_for_scan<C: Borrow<ColData>>(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &[ColData],
+        base: &'a [C],
         target: Option<&[[f64; 6]]>,
     ) -> Self {
         Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
     }
 
-    fn with_stride(
+    fn with_stride<C: Borrow<ColData>>(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &[ColData],
+        base: &'a [C],
         target: Option<&[[f64; 6]]>,
         folds: usize,
         stride: usize,
@@ -80,14 +84,7 @@ impl<'a> GramEngine<'a> {
         let tgt = target.unwrap_or(&s.target);
         let y: ColData =
             std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
-        let weigh = |col: &ColData| -> ColData {
-            std::array::from_fn(|c| {
-                col[c]
-                    .as_ref()
-                    .map(|v| v.iter().map(|x| x * w[c]).collect())
-            })
-        };
-        let base: Vec<ColData> = base.iter().map(weigh).collect();
+        let base: Vec<&'a ColData> = base.iter().map(Borrow::borrow).collect();
         let folds = folds.max(1);
         let mut pieces = Vec::new();
         if folds == 1 {
@@ -104,12 +101,13 @@ impl<'a> GramEngine<'a> {
             }
         }
         let mut all: Vec<&ColData> = vec![&y];
-        all.extend(base.iter());
-        let base_gram = cross_tensor(&all, &all, &pieces, stride);
+        all.extend(base.iter().copied());
+        let weights = operand_weights(1, base.len(), 0, w);
+        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
         Self {
             s,
             w: *w,
-            y,
+            y: Rc::new(y),
             base,
             pieces,
             folds,
@@ -124,13 +122,14 @@ impl<'a> GramEngine<'a> {
         let n = self.s.len();
         let stride = (n / SCAN_SAMPLES).max(1);
         let pieces = vec![(0, n)];
-        let mut all: Vec<&ColData> = vec![&self.y];
-        all.extend(self.base.iter());
-        let base_gram = cross_tensor(&all, &all, &pieces, stride);
+        let mut all: Vec<&ColData> = vec![&*self.y];
+        all.extend(self.base.iter().copied());
+        let weights = operand_weights(1, self.base.len(), 0, &self.w);
+        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
         GramEngine {
             s: self.s,
             w: self.w,
-            y: self.y.clone(),
+            y: Rc::clone(&self.y),
             base: self.base.clone(),
             pieces,
             folds: 1,
@@ -165,17 +164,20 @@ impl<'a> GramEngine<'a> {
         let q = cand.len();
         let pp = p0 + q;
         let np = self.pieces.len();
-        let mut left: Vec<&ColData> = vec![&self.y];
-        left.extend(self.base.iter());
+        let mut left: Vec<&ColData> = vec![&*self.y];
+        left.extend(self.base.iter().copied());
         left.extend(cand.iter());
+        let wl = operand_weights(1, self.base.len(), q, &self.w);
         let candr: Vec<&ColData> = cand.iter().collect();
-        let cross = cross_tensor(&left, &candr, &self.pieces, self.stride);
+        let wc = operand_weights(0, 0, q, &self.w);
+        let cross = cross_tensor(&left, &wl, &candr, &wc, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
+        let wo = operand_weights(1, 0, 0, &self.w);
         let (ocross, oo) = match &offset {
             Some(o) => (
-                cross_tensor(&[o], &left, &self.pieces, self.stride),
-                cross_tensor(&[o], &[o], &self.pieces, self.stride),
+                cross_tensor(&[o], &wo, &left, &wl, &self.pieces, self.stride),
+                cross_tensor(&[o], &wo, &[o], &wo, &self.pieces, self.stride),
             ),
             None => (Vec::new(), Vec::new()),
         };
@@ -282,7 +284,16 @@ impl<'a> GramEngine<'a> {
                 }
             }
         }
-        for (col, &b) in self.base.iter().chain(cand.iter()).zip(beta) {
+        for (col, &b) in self.base.iter().zip(beta) {
+            for (c, d) in col.iter().enumerate() {
+                if let Some(v) = d {
+                    for i in 0..n {
+                        r[i][c] -= b * (v[i] * self.w[c]);
+                    }
+                }
+            }
+        }
+        for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.iter().enumerate() {
                 if let Some(v) = d {
                     for i in 0..n {
@@ -295,32 +306,47 @@ impl<'a> GramEngine<'a> {
     }
 }
 
-/// `Σ x_i y_i` with four interleaved partial sums (so the compiler can keep four products in
-/// flight), added pairwise at the end; the order is fixed, so results are reproducible.
-fn dot(x: &[f64], y: &[f64]) -> f64 {
+/// Per-operand, per-channel weights of `[y?, base…, cand…]` for [`cross_tensor`]: 1 for the
+/// `weighted` leading operands (the target, already weighted) and the `cand` trailing ones
+/// (weighted by [`GramEngine::weigh`]), `w` for the `base` columns in between (weighted on
+/// the fly). Multiplying by 1 is exact, so a product is the same bits as with stored
+/// weighted columns.
+fn operand_weights(weighted: usize, base: usize, cand: usize, w: &[f64; 6]) -> Vec<[f64; 6]> {
+    let mut out = vec![[1.0; 6]; weighted];
+    out.extend(std::iter::repeat_n(*w, base));
+    out.extend(std::iter::repeat_n([1.0; 6], cand));
+    out
+}
+
+/// `Σ (x_i fx)(y_i fy)` with four interleaved partial sums (so the compiler can keep four
+/// products in flight), added pairwise at the end; the order is fixed, so results are
+/// reproducible.
+fn dot(x: &[f64], fx: f64, y: &[f64], fy: f64) -> f64 {
     let n = x.len().min(y.len());
     let (x, y) = (&x[..n], &y[..n]);
     let mut acc = [0.0f64; 4];
     let mut xs = x.chunks_exact(4);
     let mut ys = y.chunks_exact(4);
     for (a, b) in (&mut xs).zip(&mut ys) {
-        acc[0] += a[0] * b[0];
-        acc[1] += a[1] * b[1];
-        acc[2] += a[2] * b[2];
-        acc[3] += a[3] * b[3];
+        acc[0] += (a[0] * fx) * (b[0] * fy);
+        acc[1] += (a[1] * fx) * (b[1] * fy);
+        acc[2] += (a[2] * fx) * (b[2] * fy);
+        acc[3] += (a[3] * fx) * (b[3] * fy);
     }
     let mut tail = 0.0;
     for (a, b) in xs.remainder().iter().zip(ys.remainder()) {
-        tail += a * b;
+        tail += (a * fx) * (b * fy);
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// Cross products `Σ_{i ∈ piece} a_j[c][i] b_k[c][i]` for every piece, channel, `j`, `k`;
-/// layout `[piece][channel][j][k]`.
+/// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` for every piece,
+/// channel, `j`, `k`; layout `[piece][channel][j][k]`.
 fn cross_tensor(
     a: &[&ColData],
+    wa: &[[f64; 6]],
     b: &[&ColData],
+    wb: &[[f64; 6]],
     pieces: &[(usize, usize)],
     stride: usize,
 ) -> Vec<f64> {
@@ -338,10 +364,14 @@ fn cross_tensor(
                     continue;
                 };
                 for (pi, &(lo, hi)) in pieces.iter().enumerate() {
+                    let (fx, fy) = (wa[j][c], wb[k][c]);
                     let v = if stride == 1 {
-                        dot(&x[lo..hi], &y[lo..hi])
+                        dot(&x[lo..hi], fx, &y[lo..hi], fy)
                     } else {
-                        (lo..hi).step_by(stride).map(|i| x[i] * y[i]).sum()
+                        (lo..hi)
+                            .step_by(stride)
+                            .map(|i| (x[i] * fx) * (y[i] * fy))
+                            .sum()
                     };
                     out[((pi * 6 + c) * pa + j) * pb + k] = v;
                     if symmetric {

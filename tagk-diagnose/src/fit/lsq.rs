@@ -1,6 +1,8 @@
 //! The weighted least-squares solve (faer QR, SVD of `R`), predictions, per-channel
 //! statistics and the 1-D scan of a nonlinear parameter.
 
+use std::borrow::Borrow;
+
 use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 
@@ -17,11 +19,11 @@ pub(crate) struct LsSolution {
 }
 
 /// Weighted least squares `min Σ_c w_c² ‖b_c − X_c β‖²` with a Householder QR of
-/// `[A | b]` (faer; columns equilibrated), then an SVD of the small `R` (truncated at a
+/// `[A | b]` (faer; columns equilibrated; factored by blocks of rows, [`stacked_qr_r`]), then an SVD of the small `R` (truncated at a
 /// relative 1e-11 so collinear columns get a minimum-norm solution and no standard error).
 /// `kappa` inflates the covariance for autocorrelated residuals.
-pub(crate) fn weighted_qr_solve(
-    cols: &[ColData],
+pub(crate) fn weighted_qr_solve<C: Borrow<ColData>>(
+    cols: &[C],
     b: &[[f64; 6]],
     w: &[f64; 6],
     kappa: f64,
@@ -32,31 +34,14 @@ pub(crate) fn weighted_qr_solve(
     let mut scale = vec![0.0; p];
     for (j, col) in cols.iter().enumerate() {
         let mut s2 = 0.0;
-        for (c, d) in col.iter().enumerate() {
+        for (c, d) in col.borrow().iter().enumerate() {
             if let Some(v) = d {
                 s2 += w[c] * w[c] * v.iter().map(|x| x * x).sum::<f64>();
             }
         }
         scale[j] = if s2 > 0.0 { 1.0 / s2.sqrt() } else { 0.0 };
     }
-    let mut a = Mat::<f64>::zeros(rows, p + 1);
-    for (j, col) in cols.iter().enumerate() {
-        for (c, d) in col.iter().enumerate() {
-            if let Some(v) = d {
-                let f = w[c] * scale[j];
-                for i in 0..n {
-                    a[(6 * i + c, j)] = v[i] * f;
-                }
-            }
-        }
-    }
-    for i in 0..n {
-        for c in 0..6 {
-            a[(6 * i + c, p)] = b[i][c] * w[c];
-        }
-    }
-    let qr = a.qr();
-    let r = qr.thin_R();
+    let r = stacked_qr_r(cols, b, w, &scale);
     let mut r11 = DMatrix::<f64>::zeros(p, p);
     let mut z = DVector::<f64>::zeros(p);
     for i in 0..p {
@@ -112,14 +97,70 @@ pub(crate) fn weighted_qr_solve(
     Ok(LsSolution { beta, se })
 }
 
+/// Samples per block of the blocked QR ([`stacked_qr_r`]): `6 ×` this many rows at a time.
+const QR_BLOCK_SAMPLES: usize = 4096;
+
+/// The `(p+1) × (p+1)` triangular factor `R` of the weighted, equilibrated `[A | b]`
+/// (rows `6 i + c`: sample `i`, channel `c`), factored block by block: each block of
+/// [`QR_BLOCK_SAMPLES`] samples is stacked under the previous block's `R` and factored again
+/// (`[A₁; A₂] = Q R` has the same `R`, up to the signs of its rows, as the QR of
+/// `[R₁; A₂]`), so that only one block of rows is ever in memory instead of all `6 n`.
+/// Rows of `R` beyond the number of rows seen are zero.
+fn stacked_qr_r<C: Borrow<ColData>>(
+    cols: &[C],
+    b: &[[f64; 6]],
+    w: &[f64; 6],
+    scale: &[f64],
+) -> Mat<f64> {
+    let n = b.len();
+    let p = cols.len();
+    let mut r = Mat::<f64>::zeros(p + 1, p + 1);
+    let mut r_rows = 0;
+    let mut lo = 0;
+    while lo < n {
+        let hi = (lo + QR_BLOCK_SAMPLES).min(n);
+        let mut a = Mat::<f64>::zeros(r_rows + 6 * (hi - lo), p + 1);
+        for i in 0..r_rows {
+            for j in i..=p {
+                a[(i, j)] = r[(i, j)];
+            }
+        }
+        for (j, col) in cols.iter().enumerate() {
+            for (c, d) in col.borrow().iter().enumerate() {
+                if let Some(v) = d {
+                    let f = w[c] * scale[j];
+                    for i in lo..hi {
+                        a[(r_rows + 6 * (i - lo) + c, j)] = v[i] * f;
+                    }
+                }
+            }
+        }
+        for i in lo..hi {
+            for c in 0..6 {
+                a[(r_rows + 6 * (i - lo) + c, p)] = b[i][c] * w[c];
+            }
+        }
+        let qr = a.qr();
+        let thin = qr.thin_R();
+        r_rows = thin.nrows();
+        for i in 0..r_rows {
+            for j in 0..=p {
+                r[(i, j)] = if j >= i { thin[(i, j)] } else { 0.0 };
+            }
+        }
+        lo = hi;
+    }
+    r
+}
+
 /// Prediction `X β` per sample.
-pub(crate) fn predict(cols: &[ColData], beta: &[f64], n: usize) -> Vec<[f64; 6]> {
+pub(crate) fn predict<C: Borrow<ColData>>(cols: &[C], beta: &[f64], n: usize) -> Vec<[f64; 6]> {
     let mut out = vec![[0.0; 6]; n];
     for (col, &bj) in cols.iter().zip(beta) {
         if bj == 0.0 {
             continue;
         }
-        for (c, d) in col.iter().enumerate() {
+        for (c, d) in col.borrow().iter().enumerate() {
             if let Some(v) = d {
                 for i in 0..n {
                     out[i][c] += v[i] * bj;

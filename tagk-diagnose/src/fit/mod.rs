@@ -285,17 +285,18 @@ fn scan_parameters(
             Some(p) if near_previous => local_grid(&spec.grid, p),
             _ => spec.grid.clone(),
         };
-        let mut fixed: Vec<ColData> = rigid.to_vec();
+        let mut others: Vec<ColData> = Vec::new();
         let mut shifted_target = target.to_vec();
         for (j, f) in model.effects().iter().enumerate() {
             if j != k {
                 let d = effect_design(f.as_ref(), s, params[j]);
-                fixed.extend(d.cols);
+                others.extend(d.cols);
                 if let Some(o) = &d.offset {
                     sub_offset(&mut shifted_target, o);
                 }
             }
         }
+        let fixed: Vec<&ColData> = rigid.iter().chain(&others).collect();
         let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
         let (best, _) = scan_min(&grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
@@ -346,11 +347,11 @@ fn solve_pass(
     params: &[Option<f64>],
     last_pass: bool,
 ) -> Result<Pass, DiagnoseError> {
-    let mut cols = rigid.to_vec();
+    let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
     for (k, e) in model.effects().iter().enumerate() {
         let d = effect_design(e.as_ref(), s, params[k]);
-        cols.extend(d.cols);
+        effect_cols.extend(d.cols);
         if let Some(o) = d.offset {
             match &mut known {
                 None => known = Some(o),
@@ -366,6 +367,7 @@ fn solve_pass(
             }
         }
     }
+    let cols: Vec<&ColData> = rigid.iter().chain(&effect_cols).collect();
     let mut shifted_target = target.to_vec();
     if let Some(o) = &known {
         sub_offset(&mut shifted_target, o);
