@@ -428,7 +428,8 @@ impl FlightLog {
     /// # Errors
     /// [`LogError::InvalidResampleStep`] for a step that is not positive and finite, or so
     /// small that the grid would have more than [`MAX_RESAMPLED_ROWS`] rows; the errors of
-    /// [`FlightLog::check_writable`] for a log that is not a log.
+    /// the writer's check (equal signal lengths, strictly increasing time, rotor speeds for a
+    /// log without a wrench) for a log that is not a log.
     pub fn resample_linear(&self, dt: f64) -> Result<FlightLog, LogError> {
         self.check_writable()?;
         let span = match (self.t.first(), self.t.last()) {
