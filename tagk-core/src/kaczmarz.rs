@@ -433,14 +433,19 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         // negative, so unusable rows add exact zeros).
         p.norm2[m..pm].fill(T::zero());
         p.resid[m..pm].fill(T::zero());
+        // (Slices of `pm` entries each: no bounds check in the loop, which the compiler then
+        // vectorises.)
+        let (norm2, inv_norm2, resid) =
+            (&p.norm2[..pm], &mut p.inv_norm2[..pm], &mut p.resid[..pm]);
+        let (coef, coef_avg) = (&mut p.coef[..pm], &mut p.coef_avg[..pm]);
         for i in 0..pm {
-            let nn = p.norm2[i];
+            let nn = norm2[i];
             let usable = nn > T::zero();
             let inv = T::one() / nn;
-            p.inv_norm2[i] = if usable { inv } else { T::zero() };
-            p.resid[i] = if usable { p.resid[i] } else { T::zero() };
-            p.coef[i] = T::zero();
-            p.coef_avg[i] = T::zero();
+            inv_norm2[i] = if usable { inv } else { T::zero() };
+            resid[i] = if usable { resid[i] } else { T::zero() };
+            coef[i] = T::zero();
+            coef_avg[i] = T::zero();
         }
         let fro2 = greedy::lane_sum(&p.norm2[..pm]);
         if fro2 <= T::zero() {
