@@ -193,41 +193,29 @@ impl DelayEstimate {
     }
 }
 
-/// A sensor's signal and its twin from the pose, sample by sample.
-type SignalPair = (Vec<[f64; 3]>, Vec<[f64; 3]>);
+/// A sensor's signal (borrowed from the log) and its twin from the pose, sample by sample.
+type SignalPair<'a> = (&'a [[f64; 3]], Vec<[f64; 3]>);
 
-/// The sensor's signal and its twin from the pose, sample by sample.
-fn pair(log: &FlightLog, sensor: Sensor) -> Result<SignalPair, AlignmentError> {
+/// The sensor's signal and its twin from the pose.
+fn pair(log: &FlightLog, sensor: Sensor) -> Result<SignalPair<'_>, AlignmentError> {
+    pair_available(log, sensor)?;
     let h = DEFAULT_HALF_WIDTH;
-    match sensor {
-        Sensor::Gyro => {
-            if log.omega.len() != log.len() || log.attitude.len() != log.len() {
-                return Err(AlignmentError::NotLogged(sensor));
-            }
-            Ok((
-                log.omega.clone(),
-                omega_from_attitude(&log.t, &log.attitude),
-            ))
-        }
+    Ok(match sensor {
+        Sensor::Gyro => (&log.omega, omega_from_attitude(&log.t, &log.attitude)),
         Sensor::Accelerometer => {
+            let v = savitzky_golay_derivative3(&log.t, &log.position, h);
             let accel = log
                 .accel
-                .as_ref()
+                .as_deref()
                 .ok_or(AlignmentError::NotLogged(sensor))?;
-            let v = savitzky_golay_derivative3(&log.t, &log.position, h);
-            Ok((accel.clone(), savitzky_golay_derivative3(&log.t, &v, h)))
+            (accel, savitzky_golay_derivative3(&log.t, &v, h))
         }
-        Sensor::Velocity => {
-            if log.velocity.len() != log.len() {
-                return Err(AlignmentError::NotLogged(sensor));
-            }
-            Ok((
-                log.velocity.clone(),
-                savitzky_golay_derivative3(&log.t, &log.position, h),
-            ))
-        }
-        Sensor::Actuators | Sensor::Pose => Err(AlignmentError::NeedsModel(sensor)),
-    }
+        Sensor::Velocity => (
+            &log.velocity,
+            savitzky_golay_derivative3(&log.t, &log.position, h),
+        ),
+        Sensor::Actuators | Sensor::Pose => return Err(AlignmentError::NeedsModel(sensor)),
+    })
 }
 
 /// Body angular velocity `vee(Rᵀ Ṙ)` from attitudes `(w, x, y, z)` (body → world), with `Ṙ`
@@ -380,12 +368,12 @@ pub fn estimate_delay(
     let seg = segment_ids(log, edge);
     let inner = edge..n.saturating_sub(edge);
     let no_minimum = AlignmentError::NoMinimum { sensor, max_delay };
-    let whole = best_lag(&x, &y, &seg, max_lag, inner.clone()).ok_or(no_minimum.clone())?;
+    let whole = best_lag(x, &y, &seg, max_lag, inner.clone()).ok_or(no_minimum.clone())?;
     let block = inner.len() / BLOCKS;
     let blocks: Vec<f64> = (0..BLOCKS)
         .filter_map(|b| {
             let start = inner.start + b * block;
-            best_lag(&x, &y, &seg, max_lag, start..start + block)
+            best_lag(x, &y, &seg, max_lag, start..start + block)
         })
         .collect();
     let half_width = if blocks.len() == BLOCKS {
@@ -423,7 +411,9 @@ pub fn estimate_delays(
 /// Whether the log carries the sensor's quantity (cheap: no derivative computed).
 fn pair_available(log: &FlightLog, sensor: Sensor) -> Result<(), AlignmentError> {
     let ok = match sensor {
-        Sensor::Gyro => log.omega.len() == log.len() && !log.is_empty(),
+        Sensor::Gyro => {
+            log.omega.len() == log.len() && log.attitude.len() == log.len() && !log.is_empty()
+        }
         Sensor::Accelerometer => log.accel.is_some(),
         Sensor::Velocity => log.velocity.len() == log.len() && !log.is_empty(),
         Sensor::Actuators | Sensor::Pose => return Err(AlignmentError::NeedsModel(sensor)),
