@@ -108,6 +108,28 @@ fn a_log_with_a_gap_is_reported_and_split_never_differentiated_across() {
     run_diagnose(&args).unwrap();
     let report = diagnose_log(&log, &args).unwrap();
     assert_eq!(report.before.samples, log.len());
+    // The gap travels with the report: terminal, JSON and HTML name where and how long.
+    assert_eq!(report.sampling.len(), 1);
+    let found = &report.sampling[0];
+    assert_eq!(found.segments, 2);
+    assert_eq!(found.sampling.gaps, sampling.gaps);
+    let table = tagk::diagnose::report_table(&report);
+    assert!(table.contains("gap: 4.0"), "{table}");
+    assert!(
+        table.contains("split at the gaps into 2 segments"),
+        "{table}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&report.to_json().unwrap()).unwrap();
+    let gap_json = &json["sampling"][0]["gaps"][0];
+    assert_eq!(gap_json["index"], gap.index);
+    assert!((gap_json["duration"].as_f64().unwrap() - gap.duration).abs() < 1e-12);
+    assert_eq!(json["sampling"][0]["segments"], 2);
+    let html = tagk::diagnose::html::render(&report);
+    assert!(
+        html.contains("id=\"sampling\""),
+        "the HTML report has a sampling section"
+    );
+    assert!(html.contains("gap: 4.0"), "the HTML report names the gap");
     // With other logs, a log whose segments are all too short to stand alone is refused,
     // naming it.
     let err = diagnose_logs(
@@ -123,6 +145,11 @@ fn a_log_with_a_gap_is_reported_and_split_never_differentiated_across() {
     args.resample = Some(0.01);
     let resampled = diagnose_log(&log, &args).unwrap();
     assert!(resampled.before.samples > log.len());
+    assert_eq!(resampled.sampling[0].resampled_step, Some(0.01));
+    assert!(
+        tagk::diagnose::report_table(&resampled).contains("uniform 0.01 s grid"),
+        "the resampling is reported"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

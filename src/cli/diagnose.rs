@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use crate::diagnose::{
     AlignOptions, CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef,
-    FlightLog, Model, NextStep, Report, Signals, align_streams, builtin_by_name, builtin_effects,
-    online_pass, parse_shift, report_table, run_logs, run_loop,
+    FlightLog, Model, NextStep, Report, SamplingFindings, Signals, align_streams, builtin_by_name,
+    builtin_effects, online_pass, parse_shift, report_table, run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -473,6 +473,7 @@ fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Repo
     } else {
         Cow::Owned(log_with_wrench(log.into_owned(), vehicle.as_ref())?)
     };
+    let sampling = SamplingFindings::of("", &log, args.resample);
     let log = match args.resample {
         Some(dt) => Cow::Owned(log.resample_linear(dt)?),
         None => log,
@@ -482,6 +483,7 @@ fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Repo
     let (s, _) = Signals::from_owned_log_split(aligned)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     report.streams = streams;
+    report.sampling = vec![sampling];
     if args.online {
         report.online = Some(online_pass(&s, &report.last().fit, 5)?);
     }
@@ -512,6 +514,7 @@ pub fn diagnose_logs(
     let align = args.align_options()?;
     let mut parts = Vec::new();
     let mut streams = Vec::new();
+    let mut sampling = Vec::new();
     for (name, log) in logs {
         let in_file = |e: DiagnoseError| match e {
             DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
@@ -521,6 +524,7 @@ pub fn diagnose_logs(
             other => other,
         };
         let log = log_with_wrench(log, vehicle.as_ref()).map_err(in_file)?;
+        sampling.push(SamplingFindings::of(name.clone(), &log, args.resample));
         let log = match args.resample {
             Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
             None => log,
@@ -566,6 +570,7 @@ pub fn diagnose_logs(
     }
     let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
     report.streams = streams;
+    report.sampling = sampling;
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
     report.next = Some(args.next_step(&report));
     Ok(report)
@@ -647,10 +652,6 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
                 ..args.clone()
             };
             let (log, _) = read_log(&one)?;
-            if !args.quiet {
-                println!("{}:", path.display());
-                print_sampling(&log, args);
-            }
             logs.push((path.display().to_string(), log));
         }
         let report = diagnose_logs(logs, args)?;
@@ -664,9 +665,6 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         && let Some(merge) = &merge
     {
         println!("{}", merge_summary(merge));
-    }
-    if !args.quiet {
-        print_sampling(&log, args);
     }
     if let Some(v) = vehicle
         .as_ref()
@@ -689,27 +687,6 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     })?;
     let report = diagnose_owned_log(log, args)?;
     write_outputs(&report, args)
-}
-
-/// Prints how the log is sampled when it has gaps or irregular steps (where, how long), and
-/// what the diagnosis does about it.
-fn print_sampling(log: &FlightLog, args: &DiagnoseArgs) {
-    let sampling = log.sampling();
-    if sampling.is_regular() {
-        return;
-    }
-    println!("{sampling}");
-    if let Some(dt) = args.resample {
-        println!("resampled: linear interpolation onto a uniform {dt} s grid within each segment");
-    } else if sampling.irregular_steps > 0 {
-        println!("(`--resample S` resamples it onto a uniform grid by linear interpolation)");
-    }
-    if !sampling.gaps.is_empty() {
-        println!(
-            "split at the gaps into {} segments: nothing is differentiated, lagged or shifted across a gap",
-            sampling.gaps.len() + 1
-        );
-    }
 }
 
 /// Prints the report (unless `--quiet`) and writes the `--json` and `--report` files.

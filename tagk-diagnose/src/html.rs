@@ -874,6 +874,30 @@ pub fn render(report: &Report) -> String {
             )
         );
     }
+    if !report.sampling.is_empty() {
+        // Every log's findings in the terminal's words, a regular one's rate included.
+        let lines: Vec<String> = report
+            .sampling
+            .iter()
+            .map(|f| {
+                let body = if f.is_regular() {
+                    format!("{} (regular: no gaps, no irregular steps)", f.sampling)
+                } else {
+                    f.text()
+                };
+                if f.log.is_empty() {
+                    body
+                } else {
+                    format!("{}:\n{body}", f.log)
+                }
+            })
+            .collect();
+        let _ = write!(
+            html,
+            "<h2 id=\"sampling\">Sampling</h2><pre id=\"sampling-findings\">{}</pre>",
+            text(&lines.join("\n"))
+        );
+    }
     section_staircase(&mut html, report);
     if let (Some(after), Some(change)) = (&report.after, &report.change) {
         let _ = write!(

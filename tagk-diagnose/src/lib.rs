@@ -13,6 +13,7 @@ pub mod html;
 pub mod log;
 mod online;
 pub mod report;
+pub mod sampling;
 mod signals;
 mod stats;
 pub mod streams;
@@ -36,6 +37,7 @@ pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
+pub use sampling::{SamplingFindings, sampling_text};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 pub use streams::{AlignOptions, StreamAlignment, align_streams, parse_shift, streams_table};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the

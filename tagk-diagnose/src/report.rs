@@ -131,6 +131,10 @@ pub struct Report {
     /// fit ([`crate::streams::align_streams`]; filled in by the caller that aligned the log,
     /// empty otherwise).
     pub streams: Vec<crate::streams::StreamAlignment>,
+    /// How each log is sampled — median step, gaps (where, how long), irregular steps — and
+    /// what was done about it (split at the gaps, resampled); one entry per log, filled in by
+    /// the caller that read the log ([`crate::sampling::SamplingFindings`]), empty otherwise.
+    pub sampling: Vec<crate::sampling::SamplingFindings>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -300,6 +304,7 @@ fn loop_from(
         logs: Vec::new(),
         next: None,
         streams: Vec::new(),
+        sampling: Vec::new(),
     })
 }
 
@@ -555,7 +560,7 @@ pub fn staircase_table(r: &Report) -> String {
 /// Terminal summary of a whole report: the starting model's diagnosis (with `--with`, a
 /// before/after table instead of a second full section), the staircase, and what remains.
 pub fn report_table(r: &Report) -> String {
-    let mut s = String::new();
+    let mut s = crate::sampling::sampling_text(&r.sampling);
     if !r.streams.is_empty() {
         s.push_str(&crate::streams::streams_table(&r.streams));
         s.push('\n');

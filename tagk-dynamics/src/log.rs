@@ -118,7 +118,7 @@ pub struct FlightLog {
 }
 
 /// A gap in a log's time stamps: a step longer than [`GAP_FACTOR`] × the median step.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct TimeGap {
     /// Index of the first sample after the gap (the gap lies between samples `index − 1` and
     /// `index`).
@@ -131,7 +131,7 @@ pub struct TimeGap {
 
 /// How a log is sampled ([`FlightLog::sampling`]): its median step, its gaps and how many
 /// other steps are irregular.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Sampling {
     /// Median time step \[s\] (0 for fewer than two samples).
     pub median_step: f64,
