@@ -272,7 +272,7 @@ pub struct FlightStack {
     /// `realistic` profile's gyro noise alone (no other ingredient, tuning seed 7, 60 trials)
     /// the KF's inertia is off by 150 % of the truth on average and the tuned TAG-K's by
     /// 64–75 %; a controller designed on the KF's loses 40 % of the flights, on the completion
-    /// 7 % (success 10 % → 80 %). The estimate itself (and every parameter-error column) is
+    /// 7 % (success 13 % → 80 %). The estimate itself (and every parameter-error column) is
     /// unchanged; the protocol's payloads are point masses, so for them the completion is
     /// exact. `false`: the estimate as it is (the paper).
     #[serde(default)]
