@@ -6,7 +6,7 @@
 use std::str::FromStr;
 
 use tagk::sim::ExperimentProfile;
-use tagk::sim::experiments::{table_ii_estimators, table_ii_sweep};
+use tagk::sim::experiments::{table_ii_estimators_for, table_ii_sweep};
 
 /// Blocks with more trials per cell are left to `scripts/table2.sh --check`.
 const MAX_TRIALS: usize = 20;
@@ -68,9 +68,14 @@ fn readme_tables_equal_what_the_code_prints() {
         "no Table II block of at most {MAX_TRIALS} trials to check"
     );
     for b in small {
-        let result = table_ii_sweep(b.profile, table_ii_estimators(), b.trials, b.seed)
-            .run()
-            .expect("sweep");
+        let result = table_ii_sweep(
+            b.profile,
+            table_ii_estimators_for(b.profile),
+            b.trials,
+            b.seed,
+        )
+        .run()
+        .expect("sweep");
         assert_eq!(
             result.markdown_accuracy(),
             b.text,

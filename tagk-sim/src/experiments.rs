@@ -10,7 +10,9 @@ use serde::Serialize;
 
 use crate::SimError;
 use crate::estimators::{EstimatorKind, EstimatorSpec};
-pub use crate::estimators::{table_ii_estimators, tagk_tuned, tuned};
+pub use crate::estimators::{
+    table_ii_estimators, table_ii_estimators_for, tagk_tuned, tagk_tuned_realistic, tuned,
+};
 use crate::monte_carlo::{ErrorCurves, Sweep, SweepObserver, SweepResult};
 use crate::plot::{ChartSeries, LineChart, Path3, cdf, line_chart, path_chart_3d};
 use crate::sim::{
@@ -270,7 +272,7 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     observer: &mut O,
 ) -> Result<ExperimentReport, SimError> {
     let dir = c.out_dir("noise_sweep")?;
-    let mut estimators = table_ii_estimators();
+    let mut estimators = table_ii_estimators_for(profile);
     if paper_only {
         estimators.pop();
     }

@@ -247,6 +247,201 @@ pub fn tracking_weights() -> LqrWeights {
     )
 }
 
+/// What the flight stack around the LQR adds to the paper's bare state feedback, and the
+/// pre-flight check of a payload: all off in [`FlightStack::paper`] (the paper's setting,
+/// bit-identical to the simulator before this existed), on in [`FlightStack::realistic`]
+/// (the `realistic` experiment profile, issue #14).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FlightStack {
+    /// Integral action on the position error \[1/s\]: the controller tracks the reference
+    /// shifted by `−k_i ∫ (p̂ − p_ref) dt` (measured position `p̂`), so that a constant force
+    /// the model lacks (a thrust-coefficient error, an accelerometer-free body force) leaves
+    /// no steady offset; the LQR's position gain times `k_i` is the integral gain. `0`: off.
+    pub position_integral_gain: f64,
+    /// Anti-windup: the largest shift `k_i |∫ e dt|` per axis \[m\].
+    pub position_integral_limit: f64,
+    /// The largest fraction of the **true** rotors' maximum thrust (the nominal maximum times
+    /// the plant's thrust gain) that a protocol payload may need to hover; heavier draws are
+    /// redrawn (a flight stack does not take off with a payload it cannot manoeuvre). `1`:
+    /// hover feasible at full thrust, the paper's check.
+    pub hover_thrust_limit: f64,
+    /// The controller takes only the mass and first moment from an estimate and completes
+    /// the inertia as the nominal inertia plus that of a point mass carrying the change
+    /// (`Δm = m̂ − m₀` at `Δh / Δm`; the nominal inertia when `Δm ≤ 0`), instead of the
+    /// estimator's own inertia columns, which smooth flight barely excites. With the
+    /// `realistic` profile's gyro noise alone (no other ingredient, tuning seed 7, 60 trials)
+    /// the KF's inertia is off by 150 % of the truth on average and the tuned TAG-K's by
+    /// 64–75 %; a controller designed on the KF's loses 40 % of the flights, on the completion
+    /// 7 % (success 13 % → 80 %). The estimate itself (and every parameter-error column) is
+    /// unchanged; the protocol's payloads are point masses, so for them the completion is
+    /// exact. `false`: the estimate as it is (the paper).
+    #[serde(default)]
+    pub point_mass_inertia: bool,
+    /// The measured rotor speeds are the motors' own (eRPM telemetry reads the motor), so
+    /// with a motor lag they are the lagging speeds at the frame's time rather than the
+    /// commanded ones. `false`: the commanded speeds (the paper's and the diagnosis
+    /// examples' logs, where a motor lag shows as a lag between wrench and motion). In the
+    /// `realistic` profile the commanded speeds lead the motion by the 10 ms lag, which the
+    /// estimators read as torque: aborts fall from 80 % to 58 % (tuned TAG-K) and from 92 % to
+    /// 55 % (KF-low) with telemetry (no noise level, tuning seed 7, 60 trials).
+    #[serde(default)]
+    pub motor_telemetry: bool,
+    /// Rotor-speed telemetry readings averaged per control interval (`1`: one reading, the
+    /// paper's). The profile's rotor-speed σ is per reading (eRPM quantisation and
+    /// commutation jitter, independent from reading to reading); a flight stack that reads
+    /// the ESC telemetry at 1 kHz and averages it over the 20 ms interval sees `σ / √n`.
+    /// With the `realistic` profile's 20 rad/s per reading the estimators' torque rows are
+    /// mostly noise: the tuned TAG-K aborts 58 % of flights with one reading and 2 % with
+    /// `n = 20` (no noise level, tuning seed 7, 60 trials).
+    #[serde(default = "one")]
+    pub rotor_telemetry_samples: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+impl Default for FlightStack {
+    /// [`FlightStack::paper`].
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+impl FlightStack {
+    /// Bare LQR state feedback and the paper's payload check (hover feasible at full thrust).
+    pub const fn paper() -> Self {
+        Self {
+            position_integral_gain: 0.0,
+            position_integral_limit: 0.0,
+            hover_thrust_limit: 1.0,
+            point_mass_inertia: false,
+            motor_telemetry: false,
+            rotor_telemetry_samples: 1,
+        }
+    }
+
+    /// The `realistic` profile's flight stack: integral action on the position error at
+    /// [`REALISTIC_POSITION_INTEGRAL_GAIN`] (limited to [`REALISTIC_POSITION_INTEGRAL_LIMIT`]),
+    /// payloads that hover within [`REALISTIC_HOVER_THRUST_LIMIT`] of the true rotors'
+    /// maximum thrust, the point-mass inertia completion, motor telemetry averaged over
+    /// [`REALISTIC_ROTOR_TELEMETRY_SAMPLES`] readings. With it the
+    /// oracle succeeds in 100 % and aborts 0 % at every noise level, and `nominal` succeeds in
+    /// 0 % (300-trial probes per level, tuning seed 7); without it the oracle aborted 16–22 %.
+    pub const fn realistic() -> Self {
+        Self {
+            position_integral_gain: REALISTIC_POSITION_INTEGRAL_GAIN,
+            position_integral_limit: REALISTIC_POSITION_INTEGRAL_LIMIT,
+            hover_thrust_limit: REALISTIC_HOVER_THRUST_LIMIT,
+            point_mass_inertia: true,
+            motor_telemetry: true,
+            rotor_telemetry_samples: REALISTIC_ROTOR_TELEMETRY_SAMPLES,
+        }
+    }
+
+    /// Checks the gains are non-negative and finite and the thrust limit in `(0, 1]`.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), SimError> {
+        for (name, value) in [
+            (
+                "flight_stack.position_integral_gain",
+                self.position_integral_gain,
+            ),
+            (
+                "flight_stack.position_integral_limit",
+                self.position_integral_limit,
+            ),
+        ] {
+            if !(value >= 0.0 && value.is_finite()) {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be non-negative and finite",
+                });
+            }
+        }
+        if self.rotor_telemetry_samples == 0 {
+            return Err(SimError::InvalidParameter {
+                name: "flight_stack.rotor_telemetry_samples",
+                value: 0.0,
+                reason: "must be at least 1",
+            });
+        }
+        if !(self.hover_thrust_limit > 0.0 && self.hover_thrust_limit <= 1.0) {
+            return Err(SimError::InvalidParameter {
+                name: "flight_stack.hover_thrust_limit",
+                value: self.hover_thrust_limit,
+                reason: "must be in (0, 1]",
+            });
+        }
+        Ok(())
+    }
+
+    /// The sensing the flight sees through this stack: `sensing` with the rotor-speed σ
+    /// divided by `√n` for `n` [`FlightStack::rotor_telemetry_samples`] (unchanged, bit for
+    /// bit, at `n = 1`).
+    pub fn sensing_seen(&self, sensing: &crate::sim::Sensing) -> crate::sim::Sensing {
+        let mut s = *sensing;
+        if self.rotor_telemetry_samples > 1 {
+            s.rotor_speed_noise /= f64::from(self.rotor_telemetry_samples).sqrt();
+        }
+        s
+    }
+
+    /// The parameters the controller is designed for from an `estimate`, for a vehicle of
+    /// nominal parameters `nominal`: the estimate itself, or with
+    /// [`FlightStack::point_mass_inertia`] its mass and first moment with the point-mass
+    /// inertia completion.
+    pub fn controller_params(
+        &self,
+        estimate: &InertialParams,
+        nominal: &InertialParams,
+    ) -> InertialParams {
+        if !self.point_mass_inertia {
+            return *estimate;
+        }
+        let dm = estimate.mass() - nominal.mass();
+        let dh = estimate.first_moment() - nominal.first_moment();
+        let mut theta = if dm > 0.0 {
+            *nominal + InertialParams::point_mass(dm, dh / dm)
+        } else {
+            *nominal
+        };
+        let mut a = theta.to_array();
+        a[0] = estimate.mass();
+        a[1..4].copy_from_slice(estimate.first_moment().as_slice());
+        theta = InertialParams::from_array(a);
+        theta
+    }
+}
+
+/// Integral gain `k_i` of the `realistic` profile's position loop \[1/s\] (a chosen figure,
+/// issue #14). Without integral action the −5 % thrust coefficient leaves the oracle's
+/// vehicle about 0.75 cm below the path (mean tracking error 1–3 s after the attach, 200-trial
+/// probe, tuning seed 7), at the 1 cm success threshold's doorstep. `k_i = 0.2` leaves 0.29 cm,
+/// `0.5` 0.14 cm, `1.0` 0.12 cm; but at `1.0` the integrator alone adapts to a payload within
+/// the 2 s of the success rule (`nominal` succeeds in 94–100 %) and the rule no longer tells
+/// adapting from not adapting; at `0.5` `nominal` keeps 2.2 cm at 1–3 s and succeeds in 0 %.
+pub const REALISTIC_POSITION_INTEGRAL_GAIN: f64 = 0.5;
+/// Anti-windup limit of the `realistic` profile's position integral \[m\] per axis (a chosen
+/// figure: about twice the steady offset a non-adapting controller keeps after an attach).
+pub const REALISTIC_POSITION_INTEGRAL_LIMIT: f64 = 0.05;
+/// Hover-thrust limit of the `realistic` profile's payloads: a payload must hover within
+/// 95 % of the true rotors' maximum thrust (a chosen margin). Why: the protocol's payloads
+/// (30–50 % of the vehicle's mass, off-centre) need up to 100 % of the *nominal* maximum
+/// thrust of one rotor to hover; with the profile's −5 % thrust coefficient the real rotors
+/// cannot lift the heaviest, and every one of the oracle's aborts in the old `realistic`
+/// table was such a payload (hover at 95–100 % of the nominal maximum, 15 of 100 trials,
+/// thrust error alone, tuning seed 7). At 0.97 the oracle aborts 0 of 200 (tuning seed 7,
+/// none and high noise), at 0.95 as well, with a little more margin for manoeuvres.
+pub const REALISTIC_HOVER_THRUST_LIMIT: f64 = 0.95;
+/// Rotor-speed telemetry readings the `realistic` profile's flight stack averages per 20 ms
+/// control interval (1 kHz ESC telemetry, e.g. bidirectional DShot at a 1 kHz motor update
+/// rate; a chosen figure).
+pub const REALISTIC_ROTOR_TELEMETRY_SAMPLES: u32 = 20;
+
 /// Configuration of one flight. [`SimConfig::default`] is the paper's protocol (figure-8,
 /// 20 s, random payload, ideal plant, no noise, TAG-K).
 #[derive(Debug, Clone, PartialEq)]
@@ -297,6 +492,8 @@ pub struct SimConfig {
     pub vehicle: QuadrotorModel,
     /// LQR cost weights.
     pub weights: LqrWeights,
+    /// Integral action and the payload's thrust margin (default [`FlightStack::paper`]).
+    pub flight_stack: FlightStack,
 }
 
 impl Default for SimConfig {
@@ -323,6 +520,7 @@ impl Default for SimConfig {
             record_trace: false,
             vehicle: QuadrotorModel::crazyflie_2_1(),
             weights: tracking_weights(),
+            flight_stack: FlightStack::paper(),
         }
     }
 }
@@ -428,6 +626,7 @@ impl SimConfig {
             });
         }
         self.sensing.validate()?;
+        self.flight_stack.validate()?;
         if !self.yaw_rate.is_finite() {
             return Err(SimError::InvalidParameter {
                 name: "yaw_rate",
@@ -486,6 +685,19 @@ impl SimConfig {
 /// [`SimError::NonPositiveMass`], [`SimError::InvalidParameter`],
 /// [`SimError::PayloadBeyondThrust`].
 pub fn check_payload(vehicle: &QuadrotorModel, p: &Payload) -> Result<(), SimError> {
+    check_payload_within(vehicle, p, 1.0)
+}
+
+/// [`check_payload`] with the hover thrust limited to `fraction` of the nominal maximum
+/// thrust per rotor (`1.0`: [`check_payload`]).
+///
+/// # Errors
+/// As [`check_payload`].
+pub fn check_payload_within(
+    vehicle: &QuadrotorModel,
+    p: &Payload,
+    fraction: f64,
+) -> Result<(), SimError> {
     if !(p.mass > 0.0 && p.mass.is_finite()) {
         return Err(SimError::NonPositiveMass {
             what: "payload",
@@ -504,7 +716,7 @@ pub fn check_payload(vehicle: &QuadrotorModel, p: &Payload) -> Result<(), SimErr
     validate_params(&with)?;
     let trim = hover_trim(vehicle, &with, Vector3::zeros(), 0.0)?;
     let required = trim.thrusts.iter().copied().fold(f64::MIN, f64::max);
-    let available = vehicle.max_thrust_per_rotor();
+    let available = vehicle.max_thrust_per_rotor() * fraction;
     if required > available || trim.thrusts.iter().any(|t| *t < 0.0) {
         return Err(SimError::PayloadBeyondThrust {
             required,

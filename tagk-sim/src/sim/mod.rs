@@ -25,8 +25,10 @@ use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
 use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
 
 pub use config::{
-    Adaptation, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule, PayloadShape,
-    SimConfig, check_payload, tracking_weights,
+    Adaptation, FlightStack, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule,
+    PayloadShape, REALISTIC_HOVER_THRUST_LIMIT, REALISTIC_POSITION_INTEGRAL_GAIN,
+    REALISTIC_POSITION_INTEGRAL_LIMIT, REALISTIC_ROTOR_TELEMETRY_SAMPLES, SimConfig, check_payload,
+    check_payload_within, tracking_weights,
 };
 pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
 pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
@@ -40,7 +42,9 @@ pub(crate) use sensors::sub_rng;
 
 use crate::EstimatorKind;
 use crate::SimError;
-use crate::estimators::{N_PARAMS, build_kind, front_end_config, row_weights, spec_scales};
+use crate::estimators::{
+    FORCE_BIAS_PARAMS, N_PARAMS, build_kind, front_end_config, row_weights, spec_scales,
+};
 use crate::metrics::{
     ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_settled, is_success,
     parameter_error, position_error_all_cm, position_error_cm, t_plus_one_error,
@@ -72,6 +76,11 @@ struct EstimatorStage {
     b_buf: Vec<f64>,
     /// Row weights of a full window (`None`: every row 1).
     weights: Option<Vec<f64>>,
+    /// Unknowns per row: θ's 10, plus the nuisance force's 3
+    /// ([`EstimatorSpec::force_bias`](crate::EstimatorSpec::force_bias)).
+    unknowns: usize,
+    /// The window with the nuisance columns (empty without them).
+    a_wide: Vec<f64>,
 }
 
 /// The state of a flight in progress.
@@ -103,6 +112,8 @@ struct Flight<'a> {
     latest_estimate: [f64; 10],
     /// Control steps of the whole flight.
     planned_steps: usize,
+    /// `∫ (p̂ − p_ref) dt` of the flight stack's integral action \[m s\] (world frame).
+    position_integral: Vector3<f64>,
 }
 
 /// Flies one trial (see the crate docs for the loop, the measurement model and the timing).
@@ -133,9 +144,19 @@ fn draw_payloads(config: &SimConfig, setup: &mut ChaCha8Rng) -> Result<Vec<Paylo
         PayloadSchedule::Protocol | PayloadSchedule::ProtocolAt { .. } => {
             // Rejection sampling: a heavy payload far out along a diagonal can need more than
             // the rotors' limit to hover (the protocol's corner case); such draws are redrawn.
+            // The true rotors' share of the nominal maximum thrust the payload may use.
+            let fraction = if config.flight_stack.hover_thrust_limit == 1.0 {
+                1.0
+            } else {
+                config.flight_stack.hover_thrust_limit
+                    * config
+                        .effects
+                        .thrust_gain
+                        .map_or(1.0, |g| 1.0 + g.relative_error)
+            };
             let mut draw = Payload::random_protocol(nominal_mass, setup);
             let mut attempts = 1;
-            while let Err(e) = check_payload(vehicle, &draw) {
+            while let Err(e) = check_payload_within(vehicle, &draw, fraction) {
                 if attempts >= 1000 {
                     return Err(e);
                 }
@@ -192,19 +213,23 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
             config.sensing.accel_noise,
         ),
     );
+    let unknowns = spec.unknowns();
+    // The prior: the nominal parameters and no nuisance force.
+    let mut prior = nominal.as_slice().to_vec();
+    prior.resize(unknowns, 0.0);
     let mut main = FrontEnd::new(spec.build(m_max, seed, 0.0)?, &scales, front)?;
-    main.reset(nominal.as_slice())?;
+    main.reset(&prior)?;
     let early = if spec.early_tagk {
         let tagk = build_kind(
             EstimatorKind::TagK,
-            N_PARAMS,
+            unknowns,
             spec.burn_in,
             m_max,
             seed,
             0.0,
         )?;
         let mut e = FrontEnd::new(tagk, &scales, front)?;
-        e.reset(nominal.as_slice())?;
+        e.reset(&prior)?;
         Some(e)
     } else {
         None
@@ -216,6 +241,12 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
         a_buf: vec![0.0; m_max * N_PARAMS],
         b_buf: vec![0.0; m_max],
         weights: row_weights(spec, m_max),
+        unknowns,
+        a_wide: if unknowns > N_PARAMS {
+            vec![0.0; m_max * unknowns]
+        } else {
+            Vec::new()
+        },
     }))
 }
 
@@ -271,7 +302,7 @@ impl<'a> Flight<'a> {
             sub_rng(config.seed, 6),
             sub_rng(config.seed, 7),
             config.noise,
-            &config.sensing,
+            &config.flight_stack.sensing_seen(&config.sensing),
             plant.state().body_rate,
         );
         Ok(Self {
@@ -296,6 +327,7 @@ impl<'a> Flight<'a> {
             first_update_steps: Vec::new(),
             latest_estimate: nominal.to_array(),
             planned_steps: steps,
+            position_integral: Vector3::zeros(),
         })
     }
 
@@ -311,24 +343,42 @@ impl<'a> Flight<'a> {
             return Ok(ControlFlow::Break(()));
         }
         let yaw_rate = self.config.yaw_rate;
-        let reference = self
+        let mut reference = self
             .trajectory
             .sample(t)
             .with_heading(yaw_rate * t, yaw_rate);
         let measured = self.sensors.controller_measurement(&state);
+        let stack = &self.config.flight_stack;
+        if stack.position_integral_gain > 0.0 {
+            // Integral action: the reference shifted by −k_i ∫ e dt, each axis limited.
+            let k = stack.position_integral_gain;
+            let limit = stack.position_integral_limit / k;
+            self.position_integral += (measured.position - reference.position) * dt;
+            self.position_integral = self.position_integral.map(|v| v.clamp(-limit, limit));
+            reference.position -= self.position_integral * k;
+        }
         let cmd = self
             .plant
             .clamp_speeds(&self.controller.rotor_speeds(&measured, &reference));
-        // What the vehicle measures of its actuators: the rotor speeds read back (commanded +
-        // noise) and, through the nominal mixer, the wrench they make.
-        let measured_speeds = self.sensors.measured_rotor_speeds(&cmd);
+        let physics_log = self.config.record_log && self.config.log_rate == LogRate::Physics;
+        let mut steps = Vec::new();
+        let (mid_state, mid_acc) = self.fly_interval(&cmd, physics_log.then_some(&mut steps));
+        // What the vehicle measures of its actuators: the rotor speeds read back (+ noise) and,
+        // through the nominal mixer, the wrench they make: the commanded speeds, or with
+        // `FlightStack::motor_telemetry` and a motor lag the lagging speeds at the interval's
+        // midpoint (the frame's time).
+        let read_back = if self.config.flight_stack.motor_telemetry
+            && self.config.effects.motor_lag.is_some()
+        {
+            mid_state.rotor_speeds
+        } else {
+            cmd
+        };
+        let measured_speeds = self.sensors.measured_rotor_speeds(&read_back);
         let wrench_measured: Wrench = self
             .config
             .vehicle
             .wrench_from_rotor_speeds(&measured_speeds);
-        let physics_log = self.config.record_log && self.config.log_rate == LogRate::Physics;
-        let mut steps = Vec::new();
-        let (mid_state, mid_acc) = self.fly_interval(&cmd, physics_log.then_some(&mut steps));
         if !self.plant.is_finite() {
             self.tracking.push(f64::INFINITY);
             return Ok(ControlFlow::Break(()));
@@ -543,7 +593,24 @@ impl<'a> Flight<'a> {
             return Ok(());
         }
         let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
-        let (a, b) = (&stage.a_buf[..rows * N_PARAMS], &stage.b_buf[..rows]);
+        let n = stage.unknowns;
+        let a = if n > N_PARAMS {
+            // θ's columns, then the nuisance force: identity on each frame's force rows.
+            for r in 0..rows {
+                let (src, dst) = (
+                    &stage.a_buf[r * N_PARAMS..(r + 1) * N_PARAMS],
+                    &mut stage.a_wide[r * n..(r + 1) * n],
+                );
+                dst[..N_PARAMS].copy_from_slice(src);
+                for j in 0..FORCE_BIAS_PARAMS {
+                    dst[N_PARAMS + j] = if r % 6 == j { 1.0 } else { 0.0 };
+                }
+            }
+            &stage.a_wide[..rows * n]
+        } else {
+            &stage.a_buf[..rows * N_PARAMS]
+        };
+        let b = &stage.b_buf[..rows];
         let weights = stage.weights.as_deref().map(|w| &w[..rows]);
         let start = Instant::now();
         let result = stage.main.update_weighted(a, b, weights);
@@ -575,7 +642,10 @@ impl<'a> Flight<'a> {
             self.first_update_steps.push(k + 1);
             self.pending_event = false;
         }
-        let theta = InertialParams::from_array(estimate);
+        let theta = self.config.flight_stack.controller_params(
+            &InertialParams::from_array(estimate),
+            &self.config.vehicle.params,
+        );
         let accepted = theta.safety_gate(&self.config.gate).is_ok()
             && self.controller.redesign(&theta).is_ok();
         self.updates.push(UpdateRecord {

@@ -228,10 +228,10 @@ impl Sensing {
 /// The experiment profiles of Table II (`noise_sweep --profile NAME`): what the vehicle's
 /// sensors and actuators add on top of the swept [`NoiseLevel`](crate::NoiseLevel).
 ///
-/// | profile | sensing | plant |
-/// |---|---|---|
-/// | `paper` | [`Sensing::ideal`] | ideal rotors (the TAG-K paper's setting, reproduces the earlier tables) |
-/// | `realistic` | [`Sensing::realistic`] (BMI088 gyro and accelerometer noise and bias, velocity noise, 1 % rotor-speed noise) plus motion capture ([`MOCAP_POSITION_NOISE`], [`MOCAP_ATTITUDE_NOISE`]) | motor lag [`REALISTIC_MOTOR_LAG`] and a thrust-coefficient error [`REALISTIC_THRUST_GAIN_ERROR`] |
+/// | profile | sensing | plant | flight stack |
+/// |---|---|---|---|
+/// | `paper` | [`Sensing::ideal`] | ideal rotors (the TAG-K paper's setting, reproduces the earlier tables) | [`FlightStack::paper`](crate::FlightStack::paper): bare LQR |
+/// | `realistic` | [`Sensing::realistic`] (BMI088 gyro and accelerometer noise and bias, velocity noise, 1 % rotor-speed noise) plus motion capture ([`MOCAP_POSITION_NOISE`], [`MOCAP_ATTITUDE_NOISE`]) | motor lag [`REALISTIC_MOTOR_LAG`] and a thrust-coefficient error [`REALISTIC_THRUST_GAIN_ERROR`] | [`FlightStack::realistic`](crate::FlightStack::realistic): integral action on position, payloads within a thrust margin, the controller's inertia completed from mass and first moment, motor telemetry |
 ///
 /// Every figure's source is in the doc comment of its constant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -282,10 +282,19 @@ impl ExperimentProfile {
         }
     }
 
-    /// `config` with this profile's sensing and plant effects.
+    /// The flight stack of this profile (integral action, payload thrust margin).
+    pub fn flight_stack(self) -> crate::sim::FlightStack {
+        match self {
+            ExperimentProfile::Paper => crate::sim::FlightStack::paper(),
+            ExperimentProfile::Realistic => crate::sim::FlightStack::realistic(),
+        }
+    }
+
+    /// `config` with this profile's sensing, plant effects and flight stack.
     pub fn apply(self, config: &mut crate::SimConfig) {
         config.sensing = self.sensing();
         config.effects = self.effects();
+        config.flight_stack = self.flight_stack();
     }
 }
 
