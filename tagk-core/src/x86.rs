@@ -852,22 +852,44 @@ unsafe fn pack_rows_f64<const R: usize, const S: usize>(
             out = out.add(4 * stride);
             k += 4;
         }
-        for k in n4..n {
-            for r in 0..4 {
-                *dst.add(k * stride + r) = if r < R { *src.add(r * n + k) } else { 0.0 };
-            }
-        }
-        for (r, acc_r) in acc.iter().enumerate().take(R) {
-            let u = _mm_add_pd(
-                _mm256_castpd256_pd128(*acc_r),
-                _mm256_extractf128_pd::<1>(*acc_r),
+        // The last `n mod 4` columns: the rows read through a mask (lanes past `n` neither
+        // read nor used), transposed like the others, and only their columns stored.
+        let tail = n - n4;
+        let mut last = [_mm256_setzero_pd(); 4];
+        if tail > 0 {
+            let mask = _mm256_cmpgt_epi64(
+                _mm256_set1_epi64x(tail as i64),
+                _mm256_set_epi64x(3, 2, 1, 0),
             );
-            let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-            for k in n4..n {
-                sum += *src.add(r * n + k) * *xp.add(k);
+            let mut rows = [_mm256_setzero_pd(); 4];
+            for (r, row) in rows.iter_mut().enumerate().take(R) {
+                *row = _mm256_maskload_pd(src.add(r * n + n4), mask);
             }
-            *resid.get_unchecked_mut(j + r) = *b.get_unchecked(j + r) - sum;
+            last = transpose4(rows);
+            for (q, col) in last.iter().enumerate().take(tail) {
+                _mm256_storeu_pd(out.add(q * stride), *col);
+            }
         }
+        // The four rows' residuals side by side: lane q of every accumulator gathered into
+        // one vector (a transpose), `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products in
+        // order of k, then `b − sum`. Rows `≥ R` come out `+0` (zero rows, zero `b`).
+        let s = transpose4(acc);
+        let mut sum = _mm256_add_pd(_mm256_add_pd(s[0], s[2]), _mm256_add_pd(s[1], s[3]));
+        for (q, col) in last.iter().enumerate().take(tail) {
+            let xk = _mm256_broadcast_sd(&*xp.add(n4 + q));
+            sum = _mm256_add_pd(sum, _mm256_mul_pd(*col, xk));
+        }
+        let bp = b.as_ptr().wrapping_add(j);
+        let bv = if R == 4 {
+            _mm256_loadu_pd(bp)
+        } else if R == 0 {
+            _mm256_setzero_pd()
+        } else {
+            let rows =
+                _mm256_cmpgt_epi64(_mm256_set1_epi64x(R as i64), _mm256_set_epi64x(3, 2, 1, 0));
+            _mm256_maskload_pd(bp, rows)
+        };
+        _mm256_storeu_pd(resid.as_mut_ptr().add(j), _mm256_sub_pd(bv, sum));
     }
 }
 
