@@ -40,6 +40,7 @@ pub(crate) static KEEP_F32: [f32; KEEP_LEN] = {
 
 /// `LANE_MAJOR_U64[c][l] = 1 << (4l + c)`: the bit of row `8c + l` in lane-major order, for
 /// [`Lanes8::lane_major_bits`] of 64-bit lanes (AND with a lane mask, OR across chunks).
+#[cfg_attr(not(target_arch = "aarch64"), allow(dead_code))] // AVX2 packs its masks instead
 pub(crate) static LANE_MAJOR_U64: [[u64; LANES]; MAX_CHUNKS] = {
     let mut t = [[0u64; LANES]; MAX_CHUNKS];
     let mut c = 0;

@@ -20,9 +20,7 @@ use crate::greedy::{
     Draws, Kernels, LANES, Portable, Requested, Schedule, Window, argmax_ratio, iterate_portable,
     requested,
 };
-use crate::lanes::{
-    KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, LANE_MAJOR_U64, Lanes8, MAX_CHUNKS, iterate_any,
-};
+use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, Lanes8, MAX_CHUNKS, iterate_any};
 use crate::linalg::padded;
 
 /// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
@@ -307,16 +305,30 @@ impl Lanes8 for F64x8 {
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        // The 32 lane masks narrowed to one byte each by three saturating packs (all-ones
+        // stays all-ones, zero stays zero): chunk c's halves h and lanes q = 2k + q' land in
+        // byte 4c + 2h + q' of 128-bit lane k. A byte shuffle (a 4 × 4 transpose per 64 bits)
+        // and a swap of the middle 64-bit quarters put row 8c + l's byte at 4l + c, the
+        // lane-major order, and the bytes' sign bits are the answer.
         unsafe {
-            let (mut lo, mut hi) = (_mm256_setzero_pd(), _mm256_setzero_pd());
-            for (c, m) in masks.iter().enumerate() {
-                let bits = LANE_MAJOR_U64[c].as_ptr().cast::<f64>();
-                lo = _mm256_or_pd(lo, _mm256_and_pd(m.0, _mm256_loadu_pd(bits)));
-                hi = _mm256_or_pd(hi, _mm256_and_pd(m.1, _mm256_loadu_pd(bits.add(4))));
+            let zero = _mm256_setzero_si256();
+            let mut words = [zero; 4];
+            for (c, w) in words.iter_mut().enumerate().take(C) {
+                *w = _mm256_packs_epi32(
+                    _mm256_castpd_si256(masks[c].0),
+                    _mm256_castpd_si256(masks[c].1),
+                );
             }
-            let x = _mm256_castpd_si256(_mm256_or_pd(lo, hi));
-            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
-            _mm_cvtsi128_si64(_mm_or_si128(y, _mm_unpackhi_epi64(y, y))) as u32
+            let bytes = _mm256_packs_epi16(
+                _mm256_packs_epi32(words[0], words[1]),
+                _mm256_packs_epi32(words[2], words[3]),
+            );
+            let transpose = _mm256_setr_epi8(
+                0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15, //
+                0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15,
+            );
+            let ordered = _mm256_permute4x64_epi64::<0xd8>(_mm256_shuffle_epi8(bytes, transpose));
+            _mm256_movemask_epi8(ordered) as u32
         }
     }
     #[inline(always)]
