@@ -226,7 +226,8 @@ pub(crate) trait Kernels<T: Real>: Copy {
     /// `G = A Aᵀ` (`p × p`, stride `p`; rows `< m` exact and zero in columns `≥ m`, rows
     /// `≥ m` unspecified), each entry summed in order of the column index `k`, and
     /// `r = b − A x` (`p` entries, zero from `m` on), each product summed as
-    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries.
+    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries (and
+    /// `linalg::TRANSPOSED_SLACK` more, which may be read).
     #[allow(clippy::too_many_arguments)]
     fn gram_and_residual(
         self,

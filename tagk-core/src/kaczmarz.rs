@@ -48,7 +48,8 @@
 //! are never fused), so the same seed gives the same bits on every machine:
 //! - portable loops (any target, any scalar; what a Cortex-M7 runs);
 //! - x86-64 with AVX2 (`std` feature): for `f64` the window packed transposed (with the prior
-//!   residual from the same loads), the Gram matrix one row strip at a time from it, and
+//!   residual from the same loads), the Gram matrix along the diagonals of blocks of four
+//!   rows from it, and
 //!   `x₀ + Aᵀc̄` in `ymm` blocks; for `f32` 8 × 8 Gram tiles; for `f64` and `f32`, windows
 //!   of up to 32 rows, the greedy loop with the window held in `ymm` registers across
 //!   iterations;
@@ -209,7 +210,8 @@ impl KaczmarzConfig {
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
 /// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
 /// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
-/// `n·p` on x86-64 and aarch64 for a transposed copy of the window.
+/// `n·p` on x86-64 and aarch64 for a transposed copy of the window (and 4 more on x86-64, read
+/// past its end by the AVX2 Gram kernel).
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
@@ -217,7 +219,7 @@ pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     // The transposed copy of a window is only kept where SIMD units are wide (see the Gram
     // kernels).
     let transposed = if crate::linalg::TRANSPOSED_COPY {
-        n * p
+        n * p + crate::linalg::TRANSPOSED_SLACK
     } else {
         0
     };
@@ -355,7 +357,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (scratch, rest) = rest.split_at_mut(m);
         let (prefix, rest) = rest.split_at_mut(m);
         let (transposed, rest) = if crate::linalg::TRANSPOSED_COPY {
-            rest.split_at_mut(n * m)
+            rest.split_at_mut(n * m + crate::linalg::TRANSPOSED_SLACK)
         } else {
             rest.split_at_mut(0)
         };

@@ -691,13 +691,13 @@ const PANEL: usize = 8;
 /// 8 × 8 tile `G[I, J]` with `I ≤ J` (eight `zmm` accumulators), whose other factor is
 /// broadcast straight from the rows of `A`; `G[J, I]` is written as the transposed tile.
 ///
-/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then each
-/// row `i < m` is one strip `G[i, 4⌊i/4⌋..p]` (see [`gram_strip_avx2`]): per `k` one broadcast
-/// of `a_ik` and, per four columns, a multiply with the transposed window as its memory operand
-/// and an add, the fewest instructions per product that separate multiplies and adds allow
-/// (a 4 × 8 register tile needs two more loads and four broadcasts per `k` for 32 products,
-/// and computes the diagonal blocks' lower-left quarters too). The blocks left of the strips
-/// are their mirror images, transposed 4 × 4 at a time.
+/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then the
+/// upper triangle of each block of four rows is computed along its diagonals (see
+/// [`gram_avx2`]): per `k` one load of `at[k, i₀..i₀+4]` shared by up to twelve
+/// diagonals and, per diagonal, a multiply with the transposed window as its memory operand
+/// and an add, each entry of the upper triangle once (128 vectors for 30 rows, where row
+/// strips from the diagonal blocks need 142 and a broadcast per row). The blocks below the
+/// diagonal are mirror images, transposed 4 × 4 at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2, and AVX-512F if `avx512f`.
@@ -731,7 +731,7 @@ unsafe fn gram_and_residual_f64(
             bj += PANEL;
         }
         // SAFETY: the slices were checked above; AVX2 is the caller's promise.
-        unsafe { gram_strips_avx2(at, n, m, p, gram) };
+        unsafe { gram_avx2(at, n, m, p, gram) };
         return;
     }
     let mut bj = 0;
@@ -979,37 +979,53 @@ unsafe fn gram_panel_avx512(
 }
 
 /// `G = A Aᵀ` for `f64` from the transposed window `at` (`n × p`, stride `p`, zero in the
-/// columns `≥ m`): for each row `i < m` the strip `G[i, 4⌊i/4⌋..p]` (in pieces of at most
-/// eight vectors: eight accumulators), then, per block of four rows, the 4 × 4 blocks left of
-/// the strips below them as the transposes of the blocks above (the same products, commuted,
-/// summed in the same order: the same bits). Columns `≥ m` of rows `< m` are exact zeros
-/// (`+0` products of the zero columns, summed from `+0`); rows `≥ m` are left unspecified.
+/// columns `≥ m`), per block of four rows `i₀..i₀+4` (`i₀ < m`, a multiple of 4) along the
+/// diagonals: the vector `Σ_k at[k, i₀..i₀+4] · at[k, i₀+d..i₀+d+4]` holds
+/// `G[i₀ + l, i₀ + l + d]` in lane `l`, one load of `at[k, i₀..]` per `k` shared by up to
+/// twelve diagonals whose factors are the multiplies' memory operands (see
+/// [`gram_diagonals`]), and every entry of the upper triangle is computed once. Four
+/// diagonals transposed are four row pieces `G[i₀ + l, i₀ + l + d₀..+4]`, stored unaligned.
+/// Diagonals `d ≥ m − i₀` only reach columns `≥ m` and are stored as zeros without computing.
+/// A row piece that runs past column `p − 1` spills into the first columns of the next row,
+/// and a vector reaching past `at`'s row reads the next one (the last row's from the slack
+/// past `at`, `linalg::TRANSPOSED_SLACK`): those lanes only ever land left of a diagonal block
+/// or in the lower-left of one, written again below. The last block of a window with
+/// `m > p − 4` is computed as row strips instead (its spill would leave the matrix).
+///
+/// Then, per block, the lower-left of the diagonal 4 × 4 block and the 4 × 4 blocks left of
+/// it come from the transposes of the blocks above (the same products, commuted, summed in the
+/// same order: the same bits). Every entry is summed in order of `k` from `+0` (multiply, then
+/// add); columns `≥ m` of rows `< m` are exact zeros; rows `≥ m` are left unspecified.
 ///
 /// # Safety
-/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
-/// of 8 with `m ≤ p`.
+/// The CPU must support AVX2; `at` holds `n · p + linalg::TRANSPOSED_SLACK` entries and `gram`
+/// `p · p`, `p` a multiple of 8 with `m ≤ p`.
 #[target_feature(enable = "avx2")]
-unsafe fn gram_strips_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
+unsafe fn gram_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
     // SAFETY: the caller's promise; the stride is `p` in each call.
     unsafe {
         // The window sizes of a robot's estimator get a compile-time stride (constant
         // displacements, no address arithmetic in the loop); others the run-time one.
         match p {
-            8 => gram_strips_stride::<8>(at, n, m, p, gram),
-            16 => gram_strips_stride::<16>(at, n, m, p, gram),
-            24 => gram_strips_stride::<24>(at, n, m, p, gram),
-            32 => gram_strips_stride::<32>(at, n, m, p, gram),
-            _ => gram_strips_stride::<0>(at, n, m, p, gram),
+            8 => gram_avx2_stride::<8>(at, n, m, p, gram),
+            16 => gram_avx2_stride::<16>(at, n, m, p, gram),
+            24 => gram_avx2_stride::<24>(at, n, m, p, gram),
+            32 => gram_avx2_stride::<32>(at, n, m, p, gram),
+            _ => gram_avx2_stride::<0>(at, n, m, p, gram),
         }
     }
 }
 
-/// [`gram_strips_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
+/// Most diagonals [`gram_diagonals`] computes at once (twelve accumulators, the shared
+/// factor and a product in sixteen `ymm` registers).
+const DIAGONAL_GROUPS: usize = 3;
+
+/// [`gram_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
 ///
 /// # Safety
-/// As [`gram_strips_avx2`], and `P` is `0` or `p`.
+/// As [`gram_avx2`], and `P` is `0` or `p`.
 #[inline(always)]
-unsafe fn gram_strips_stride<const P: usize>(
+unsafe fn gram_avx2_stride<const P: usize>(
     at: &[f64],
     n: usize,
     m: usize,
@@ -1017,32 +1033,74 @@ unsafe fn gram_strips_stride<const P: usize>(
     gram: &mut [f64],
 ) {
     let p = if P == 0 { p } else { P };
-    assert!(at.len() >= n * p && gram.len() >= p * p && m <= p && p % 8 == 0);
-    let g = gram.as_mut_ptr();
-    let mut j0 = 0;
-    while j0 < m {
-        // SAFETY: columns j0..p of `at` and of `gram`'s rows, rows below p (checked above).
+    assert!(
+        at.len() >= n * p + crate::linalg::TRANSPOSED_SLACK
+            && gram.len() >= p * p
+            && m <= p
+            && p % 8 == 0
+    );
+    let (t, g) = (at.as_ptr(), gram.as_mut_ptr());
+    // Diagonals computed in the last group of four of a block (`m − i₀ ≡ m mod 4`).
+    let partial = m % 4;
+    let mut i0 = 0;
+    while i0 < m {
+        // SAFETY (this loop): reads of `at` below n · p + 3 (a diagonal d < m − i₀ reads up to
+        // column i₀ + d + 3 ≤ p + 2 of its row); writes of `gram` at rows i₀..i₀+4 ≤ p − 4 + 3,
+        // columns below p, spilling at most three entries into the next row, < p · p as
+        // i₀ + 4 < p here; the last block's strips stay in their rows.
         unsafe {
-            for i in j0..(j0 + 4).min(m) {
-                let mut c = j0;
-                while c < p {
-                    let v = ((p - c) / 4).min(8);
-                    // The broadcast a_ik = at[k·p + i], relative to the strip's columns.
-                    let (cols, s) = (at.as_ptr().add(c), i as isize - c as isize);
-                    let out = g.add(i * p + c);
-                    match v {
-                        1 => gram_strip_avx2::<1, P>(cols, s, n, p, out),
-                        2 => gram_strip_avx2::<2, P>(cols, s, n, p, out),
-                        3 => gram_strip_avx2::<3, P>(cols, s, n, p, out),
-                        4 => gram_strip_avx2::<4, P>(cols, s, n, p, out),
-                        5 => gram_strip_avx2::<5, P>(cols, s, n, p, out),
-                        6 => gram_strip_avx2::<6, P>(cols, s, n, p, out),
-                        7 => gram_strip_avx2::<7, P>(cols, s, n, p, out),
-                        _ => gram_strip_avx2::<8, P>(cols, s, n, p, out),
-                    }
-                    c += 4 * v;
+            if i0 + 4 == p {
+                for i in i0..m {
+                    let s = i as isize - i0 as isize;
+                    gram_strip_avx2::<1, P>(t.add(i0), s, n, p, g.add(i * p + i0));
+                }
+                break;
+            }
+            let live = (m - i0).div_ceil(4);
+            let mut group = 0;
+            while group < live {
+                let count = (live - group).min(DIAGONAL_GROUPS);
+                let last = if group + count == live { partial } else { 0 };
+                let (base, d0) = (t.add(i0), 4 * group);
+                let out = g.add(i0 * p + i0 + d0);
+                match (count, last) {
+                    (1, 0) => gram_diagonals::<1, 0, P>(base, d0, n, p, out),
+                    (1, 1) => gram_diagonals::<1, 1, P>(base, d0, n, p, out),
+                    (1, 2) => gram_diagonals::<1, 2, P>(base, d0, n, p, out),
+                    (1, _) => gram_diagonals::<1, 3, P>(base, d0, n, p, out),
+                    (2, 0) => gram_diagonals::<2, 0, P>(base, d0, n, p, out),
+                    (2, 1) => gram_diagonals::<2, 1, P>(base, d0, n, p, out),
+                    (2, 2) => gram_diagonals::<2, 2, P>(base, d0, n, p, out),
+                    (2, _) => gram_diagonals::<2, 3, P>(base, d0, n, p, out),
+                    (_, 0) => gram_diagonals::<3, 0, P>(base, d0, n, p, out),
+                    (_, 1) => gram_diagonals::<3, 1, P>(base, d0, n, p, out),
+                    (_, 2) => gram_diagonals::<3, 2, P>(base, d0, n, p, out),
+                    (_, _) => gram_diagonals::<3, 3, P>(base, d0, n, p, out),
+                }
+                group += count;
+            }
+            // Diagonals reaching columns ≥ m only: zeros.
+            let zero = _mm256_setzero_pd();
+            for group in live..(p - i0) / 4 {
+                for l in 0..4 {
+                    _mm256_storeu_pd(g.add((i0 + l) * p + i0 + l + 4 * group), zero);
                 }
             }
+        }
+        i0 += 4;
+    }
+    let mut j0 = 0;
+    while j0 < m {
+        // SAFETY: rows and columns below p of `gram` (j0 + 4 ≤ p).
+        unsafe {
+            // The diagonal block's lower-left from its upper-right.
+            let block: [__m256d; 4] =
+                core::array::from_fn(|s| _mm256_loadu_pd(g.add((j0 + s) * p + j0)));
+            let mirror = transpose4(block);
+            let row = |l: usize| g.add((j0 + l) * p + j0);
+            _mm256_storeu_pd(row(1), _mm256_blend_pd::<0b0001>(block[1], mirror[1]));
+            _mm256_storeu_pd(row(2), _mm256_blend_pd::<0b0011>(block[2], mirror[2]));
+            _mm256_storeu_pd(row(3), _mm256_blend_pd::<0b0111>(block[3], mirror[3]));
             // The mirror images G[c.., j0..j0+4] of the blocks G[j0..j0+4, c..] right of the
             // diagonal block (rows j0.. past m, if any, only reach rows ≥ m of G).
             let mut c = j0 + 4;
@@ -1056,6 +1114,68 @@ unsafe fn gram_strips_stride<const P: usize>(
             }
         }
         j0 += 4;
+    }
+}
+
+/// Diagonals `d₀..d₀ + 4G` of a block of four rows (of the last group only the first `L`,
+/// if `L > 0`; the others come out as zeros), stored as `G` row pieces: with `base` at
+/// `at + i₀`, lane `l` of diagonal `d` is `Σ_k at[k·p + i₀ + l] · at[k·p + i₀ + l + d]`, summed in
+/// order of `k` (multiply, then add, from `+0`), and `out[l·p + l + 4q + δ]` (with `out` at
+/// `G[i₀, i₀ + d₀]`) receives diagonal `d₀ + 4q + δ` of lane `l`.
+///
+/// # Safety
+/// The CPU must support AVX2; `base` is readable at `k·p + d₀ + 4G + 2` for `k < n`, `out`
+/// writable at `l·p + l + 4G + 3` for `l < 4`; `P` is `0` or `p`.
+#[inline(always)]
+unsafe fn gram_diagonals<const G: usize, const L: usize, const P: usize>(
+    base: *const f64,
+    d0: usize,
+    n: usize,
+    p: usize,
+    out: *mut f64,
+) {
+    let p = if P == 0 { p } else { P };
+    // Diagonals computed.
+    let live = if L == 0 { 4 * G } else { 4 * G - 4 + L };
+    #[inline(always)]
+    unsafe fn step(
+        acc: &mut [__m256d; 4 * DIAGONAL_GROUPS],
+        row: *const f64,
+        d0: usize,
+        live: usize,
+    ) {
+        // SAFETY: the caller's promise.
+        unsafe {
+            let u = _mm256_loadu_pd(row);
+            let shifted = row.add(d0);
+            for (q, acc_q) in acc.iter_mut().enumerate().take(live) {
+                *acc_q = _mm256_add_pd(_mm256_mul_pd(u, _mm256_loadu_pd(shifted.add(q))), *acc_q);
+            }
+        }
+    }
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut acc = [_mm256_setzero_pd(); 4 * DIAGONAL_GROUPS];
+        let mut row = base;
+        // k in order: four per pass (written out: the compiler keeps a loop over a longer
+        // pass rolled, at three instructions per k), then the rest.
+        for _ in 0..n / 4 {
+            step(&mut acc, row, d0, live);
+            step(&mut acc, row.add(p), d0, live);
+            step(&mut acc, row.add(2 * p), d0, live);
+            step(&mut acc, row.add(3 * p), d0, live);
+            row = row.add(4 * p);
+        }
+        for _ in 0..n % 4 {
+            step(&mut acc, row, d0, live);
+            row = row.add(p);
+        }
+        for q in 0..G {
+            let four = [acc[4 * q], acc[4 * q + 1], acc[4 * q + 2], acc[4 * q + 3]];
+            for (l, piece) in transpose4(four).iter().enumerate() {
+                _mm256_storeu_pd(out.add(l * p + l + 4 * q), *piece);
+            }
+        }
     }
 }
 
@@ -1589,6 +1709,71 @@ mod tests {
             ),
             Some(5)
         );
+    }
+
+    /// The AVX2 packing and Gram kernels against the portable ones (`transpose_padded`,
+    /// `gram_transposed`, `residual_rows`), bit for bit, for every window height up to 41 and
+    /// widths around the multiples of 4: rows `< m` of `G` in full and the `p` residuals, with
+    /// stale NaNs in the scratch (and in the slack past `at`, which the diagonals read) and
+    /// sentinels past `G` and `r`, which must not be written.
+    #[test]
+    fn avx2_gram_and_residual_are_the_portable_bits() {
+        use crate::linalg::{TRANSPOSED_SLACK, gram_transposed, residual_rows, transpose_padded};
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(41);
+        let mut value = || crate::greedy::uniform(&mut rng) * 2.0 - 1.0;
+        for m in 1..=41 {
+            for n in [1, 2, 3, 4, 5, 7, 10, 13, 120] {
+                let p = padded(m);
+                let a: Vec<f64> = (0..m * n).map(|_| value()).collect();
+                let b: Vec<f64> = (0..m).map(|_| value()).collect();
+                let x: Vec<f64> = (0..n).map(|_| value()).collect();
+                let mut at = vec![0.0; n * p];
+                transpose_padded(&a, n, m, &mut at);
+                let mut want_g = vec![0.0; p * p];
+                gram_transposed(&at, n, m, &mut want_g);
+                let mut want_r = vec![0.0; p];
+                residual_rows(&a, n, m, &x, &b, &mut want_r);
+
+                let mut at = vec![f64::NAN; n * p + TRANSPOSED_SLACK];
+                let mut g = vec![f64::NAN; p * p + 8];
+                let mut r = vec![f64::NAN; p + 8];
+                g[p * p..].fill(7.0);
+                r[p..].fill(7.0);
+                // SAFETY: AVX2 detected above.
+                unsafe {
+                    gram_and_residual_f64(
+                        false,
+                        &a,
+                        &b,
+                        &x,
+                        n,
+                        m,
+                        &mut at,
+                        &mut g[..p * p],
+                        &mut r[..p],
+                    )
+                };
+                for i in 0..m {
+                    for j in 0..p {
+                        assert_eq!(
+                            g[i * p + j].to_bits(),
+                            want_g[i * p + j].to_bits(),
+                            "m={m} n={n} G[{i}][{j}]"
+                        );
+                    }
+                }
+                for j in 0..p {
+                    assert_eq!(r[j].to_bits(), want_r[j].to_bits(), "m={m} n={n} r[{j}]");
+                }
+                assert!(
+                    g[p * p..].iter().chain(&r[p..]).all(|&v| v == 7.0),
+                    "m={m} n={n}"
+                );
+            }
+        }
     }
 
     #[test]
