@@ -77,6 +77,11 @@ pub(crate) trait Lanes8: Copy {
     /// The scalar of a lane.
     type T: Real;
 
+    /// Whether [`iterate_chunks`] keeps the residual negated in memory, `−r`, so that its
+    /// update `−r + α g` is an add with the residual as a memory operand (x86) instead of a
+    /// load and a subtraction; on a load/store architecture it gains nothing.
+    const NEGATED_RESIDUAL: bool = false;
+
     /// Eight scalars from `p`.
     ///
     /// # Safety
@@ -95,6 +100,11 @@ pub(crate) trait Lanes8: Copy {
     fn add(self, o: Self) -> Self;
     /// `self − o`.
     fn sub(self, o: Self) -> Self;
+    /// `+0 − self`: the negation, up to the sign of a zero.
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self::splat(Self::T::cast(0.0)).sub(self)
+    }
     /// `self · o`.
     fn mul(self, o: Self) -> Self;
     /// Bitwise `self & o` (with a keep table's entries: lanes kept or set to `+0`).
@@ -162,10 +172,17 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     // in memory (stored every iteration, read once per iteration by the update).
     // (Loops, not `array::from_fn`: a closure the compiler leaves out of line is not compiled
     // for the SIMD instruction set.)
+    // With `V::NEGATED_RESIDUAL` the residual in memory is `−r` during the iterations (the
+    // same squares; `α = (−(−r_i))/‖a_i‖²` exactly; only signs of zero residuals can differ,
+    // which no coefficient sees: a zero α adds nothing to a coefficient, and coefficients
+    // start at `+0`).
     let zero = V::splat(V::T::cast(0.0));
     let (mut sq, mut inv, mut ratio) = ([zero; C], [zero; C], [zero; C]);
     for c in 0..C {
         let r = unsafe { V::load(rp.add(LANES * c)) };
+        if V::NEGATED_RESIDUAL {
+            unsafe { r.neg().store(rp.add(LANES * c)) };
+        }
         sq[c] = r.mul(r);
         inv[c] = unsafe { V::load(ip.add(LANES * c)) };
         ratio[c] = sq[c].mul(inv[c]);
@@ -201,17 +218,24 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
             Some(i) => i,
             None => unsafe { argmax_in_memory(rp, ip, p) },
         };
-        // SAFETY: i < p.
-        let alpha = unsafe { *rp.add(i) * *ip.add(i) };
-        w.coef[i] += alpha;
+        // SAFETY: i < p (a row of the window), and p entries of each (checked above).
+        let alpha = unsafe {
+            let r = *rp.add(i);
+            let r = if V::NEGATED_RESIDUAL { -r } else { r };
+            r * *ip.add(i)
+        };
+        // SAFETY: as above.
+        unsafe { *w.coef.get_unchecked_mut(i) += alpha };
         if AVERAGE {
             // In the burn-in the weight is (T − t_b)/(T − t_b) = 1 exactly, and α · 1 = α:
             // the division is skipped, not the bits.
-            w.coef_avg[i] += if iterations > s.t_b {
+            let step = if iterations > s.t_b {
                 alpha * s.weight(iterations)
             } else {
                 alpha
             };
+            // SAFETY: as above.
+            unsafe { *w.coef_avg.get_unchecked_mut(i) += step };
         }
         // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual: squares summed
         // chunk by chunk into eight lane sums (the first chunk's squares are the sums:
@@ -224,9 +248,14 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         for c in 0..C {
             // SAFETY: as above.
             let v = unsafe {
-                let v = V::load(rp.add(LANES * c))
-                    .sub(a.mul(V::load(g.add(LANES * c))))
-                    .and(V::load(k.add(LANES * c)));
+                let (rc, gc) = (V::load(rp.add(LANES * c)), V::load(g.add(LANES * c)));
+                // −r + α g = −(r − α g) exactly: IEEE-754 rounds symmetrically.
+                let v = if V::NEGATED_RESIDUAL {
+                    a.mul(gc).add(rc)
+                } else {
+                    rc.sub(a.mul(gc))
+                };
+                let v = v.and(V::load(k.add(LANES * c)));
                 v.store(rp.add(LANES * c));
                 v
             };
@@ -241,6 +270,15 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         converged = rnorm2 <= s.tol2;
     }
     draws.finish();
+    if V::NEGATED_RESIDUAL {
+        for c in 0..C {
+            // SAFETY: p entries of the residual.
+            unsafe {
+                let q = V::load(rp.add(LANES * c));
+                q.neg().store(rp.add(LANES * c));
+            }
+        }
+    }
     (iterations, converged)
 }
 
