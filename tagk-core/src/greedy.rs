@@ -241,6 +241,15 @@ pub(crate) trait Kernels<T: Real>: Copy {
         resid: &mut [T],
     );
 
+    /// The row norms `‖a_i‖² = G_ii` for `i < m` into `norm2`, from the `pm × pm` Gram
+    /// matrix `gram` (stride `pm`).
+    #[inline(always)]
+    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) {
+        for i in 0..m {
+            norm2[i] = gram[i * pm + i];
+        }
+    }
+
     /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
     /// coefficient, each entry summed in order of those rows exactly as
     /// [`crate::linalg::add_combination`] does (which is the default).

@@ -406,9 +406,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             // The greedy variants need nearly every Gram entry anyway (they visit most rows of
             // a window), so the full matrix is built at once; its diagonal holds the norms.
             k.gram_and_residual(a, b, p.estimate, n, m, p.transposed, p.gram, p.resid);
-            for i in 0..m {
-                p.norm2[i] = p.gram[i * pm + i];
-            }
+            k.gram_diagonal(p.gram, pm, m, p.norm2);
         } else {
             for i in 0..m {
                 let (nn, ax) = norm2_and_dot(&a[i * n..(i + 1) * n], p.estimate);

@@ -163,6 +163,17 @@ impl<T: Real> Kernels<T> for Avx2 {
     }
 
     #[inline(always)]
+    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) {
+        // No bounds check per row.
+        assert!(m <= pm && gram.len() >= pm * pm && norm2.len() >= m);
+        let g = gram.as_ptr();
+        for (i, nn) in norm2[..m].iter_mut().enumerate() {
+            // SAFETY: i · (pm + 1) < pm² (checked above).
+            *nn = unsafe { *g.add(i * (pm + 1)) };
+        }
+    }
+
+    #[inline(always)]
     fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
         if is_f64::<T>() {
             // SAFETY: `self` proves AVX2 support; the casts are between identical types.
