@@ -111,12 +111,10 @@ pub(crate) trait Lanes8: Copy {
     fn and(self, o: Self) -> Self;
     /// `if self > best { self } else { best }` (so a NaN in `self` keeps `best`).
     fn max_onto(self, best: Self) -> Self;
-    /// `v` where `self ≥ t`, else `+0` (false on NaN).
-    fn select_ge(self, t: Self, v: Self) -> Self;
+    /// All-ones lanes where `self ≥ t`, zero elsewhere (false on NaN).
+    fn ge_mask(self, t: Self) -> Self;
     /// All-ones lanes where `self > t`, zero elsewhere (false on NaN).
     fn gt_mask(self, t: Self) -> Self;
-    /// All-ones lanes where `self > t` and `prefix > target`, zero elsewhere (false on NaN).
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self;
     /// The lane masks of `C` chunks as bits in lane-major order: bit `4l + c` set when lane
     /// `l` of `masks[c]` is (see [`LANE_MAJOR_U64`]).
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
@@ -202,15 +200,27 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
-        let mut weights = [zero; C];
+        let (mut candidate, mut weights) = ([zero; C], [zero; C]);
         for c in 0..C {
-            weights[c] = ratio[c].select_ge(threshold, sq[c]);
+            candidate[c] = ratio[c].ge_mask(threshold);
+            weights[c] = candidate[c].and(sq[c]);
         }
         let (down, before, total) = prefix_chunks(&weights);
         let mut chosen = None;
         if total.first() > V::T::cast(0.0) {
             let target = V::splat(V::T::cast(draws.next())).mul(total);
-            chosen = pick_chunks(&weights, &down, before, target);
+            // The positive weights: with θ > 0 exactly the candidates (r_j²/‖a_j‖² ≥ θ > 0
+            // needs r_j² > 0, and a NaN ratio is no candidate), else those with r_j² > 0.
+            let positive = if threshold.first() > V::T::cast(0.0) {
+                candidate
+            } else {
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    positive[c] = candidate[c].and(sq[c]).gt_mask(zero);
+                }
+                positive
+            };
+            chosen = pick_chunks(&positive, &down, before, target);
         }
         // The residual in memory is the current one (stored every iteration).
         // SAFETY: p entries of each, and no other live reference to the residual.
@@ -296,14 +306,15 @@ pub(crate) fn prefix_chunks<V: Lanes8, const C: usize>(weights: &[V; C]) -> ([V;
 }
 
 /// The row drawn for `target` (documented order, the rule of
-/// [`crate::greedy::draw_row`]): the first row in lane-major order with a positive weight and
-/// `P > target`; on round-off, the last with a positive weight; `None` if no weight is
-/// positive. Rows are drawn among positive weights only: a candidate's weight can be zero
-/// when the threshold underflows to zero, and its running sum can still exceed the target by
-/// round-off (the scan across the lanes is not the sequential sum).
+/// [`crate::greedy::draw_row`]), given the masks of the positive weights (all-ones lanes where
+/// `w > 0`): the first row in lane-major order with a positive weight and `P > target`; on
+/// round-off, the last with a positive weight; `None` if no weight is positive. Rows are drawn
+/// among positive weights only: a candidate's weight can be zero when the threshold underflows
+/// to zero, and its running sum can still exceed the target by round-off (the scan across the
+/// lanes is not the sequential sum).
 #[inline(always)]
 pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
-    weights: &[V; C],
+    positive: &[V; C],
     down: &[V; C],
     before: V,
     target: V,
@@ -312,7 +323,7 @@ pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
     // Bits in lane-major order (bit 4l + c for row 8c + l).
     let mut hits = [zero; C];
     for c in 0..C {
-        hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
+        hits[c] = positive[c].and(before.add(down[c]).gt_mask(target));
     }
     let hit = V::lane_major_bits(&hits);
     let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
@@ -320,11 +331,7 @@ pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
         Some(row(hit.trailing_zeros()))
     } else {
         // Round-off: the last positive weight in lane-major order.
-        let mut positive = [zero; C];
-        for c in 0..C {
-            positive[c] = weights[c].gt_mask(zero);
-        }
-        let positive = V::lane_major_bits(&positive);
+        let positive = V::lane_major_bits(positive);
         (positive != 0).then(|| row(31 - positive.leading_zeros()))
     }
 }

@@ -296,11 +296,11 @@ impl Lanes8 for F64x8 {
         unsafe { Self(_mm256_max_pd(self.0, best.0), _mm256_max_pd(self.1, best.1)) }
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
+    fn ge_mask(self, t: Self) -> Self {
         unsafe {
             Self(
-                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0), v.0),
-                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1), v.1),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1),
             )
         }
     }
@@ -312,10 +312,6 @@ impl Lanes8 for F64x8 {
                 _mm256_cmp_pd::<_CMP_GT_OQ>(self.1, t.1),
             )
         }
-    }
-    #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
@@ -440,16 +436,12 @@ impl Lanes8 for F32x8 {
         unsafe { Self(_mm256_max_ps(self.0, best.0)) }
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
-        unsafe { Self(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0), v.0)) }
+    fn ge_mask(self, t: Self) -> Self {
+        unsafe { Self(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0)) }
     }
     #[inline(always)]
     fn gt_mask(self, t: Self) -> Self {
         unsafe { Self(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) }
-    }
-    #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
@@ -1608,7 +1600,12 @@ mod tests {
         let weights: [V; C] =
             core::array::from_fn(|c| unsafe { V::load(w.as_ptr().add(LANES * c)) });
         let (down, before, _) = prefix_chunks(&weights);
-        pick_chunks(&weights, &down, before, V::splat(target))
+        let zero = V::splat(V::T::cast(0.0));
+        let mut positive = weights;
+        for w in positive.iter_mut() {
+            *w = w.gt_mask(zero);
+        }
+        pick_chunks(&positive, &down, before, V::splat(target))
     }
 
     /// The row the AVX-512 loop draws for weights `w` (`8C` entries) and `target`.
@@ -1724,6 +1721,59 @@ mod tests {
             ),
             Some(5)
         );
+    }
+
+    /// The eight-lane loop's shortcut: with a threshold `θ > 0` the candidates
+    /// (`r²·(1/‖a‖²) ≥ θ`) are exactly the rows of positive weight, over squares and reciprocal
+    /// norms with zeros, subnormals, infinities and NaNs.
+    #[test]
+    fn candidates_are_the_positive_weights_when_the_threshold_is_positive() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let special = [
+            0.0,
+            5e-324,
+            1e-300,
+            0.5,
+            1.0,
+            3e300,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..2000 {
+            let mut pick = || {
+                let k = rng.next_u32() as usize;
+                if k.is_multiple_of(3) {
+                    special[k / 3 % special.len()]
+                } else {
+                    crate::greedy::uniform(&mut rng) * 2.0
+                }
+            };
+            let sq: [f64; 8] = core::array::from_fn(|_| pick());
+            let inv: [f64; 8] = core::array::from_fn(|_| pick());
+            let theta = pick();
+            if theta.is_nan() || theta <= 0.0 {
+                continue;
+            }
+            // SAFETY: AVX2 detected above; eight entries each.
+            let (candidate, positive) = unsafe { candidate_and_positive(&sq, &inv, theta) };
+            assert_eq!(candidate, positive, "sq {sq:?} inv {inv:?} theta {theta}");
+        }
+    }
+
+    /// The candidate and positive-weight masks of eight lanes, as `iterate_chunks` forms them.
+    #[target_feature(enable = "avx2")]
+    unsafe fn candidate_and_positive(sq: &[f64; 8], inv: &[f64; 8], theta: f64) -> (u32, u32) {
+        // SAFETY: eight entries each.
+        let (sq, inv) = unsafe { (F64x8::load(sq.as_ptr()), F64x8::load(inv.as_ptr())) };
+        let candidate = sq.mul(inv).ge_mask(F64x8::splat(theta));
+        let positive = candidate.and(sq).gt_mask(F64x8::splat(0.0));
+        (
+            F64x8::lane_major_bits(&[candidate]),
+            F64x8::lane_major_bits(&[positive]),
+        )
     }
 
     /// The AVX2 packing and Gram kernels against the portable ones (`transpose_padded`,
