@@ -252,7 +252,9 @@ pub(crate) trait Kernels<T: Real>: Copy {
 
     /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
     /// coefficient, each entry summed in order of those rows exactly as
-    /// [`crate::linalg::add_combination`] does (which is the default).
+    /// [`crate::linalg::add_combination`] does (which is the default). Only x86-64 calls it
+    /// (elsewhere the estimator calls the portable loop directly).
+    #[cfg_attr(not(all(feature = "std", target_arch = "x86_64")), allow(dead_code))]
     #[inline(always)]
     fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
         crate::linalg::add_combination(x, a, coef, n, m);
