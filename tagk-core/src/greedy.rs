@@ -250,6 +250,45 @@ pub(crate) trait Kernels<T: Real>: Copy {
         }
     }
 
+    /// The padded window's vectors (`pm` entries each, a multiple of 8) made ready for the
+    /// iterations, from finite norms and prior residuals of the `m` rows: entries `≥ m` of
+    /// `norm2` and `resid` zeroed, `inv_norm2 = 1/‖a_i‖²` where `‖a_i‖² > 0` and zero
+    /// elsewhere (a zero row carries no information: never chosen, never divided by), the
+    /// residual zeroed there too, the coefficients cleared. Returns `‖A‖_F²` (as
+    /// [`lane_sum`]; norms are never negative, so unusable rows add exact zeros) and the
+    /// residual's statistics (as [`residual_stats`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn prepare(
+        self,
+        m: usize,
+        pm: usize,
+        norm2: &mut [T],
+        inv_norm2: &mut [T],
+        resid: &mut [T],
+        coef: &mut [T],
+        coef_avg: &mut [T],
+    ) -> (T, T, T) {
+        // Branch-free, vectorisable passes (slices of `pm` entries each: no bounds check in the
+        // loop, which the compiler then vectorises).
+        norm2[m..pm].fill(T::zero());
+        resid[m..pm].fill(T::zero());
+        let (norm2, inv_norm2, resid) = (&norm2[..pm], &mut inv_norm2[..pm], &mut resid[..pm]);
+        let (coef, coef_avg) = (&mut coef[..pm], &mut coef_avg[..pm]);
+        for i in 0..pm {
+            let nn = norm2[i];
+            let usable = nn > T::zero();
+            let inv = T::one() / nn;
+            inv_norm2[i] = if usable { inv } else { T::zero() };
+            resid[i] = if usable { resid[i] } else { T::zero() };
+            coef[i] = T::zero();
+            coef_avg[i] = T::zero();
+        }
+        let fro2 = lane_sum(norm2);
+        let (rnorm2, max_ratio) = residual_stats(resid, inv_norm2);
+        (fro2, rnorm2, max_ratio)
+    }
+
     /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
     /// coefficient, each entry summed in order of those rows exactly as
     /// [`crate::linalg::add_combination`] does (which is the default). Only x86-64 calls it

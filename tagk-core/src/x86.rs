@@ -163,6 +163,35 @@ impl<T: Real> Kernels<T> for Avx2 {
     }
 
     #[inline(always)]
+    fn prepare(
+        self,
+        m: usize,
+        pm: usize,
+        norm2: &mut [T],
+        inv_norm2: &mut [T],
+        resid: &mut [T],
+        coef: &mut [T],
+        coef_avg: &mut [T],
+    ) -> (T, T, T) {
+        if !is_f64::<T>() {
+            return Portable.prepare(m, pm, norm2, inv_norm2, resid, coef, coef_avg);
+        }
+        // SAFETY: `self` proves AVX2 support; the casts are between identical types.
+        let (fro2, rnorm2, max_ratio) = unsafe {
+            prepare_f64(
+                m,
+                pm,
+                f64s_mut(norm2),
+                f64s_mut(inv_norm2),
+                f64s_mut(resid),
+                f64s_mut(coef),
+                f64s_mut(coef_avg),
+            )
+        };
+        (T::cast(fro2), T::cast(rnorm2), T::cast(max_ratio))
+    }
+
+    #[inline(always)]
     fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) {
         // No bounds check per row.
         assert!(m <= pm && gram.len() >= pm * pm && norm2.len() >= m);
@@ -504,6 +533,84 @@ impl Lanes8 for F32x8 {
     fn keep_table() -> &'static [f32; KEEP_LEN] {
         &KEEP_F32
     }
+}
+
+/// [`Kernels::prepare`] for `f64` in one pass of four entries at a time: the padding masked
+/// to zero, `1/‖a_i‖²` and the residual where `‖a_i‖² > 0` (a division, as the portable
+/// pass), the coefficients cleared, and the sums of `‖a_i‖²` and `r_i²` in two vectors each
+/// (lanes `j mod 8 < 4` and `≥ 4`: the eight lane sums of [`crate::greedy::lane_sum`], each in
+/// order of `j`), combined as `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; the largest
+/// ratio `r_i²/‖a_i‖²` lane by lane (MAXPD keeps the running value on a NaN, as the portable
+/// `if v > best`), then across the lanes (a maximum is exact in any order).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn prepare_f64(
+    m: usize,
+    pm: usize,
+    norm2: &mut [f64],
+    inv_norm2: &mut [f64],
+    resid: &mut [f64],
+    coef: &mut [f64],
+    coef_avg: &mut [f64],
+) -> (f64, f64, f64) {
+    assert!(
+        m <= pm
+            && pm.is_multiple_of(8)
+            && norm2.len() >= pm
+            && inv_norm2.len() >= pm
+            && resid.len() >= pm
+            && coef.len() >= pm
+            && coef_avg.len() >= pm
+    );
+    let zero = _mm256_setzero_pd();
+    let one = _mm256_set1_pd(1.0);
+    let lanes = _mm256_set_epi64x(3, 2, 1, 0);
+    let (mut fro, mut sum, mut best) = ([zero; 2], [zero; 2], zero);
+    let mut j = 0;
+    while j < pm {
+        // Lanes j mod 8 < 4, then ≥ 4.
+        for half in 0..2 {
+            let j = j + 4 * half;
+            // SAFETY: entries j..j+4 < pm of each slice (checked above).
+            unsafe {
+                // All-ones in the lanes of rows below m.
+                let live = _mm256_castsi256_pd(_mm256_cmpgt_epi64(
+                    _mm256_set1_epi64x(m as i64 - j as i64),
+                    lanes,
+                ));
+                let nn = _mm256_and_pd(live, _mm256_loadu_pd(norm2.as_ptr().add(j)));
+                _mm256_storeu_pd(norm2.as_mut_ptr().add(j), nn);
+                let usable = _mm256_cmp_pd::<_CMP_GT_OQ>(nn, zero);
+                let inv = _mm256_and_pd(usable, _mm256_div_pd(one, nn));
+                let r = _mm256_and_pd(
+                    _mm256_and_pd(usable, live),
+                    _mm256_loadu_pd(resid.as_ptr().add(j)),
+                );
+                _mm256_storeu_pd(inv_norm2.as_mut_ptr().add(j), inv);
+                _mm256_storeu_pd(resid.as_mut_ptr().add(j), r);
+                _mm256_storeu_pd(coef.as_mut_ptr().add(j), zero);
+                _mm256_storeu_pd(coef_avg.as_mut_ptr().add(j), zero);
+                fro[half] = _mm256_add_pd(fro[half], nn);
+                let r2 = _mm256_mul_pd(r, r);
+                sum[half] = _mm256_add_pd(sum[half], r2);
+                best = _mm256_max_pd(_mm256_mul_pd(r2, inv), best);
+            }
+        }
+        j += 8;
+    }
+    let total = |s: [__m256d; 2]| {
+        let t = _mm256_add_pd(s[0], s[1]);
+        let u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd::<1>(t));
+        _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)))
+    };
+    let b = _mm_max_pd(
+        _mm256_castpd256_pd128(best),
+        _mm256_extractf128_pd::<1>(best),
+    );
+    let b = _mm_max_sd(b, _mm_unpackhi_pd(b, b));
+    (total(fro), total(sum), _mm_cvtsd_f64(b))
 }
 
 /// Vectors of four `f64` per block of [`add_combination_f64`]: twelve accumulators, one
@@ -1721,6 +1828,49 @@ mod tests {
             ),
             Some(5)
         );
+    }
+
+    /// `prepare_f64` against the portable pass (`Kernels::prepare` of `Portable`), bit for
+    /// bit: every window height up to 40, zero rows, stale values in the padding.
+    #[test]
+    fn avx2_prepare_is_the_portable_pass() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for m in 1..=40 {
+            let pm = padded(m);
+            let mut value = |zero_every: u32| {
+                if rng.next_u32() % zero_every == 0 {
+                    0.0
+                } else {
+                    crate::greedy::uniform(&mut rng) * 3.0
+                }
+            };
+            let norm2: Vec<f64> = (0..pm).map(|_| value(5)).collect();
+            let resid: Vec<f64> = (0..pm).map(|_| value(7) - 1.5).collect();
+            let (mut n1, mut i1, mut r1, mut c1, mut a1) = (
+                norm2.clone(),
+                vec![9.0; pm],
+                resid.clone(),
+                vec![9.0; pm],
+                vec![9.0; pm],
+            );
+            let (mut n2, mut i2, mut r2, mut c2, mut a2) =
+                (n1.clone(), i1.clone(), r1.clone(), c1.clone(), a1.clone());
+            let want = Portable.prepare(m, pm, &mut n1, &mut i1, &mut r1, &mut c1, &mut a1);
+            // SAFETY: AVX2 detected above.
+            let got = unsafe { prepare_f64(m, pm, &mut n2, &mut i2, &mut r2, &mut c2, &mut a2) };
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                [want.0.to_bits(), want.1.to_bits(), want.2.to_bits()],
+                [got.0.to_bits(), got.1.to_bits(), got.2.to_bits()],
+                "m={m}"
+            );
+            for (x, y) in [(&n1, &n2), (&i1, &i2), (&r1, &r2), (&c1, &c2), (&a1, &a2)] {
+                assert_eq!(bits(x), bits(y), "m={m}");
+            }
+        }
     }
 
     /// The eight-lane loop's shortcut: with a threshold `θ > 0` the candidates
