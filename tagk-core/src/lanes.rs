@@ -197,6 +197,7 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
         let threshold = max_v.mul(half).add(sum_v.mul(half_inv_fro2));
+        let threshold_positive = threshold.first() > V::T::cast(0.0);
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
@@ -210,13 +211,17 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         if total.first() > V::T::cast(0.0) {
             let target = V::splat(V::T::cast(draws.next())).mul(total);
             // The positive weights: with θ > 0 exactly the candidates (r_j²/‖a_j‖² ≥ θ > 0
-            // needs r_j² > 0, and a NaN ratio is no candidate), else those with r_j² > 0.
-            let positive = if threshold.first() > V::T::cast(0.0) {
+            // needs r_j² > 0, and a NaN ratio is no candidate), else the candidates with
+            // r_j² > 0 (squares of the residual in memory, the current one: the weights need
+            // not stay in registers for this rare case).
+            let positive = if threshold_positive {
                 candidate
             } else {
                 let mut positive = [zero; C];
                 for c in 0..C {
-                    positive[c] = candidate[c].and(sq[c]).gt_mask(zero);
+                    // SAFETY: p entries of the residual.
+                    let r = unsafe { V::load(rp.add(LANES * c)) };
+                    positive[c] = candidate[c].and(r.mul(r)).gt_mask(zero);
                 }
                 positive
             };
