@@ -1271,16 +1271,23 @@ unsafe fn gram_diagonals<const G: usize, const L: usize, const P: usize>(
     unsafe {
         let mut acc = [_mm256_setzero_pd(); 4 * DIAGONAL_GROUPS];
         let mut row = base;
-        // k in order: four per pass (written out: the compiler keeps a loop over a longer
-        // pass rolled, at three instructions per k), then the rest.
-        for _ in 0..n / 4 {
+        // k in order: the first on its own (its products added to one register of zeros,
+        // not to a zeroed register per accumulator), then four per pass (written out: the
+        // compiler keeps a loop over a longer pass rolled, at three instructions per k), then
+        // the rest.
+        let rest = n.saturating_sub(1);
+        if n > 0 {
+            step(&mut acc, row, d0, live);
+            row = row.add(p);
+        }
+        for _ in 0..rest / 4 {
             step(&mut acc, row, d0, live);
             step(&mut acc, row.add(p), d0, live);
             step(&mut acc, row.add(2 * p), d0, live);
             step(&mut acc, row.add(3 * p), d0, live);
             row = row.add(4 * p);
         }
-        for _ in 0..n % 4 {
+        for _ in 0..rest % 4 {
             step(&mut acc, row, d0, live);
             row = row.add(p);
         }
