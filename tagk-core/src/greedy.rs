@@ -242,51 +242,33 @@ pub(crate) trait Kernels<T: Real>: Copy {
     );
 
     /// The row norms `‖a_i‖² = G_ii` for `i < m` into `norm2`, from the `pm × pm` Gram
-    /// matrix `gram` (stride `pm`).
+    /// matrix `gram` (stride `pm`), where the kernel set has its own loop: `false` (the
+    /// default) leaves it to the estimator's portable loop.
     #[inline(always)]
-    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) {
-        for i in 0..m {
-            norm2[i] = gram[i * pm + i];
-        }
+    fn gram_diagonal(self, _gram: &[T], _pm: usize, _m: usize, _norm2: &mut [T]) -> bool {
+        false
     }
 
-    /// The padded window's vectors (`pm` entries each, a multiple of 8) made ready for the
-    /// iterations, from finite norms and prior residuals of the `m` rows: entries `≥ m` of
-    /// `norm2` and `resid` zeroed, `inv_norm2 = 1/‖a_i‖²` where `‖a_i‖² > 0` and zero
-    /// elsewhere (a zero row carries no information: never chosen, never divided by), the
-    /// residual zeroed there too, the coefficients cleared. Returns `‖A‖_F²` (as
-    /// [`lane_sum`]; norms are never negative, so unusable rows add exact zeros) and the
-    /// residual's statistics (as [`residual_stats`]).
+    /// The estimator's setup passes over the padded window (`pm` entries each, a multiple of
+    /// 8), where the kernel set has its own: from finite norms and prior residuals of the `m`
+    /// rows, entries `≥ m` of `norm2` and `resid` zeroed, `inv_norm2 = 1/‖a_i‖²` where
+    /// `‖a_i‖² > 0` and zero elsewhere, the residual zeroed there too, the coefficients
+    /// cleared; returns `‖A‖_F²` (as [`lane_sum`]) and the residual's statistics (as
+    /// [`residual_stats`]), the bits of the estimator's portable passes. `None` (the default)
+    /// leaves them to those passes.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn prepare(
         self,
-        m: usize,
-        pm: usize,
-        norm2: &mut [T],
-        inv_norm2: &mut [T],
-        resid: &mut [T],
-        coef: &mut [T],
-        coef_avg: &mut [T],
-    ) -> (T, T, T) {
-        // Branch-free, vectorisable passes (slices of `pm` entries each: no bounds check in the
-        // loop, which the compiler then vectorises).
-        norm2[m..pm].fill(T::zero());
-        resid[m..pm].fill(T::zero());
-        let (norm2, inv_norm2, resid) = (&norm2[..pm], &mut inv_norm2[..pm], &mut resid[..pm]);
-        let (coef, coef_avg) = (&mut coef[..pm], &mut coef_avg[..pm]);
-        for i in 0..pm {
-            let nn = norm2[i];
-            let usable = nn > T::zero();
-            let inv = T::one() / nn;
-            inv_norm2[i] = if usable { inv } else { T::zero() };
-            resid[i] = if usable { resid[i] } else { T::zero() };
-            coef[i] = T::zero();
-            coef_avg[i] = T::zero();
-        }
-        let fro2 = lane_sum(norm2);
-        let (rnorm2, max_ratio) = residual_stats(resid, inv_norm2);
-        (fro2, rnorm2, max_ratio)
+        _m: usize,
+        _pm: usize,
+        _norm2: &mut [T],
+        _inv_norm2: &mut [T],
+        _resid: &mut [T],
+        _coef: &mut [T],
+        _coef_avg: &mut [T],
+    ) -> Option<(T, T, T)> {
+        None
     }
 
     /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero

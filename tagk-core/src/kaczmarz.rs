@@ -406,7 +406,11 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             // The greedy variants need nearly every Gram entry anyway (they visit most rows of
             // a window), so the full matrix is built at once; its diagonal holds the norms.
             k.gram_and_residual(a, b, p.estimate, n, m, p.transposed, p.gram, p.resid);
-            k.gram_diagonal(p.gram, pm, m, p.norm2);
+            if !k.gram_diagonal(p.gram, pm, m, p.norm2) {
+                for i in 0..m {
+                    p.norm2[i] = p.gram[i * pm + i];
+                }
+            }
         } else {
             for i in 0..m {
                 let (nn, ax) = norm2_and_dot(&a[i * n..(i + 1) * n], p.estimate);
@@ -427,13 +431,42 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
                 .unwrap_or(0);
             return Err(EstimatorError::NonFiniteRegressor { row, col: 0 });
         }
-        // Reciprocal norms, zero rows and padding made inert, coefficients cleared, ‖A‖_F² and
-        // the residual's statistics (see `Kernels::prepare`).
-        let (fro2, rnorm2, max_ratio) =
-            k.prepare(m, pm, p.norm2, p.inv_norm2, p.resid, p.coef, p.coef_avg);
-        if fro2 <= T::zero() {
-            return Err(EstimatorError::NoUsableRow);
-        }
+        // Branch-free, vectorisable passes over the padded window: reciprocal norms, zero rows
+        // and padding made inert (a zero row carries no information: never chosen, never
+        // divided by), coefficients cleared, ‖A‖_F² in eight lane sums (norms are never
+        // negative, so unusable rows add exact zeros); or the kernel set's own pass, the same
+        // bits (`Kernels::prepare`).
+        let (fro2, rnorm2, max_ratio) = if let Some((fro2, rnorm2, max_ratio)) =
+            k.prepare(m, pm, p.norm2, p.inv_norm2, p.resid, p.coef, p.coef_avg)
+        {
+            if fro2 <= T::zero() {
+                return Err(EstimatorError::NoUsableRow);
+            }
+            (fro2, rnorm2, max_ratio)
+        } else {
+            p.norm2[m..pm].fill(T::zero());
+            p.resid[m..pm].fill(T::zero());
+            // (Slices of `pm` entries each: no bounds check in the loop, which the compiler
+            // then vectorises.)
+            let (norm2, inv_norm2, resid) =
+                (&p.norm2[..pm], &mut p.inv_norm2[..pm], &mut p.resid[..pm]);
+            let (coef, coef_avg) = (&mut p.coef[..pm], &mut p.coef_avg[..pm]);
+            for i in 0..pm {
+                let nn = norm2[i];
+                let usable = nn > T::zero();
+                let inv = T::one() / nn;
+                inv_norm2[i] = if usable { inv } else { T::zero() };
+                resid[i] = if usable { resid[i] } else { T::zero() };
+                coef[i] = T::zero();
+                coef_avg[i] = T::zero();
+            }
+            let fro2 = greedy::lane_sum(&p.norm2[..pm]);
+            if fro2 <= T::zero() {
+                return Err(EstimatorError::NoUsableRow);
+            }
+            let (rnorm2, max_ratio) = greedy::residual_stats(&p.resid[..pm], &p.inv_norm2[..pm]);
+            (fro2, rnorm2, max_ratio)
+        };
         if !fro2.is_finite() || !rnorm2.is_finite() {
             return Err(EstimatorError::Diverged);
         }

@@ -172,9 +172,9 @@ impl<T: Real> Kernels<T> for Avx2 {
         resid: &mut [T],
         coef: &mut [T],
         coef_avg: &mut [T],
-    ) -> (T, T, T) {
+    ) -> Option<(T, T, T)> {
         if !is_f64::<T>() {
-            return Portable.prepare(m, pm, norm2, inv_norm2, resid, coef, coef_avg);
+            return None;
         }
         // SAFETY: `self` proves AVX2 support; the casts are between identical types.
         let (fro2, rnorm2, max_ratio) = unsafe {
@@ -188,11 +188,11 @@ impl<T: Real> Kernels<T> for Avx2 {
                 f64s_mut(coef_avg),
             )
         };
-        (T::cast(fro2), T::cast(rnorm2), T::cast(max_ratio))
+        Some((T::cast(fro2), T::cast(rnorm2), T::cast(max_ratio)))
     }
 
     #[inline(always)]
-    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) {
+    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) -> bool {
         // No bounds check per row.
         assert!(m <= pm && gram.len() >= pm * pm && norm2.len() >= m);
         let g = gram.as_ptr();
@@ -200,6 +200,7 @@ impl<T: Real> Kernels<T> for Avx2 {
             // SAFETY: i · (pm + 1) < pm² (checked above).
             *nn = unsafe { *g.add(i * (pm + 1)) };
         }
+        true
     }
 
     #[inline(always)]
@@ -1837,8 +1838,9 @@ mod tests {
         );
     }
 
-    /// `prepare_f64` against the portable pass (`Kernels::prepare` of `Portable`), bit for
-    /// bit: every window height up to 40, zero rows, stale values in the padding.
+    /// `prepare_f64` against the estimator's portable passes (written out here as
+    /// `kaczmarz.rs` runs them), bit for bit: every window height up to 40, zero rows, stale
+    /// values in the padding.
     #[test]
     fn avx2_prepare_is_the_portable_pass() {
         if !std::is_x86_feature_detected!("avx2") {
@@ -1865,7 +1867,18 @@ mod tests {
             );
             let (mut n2, mut i2, mut r2, mut c2, mut a2) =
                 (n1.clone(), i1.clone(), r1.clone(), c1.clone(), a1.clone());
-            let want = Portable.prepare(m, pm, &mut n1, &mut i1, &mut r1, &mut c1, &mut a1);
+            n1[m..].fill(0.0);
+            r1[m..].fill(0.0);
+            for i in 0..pm {
+                let usable = n1[i] > 0.0;
+                i1[i] = if usable { 1.0 / n1[i] } else { 0.0 };
+                r1[i] = if usable { r1[i] } else { 0.0 };
+                c1[i] = 0.0;
+                a1[i] = 0.0;
+            }
+            let fro2 = crate::greedy::lane_sum(&n1);
+            let (rnorm2, max_ratio) = crate::greedy::residual_stats(&r1, &i1);
+            let want = (fro2, rnorm2, max_ratio);
             // SAFETY: AVX2 detected above.
             let got = unsafe { prepare_f64(m, pm, &mut n2, &mut i2, &mut r2, &mut c2, &mut a2) };
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
