@@ -82,6 +82,11 @@ pub(crate) trait Lanes8: Copy {
     /// load and a subtraction; on a load/store architecture it gains nothing.
     const NEGATED_RESIDUAL: bool = false;
 
+    /// Whether [`iterate_chunks`] takes the candidate masks as the positive weights' masks
+    /// when the threshold is positive (sparing a comparison per vector, at the price of the
+    /// masks staying live until the row is drawn), instead of comparing the weights with zero.
+    const CANDIDATES_ARE_POSITIVE: bool = false;
+
     /// Eight scalars from `p`.
     ///
     /// # Safety
@@ -214,7 +219,13 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
             // needs r_j² > 0, and a NaN ratio is no candidate), else the candidates with
             // r_j² > 0 (squares of the residual in memory, the current one: the weights need
             // not stay in registers for this rare case).
-            let positive = if threshold_positive {
+            let positive = if !V::CANDIDATES_ARE_POSITIVE {
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    positive[c] = weights[c].gt_mask(zero);
+                }
+                positive
+            } else if threshold_positive {
                 candidate
             } else {
                 let mut positive = [zero; C];

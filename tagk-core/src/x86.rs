@@ -282,6 +282,7 @@ struct F32x8(__m256);
 // compiled for AVX2 (`iterate_avx2`), and pointers are the callers' promise.
 impl Lanes8 for F64x8 {
     type T = f64;
+    const CANDIDATES_ARE_POSITIVE: bool = true;
     // (The negated residual measured +38 instructions per update here: the compiler then
     // keeps the stored residual in spill slots for the next iteration instead of reading it
     // back as a memory operand.)
@@ -428,6 +429,7 @@ impl Lanes8 for F64x8 {
 impl Lanes8 for F32x8 {
     type T = f32;
     const NEGATED_RESIDUAL: bool = true;
+    const CANDIDATES_ARE_POSITIVE: bool = true;
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         unsafe { Self(_mm256_loadu_ps(p)) }
