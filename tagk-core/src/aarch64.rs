@@ -530,21 +530,12 @@ impl Lanes8 for F64x8 {
         self.map(best, |v, b| unsafe { vbslq_f64(vcgtq_f64(v, b), v, b) })
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
-        Self(core::array::from_fn(|q| unsafe {
-            vreinterpretq_f64_u64(vandq_u64(
-                vcgeq_f64(self.0[q], t.0[q]),
-                vreinterpretq_u64_f64(v.0[q]),
-            ))
-        }))
+    fn ge_mask(self, t: Self) -> Self {
+        self.map(t, |a, b| unsafe { vreinterpretq_f64_u64(vcgeq_f64(a, b)) })
     }
     #[inline(always)]
     fn gt_mask(self, t: Self) -> Self {
         self.map(t, |a, b| unsafe { vreinterpretq_f64_u64(vcgtq_f64(a, b)) })
-    }
-    #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
@@ -656,21 +647,12 @@ impl Lanes8 for F32x8 {
         self.map(best, |v, b| unsafe { vbslq_f32(vcgtq_f32(v, b), v, b) })
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
-        Self(core::array::from_fn(|q| unsafe {
-            vreinterpretq_f32_u32(vandq_u32(
-                vcgeq_f32(self.0[q], t.0[q]),
-                vreinterpretq_u32_f32(v.0[q]),
-            ))
-        }))
+    fn ge_mask(self, t: Self) -> Self {
+        self.map(t, |a, b| unsafe { vreinterpretq_f32_u32(vcgeq_f32(a, b)) })
     }
     #[inline(always)]
     fn gt_mask(self, t: Self) -> Self {
         self.map(t, |a, b| unsafe { vreinterpretq_f32_u32(vcgtq_f32(a, b)) })
-    }
-    #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {

@@ -226,7 +226,8 @@ pub(crate) trait Kernels<T: Real>: Copy {
     /// `G = A Aᵀ` (`p × p`, stride `p`; rows `< m` exact and zero in columns `≥ m`, rows
     /// `≥ m` unspecified), each entry summed in order of the column index `k`, and
     /// `r = b − A x` (`p` entries, zero from `m` on), each product summed as
-    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries.
+    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries (and
+    /// `linalg::TRANSPOSED_SLACK` more, which may be read).
     #[allow(clippy::too_many_arguments)]
     fn gram_and_residual(
         self,
@@ -240,9 +241,41 @@ pub(crate) trait Kernels<T: Real>: Copy {
         resid: &mut [T],
     );
 
+    /// The row norms `‖a_i‖² = G_ii` for `i < m` into `norm2`, from the `pm × pm` Gram
+    /// matrix `gram` (stride `pm`), where the kernel set has its own loop: `false` (the
+    /// default) leaves it to the estimator's portable loop.
+    #[inline(always)]
+    fn gram_diagonal(self, _gram: &[T], _pm: usize, _m: usize, _norm2: &mut [T]) -> bool {
+        false
+    }
+
+    /// The estimator's setup passes over the padded window (`pm` entries each, a multiple of
+    /// 8), where the kernel set has its own: from finite norms and prior residuals of the `m`
+    /// rows, entries `≥ m` of `norm2` and `resid` zeroed, `inv_norm2 = 1/‖a_i‖²` where
+    /// `‖a_i‖² > 0` and zero elsewhere, the residual zeroed there too, the coefficients
+    /// cleared; returns `‖A‖_F²` (as [`lane_sum`]) and the residual's statistics (as
+    /// [`residual_stats`]), the bits of the estimator's portable passes. `None` (the default)
+    /// leaves them to those passes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn prepare(
+        self,
+        _m: usize,
+        _pm: usize,
+        _norm2: &mut [T],
+        _inv_norm2: &mut [T],
+        _resid: &mut [T],
+        _coef: &mut [T],
+        _coef_avg: &mut [T],
+    ) -> Option<(T, T, T)> {
+        None
+    }
+
     /// `x ← x + Aᵀc` for the row-major `m × n` window `a`, over the rows with a nonzero
     /// coefficient, each entry summed in order of those rows exactly as
-    /// [`crate::linalg::add_combination`] does (which is the default).
+    /// [`crate::linalg::add_combination`] does (which is the default). Only x86-64 calls it
+    /// (elsewhere the estimator calls the portable loop directly).
+    #[cfg_attr(not(all(feature = "std", target_arch = "x86_64")), allow(dead_code))]
     #[inline(always)]
     fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
         crate::linalg::add_combination(x, a, coef, n, m);

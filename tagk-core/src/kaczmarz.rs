@@ -48,7 +48,8 @@
 //! are never fused), so the same seed gives the same bits on every machine:
 //! - portable loops (any target, any scalar; what a Cortex-M7 runs);
 //! - x86-64 with AVX2 (`std` feature): for `f64` the window packed transposed (with the prior
-//!   residual from the same loads), the Gram matrix one row strip at a time from it, and
+//!   residual from the same loads), the Gram matrix along the diagonals of blocks of four
+//!   rows from it, and
 //!   `x₀ + Aᵀc̄` in `ymm` blocks; for `f32` 8 × 8 Gram tiles; for `f64` and `f32`, windows
 //!   of up to 32 rows, the greedy loop with the window held in `ymm` registers across
 //!   iterations;
@@ -209,7 +210,8 @@ impl KaczmarzConfig {
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
 /// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
 /// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
-/// `n·p` on x86-64 and aarch64 for a transposed copy of the window.
+/// `n·p` on x86-64 and aarch64 for a transposed copy of the window (and 4 more on x86-64, read
+/// past its end by the AVX2 Gram kernel).
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
@@ -217,7 +219,7 @@ pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
     // The transposed copy of a window is only kept where SIMD units are wide (see the Gram
     // kernels).
     let transposed = if crate::linalg::TRANSPOSED_COPY {
-        n * p
+        n * p + crate::linalg::TRANSPOSED_SLACK
     } else {
         0
     };
@@ -355,7 +357,7 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         let (scratch, rest) = rest.split_at_mut(m);
         let (prefix, rest) = rest.split_at_mut(m);
         let (transposed, rest) = if crate::linalg::TRANSPOSED_COPY {
-            rest.split_at_mut(n * m)
+            rest.split_at_mut(n * m + crate::linalg::TRANSPOSED_SLACK)
         } else {
             rest.split_at_mut(0)
         };
@@ -404,8 +406,10 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
             // The greedy variants need nearly every Gram entry anyway (they visit most rows of
             // a window), so the full matrix is built at once; its diagonal holds the norms.
             k.gram_and_residual(a, b, p.estimate, n, m, p.transposed, p.gram, p.resid);
-            for i in 0..m {
-                p.norm2[i] = p.gram[i * pm + i];
+            if !k.gram_diagonal(p.gram, pm, m, p.norm2) {
+                for i in 0..m {
+                    p.norm2[i] = p.gram[i * pm + i];
+                }
             }
         } else {
             for i in 0..m {
@@ -430,28 +434,39 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         // Branch-free, vectorisable passes over the padded window: reciprocal norms, zero rows
         // and padding made inert (a zero row carries no information: never chosen, never
         // divided by), coefficients cleared, ‖A‖_F² in eight lane sums (norms are never
-        // negative, so unusable rows add exact zeros).
-        p.norm2[m..pm].fill(T::zero());
-        p.resid[m..pm].fill(T::zero());
-        // (Slices of `pm` entries each: no bounds check in the loop, which the compiler then
-        // vectorises.)
-        let (norm2, inv_norm2, resid) =
-            (&p.norm2[..pm], &mut p.inv_norm2[..pm], &mut p.resid[..pm]);
-        let (coef, coef_avg) = (&mut p.coef[..pm], &mut p.coef_avg[..pm]);
-        for i in 0..pm {
-            let nn = norm2[i];
-            let usable = nn > T::zero();
-            let inv = T::one() / nn;
-            inv_norm2[i] = if usable { inv } else { T::zero() };
-            resid[i] = if usable { resid[i] } else { T::zero() };
-            coef[i] = T::zero();
-            coef_avg[i] = T::zero();
-        }
-        let fro2 = greedy::lane_sum(&p.norm2[..pm]);
-        if fro2 <= T::zero() {
-            return Err(EstimatorError::NoUsableRow);
-        }
-        let (rnorm2, max_ratio) = greedy::residual_stats(&p.resid[..pm], &p.inv_norm2[..pm]);
+        // negative, so unusable rows add exact zeros); or the kernel set's own pass, the same
+        // bits (`Kernels::prepare`).
+        let (fro2, rnorm2, max_ratio) = if let Some((fro2, rnorm2, max_ratio)) =
+            k.prepare(m, pm, p.norm2, p.inv_norm2, p.resid, p.coef, p.coef_avg)
+        {
+            if fro2 <= T::zero() {
+                return Err(EstimatorError::NoUsableRow);
+            }
+            (fro2, rnorm2, max_ratio)
+        } else {
+            p.norm2[m..pm].fill(T::zero());
+            p.resid[m..pm].fill(T::zero());
+            // (Slices of `pm` entries each: no bounds check in the loop, which the compiler
+            // then vectorises.)
+            let (norm2, inv_norm2, resid) =
+                (&p.norm2[..pm], &mut p.inv_norm2[..pm], &mut p.resid[..pm]);
+            let (coef, coef_avg) = (&mut p.coef[..pm], &mut p.coef_avg[..pm]);
+            for i in 0..pm {
+                let nn = norm2[i];
+                let usable = nn > T::zero();
+                let inv = T::one() / nn;
+                inv_norm2[i] = if usable { inv } else { T::zero() };
+                resid[i] = if usable { resid[i] } else { T::zero() };
+                coef[i] = T::zero();
+                coef_avg[i] = T::zero();
+            }
+            let fro2 = greedy::lane_sum(&p.norm2[..pm]);
+            if fro2 <= T::zero() {
+                return Err(EstimatorError::NoUsableRow);
+            }
+            let (rnorm2, max_ratio) = greedy::residual_stats(&p.resid[..pm], &p.inv_norm2[..pm]);
+            (fro2, rnorm2, max_ratio)
+        };
         if !fro2.is_finite() || !rnorm2.is_finite() {
             return Err(EstimatorError::Diverged);
         }

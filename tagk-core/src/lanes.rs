@@ -40,6 +40,7 @@ pub(crate) static KEEP_F32: [f32; KEEP_LEN] = {
 
 /// `LANE_MAJOR_U64[c][l] = 1 << (4l + c)`: the bit of row `8c + l` in lane-major order, for
 /// [`Lanes8::lane_major_bits`] of 64-bit lanes (AND with a lane mask, OR across chunks).
+#[cfg_attr(not(target_arch = "aarch64"), allow(dead_code))] // AVX2 packs its masks instead
 pub(crate) static LANE_MAJOR_U64: [[u64; LANES]; MAX_CHUNKS] = {
     let mut t = [[0u64; LANES]; MAX_CHUNKS];
     let mut c = 0;
@@ -76,6 +77,16 @@ pub(crate) trait Lanes8: Copy {
     /// The scalar of a lane.
     type T: Real;
 
+    /// Whether [`iterate_chunks`] keeps the residual negated in memory, `−r`, so that its
+    /// update `−r + α g` is an add with the residual as a memory operand (x86) instead of a
+    /// load and a subtraction; on a load/store architecture it gains nothing.
+    const NEGATED_RESIDUAL: bool = false;
+
+    /// Whether [`iterate_chunks`] takes the candidate masks as the positive weights' masks
+    /// when the threshold is positive (sparing a comparison per vector, at the price of the
+    /// masks staying live until the row is drawn), instead of comparing the weights with zero.
+    const CANDIDATES_ARE_POSITIVE: bool = false;
+
     /// Eight scalars from `p`.
     ///
     /// # Safety
@@ -94,18 +105,21 @@ pub(crate) trait Lanes8: Copy {
     fn add(self, o: Self) -> Self;
     /// `self − o`.
     fn sub(self, o: Self) -> Self;
+    /// `+0 − self`: the negation, up to the sign of a zero.
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self::splat(Self::T::cast(0.0)).sub(self)
+    }
     /// `self · o`.
     fn mul(self, o: Self) -> Self;
     /// Bitwise `self & o` (with a keep table's entries: lanes kept or set to `+0`).
     fn and(self, o: Self) -> Self;
     /// `if self > best { self } else { best }` (so a NaN in `self` keeps `best`).
     fn max_onto(self, best: Self) -> Self;
-    /// `v` where `self ≥ t`, else `+0` (false on NaN).
-    fn select_ge(self, t: Self, v: Self) -> Self;
+    /// All-ones lanes where `self ≥ t`, zero elsewhere (false on NaN).
+    fn ge_mask(self, t: Self) -> Self;
     /// All-ones lanes where `self > t`, zero elsewhere (false on NaN).
     fn gt_mask(self, t: Self) -> Self;
-    /// All-ones lanes where `self > t` and `prefix > target`, zero elsewhere (false on NaN).
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self;
     /// The lane masks of `C` chunks as bits in lane-major order: bit `4l + c` set when lane
     /// `l` of `masks[c]` is (see [`LANE_MAJOR_U64`]).
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
@@ -161,10 +175,17 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     // in memory (stored every iteration, read once per iteration by the update).
     // (Loops, not `array::from_fn`: a closure the compiler leaves out of line is not compiled
     // for the SIMD instruction set.)
+    // With `V::NEGATED_RESIDUAL` the residual in memory is `−r` during the iterations (the
+    // same squares; `α = (−(−r_i))/‖a_i‖²` exactly; only signs of zero residuals can differ,
+    // which no coefficient sees: a zero α adds nothing to a coefficient, and coefficients
+    // start at `+0`).
     let zero = V::splat(V::T::cast(0.0));
     let (mut sq, mut inv, mut ratio) = ([zero; C], [zero; C], [zero; C]);
     for c in 0..C {
         let r = unsafe { V::load(rp.add(LANES * c)) };
+        if V::NEGATED_RESIDUAL {
+            unsafe { r.neg().store(rp.add(LANES * c)) };
+        }
         sq[c] = r.mul(r);
         inv[c] = unsafe { V::load(ip.add(LANES * c)) };
         ratio[c] = sq[c].mul(inv[c]);
@@ -181,18 +202,41 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
         let threshold = max_v.mul(half).add(sum_v.mul(half_inv_fro2));
+        let threshold_positive = threshold.first() > V::T::cast(0.0);
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
-        let mut weights = [zero; C];
+        let (mut candidate, mut weights) = ([zero; C], [zero; C]);
         for c in 0..C {
-            weights[c] = ratio[c].select_ge(threshold, sq[c]);
+            candidate[c] = ratio[c].ge_mask(threshold);
+            weights[c] = candidate[c].and(sq[c]);
         }
         let (down, before, total) = prefix_chunks(&weights);
         let mut chosen = None;
         if total.first() > V::T::cast(0.0) {
             let target = V::splat(V::T::cast(draws.next())).mul(total);
-            chosen = pick_chunks(&weights, &down, before, target);
+            // The positive weights: with θ > 0 exactly the candidates (r_j²/‖a_j‖² ≥ θ > 0
+            // needs r_j² > 0, and a NaN ratio is no candidate), else the candidates with
+            // r_j² > 0 (squares of the residual in memory, the current one: the weights need
+            // not stay in registers for this rare case).
+            let positive = if !V::CANDIDATES_ARE_POSITIVE {
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    positive[c] = weights[c].gt_mask(zero);
+                }
+                positive
+            } else if threshold_positive {
+                candidate
+            } else {
+                let mut positive = [zero; C];
+                for c in 0..C {
+                    // SAFETY: p entries of the residual.
+                    let r = unsafe { V::load(rp.add(LANES * c)) };
+                    positive[c] = candidate[c].and(r.mul(r)).gt_mask(zero);
+                }
+                positive
+            };
+            chosen = pick_chunks(&positive, &down, before, target);
         }
         // The residual in memory is the current one (stored every iteration).
         // SAFETY: p entries of each, and no other live reference to the residual.
@@ -200,17 +244,24 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
             Some(i) => i,
             None => unsafe { argmax_in_memory(rp, ip, p) },
         };
-        // SAFETY: i < p.
-        let alpha = unsafe { *rp.add(i) * *ip.add(i) };
-        w.coef[i] += alpha;
+        // SAFETY: i < p (a row of the window), and p entries of each (checked above).
+        let alpha = unsafe {
+            let r = *rp.add(i);
+            let r = if V::NEGATED_RESIDUAL { -r } else { r };
+            r * *ip.add(i)
+        };
+        // SAFETY: as above.
+        unsafe { *w.coef.get_unchecked_mut(i) += alpha };
         if AVERAGE {
             // In the burn-in the weight is (T − t_b)/(T − t_b) = 1 exactly, and α · 1 = α:
             // the division is skipped, not the bits.
-            w.coef_avg[i] += if iterations > s.t_b {
+            let step = if iterations > s.t_b {
                 alpha * s.weight(iterations)
             } else {
                 alpha
             };
+            // SAFETY: as above.
+            unsafe { *w.coef_avg.get_unchecked_mut(i) += step };
         }
         // r ← r − α G e_i, r_i ← 0, and the statistics of the new residual: squares summed
         // chunk by chunk into eight lane sums (the first chunk's squares are the sums:
@@ -223,9 +274,14 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         for c in 0..C {
             // SAFETY: as above.
             let v = unsafe {
-                let v = V::load(rp.add(LANES * c))
-                    .sub(a.mul(V::load(g.add(LANES * c))))
-                    .and(V::load(k.add(LANES * c)));
+                let (rc, gc) = (V::load(rp.add(LANES * c)), V::load(g.add(LANES * c)));
+                // −r + α g = −(r − α g) exactly: IEEE-754 rounds symmetrically.
+                let v = if V::NEGATED_RESIDUAL {
+                    a.mul(gc).add(rc)
+                } else {
+                    rc.sub(a.mul(gc))
+                };
+                let v = v.and(V::load(k.add(LANES * c)));
                 v.store(rp.add(LANES * c));
                 v
             };
@@ -240,6 +296,15 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         converged = rnorm2 <= s.tol2;
     }
     draws.finish();
+    if V::NEGATED_RESIDUAL {
+        for c in 0..C {
+            // SAFETY: p entries of the residual.
+            unsafe {
+                let q = V::load(rp.add(LANES * c));
+                q.neg().store(rp.add(LANES * c));
+            }
+        }
+    }
     (iterations, converged)
 }
 
@@ -257,14 +322,15 @@ pub(crate) fn prefix_chunks<V: Lanes8, const C: usize>(weights: &[V; C]) -> ([V;
 }
 
 /// The row drawn for `target` (documented order, the rule of
-/// [`crate::greedy::draw_row`]): the first row in lane-major order with a positive weight and
-/// `P > target`; on round-off, the last with a positive weight; `None` if no weight is
-/// positive. Rows are drawn among positive weights only: a candidate's weight can be zero
-/// when the threshold underflows to zero, and its running sum can still exceed the target by
-/// round-off (the scan across the lanes is not the sequential sum).
+/// [`crate::greedy::draw_row`]), given the masks of the positive weights (all-ones lanes where
+/// `w > 0`): the first row in lane-major order with a positive weight and `P > target`; on
+/// round-off, the last with a positive weight; `None` if no weight is positive. Rows are drawn
+/// among positive weights only: a candidate's weight can be zero when the threshold underflows
+/// to zero, and its running sum can still exceed the target by round-off (the scan across the
+/// lanes is not the sequential sum).
 #[inline(always)]
 pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
-    weights: &[V; C],
+    positive: &[V; C],
     down: &[V; C],
     before: V,
     target: V,
@@ -273,7 +339,7 @@ pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
     // Bits in lane-major order (bit 4l + c for row 8c + l).
     let mut hits = [zero; C];
     for c in 0..C {
-        hits[c] = weights[c].gt_gt_mask(zero, before.add(down[c]), target);
+        hits[c] = positive[c].and(before.add(down[c]).gt_mask(target));
     }
     let hit = V::lane_major_bits(&hits);
     let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
@@ -281,11 +347,7 @@ pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
         Some(row(hit.trailing_zeros()))
     } else {
         // Round-off: the last positive weight in lane-major order.
-        let mut positive = [zero; C];
-        for c in 0..C {
-            positive[c] = weights[c].gt_mask(zero);
-        }
-        let positive = V::lane_major_bits(&positive);
+        let positive = V::lane_major_bits(positive);
         (positive != 0).then(|| row(31 - positive.leading_zeros()))
     }
 }

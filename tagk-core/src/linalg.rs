@@ -166,6 +166,11 @@ pub(crate) const GRAM_FROM_TRANSPOSED: bool = cfg!(target_arch = "x86_64");
 /// where a Gram kernel reads one (x86-64, aarch64).
 pub(crate) const TRANSPOSED_COPY: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
+/// Scalars readable past the transposed copy (x86-64: the AVX2 Gram kernel's vectors along the
+/// diagonals read up to three entries past a row of `Aᵀ`, the last row's from here; what they
+/// read only lands in entries of `G` written again afterwards).
+pub(crate) const TRANSPOSED_SLACK: usize = if cfg!(target_arch = "x86_64") { 4 } else { 0 };
+
 /// Writes `Aᵀ` of a row-major `m × n` matrix into `at` as an `n × stride` row-major matrix
 /// (`stride = padded(m)`), zero in the padding columns.
 #[inline(always)]

@@ -20,9 +20,7 @@ use crate::greedy::{
     Draws, Kernels, LANES, Portable, Requested, Schedule, Window, argmax_ratio, iterate_portable,
     requested,
 };
-use crate::lanes::{
-    KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, LANE_MAJOR_U64, Lanes8, MAX_CHUNKS, iterate_any,
-};
+use crate::lanes::{KEEP_F32, KEEP_F64, KEEP_LEN, LANE_MAJOR_U32, Lanes8, MAX_CHUNKS, iterate_any};
 use crate::linalg::padded;
 
 /// Proof that the CPU supports AVX2: only [`Avx2::detect`] makes one.
@@ -165,6 +163,47 @@ impl<T: Real> Kernels<T> for Avx2 {
     }
 
     #[inline(always)]
+    fn prepare(
+        self,
+        m: usize,
+        pm: usize,
+        norm2: &mut [T],
+        inv_norm2: &mut [T],
+        resid: &mut [T],
+        coef: &mut [T],
+        coef_avg: &mut [T],
+    ) -> Option<(T, T, T)> {
+        if !is_f64::<T>() {
+            return None;
+        }
+        // SAFETY: `self` proves AVX2 support; the casts are between identical types.
+        let (fro2, rnorm2, max_ratio) = unsafe {
+            prepare_f64(
+                m,
+                pm,
+                f64s_mut(norm2),
+                f64s_mut(inv_norm2),
+                f64s_mut(resid),
+                f64s_mut(coef),
+                f64s_mut(coef_avg),
+            )
+        };
+        Some((T::cast(fro2), T::cast(rnorm2), T::cast(max_ratio)))
+    }
+
+    #[inline(always)]
+    fn gram_diagonal(self, gram: &[T], pm: usize, m: usize, norm2: &mut [T]) -> bool {
+        // No bounds check per row.
+        assert!(m <= pm && gram.len() >= pm * pm && norm2.len() >= m);
+        let g = gram.as_ptr();
+        for (i, nn) in norm2[..m].iter_mut().enumerate() {
+            // SAFETY: i · (pm + 1) < pm² (checked above).
+            *nn = unsafe { *g.add(i * (pm + 1)) };
+        }
+        true
+    }
+
+    #[inline(always)]
     fn add_combination(self, x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
         if is_f64::<T>() {
             // SAFETY: `self` proves AVX2 support; the casts are between identical types.
@@ -243,6 +282,10 @@ struct F32x8(__m256);
 // compiled for AVX2 (`iterate_avx2`), and pointers are the callers' promise.
 impl Lanes8 for F64x8 {
     type T = f64;
+    const CANDIDATES_ARE_POSITIVE: bool = true;
+    // (The negated residual measured +38 instructions per update here: the compiler then
+    // keeps the stored residual in spill slots for the next iteration instead of reading it
+    // back as a memory operand.)
     #[inline(always)]
     unsafe fn load(p: *const f64) -> Self {
         unsafe { Self(_mm256_loadu_pd(p), _mm256_loadu_pd(p.add(4))) }
@@ -284,11 +327,11 @@ impl Lanes8 for F64x8 {
         unsafe { Self(_mm256_max_pd(self.0, best.0), _mm256_max_pd(self.1, best.1)) }
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
+    fn ge_mask(self, t: Self) -> Self {
         unsafe {
             Self(
-                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0), v.0),
-                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1), v.1),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(self.0, t.0),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(self.1, t.1),
             )
         }
     }
@@ -302,21 +345,31 @@ impl Lanes8 for F64x8 {
         }
     }
     #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
-    }
-    #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
+        // The 32 lane masks narrowed to one byte each by three saturating packs (all-ones
+        // stays all-ones, zero stays zero): chunk c's halves h and lanes q = 2k + q' land in
+        // byte 4c + 2h + q' of 128-bit lane k. A byte shuffle (a 4 × 4 transpose per 64 bits)
+        // and a swap of the middle 64-bit quarters put row 8c + l's byte at 4l + c, the
+        // lane-major order, and the bytes' sign bits are the answer.
         unsafe {
-            let (mut lo, mut hi) = (_mm256_setzero_pd(), _mm256_setzero_pd());
-            for (c, m) in masks.iter().enumerate() {
-                let bits = LANE_MAJOR_U64[c].as_ptr().cast::<f64>();
-                lo = _mm256_or_pd(lo, _mm256_and_pd(m.0, _mm256_loadu_pd(bits)));
-                hi = _mm256_or_pd(hi, _mm256_and_pd(m.1, _mm256_loadu_pd(bits.add(4))));
+            let zero = _mm256_setzero_si256();
+            let mut words = [zero; 4];
+            for (c, w) in words.iter_mut().enumerate().take(C) {
+                *w = _mm256_packs_epi32(
+                    _mm256_castpd_si256(masks[c].0),
+                    _mm256_castpd_si256(masks[c].1),
+                );
             }
-            let x = _mm256_castpd_si256(_mm256_or_pd(lo, hi));
-            let y = _mm_or_si128(_mm256_castsi256_si128(x), _mm256_extracti128_si256::<1>(x));
-            _mm_cvtsi128_si64(_mm_or_si128(y, _mm_unpackhi_epi64(y, y))) as u32
+            let bytes = _mm256_packs_epi16(
+                _mm256_packs_epi32(words[0], words[1]),
+                _mm256_packs_epi32(words[2], words[3]),
+            );
+            let transpose = _mm256_setr_epi8(
+                0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15, //
+                0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15,
+            );
+            let ordered = _mm256_permute4x64_epi64::<0xd8>(_mm256_shuffle_epi8(bytes, transpose));
+            _mm256_movemask_epi8(ordered) as u32
         }
     }
     #[inline(always)]
@@ -375,6 +428,8 @@ impl Lanes8 for F64x8 {
 
 impl Lanes8 for F32x8 {
     type T = f32;
+    const NEGATED_RESIDUAL: bool = true;
+    const CANDIDATES_ARE_POSITIVE: bool = true;
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         unsafe { Self(_mm256_loadu_ps(p)) }
@@ -413,16 +468,12 @@ impl Lanes8 for F32x8 {
         unsafe { Self(_mm256_max_ps(self.0, best.0)) }
     }
     #[inline(always)]
-    fn select_ge(self, t: Self, v: Self) -> Self {
-        unsafe { Self(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0), v.0)) }
+    fn ge_mask(self, t: Self) -> Self {
+        unsafe { Self(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, t.0)) }
     }
     #[inline(always)]
     fn gt_mask(self, t: Self) -> Self {
         unsafe { Self(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, t.0)) }
-    }
-    #[inline(always)]
-    fn gt_gt_mask(self, t: Self, prefix: Self, target: Self) -> Self {
-        self.gt_mask(t).and(prefix.gt_mask(target))
     }
     #[inline(always)]
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32 {
@@ -485,6 +536,84 @@ impl Lanes8 for F32x8 {
     fn keep_table() -> &'static [f32; KEEP_LEN] {
         &KEEP_F32
     }
+}
+
+/// [`Kernels::prepare`] for `f64` in one pass of four entries at a time: the padding masked
+/// to zero, `1/‖a_i‖²` and the residual where `‖a_i‖² > 0` (a division, as the portable
+/// pass), the coefficients cleared, and the sums of `‖a_i‖²` and `r_i²` in two vectors each
+/// (lanes `j mod 8 < 4` and `≥ 4`: the eight lane sums of [`crate::greedy::lane_sum`], each in
+/// order of `j`), combined as `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; the largest
+/// ratio `r_i²/‖a_i‖²` lane by lane (MAXPD keeps the running value on a NaN, as the portable
+/// `if v > best`), then across the lanes (a maximum is exact in any order).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn prepare_f64(
+    m: usize,
+    pm: usize,
+    norm2: &mut [f64],
+    inv_norm2: &mut [f64],
+    resid: &mut [f64],
+    coef: &mut [f64],
+    coef_avg: &mut [f64],
+) -> (f64, f64, f64) {
+    assert!(
+        m <= pm
+            && pm.is_multiple_of(8)
+            && norm2.len() >= pm
+            && inv_norm2.len() >= pm
+            && resid.len() >= pm
+            && coef.len() >= pm
+            && coef_avg.len() >= pm
+    );
+    let zero = _mm256_setzero_pd();
+    let one = _mm256_set1_pd(1.0);
+    let lanes = _mm256_set_epi64x(3, 2, 1, 0);
+    let (mut fro, mut sum, mut best) = ([zero; 2], [zero; 2], zero);
+    let mut j = 0;
+    while j < pm {
+        // Lanes j mod 8 < 4, then ≥ 4.
+        for half in 0..2 {
+            let j = j + 4 * half;
+            // SAFETY: entries j..j+4 < pm of each slice (checked above).
+            unsafe {
+                // All-ones in the lanes of rows below m.
+                let live = _mm256_castsi256_pd(_mm256_cmpgt_epi64(
+                    _mm256_set1_epi64x(m as i64 - j as i64),
+                    lanes,
+                ));
+                let nn = _mm256_and_pd(live, _mm256_loadu_pd(norm2.as_ptr().add(j)));
+                _mm256_storeu_pd(norm2.as_mut_ptr().add(j), nn);
+                let usable = _mm256_cmp_pd::<_CMP_GT_OQ>(nn, zero);
+                let inv = _mm256_and_pd(usable, _mm256_div_pd(one, nn));
+                let r = _mm256_and_pd(
+                    _mm256_and_pd(usable, live),
+                    _mm256_loadu_pd(resid.as_ptr().add(j)),
+                );
+                _mm256_storeu_pd(inv_norm2.as_mut_ptr().add(j), inv);
+                _mm256_storeu_pd(resid.as_mut_ptr().add(j), r);
+                _mm256_storeu_pd(coef.as_mut_ptr().add(j), zero);
+                _mm256_storeu_pd(coef_avg.as_mut_ptr().add(j), zero);
+                fro[half] = _mm256_add_pd(fro[half], nn);
+                let r2 = _mm256_mul_pd(r, r);
+                sum[half] = _mm256_add_pd(sum[half], r2);
+                best = _mm256_max_pd(_mm256_mul_pd(r2, inv), best);
+            }
+        }
+        j += 8;
+    }
+    let total = |s: [__m256d; 2]| {
+        let t = _mm256_add_pd(s[0], s[1]);
+        let u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd::<1>(t));
+        _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)))
+    };
+    let b = _mm_max_pd(
+        _mm256_castpd256_pd128(best),
+        _mm256_extractf128_pd::<1>(best),
+    );
+    let b = _mm_max_sd(b, _mm_unpackhi_pd(b, b));
+    (total(fro), total(sum), _mm_cvtsd_f64(b))
 }
 
 /// Vectors of four `f64` per block of [`add_combination_f64`]: twelve accumulators, one
@@ -679,13 +808,13 @@ const PANEL: usize = 8;
 /// 8 × 8 tile `G[I, J]` with `I ≤ J` (eight `zmm` accumulators), whose other factor is
 /// broadcast straight from the rows of `A`; `G[J, I]` is written as the transposed tile.
 ///
-/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then each
-/// row `i < m` is one strip `G[i, 4⌊i/4⌋..p]` (see [`gram_strip_avx2`]): per `k` one broadcast
-/// of `a_ik` and, per four columns, a multiply with the transposed window as its memory operand
-/// and an add, the fewest instructions per product that separate multiplies and adds allow
-/// (a 4 × 8 register tile needs two more loads and four broadcasts per `k` for 32 products,
-/// and computes the diagonal blocks' lower-left quarters too). The blocks left of the strips
-/// are their mirror images, transposed 4 × 4 at a time.
+/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then the
+/// upper triangle of each block of four rows is computed along its diagonals (see
+/// [`gram_avx2`]): per `k` one load of `at[k, i₀..i₀+4]` shared by up to twelve
+/// diagonals and, per diagonal, a multiply with the transposed window as its memory operand
+/// and an add, each entry of the upper triangle once (128 vectors for 30 rows, where row
+/// strips from the diagonal blocks need 142 and a broadcast per row). The blocks below the
+/// diagonal are mirror images, transposed 4 × 4 at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2, and AVX-512F if `avx512f`.
@@ -719,7 +848,7 @@ unsafe fn gram_and_residual_f64(
             bj += PANEL;
         }
         // SAFETY: the slices were checked above; AVX2 is the caller's promise.
-        unsafe { gram_strips_avx2(at, n, m, p, gram) };
+        unsafe { gram_avx2(at, n, m, p, gram) };
         return;
     }
     let mut bj = 0;
@@ -852,22 +981,44 @@ unsafe fn pack_rows_f64<const R: usize, const S: usize>(
             out = out.add(4 * stride);
             k += 4;
         }
-        for k in n4..n {
-            for r in 0..4 {
-                *dst.add(k * stride + r) = if r < R { *src.add(r * n + k) } else { 0.0 };
-            }
-        }
-        for (r, acc_r) in acc.iter().enumerate().take(R) {
-            let u = _mm_add_pd(
-                _mm256_castpd256_pd128(*acc_r),
-                _mm256_extractf128_pd::<1>(*acc_r),
+        // The last `n mod 4` columns: the rows read through a mask (lanes past `n` neither
+        // read nor used), transposed like the others, and only their columns stored.
+        let tail = n - n4;
+        let mut last = [_mm256_setzero_pd(); 4];
+        if tail > 0 {
+            let mask = _mm256_cmpgt_epi64(
+                _mm256_set1_epi64x(tail as i64),
+                _mm256_set_epi64x(3, 2, 1, 0),
             );
-            let mut sum = _mm_cvtsd_f64(u) + _mm_cvtsd_f64(_mm_unpackhi_pd(u, u));
-            for k in n4..n {
-                sum += *src.add(r * n + k) * *xp.add(k);
+            let mut rows = [_mm256_setzero_pd(); 4];
+            for (r, row) in rows.iter_mut().enumerate().take(R) {
+                *row = _mm256_maskload_pd(src.add(r * n + n4), mask);
             }
-            *resid.get_unchecked_mut(j + r) = *b.get_unchecked(j + r) - sum;
+            last = transpose4(rows);
+            for (q, col) in last.iter().enumerate().take(tail) {
+                _mm256_storeu_pd(out.add(q * stride), *col);
+            }
         }
+        // The four rows' residuals side by side: lane q of every accumulator gathered into
+        // one vector (a transpose), `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products in
+        // order of k, then `b − sum`. Rows `≥ R` come out `+0` (zero rows, zero `b`).
+        let s = transpose4(acc);
+        let mut sum = _mm256_add_pd(_mm256_add_pd(s[0], s[2]), _mm256_add_pd(s[1], s[3]));
+        for (q, col) in last.iter().enumerate().take(tail) {
+            let xk = _mm256_broadcast_sd(&*xp.add(n4 + q));
+            sum = _mm256_add_pd(sum, _mm256_mul_pd(*col, xk));
+        }
+        let bp = b.as_ptr().wrapping_add(j);
+        let bv = if R == 4 {
+            _mm256_loadu_pd(bp)
+        } else if R == 0 {
+            _mm256_setzero_pd()
+        } else {
+            let rows =
+                _mm256_cmpgt_epi64(_mm256_set1_epi64x(R as i64), _mm256_set_epi64x(3, 2, 1, 0));
+            _mm256_maskload_pd(bp, rows)
+        };
+        _mm256_storeu_pd(resid.as_mut_ptr().add(j), _mm256_sub_pd(bv, sum));
     }
 }
 
@@ -945,37 +1096,53 @@ unsafe fn gram_panel_avx512(
 }
 
 /// `G = A Aᵀ` for `f64` from the transposed window `at` (`n × p`, stride `p`, zero in the
-/// columns `≥ m`): for each row `i < m` the strip `G[i, 4⌊i/4⌋..p]` (in pieces of at most
-/// eight vectors: eight accumulators), then, per block of four rows, the 4 × 4 blocks left of
-/// the strips below them as the transposes of the blocks above (the same products, commuted,
-/// summed in the same order: the same bits). Columns `≥ m` of rows `< m` are exact zeros
-/// (`+0` products of the zero columns, summed from `+0`); rows `≥ m` are left unspecified.
+/// columns `≥ m`), per block of four rows `i₀..i₀+4` (`i₀ < m`, a multiple of 4) along the
+/// diagonals: the vector `Σ_k at[k, i₀..i₀+4] · at[k, i₀+d..i₀+d+4]` holds
+/// `G[i₀ + l, i₀ + l + d]` in lane `l`, one load of `at[k, i₀..]` per `k` shared by up to
+/// twelve diagonals whose factors are the multiplies' memory operands (see
+/// [`gram_diagonals`]), and every entry of the upper triangle is computed once. Four
+/// diagonals transposed are four row pieces `G[i₀ + l, i₀ + l + d₀..+4]`, stored unaligned.
+/// Diagonals `d ≥ m − i₀` only reach columns `≥ m` and are stored as zeros without computing.
+/// A row piece that runs past column `p − 1` spills into the first columns of the next row,
+/// and a vector reaching past `at`'s row reads the next one (the last row's from the slack
+/// past `at`, `linalg::TRANSPOSED_SLACK`): those lanes only ever land left of a diagonal block
+/// or in the lower-left of one, written again below. The last block of a window with
+/// `m > p − 4` is computed as row strips instead (its spill would leave the matrix).
+///
+/// Then, per block, the lower-left of the diagonal 4 × 4 block and the 4 × 4 blocks left of
+/// it come from the transposes of the blocks above (the same products, commuted, summed in the
+/// same order: the same bits). Every entry is summed in order of `k` from `+0` (multiply, then
+/// add); columns `≥ m` of rows `< m` are exact zeros; rows `≥ m` are left unspecified.
 ///
 /// # Safety
-/// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
-/// of 8 with `m ≤ p`.
+/// The CPU must support AVX2; `at` holds `n · p + linalg::TRANSPOSED_SLACK` entries and `gram`
+/// `p · p`, `p` a multiple of 8 with `m ≤ p`.
 #[target_feature(enable = "avx2")]
-unsafe fn gram_strips_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
+unsafe fn gram_avx2(at: &[f64], n: usize, m: usize, p: usize, gram: &mut [f64]) {
     // SAFETY: the caller's promise; the stride is `p` in each call.
     unsafe {
         // The window sizes of a robot's estimator get a compile-time stride (constant
         // displacements, no address arithmetic in the loop); others the run-time one.
         match p {
-            8 => gram_strips_stride::<8>(at, n, m, p, gram),
-            16 => gram_strips_stride::<16>(at, n, m, p, gram),
-            24 => gram_strips_stride::<24>(at, n, m, p, gram),
-            32 => gram_strips_stride::<32>(at, n, m, p, gram),
-            _ => gram_strips_stride::<0>(at, n, m, p, gram),
+            8 => gram_avx2_stride::<8>(at, n, m, p, gram),
+            16 => gram_avx2_stride::<16>(at, n, m, p, gram),
+            24 => gram_avx2_stride::<24>(at, n, m, p, gram),
+            32 => gram_avx2_stride::<32>(at, n, m, p, gram),
+            _ => gram_avx2_stride::<0>(at, n, m, p, gram),
         }
     }
 }
 
-/// [`gram_strips_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
+/// Most diagonals [`gram_diagonals`] computes at once (twelve accumulators, the shared
+/// factor and a product in sixteen `ymm` registers).
+const DIAGONAL_GROUPS: usize = 3;
+
+/// [`gram_avx2`] with the stride `p` known at compile time as `P` (`P = 0`: read `p`).
 ///
 /// # Safety
-/// As [`gram_strips_avx2`], and `P` is `0` or `p`.
+/// As [`gram_avx2`], and `P` is `0` or `p`.
 #[inline(always)]
-unsafe fn gram_strips_stride<const P: usize>(
+unsafe fn gram_avx2_stride<const P: usize>(
     at: &[f64],
     n: usize,
     m: usize,
@@ -983,32 +1150,74 @@ unsafe fn gram_strips_stride<const P: usize>(
     gram: &mut [f64],
 ) {
     let p = if P == 0 { p } else { P };
-    assert!(at.len() >= n * p && gram.len() >= p * p && m <= p && p % 8 == 0);
-    let g = gram.as_mut_ptr();
-    let mut j0 = 0;
-    while j0 < m {
-        // SAFETY: columns j0..p of `at` and of `gram`'s rows, rows below p (checked above).
+    assert!(
+        at.len() >= n * p + crate::linalg::TRANSPOSED_SLACK
+            && gram.len() >= p * p
+            && m <= p
+            && p % 8 == 0
+    );
+    let (t, g) = (at.as_ptr(), gram.as_mut_ptr());
+    // Diagonals computed in the last group of four of a block (`m − i₀ ≡ m mod 4`).
+    let partial = m % 4;
+    let mut i0 = 0;
+    while i0 < m {
+        // SAFETY (this loop): reads of `at` below n · p + 3 (a diagonal d < m − i₀ reads up to
+        // column i₀ + d + 3 ≤ p + 2 of its row); writes of `gram` at rows i₀..i₀+4 ≤ p − 4 + 3,
+        // columns below p, spilling at most three entries into the next row, < p · p as
+        // i₀ + 4 < p here; the last block's strips stay in their rows.
         unsafe {
-            for i in j0..(j0 + 4).min(m) {
-                let mut c = j0;
-                while c < p {
-                    let v = ((p - c) / 4).min(8);
-                    // The broadcast a_ik = at[k·p + i], relative to the strip's columns.
-                    let (cols, s) = (at.as_ptr().add(c), i as isize - c as isize);
-                    let out = g.add(i * p + c);
-                    match v {
-                        1 => gram_strip_avx2::<1, P>(cols, s, n, p, out),
-                        2 => gram_strip_avx2::<2, P>(cols, s, n, p, out),
-                        3 => gram_strip_avx2::<3, P>(cols, s, n, p, out),
-                        4 => gram_strip_avx2::<4, P>(cols, s, n, p, out),
-                        5 => gram_strip_avx2::<5, P>(cols, s, n, p, out),
-                        6 => gram_strip_avx2::<6, P>(cols, s, n, p, out),
-                        7 => gram_strip_avx2::<7, P>(cols, s, n, p, out),
-                        _ => gram_strip_avx2::<8, P>(cols, s, n, p, out),
-                    }
-                    c += 4 * v;
+            if i0 + 4 == p {
+                for i in i0..m {
+                    let s = i as isize - i0 as isize;
+                    gram_strip_avx2::<1, P>(t.add(i0), s, n, p, g.add(i * p + i0));
+                }
+                break;
+            }
+            let live = (m - i0).div_ceil(4);
+            let mut group = 0;
+            while group < live {
+                let count = (live - group).min(DIAGONAL_GROUPS);
+                let last = if group + count == live { partial } else { 0 };
+                let (base, d0) = (t.add(i0), 4 * group);
+                let out = g.add(i0 * p + i0 + d0);
+                match (count, last) {
+                    (1, 0) => gram_diagonals::<1, 0, P>(base, d0, n, p, out),
+                    (1, 1) => gram_diagonals::<1, 1, P>(base, d0, n, p, out),
+                    (1, 2) => gram_diagonals::<1, 2, P>(base, d0, n, p, out),
+                    (1, _) => gram_diagonals::<1, 3, P>(base, d0, n, p, out),
+                    (2, 0) => gram_diagonals::<2, 0, P>(base, d0, n, p, out),
+                    (2, 1) => gram_diagonals::<2, 1, P>(base, d0, n, p, out),
+                    (2, 2) => gram_diagonals::<2, 2, P>(base, d0, n, p, out),
+                    (2, _) => gram_diagonals::<2, 3, P>(base, d0, n, p, out),
+                    (_, 0) => gram_diagonals::<3, 0, P>(base, d0, n, p, out),
+                    (_, 1) => gram_diagonals::<3, 1, P>(base, d0, n, p, out),
+                    (_, 2) => gram_diagonals::<3, 2, P>(base, d0, n, p, out),
+                    (_, _) => gram_diagonals::<3, 3, P>(base, d0, n, p, out),
+                }
+                group += count;
+            }
+            // Diagonals reaching columns ≥ m only: zeros.
+            let zero = _mm256_setzero_pd();
+            for group in live..(p - i0) / 4 {
+                for l in 0..4 {
+                    _mm256_storeu_pd(g.add((i0 + l) * p + i0 + l + 4 * group), zero);
                 }
             }
+        }
+        i0 += 4;
+    }
+    let mut j0 = 0;
+    while j0 < m {
+        // SAFETY: rows and columns below p of `gram` (j0 + 4 ≤ p).
+        unsafe {
+            // The diagonal block's lower-left from its upper-right.
+            let block: [__m256d; 4] =
+                core::array::from_fn(|s| _mm256_loadu_pd(g.add((j0 + s) * p + j0)));
+            let mirror = transpose4(block);
+            let row = |l: usize| g.add((j0 + l) * p + j0);
+            _mm256_storeu_pd(row(1), _mm256_blend_pd::<0b0001>(block[1], mirror[1]));
+            _mm256_storeu_pd(row(2), _mm256_blend_pd::<0b0011>(block[2], mirror[2]));
+            _mm256_storeu_pd(row(3), _mm256_blend_pd::<0b0111>(block[3], mirror[3]));
             // The mirror images G[c.., j0..j0+4] of the blocks G[j0..j0+4, c..] right of the
             // diagonal block (rows j0.. past m, if any, only reach rows ≥ m of G).
             let mut c = j0 + 4;
@@ -1022,6 +1231,75 @@ unsafe fn gram_strips_stride<const P: usize>(
             }
         }
         j0 += 4;
+    }
+}
+
+/// Diagonals `d₀..d₀ + 4G` of a block of four rows (of the last group only the first `L`,
+/// if `L > 0`; the others come out as zeros), stored as `G` row pieces: with `base` at
+/// `at + i₀`, lane `l` of diagonal `d` is `Σ_k at[k·p + i₀ + l] · at[k·p + i₀ + l + d]`, summed in
+/// order of `k` (multiply, then add, from `+0`), and `out[l·p + l + 4q + δ]` (with `out` at
+/// `G[i₀, i₀ + d₀]`) receives diagonal `d₀ + 4q + δ` of lane `l`.
+///
+/// # Safety
+/// The CPU must support AVX2; `base` is readable at `k·p + d₀ + 4G + 2` for `k < n`, `out`
+/// writable at `l·p + l + 4G + 3` for `l < 4`; `P` is `0` or `p`.
+#[inline(always)]
+unsafe fn gram_diagonals<const G: usize, const L: usize, const P: usize>(
+    base: *const f64,
+    d0: usize,
+    n: usize,
+    p: usize,
+    out: *mut f64,
+) {
+    let p = if P == 0 { p } else { P };
+    // Diagonals computed.
+    let live = if L == 0 { 4 * G } else { 4 * G - 4 + L };
+    #[inline(always)]
+    unsafe fn step(
+        acc: &mut [__m256d; 4 * DIAGONAL_GROUPS],
+        row: *const f64,
+        d0: usize,
+        live: usize,
+    ) {
+        // SAFETY: the caller's promise.
+        unsafe {
+            let u = _mm256_loadu_pd(row);
+            let shifted = row.add(d0);
+            for (q, acc_q) in acc.iter_mut().enumerate().take(live) {
+                *acc_q = _mm256_add_pd(_mm256_mul_pd(u, _mm256_loadu_pd(shifted.add(q))), *acc_q);
+            }
+        }
+    }
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut acc = [_mm256_setzero_pd(); 4 * DIAGONAL_GROUPS];
+        let mut row = base;
+        // k in order: the first on its own (its products added to one register of zeros,
+        // not to a zeroed register per accumulator), then four per pass (written out: the
+        // compiler keeps a loop over a longer pass rolled, at three instructions per k), then
+        // the rest.
+        let rest = n.saturating_sub(1);
+        if n > 0 {
+            step(&mut acc, row, d0, live);
+            row = row.add(p);
+        }
+        for _ in 0..rest / 4 {
+            step(&mut acc, row, d0, live);
+            step(&mut acc, row.add(p), d0, live);
+            step(&mut acc, row.add(2 * p), d0, live);
+            step(&mut acc, row.add(3 * p), d0, live);
+            row = row.add(4 * p);
+        }
+        for _ in 0..rest % 4 {
+            step(&mut acc, row, d0, live);
+            row = row.add(p);
+        }
+        for q in 0..G {
+            let four = [acc[4 * q], acc[4 * q + 1], acc[4 * q + 2], acc[4 * q + 3]];
+            for (l, piece) in transpose4(four).iter().enumerate() {
+                _mm256_storeu_pd(out.add(l * p + l + 4 * q), *piece);
+            }
+        }
     }
 }
 
@@ -1439,7 +1717,12 @@ mod tests {
         let weights: [V; C] =
             core::array::from_fn(|c| unsafe { V::load(w.as_ptr().add(LANES * c)) });
         let (down, before, _) = prefix_chunks(&weights);
-        pick_chunks(&weights, &down, before, V::splat(target))
+        let zero = V::splat(V::T::cast(0.0));
+        let mut positive = weights;
+        for w in positive.iter_mut() {
+            *w = w.gt_mask(zero);
+        }
+        pick_chunks(&positive, &down, before, V::splat(target))
     }
 
     /// The row the AVX-512 loop draws for weights `w` (`8C` entries) and `target`.
@@ -1555,6 +1838,179 @@ mod tests {
             ),
             Some(5)
         );
+    }
+
+    /// `prepare_f64` against the estimator's portable passes (written out here as
+    /// `kaczmarz.rs` runs them), bit for bit: every window height up to 40, zero rows, stale
+    /// values in the padding.
+    #[test]
+    fn avx2_prepare_is_the_portable_pass() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for m in 1..=40 {
+            let pm = padded(m);
+            let mut value = |zero_every: u32| {
+                if rng.next_u32() % zero_every == 0 {
+                    0.0
+                } else {
+                    crate::greedy::uniform(&mut rng) * 3.0
+                }
+            };
+            let norm2: Vec<f64> = (0..pm).map(|_| value(5)).collect();
+            let resid: Vec<f64> = (0..pm).map(|_| value(7) - 1.5).collect();
+            let (mut n1, mut i1, mut r1, mut c1, mut a1) = (
+                norm2.clone(),
+                vec![9.0; pm],
+                resid.clone(),
+                vec![9.0; pm],
+                vec![9.0; pm],
+            );
+            let (mut n2, mut i2, mut r2, mut c2, mut a2) =
+                (n1.clone(), i1.clone(), r1.clone(), c1.clone(), a1.clone());
+            n1[m..].fill(0.0);
+            r1[m..].fill(0.0);
+            for i in 0..pm {
+                let usable = n1[i] > 0.0;
+                i1[i] = if usable { 1.0 / n1[i] } else { 0.0 };
+                r1[i] = if usable { r1[i] } else { 0.0 };
+                c1[i] = 0.0;
+                a1[i] = 0.0;
+            }
+            let fro2 = crate::greedy::lane_sum(&n1);
+            let (rnorm2, max_ratio) = crate::greedy::residual_stats(&r1, &i1);
+            let want = (fro2, rnorm2, max_ratio);
+            // SAFETY: AVX2 detected above.
+            let got = unsafe { prepare_f64(m, pm, &mut n2, &mut i2, &mut r2, &mut c2, &mut a2) };
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                [want.0.to_bits(), want.1.to_bits(), want.2.to_bits()],
+                [got.0.to_bits(), got.1.to_bits(), got.2.to_bits()],
+                "m={m}"
+            );
+            for (x, y) in [(&n1, &n2), (&i1, &i2), (&r1, &r2), (&c1, &c2), (&a1, &a2)] {
+                assert_eq!(bits(x), bits(y), "m={m}");
+            }
+        }
+    }
+
+    /// The eight-lane loop's shortcut: with a threshold `θ > 0` the candidates
+    /// (`r²·(1/‖a‖²) ≥ θ`) are exactly the rows of positive weight, over squares and reciprocal
+    /// norms with zeros, subnormals, infinities and NaNs.
+    #[test]
+    fn candidates_are_the_positive_weights_when_the_threshold_is_positive() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let special = [
+            0.0,
+            5e-324,
+            1e-300,
+            0.5,
+            1.0,
+            3e300,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..2000 {
+            let mut pick = || {
+                let k = rng.next_u32() as usize;
+                if k.is_multiple_of(3) {
+                    special[k / 3 % special.len()]
+                } else {
+                    crate::greedy::uniform(&mut rng) * 2.0
+                }
+            };
+            let sq: [f64; 8] = core::array::from_fn(|_| pick());
+            let inv: [f64; 8] = core::array::from_fn(|_| pick());
+            let theta = pick();
+            if theta.is_nan() || theta <= 0.0 {
+                continue;
+            }
+            // SAFETY: AVX2 detected above; eight entries each.
+            let (candidate, positive) = unsafe { candidate_and_positive(&sq, &inv, theta) };
+            assert_eq!(candidate, positive, "sq {sq:?} inv {inv:?} theta {theta}");
+        }
+    }
+
+    /// The candidate and positive-weight masks of eight lanes, as `iterate_chunks` forms them.
+    #[target_feature(enable = "avx2")]
+    unsafe fn candidate_and_positive(sq: &[f64; 8], inv: &[f64; 8], theta: f64) -> (u32, u32) {
+        // SAFETY: eight entries each.
+        let (sq, inv) = unsafe { (F64x8::load(sq.as_ptr()), F64x8::load(inv.as_ptr())) };
+        let candidate = sq.mul(inv).ge_mask(F64x8::splat(theta));
+        let positive = candidate.and(sq).gt_mask(F64x8::splat(0.0));
+        (
+            F64x8::lane_major_bits(&[candidate]),
+            F64x8::lane_major_bits(&[positive]),
+        )
+    }
+
+    /// The AVX2 packing and Gram kernels against the portable ones (`transpose_padded`,
+    /// `gram_transposed`, `residual_rows`), bit for bit, for every window height up to 41 and
+    /// widths around the multiples of 4: rows `< m` of `G` in full and the `p` residuals, with
+    /// stale NaNs in the scratch (and in the slack past `at`, which the diagonals read) and
+    /// sentinels past `G` and `r`, which must not be written.
+    #[test]
+    fn avx2_gram_and_residual_are_the_portable_bits() {
+        use crate::linalg::{TRANSPOSED_SLACK, gram_transposed, residual_rows, transpose_padded};
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(41);
+        let mut value = || crate::greedy::uniform(&mut rng) * 2.0 - 1.0;
+        for m in 1..=41 {
+            for n in [1, 2, 3, 4, 5, 7, 10, 13, 120] {
+                let p = padded(m);
+                let a: Vec<f64> = (0..m * n).map(|_| value()).collect();
+                let b: Vec<f64> = (0..m).map(|_| value()).collect();
+                let x: Vec<f64> = (0..n).map(|_| value()).collect();
+                let mut at = vec![0.0; n * p];
+                transpose_padded(&a, n, m, &mut at);
+                let mut want_g = vec![0.0; p * p];
+                gram_transposed(&at, n, m, &mut want_g);
+                let mut want_r = vec![0.0; p];
+                residual_rows(&a, n, m, &x, &b, &mut want_r);
+
+                let mut at = vec![f64::NAN; n * p + TRANSPOSED_SLACK];
+                let mut g = vec![f64::NAN; p * p + 8];
+                let mut r = vec![f64::NAN; p + 8];
+                g[p * p..].fill(7.0);
+                r[p..].fill(7.0);
+                // SAFETY: AVX2 detected above.
+                unsafe {
+                    gram_and_residual_f64(
+                        false,
+                        &a,
+                        &b,
+                        &x,
+                        n,
+                        m,
+                        &mut at,
+                        &mut g[..p * p],
+                        &mut r[..p],
+                    )
+                };
+                for i in 0..m {
+                    for j in 0..p {
+                        assert_eq!(
+                            g[i * p + j].to_bits(),
+                            want_g[i * p + j].to_bits(),
+                            "m={m} n={n} G[{i}][{j}]"
+                        );
+                    }
+                }
+                for j in 0..p {
+                    assert_eq!(r[j].to_bits(), want_r[j].to_bits(), "m={m} n={n} r[{j}]");
+                }
+                assert!(
+                    g[p * p..].iter().chain(&r[p..]).all(|&v| v == 7.0),
+                    "m={m} n={n}"
+                );
+            }
+        }
     }
 
     #[test]
