@@ -24,8 +24,8 @@ pub use inertial::{GateViolation, InertialParams, SafetyGate};
 pub use log::{FlightLog, LogError, LogSample};
 pub use quadrotor::QuadrotorModel;
 pub use rigid_body::{
-    GRAVITY_WORLD, RigidBodyRegressor, Wrench, forward_dynamics, newton_euler, proper_acceleration,
-    rigid_body_regressor, try_forward_dynamics, write_rigid_body_regressor,
+    ForwardDynamics, GRAVITY_WORLD, RigidBodyRegressor, Wrench, forward_dynamics, newton_euler,
+    proper_acceleration, rigid_body_regressor, try_forward_dynamics, write_rigid_body_regressor,
 };
 pub use tree::{Body, JointKind, KinematicTree, Pose, TreeWorkspace};
 pub use urdf::UrdfOptions;

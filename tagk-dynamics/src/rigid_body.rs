@@ -137,34 +137,107 @@ pub fn try_forward_dynamics(
     wrench: &Wrench,
     omega: &Vector3<f64>,
 ) -> Result<(Vector3<f64>, Vector3<f64>), DynamicsError> {
-    if !theta.is_finite() {
-        return Err(DynamicsError::NonFinite {
-            what: "inertial parameters",
-        });
+    ForwardDynamics::new(theta)?.accelerations(wrench, omega)
+}
+
+/// [`try_forward_dynamics`] with the parameters' part prepared once: the mass, the first
+/// moment, the inertia about the origin and the Cholesky factor of the inertia about the
+/// centre of mass. A simulator whose body changes only at events keeps one per body and
+/// solves each integration stage with it; the accelerations are bit-identical to
+/// [`try_forward_dynamics`] (which is this, prepared afresh).
+#[derive(Debug, Clone)]
+pub struct ForwardDynamics {
+    /// Mass `m` \[kg\].
+    mass: f64,
+    /// First moment `h = m c` \[kg m\], body frame.
+    first_moment: Vector3<f64>,
+    /// Rotational inertia about the body origin \[kg m²\], body axes.
+    inertia_origin: Matrix3<f64>,
+    /// Lower Cholesky factor `L` of the inertia about the centre of mass, `I_C = L Lᵀ`:
+    /// `[l00, l10, l11, l20, l21, l22]`.
+    chol: [f64; 6],
+}
+
+impl ForwardDynamics {
+    /// Prepares the solve for `theta`.
+    ///
+    /// # Errors
+    /// [`DynamicsError::NonFinite`] for non-finite parameters;
+    /// [`DynamicsError::SingularSpatialInertia`] unless `m > 0` and the inertia about the
+    /// centre of mass is positive definite.
+    pub fn new(theta: &InertialParams) -> Result<Self, DynamicsError> {
+        if !theta.is_finite() {
+            return Err(DynamicsError::NonFinite {
+                what: "inertial parameters",
+            });
+        }
+        let mass = theta.mass();
+        if mass <= 0.0 {
+            return Err(DynamicsError::SingularSpatialInertia { mass });
+        }
+        let l = theta
+            .inertia_com()
+            .cholesky()
+            .ok_or(DynamicsError::SingularSpatialInertia { mass })?
+            .unpack();
+        Ok(Self {
+            mass,
+            first_moment: theta.first_moment(),
+            inertia_origin: theta.inertia_origin(),
+            chol: [
+                l[(0, 0)],
+                l[(1, 0)],
+                l[(1, 1)],
+                l[(2, 0)],
+                l[(2, 1)],
+                l[(2, 2)],
+            ],
+        })
     }
-    if !wrench.is_finite() {
-        return Err(DynamicsError::NonFinite { what: "wrench" });
+
+    /// `I_C⁻¹ v` by the two triangular solves `L y = v`, `Lᵀ x = y`, written out for 3 × 3 in
+    /// nalgebra's order of operations (`Cholesky::solve`: the forward solve column by column,
+    /// the backward one as `(y_i − Σ_(j>i) L_ji x_j) / L_ii` with the sum taken from `j = i + 1`
+    /// up), so the bits are those of `Cholesky::solve` (tested) at a fraction of its cost.
+    fn solve_inertia_com(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        let [l00, l10, l11, l20, l21, l22] = self.chol;
+        let y0 = v.x / l00;
+        let b1 = v.y - y0 * l10;
+        let b2 = v.z - y0 * l20;
+        let y1 = b1 / l11;
+        let y2 = (b2 - y1 * l21) / l22;
+        let x2 = y2 / l22;
+        let x1 = (y1 - l21 * x2) / l11;
+        let x0 = (y0 - (l10 * x1 + l20 * x2)) / l00;
+        Vector3::new(x0, x1, x2)
     }
-    if !omega.iter().all(|v| v.is_finite()) {
-        return Err(DynamicsError::NonFinite {
-            what: "angular velocity",
-        });
+
+    /// The proper acceleration `a` \[m/s², body frame\] of the origin and the angular
+    /// acceleration `ω̇` \[rad/s², body frame\] produced by `wrench` at angular velocity
+    /// `omega` \[rad/s\] (the equations of [`try_forward_dynamics`]).
+    ///
+    /// # Errors
+    /// [`DynamicsError::NonFinite`] for a non-finite wrench or angular velocity.
+    pub fn accelerations(
+        &self,
+        wrench: &Wrench,
+        omega: &Vector3<f64>,
+    ) -> Result<(Vector3<f64>, Vector3<f64>), DynamicsError> {
+        if !wrench.is_finite() {
+            return Err(DynamicsError::NonFinite { what: "wrench" });
+        }
+        if !omega.iter().all(|v| v.is_finite()) {
+            return Err(DynamicsError::NonFinite {
+                what: "angular velocity",
+            });
+        }
+        let (m, h, i) = (self.mass, &self.first_moment, &self.inertia_origin);
+        let f = wrench.force - omega.cross(&omega.cross(h));
+        let t = wrench.torque - omega.cross(&(i * omega));
+        let omega_dot = self.solve_inertia_com(&(t - h.cross(&f) / m));
+        let accel = (f + h.cross(&omega_dot)) / m;
+        Ok((accel, omega_dot))
     }
-    let m = theta.mass();
-    if m <= 0.0 {
-        return Err(DynamicsError::SingularSpatialInertia { mass: m });
-    }
-    let h = theta.first_moment();
-    let i: Matrix3<f64> = theta.inertia_origin();
-    let f = wrench.force - omega.cross(&omega.cross(&h));
-    let t = wrench.torque - omega.cross(&(i * omega));
-    let chol = theta
-        .inertia_com()
-        .cholesky()
-        .ok_or(DynamicsError::SingularSpatialInertia { mass: m })?;
-    let omega_dot = chol.solve(&(t - h.cross(&f) / m));
-    let accel = (f + h.cross(&omega_dot)) / m;
-    Ok((accel, omega_dot))
 }
 
 /// Inverse of [`newton_euler`] for trusted parameters (the simulator's plant); see

@@ -10,7 +10,7 @@
 //! The quaternion is renormalised after every step.
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
-use tagk_dynamics::{GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench, try_forward_dynamics};
+use tagk_dynamics::{ForwardDynamics, GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench};
 
 use crate::{PlantEffects, SimError};
 
@@ -71,6 +71,9 @@ pub struct Accelerations {
 pub struct Plant {
     model: QuadrotorModel,
     params: InertialParams,
+    /// The forward dynamics of `params`, prepared once per body (they change only at
+    /// events; every integration stage solves with them).
+    dynamics: ForwardDynamics,
     effects: PlantEffects,
     state: PlantState,
 }
@@ -88,7 +91,7 @@ impl Plant {
         effects: PlantEffects,
         state: PlantState,
     ) -> Result<Self, SimError> {
-        validate_params(&params)?;
+        let dynamics = validate_params(&params)?;
         effects.validate()?;
         let finite = state
             .position
@@ -108,6 +111,7 @@ impl Plant {
         Ok(Self {
             model,
             params,
+            dynamics,
             effects,
             state,
         })
@@ -128,7 +132,7 @@ impl Plant {
     /// # Errors
     /// As [`Plant::new`]; the plant is unchanged on error.
     pub fn set_params(&mut self, params: InertialParams) -> Result<(), SimError> {
-        validate_params(&params)?;
+        self.dynamics = validate_params(&params)?;
         self.params = params;
         Ok(())
     }
@@ -179,7 +183,9 @@ impl Plant {
         let wrench = self.wrench_at(s, &rotor);
         // The parameters were validated on entry, so the solve succeeds for finite input;
         // a non-finite state (a diverged run) propagates as NaN and is caught by the caller.
-        let (proper, angular) = try_forward_dynamics(&self.params, &wrench, &s.body_rate)
+        let (proper, angular) = self
+            .dynamics
+            .accelerations(&wrench, &s.body_rate)
             .unwrap_or((Vector3::repeat(f64::NAN), Vector3::repeat(f64::NAN)));
         let world = s.attitude * proper + GRAVITY_WORLD;
         Accelerations {
@@ -269,11 +275,11 @@ impl Plant {
 }
 
 /// Checks true plant parameters: finite, `m > 0`, positive-definite inertia about the centre
-/// of mass (so the forward dynamics exist).
+/// of mass (so the forward dynamics exist); returns them, prepared.
 ///
 /// # Errors
 /// [`SimError::NonPositiveMass`], [`SimError::Dynamics`].
-pub(crate) fn validate_params(params: &InertialParams) -> Result<(), SimError> {
+pub(crate) fn validate_params(params: &InertialParams) -> Result<ForwardDynamics, SimError> {
     let m = params.mass();
     if !(m > 0.0 && m.is_finite()) {
         return Err(SimError::NonPositiveMass {
@@ -281,6 +287,5 @@ pub(crate) fn validate_params(params: &InertialParams) -> Result<(), SimError> {
             mass: m,
         });
     }
-    try_forward_dynamics(params, &Wrench::zero(), &Vector3::zeros())?;
-    Ok(())
+    Ok(ForwardDynamics::new(params)?)
 }
