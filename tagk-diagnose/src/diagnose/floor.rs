@@ -31,7 +31,7 @@ use crate::diagnose::{Candidate, DiagnoseOptions};
 use crate::effects::{EffectRef, usable};
 use crate::error::DiagnoseError;
 use crate::fit::{
-    ColData, Evaluation, Fit, GramEngine, Model, effect_design, fit_model, rigid_design,
+    ColData, Column, Evaluation, Fit, GramEngine, Model, effect_design, fit_model, rigid_design,
 };
 use crate::signals::Signals;
 use tagk_dynamics::EffectKind;
@@ -78,12 +78,31 @@ pub(crate) fn held_out_rms(ev: &Evaluation, w: &[f64; 6], n: usize) -> [f64; 6] 
 
 /// The design of a fitted model (rigid columns, then each effect's fitted columns at its
 /// fitted parameter; the fixed columns are already in the fit's residual).
-pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> Vec<ColData> {
-    let (mut cols, _) = rigid_design(model, s);
+pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> ModelDesign {
+    let (rigid, _) = rigid_design(model, s);
+    let mut effects = Vec::new();
     for (k, e) in model.effects().iter().enumerate() {
-        cols.extend(effect_design(e.as_ref(), s, fit.params[k]).cols);
+        effects.extend(effect_design(e.as_ref(), s, fit.params[k]).cols);
     }
-    cols
+    ModelDesign { rigid, effects }
+}
+
+/// The design of a fitted model ([`model_design`]): the rigid-body columns (computed where
+/// they are read) and the effects' stored columns.
+pub(crate) struct ModelDesign {
+    rigid: Vec<Column<'static>>,
+    effects: Vec<ColData>,
+}
+
+impl ModelDesign {
+    /// Every column, rigid body first.
+    pub fn columns(&self) -> Vec<Column<'_>> {
+        self.rigid
+            .iter()
+            .copied()
+            .chain(Column::stored(&self.effects))
+            .collect()
+    }
 }
 
 /// The held-out evaluation of a fitted model: its columns against its own residual, so the
@@ -94,8 +113,15 @@ pub(crate) fn held_out_evaluation(
     fit: &Fit,
     folds: usize,
 ) -> Evaluation {
-    let cols = model_design(model, s, fit);
-    GramEngine::new(s, &fit.weights, &cols, Some(&fit.residual), folds).evaluate(&[])
+    let design = model_design(model, s, fit);
+    GramEngine::new(
+        s,
+        &fit.weights,
+        &design.columns(),
+        Some(&fit.residual),
+        folds,
+    )
+    .evaluate(&[])
 }
 
 /// The candidates that can join `model` on this log.

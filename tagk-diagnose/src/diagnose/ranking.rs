@@ -5,11 +5,11 @@
 use serde::Serialize;
 
 use crate::diagnose::DiagnoseOptions;
-use crate::diagnose::floor::{NoiseFloor, held_out_rms, model_design};
+use crate::diagnose::floor::{ModelDesign, NoiseFloor, held_out_rms, model_design};
 use crate::diagnose::sanity::{SanityContext, check_refit};
 use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
-    Coefficient, ColData, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
+    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
 };
 use crate::format::change_percent;
 use crate::signals::{CHANNEL_NAMES, Signals};
@@ -179,8 +179,8 @@ pub(crate) fn score_candidates(
         .iter()
         .filter(|c| !model.has(c.name()))
         .collect();
-    let base_cols = model_design(model, s, fit);
-    let baseline = baseline(model, s, fit, opts, &base_cols, candidates.len());
+    let design = model_design(model, s, fit);
+    let baseline = baseline(model, s, fit, opts, &design, candidates.len());
     let mut ranking = Vec::new();
     let mut unavailable = Vec::new();
     let mut drivers = Vec::new();
@@ -255,17 +255,18 @@ pub(crate) fn rank_candidates(
     judge_scored(score_candidates(model, s, fit, opts), floor, opts)
 }
 
-/// The baseline of the tests: the engine over the fitted model's design `base_cols`
+/// The baseline of the tests: the engine over the fitted model's design
 /// ([`model_design`], borrowed by the engine) and its evaluation without a candidate.
 fn baseline<'a>(
     model: &Model,
     s: &'a Signals,
     fit: &'a Fit,
     opts: &DiagnoseOptions,
-    base_cols: &'a [ColData],
+    design: &'a ModelDesign,
     candidates: usize,
 ) -> Baseline<'a> {
-    let engine = GramEngine::new(s, &fit.weights, base_cols, Some(&fit.residual), opts.folds);
+    let base_cols = design.columns();
+    let engine = GramEngine::new(s, &fit.weights, &base_cols, Some(&fit.residual), opts.folds);
     let evaluation = engine.evaluate(&[]);
     let held_out_rms = held_out_rms(&evaluation, &fit.weights, s.len());
     let mean_thrust = s.wrench.iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64;

@@ -1,10 +1,10 @@
 //! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
 
-use std::borrow::Borrow;
 use std::rc::Rc;
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::fit::columns::{BLOCK_SAMPLES, Blocks, Column, for_each_block};
 use crate::fit::design::ColData;
 use crate::signals::Signals;
 
@@ -33,9 +33,10 @@ pub(crate) struct GramEngine<'a> {
     w: [f64; 6],
     /// Weighted target (shared with the scan engines made by [`GramEngine::for_scan`]).
     y: Rc<ColData>,
-    /// The base columns, unweighted and borrowed (weighted on the fly by `w` in the cross
-    /// products and the residual: no weighted copy of a long log's design is kept).
-    base: Vec<&'a ColData>,
+    /// The base columns, unweighted, borrowed or computed per block (weighted on the fly by
+    /// `w` in the cross products and the residual: no weighted copy of a long log's design
+    /// is kept, and no copy of the rigid-body columns at all).
+    base: Vec<Column<'a>>,
     pieces: Vec<(usize, usize)>,
     folds: usize,
     /// Every `stride`-th sample enters the cross products (1: all; more in scan engines).
@@ -51,10 +52,10 @@ pub(crate) const SCAN_SAMPLES: usize = 10_000;
 
 impl<'a> GramEngine<'a> {
     /// `target`: the unweighted target (the measured wrench when `None`).
-    pub fn new<C: Borrow<ColData>>(
+    pub fn new(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
+        base: &[Column<'a>],
         target: Option<&[[f64; 6]]>,
         folds: usize,
     ) -> Self {
@@ -63,19 +64,19 @@ impl<'a> GramEngine<'a> {
 
     /// An engine for a scan from the start ([`GramEngine::for_scan`] without the full-size
     /// cross products first): no folds, every `n / SCAN_SAMPLES`-th sample.
-    pub fn new_for_scan<C: Borrow<ColData>>(
+    pub fn new_for_scan(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
+        base: &[Column<'a>],
         target: Option<&[[f64; 6]]>,
     ) -> Self {
         Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
     }
 
-    fn with_stride<C: Borrow<ColData>>(
+    fn with_stride(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
+        base: &[Column<'a>],
         target: Option<&[[f64; 6]]>,
         folds: usize,
         stride: usize,
@@ -84,7 +85,7 @@ impl<'a> GramEngine<'a> {
         let tgt = target.unwrap_or(&s.target);
         let y: ColData =
             std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
-        let base: Vec<&'a ColData> = base.iter().map(Borrow::borrow).collect();
+        let base: Vec<Column<'a>> = base.to_vec();
         let folds = folds.max(1);
         let mut pieces = Vec::new();
         if folds == 1 {
@@ -100,10 +101,10 @@ impl<'a> GramEngine<'a> {
                 pieces.push((b - buffer, b));
             }
         }
-        let mut all: Vec<&ColData> = vec![&y];
+        let mut all: Vec<Column<'_>> = vec![Column::Stored(&y)];
         all.extend(base.iter().copied());
         let weights = operand_weights(1, base.len(), 0, w);
-        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
+        let base_gram = cross_tensor(s, &all, &weights, &all, &weights, &pieces, stride);
         Self {
             s,
             w: *w,
@@ -122,10 +123,10 @@ impl<'a> GramEngine<'a> {
         let n = self.s.len();
         let stride = (n / SCAN_SAMPLES).max(1);
         let pieces = vec![(0, n)];
-        let mut all: Vec<&ColData> = vec![&*self.y];
+        let mut all: Vec<Column<'_>> = vec![Column::Stored(&*self.y)];
         all.extend(self.base.iter().copied());
         let weights = operand_weights(1, self.base.len(), 0, &self.w);
-        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
+        let base_gram = cross_tensor(self.s, &all, &weights, &all, &weights, &pieces, stride);
         GramEngine {
             s: self.s,
             w: self.w,
@@ -164,21 +165,24 @@ impl<'a> GramEngine<'a> {
         let q = cand.len();
         let pp = p0 + q;
         let np = self.pieces.len();
-        let mut left: Vec<&ColData> = vec![&*self.y];
+        let mut left: Vec<Column<'_>> = vec![Column::Stored(&*self.y)];
         left.extend(self.base.iter().copied());
-        left.extend(cand.iter());
+        left.extend(Column::stored(&cand));
         let wl = operand_weights(1, self.base.len(), q, &self.w);
-        let candr: Vec<&ColData> = cand.iter().collect();
+        let candr: Vec<Column<'_>> = Column::stored(&cand).collect();
         let wc = operand_weights(0, 0, q, &self.w);
-        let cross = cross_tensor(&left, &wl, &candr, &wc, &self.pieces, self.stride);
+        let cross = cross_tensor(self.s, &left, &wl, &candr, &wc, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
         let wo = operand_weights(1, 0, 0, &self.w);
         let (ocross, oo) = match &offset {
-            Some(o) => (
-                cross_tensor(&[o], &wo, &left, &wl, &self.pieces, self.stride),
-                cross_tensor(&[o], &wo, &[o], &wo, &self.pieces, self.stride),
-            ),
+            Some(o) => {
+                let o = [Column::Stored(o)];
+                (
+                    cross_tensor(self.s, &o, &wo, &left, &wl, &self.pieces, self.stride),
+                    cross_tensor(self.s, &o, &wo, &o, &wo, &self.pieces, self.stride),
+                )
+            }
             None => (Vec::new(), Vec::new()),
         };
         // Assemble the full (pp × pp) matrices per piece and channel.
@@ -284,15 +288,21 @@ impl<'a> GramEngine<'a> {
                 }
             }
         }
-        for (col, &b) in self.base.iter().zip(beta) {
-            for (c, d) in col.iter().enumerate() {
-                if let Some(v) = d {
-                    for i in 0..n {
-                        r[i][c] -= b * (v[i] * self.w[c]);
+        // The base columns block by block (the rigid-body ones computed per block), in
+        // column order per sample as over whole columns.
+        let rigid = self.base.iter().any(Column::is_rigid);
+        let mut blocks = Blocks::new(self.s);
+        for_each_block(&mut blocks, 0..n, rigid, |blk, lo, hi| {
+            for (col, &b) in self.base.iter().zip(beta) {
+                for c in 0..6 {
+                    if let Some((v, _)) = blk.get(col, c) {
+                        for (ri, x) in r[lo..hi].iter_mut().zip(v) {
+                            ri[c] -= b * (x * self.w[c]);
+                        }
                     }
                 }
             }
-        }
+        });
         for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.iter().enumerate() {
                 if let Some(v) = d {
@@ -318,13 +328,14 @@ fn operand_weights(weighted: usize, base: usize, cand: usize, w: &[f64; 6]) -> V
     out
 }
 
-/// `Σ (x_i fx)(y_i fy)` with four interleaved partial sums (so the compiler can keep four
-/// products in flight), added pairwise at the end; the order is fixed, so results are
-/// reproducible.
-fn dot(x: &[f64], fx: f64, y: &[f64], fy: f64) -> f64 {
+/// Adds `Σ (x_i fx)(y_i fy)` to four interleaved partial sums `acc` (so the compiler can
+/// keep four products in flight), the samples past the last multiple of 4 to `tail`; the
+/// dot product is `(acc₀ + acc₁) + (acc₂ + acc₃) + tail`. Fed consecutive blocks whose
+/// lengths are multiples of 4 (all but the last), the sums are those over the whole series:
+/// the order is fixed, so results are reproducible.
+fn dot_accumulate(x: &[f64], fx: f64, y: &[f64], fy: f64, acc: &mut [f64; 4], tail: &mut f64) {
     let n = x.len().min(y.len());
     let (x, y) = (&x[..n], &y[..n]);
-    let mut acc = [0.0f64; 4];
     let mut xs = x.chunks_exact(4);
     let mut ys = y.chunks_exact(4);
     for (a, b) in (&mut xs).zip(&mut ys) {
@@ -333,19 +344,21 @@ fn dot(x: &[f64], fx: f64, y: &[f64], fy: f64) -> f64 {
         acc[2] += (a[2] * fx) * (b[2] * fy);
         acc[3] += (a[3] * fx) * (b[3] * fy);
     }
-    let mut tail = 0.0;
     for (a, b) in xs.remainder().iter().zip(ys.remainder()) {
-        tail += (a * fx) * (b * fy);
+        *tail += (a * fx) * (b * fy);
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` for every piece,
-/// channel, `j`, `k`; layout `[piece][channel][j][k]`.
+/// channel, `j`, `k`; layout `[piece][channel][j][k]`. Every `stride`-th sample of a piece
+/// enters (summed in sample order); with stride 1, four interleaved partial sums
+/// ([`dot_accumulate`]). The samples are read block by block ([`Blocks`]): the rigid-body
+/// columns are computed once per block for every product that needs them.
 fn cross_tensor(
-    a: &[&ColData],
+    s: &Signals,
+    a: &[Column<'_>],
     wa: &[[f64; 6]],
-    b: &[&ColData],
+    b: &[Column<'_>],
     wb: &[[f64; 6]],
     pieces: &[(usize, usize)],
     stride: usize,
@@ -353,31 +366,72 @@ fn cross_tensor(
     let (pa, pb) = (a.len(), b.len());
     let mut out = vec![0.0; pieces.len() * 6 * pa * pb];
     // The Gram of a set with itself is symmetric: the upper triangle is mirrored.
-    let symmetric = pa == pb && a.iter().zip(b).all(|(x, y)| std::ptr::eq(*x, *y));
+    let symmetric = pa == pb && a.iter().zip(b).all(|(x, y)| x.same(y));
+    let mut pairs: Vec<(usize, usize, usize)> = Vec::new();
     for (j, aj) in a.iter().enumerate() {
         for (k, bk) in b.iter().enumerate() {
             if symmetric && k < j {
                 continue;
             }
             for c in 0..6 {
-                let (Some(x), Some(y)) = (&aj[c], &bk[c]) else {
+                if aj.has(c) && bk.has(c) {
+                    pairs.push((j, k, c));
+                }
+            }
+        }
+    }
+    if pairs.is_empty() {
+        return out;
+    }
+    let rigid = a.iter().chain(b).any(Column::is_rigid);
+    let mut blocks = Blocks::new(s);
+    let mut acc = vec![[0.0f64; 4]; pairs.len()];
+    let mut tail = vec![0.0f64; pairs.len()];
+    let mut sums = vec![0.0f64; pairs.len()];
+    for (pi, &(lo, hi)) in pieces.iter().enumerate() {
+        acc.iter_mut().for_each(|x| *x = [0.0; 4]);
+        tail.iter_mut().for_each(|x| *x = 0.0);
+        let mut first = true;
+        let mut blo = lo;
+        while blo < hi {
+            let bhi = (blo + BLOCK_SAMPLES * stride).min(hi);
+            blocks.load(blo, bhi, stride, rigid);
+            for (q, &(j, k, c)) in pairs.iter().enumerate() {
+                let (Some((x, sx)), Some((y, sy))) = (blocks.get(&a[j], c), blocks.get(&b[k], c))
+                else {
                     continue;
                 };
-                for (pi, &(lo, hi)) in pieces.iter().enumerate() {
-                    let (fx, fy) = (wa[j][c], wb[k][c]);
-                    let v = if stride == 1 {
-                        dot(&x[lo..hi], fx, &y[lo..hi], fy)
+                let (fx, fy) = (wa[j][c], wb[k][c]);
+                if stride == 1 {
+                    dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]);
+                } else {
+                    let terms = x
+                        .iter()
+                        .step_by(sx)
+                        .zip(y.iter().step_by(sy))
+                        .map(|(u, v)| (u * fx) * (v * fy));
+                    // In sample order across the blocks, as one sum over the piece.
+                    sums[q] = if first {
+                        terms.sum()
                     } else {
-                        (lo..hi)
-                            .step_by(stride)
-                            .map(|i| (x[i] * fx) * (y[i] * fy))
-                            .sum()
+                        terms.fold(sums[q], |acc, t| acc + t)
                     };
-                    out[((pi * 6 + c) * pa + j) * pb + k] = v;
-                    if symmetric {
-                        out[((pi * 6 + c) * pa + k) * pb + j] = v;
-                    }
                 }
+            }
+            first = false;
+            blo = bhi;
+        }
+        for (q, &(j, k, c)) in pairs.iter().enumerate() {
+            let v = if stride == 1 {
+                (acc[q][0] + acc[q][1]) + (acc[q][2] + acc[q][3]) + tail[q]
+            } else if first {
+                std::iter::empty::<f64>().sum()
+            } else {
+                sums[q]
+            };
+            out[((pi * 6 + c) * pa + j) * pb + k] = v;
+            if symmetric {
+                out[((pi * 6 + c) * pa + k) * pb + j] = v;
             }
         }
     }
