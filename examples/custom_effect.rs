@@ -39,8 +39,7 @@ impl Tether {
     /// The body-frame force per unit stiffness at every sample \[N per N/m\].
     fn unit_force(&self, s: &Signals) -> Vec<Vector3<f64>> {
         let anchor = Vector3::from(self.anchor);
-        s.rotation
-            .iter()
+        s.rotations()
             .zip(&s.position)
             .map(|(r, p)| r.transpose() * (anchor - p))
             .collect()

@@ -72,14 +72,14 @@ fn qr_solution_matches_normal_equations() {
     let s = Signals::from_log(&log).unwrap();
     let cols = rigid_columns(&s);
     let w = [10.0, 10.0, 5.0, 1e4, 1e4, 2e4];
-    let sol = weighted_qr_solve(&s, &stored(&cols), &s.wrench, &w, 1.0).unwrap();
+    let sol = weighted_qr_solve(&s, &stored(&cols), s.wrench(), &w, 1.0).unwrap();
     // Independent: dense normal equations with nalgebra.
     let n = s.len();
     let a = DMatrix::<f64>::from_fn(6 * n, 10, |r, j| {
         let (i, c) = (r / 6, r % 6);
         cols[j][c].as_ref().map_or(0.0, |v| v[i]) * w[c]
     });
-    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench[r / 6][r % 6] * w[r % 6]);
+    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench()[r / 6][r % 6] * w[r % 6]);
     let x = (a.transpose() * &a)
         .lu()
         .solve(&(a.transpose() * b))
@@ -102,13 +102,13 @@ fn blocked_qr_matches_normal_equations_over_several_blocks() {
     let s = Signals::from_log(&log).unwrap();
     let cols = rigid_columns(&s);
     let w = [10.0, 10.0, 5.0, 1e4, 1e4, 2e4];
-    let sol = weighted_qr_solve(&s, &stored(&cols), &s.wrench, &w, 1.0).unwrap();
+    let sol = weighted_qr_solve(&s, &stored(&cols), s.wrench(), &w, 1.0).unwrap();
     let n = s.len();
     let a = DMatrix::<f64>::from_fn(6 * n, 10, |r, j| {
         let (i, c) = (r / 6, r % 6);
         cols[j][c].as_ref().map_or(0.0, |v| v[i]) * w[c]
     });
-    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench[r / 6][r % 6] * w[r % 6]);
+    let b = DVector::<f64>::from_fn(6 * n, |r, _| s.wrench()[r / 6][r % 6] * w[r % 6]);
     let ata_inv = (a.transpose() * &a).try_inverse().unwrap();
     let x = &ata_inv * (a.transpose() * &b);
     let rss = (&b - &a * &x).norm_squared();
@@ -155,7 +155,7 @@ fn gram_cross_validation_matches_brute_force() {
             std::array::from_fn(|c| col[c].as_ref().map(|v| idx.iter().map(|&i| v[i]).collect()))
         };
         let tcols: Vec<ColData> = all.iter().map(|c| sub(c, &train)).collect();
-        let tb: Vec<[f64; 6]> = train.iter().map(|&i| s.wrench[i]).collect();
+        let tb: Vec<[f64; 6]> = train.iter().map(|&i| s.wrench()[i]).collect();
         let sol = weighted_qr_solve(&s, &stored(&tcols), &tb, &w, 1.0).unwrap();
         for i in a..b {
             for c in 0..6 {
@@ -163,7 +163,7 @@ fn gram_cross_validation_matches_brute_force() {
                 for (j, col) in all.iter().enumerate() {
                     pred += col[c].as_ref().map_or(0.0, |v| v[i]) * sol.beta[j];
                 }
-                sse += ((s.wrench[i][c] - pred) * w[c]).powi(2);
+                sse += ((s.wrench()[i][c] - pred) * w[c]).powi(2);
             }
         }
     }
@@ -835,8 +835,8 @@ fn rigid_columns_by_block_equal_stored_columns_bit_for_bit() {
             sb.evaluate(&cand).sse_full.to_bits()
         );
     }
-    let qa = weighted_qr_solve(&s, &stored(&stored_rigid), &s.wrench, &w, 1.0).unwrap();
-    let qb = weighted_qr_solve(&s, &by_block, &s.wrench, &w, 1.0).unwrap();
+    let qa = weighted_qr_solve(&s, &stored(&stored_rigid), s.wrench(), &w, 1.0).unwrap();
+    let qb = weighted_qr_solve(&s, &by_block, s.wrench(), &w, 1.0).unwrap();
     assert_eq!(bits(&qa.beta), bits(&qb.beta));
     assert_eq!(qa.se, qb.se);
 }

@@ -244,7 +244,7 @@ pub(crate) fn noise_floor(
         None => unfiltered_noise(model, s, &saturated, &fit)?,
     };
     let force_rms = (s
-        .wrench
+        .wrench()
         .iter()
         .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
         .sum::<f64>()

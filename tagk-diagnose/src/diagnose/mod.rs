@@ -278,7 +278,7 @@ pub fn diagnose(
     let fit = fit_model(model, s, None)?;
     let scored = ranking::score_candidates(model, s, &fit, opts);
     let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking, None)?;
-    let missing = ranking::judge_scored(scored, &floor, opts);
+    let missing = ranking::judge_scored(scored, s, &floor, opts);
     assemble(model, s, opts, &floor, fit, missing)
 }
 
@@ -351,7 +351,7 @@ fn assemble(
         verdict,
         fit,
         t: s.t.clone(),
-        measured: s.wrench.clone(),
+        measured: s.wrench().to_vec(),
         top_driver: missing.top_driver,
         partial_residuals,
     })

@@ -111,14 +111,14 @@ impl Effect for RotorDrag {
         (0..6).collect()
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
-        if s.rotor_speeds.is_some() {
+        if s.rotor_speeds().is_some() {
             Ok(())
         } else {
             Err("needs rotor speeds (columns w1..w4)".into())
         }
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
-        let Some(w) = &s.rotor_speeds else {
+        let Some(w) = s.rotor_speeds() else {
             return Vec::new();
         };
         let hubs = s.rotor_mixer().map(|m| m.hubs);

@@ -50,7 +50,7 @@ impl Effect for GroundEffect {
             *d = Some(
                 s.position
                     .iter()
-                    .zip(&s.wrench)
+                    .zip(s.wrench())
                     .map(|(p, w)| w[c] * self.shape(p.z))
                     .collect(),
             );
