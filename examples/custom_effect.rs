@@ -40,7 +40,7 @@ impl Tether {
     fn unit_force(&self, s: &Signals) -> Vec<Vector3<f64>> {
         let anchor = Vector3::from(self.anchor);
         s.rotations()
-            .zip(&s.position)
+            .zip(s.positions())
             .map(|(r, p)| r.transpose() * (anchor - p))
             .collect()
     }
@@ -85,7 +85,7 @@ impl Effect for Tether {
         let anchor = Vector3::from(self.anchor);
         (
             "distance to the anchor [m]".into(),
-            s.position.iter().map(|p| (p - anchor).norm()).collect(),
+            s.positions().map(|p| (p - anchor).norm()).collect(),
         )
     }
 }

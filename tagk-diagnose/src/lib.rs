@@ -37,7 +37,9 @@ pub use report::{
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
-pub use streams::{AlignOptions, StreamAlignment, align_streams, parse_shift, streams_table};
+pub use streams::{
+    AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift, streams_table,
+};
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;

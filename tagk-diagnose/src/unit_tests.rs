@@ -775,7 +775,7 @@ fn an_offset_equals_a_shifted_target() {
     });
     let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
     let shifted: Vec<[f64; 6]> = s
-        .target
+        .target()
         .iter()
         .enumerate()
         .map(|(i, y)| std::array::from_fn(|c| y[c] - offset[c].as_ref().map_or(0.0, |v| v[i])))

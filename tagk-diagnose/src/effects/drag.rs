@@ -151,7 +151,7 @@ impl Effect for RotorDrag {
                     add(&mut vertical, 2, i, -v.z * sum);
                 }
                 Some(h) => {
-                    let om = s.omega[i];
+                    let om = s.omega(i);
                     for (r, hub) in h.iter().enumerate() {
                         let (x, y) = (hub[0], hub[1]);
                         let p = nalgebra::Vector3::new(x, y, 0.0);

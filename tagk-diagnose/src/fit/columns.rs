@@ -49,6 +49,9 @@ pub(crate) enum Column<'a> {
     Stored(&'a ColData),
     /// Rigid-body column `j` (`0..10`), computed per block from the signals.
     Rigid(usize),
+    /// The regression target (per-sample rows of the six channels, given to
+    /// [`Blocks::new`]), read per block.
+    Target,
 }
 
 impl<'a> Column<'a> {
@@ -62,6 +65,7 @@ impl<'a> Column<'a> {
         match self {
             Column::Stored(d) => d[c].is_some(),
             Column::Rigid(j) => rigid_channels(*j).contains(&c),
+            Column::Target => true,
         }
     }
 
@@ -76,15 +80,31 @@ impl<'a> Column<'a> {
         match (self, other) {
             (Column::Stored(a), Column::Stored(b)) => std::ptr::eq(*a, *b),
             (Column::Rigid(a), Column::Rigid(b)) => a == b,
+            (Column::Target, Column::Target) => true,
             _ => false,
         }
     }
 }
 
+std::thread_local! {
+    /// The block buffers of the last [`Blocks`] dropped on this thread, for the next one:
+    /// the Gram engine makes a block reader per product (thousands in a diagnosis), and a
+    /// fresh half-megabyte buffer each time costs page faults and zeroing.
+    static SPARE_BUFFERS: std::cell::RefCell<(Vec<f64>, Vec<f64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
 /// One block of samples of the design: samples `lo, lo + stride, …` below `hi` (at most
-/// [`BLOCK_SAMPLES`] of them), with the rigid-body columns computed for them.
+/// [`BLOCK_SAMPLES`] of them), with the rigid-body columns computed for them and the target's
+/// channels gathered, when the columns read need them ([`Blocks::need`]).
 pub(crate) struct Blocks<'s> {
     s: &'s Signals,
+    /// The target's rows ([`Column::Target`]).
+    target: Option<&'s [[f64; 6]]>,
+    /// The target's channels at the block's samples, `[c][m]`.
+    target_block: Vec<f64>,
+    need_rigid: bool,
+    need_target: bool,
     /// Rigid-body regressor entries of the block, `[10 c + j][m]` (row-major `Y`, one row
     /// of [`ROW_STRIDE`] per entry).
     rigid: Vec<f64>,
@@ -94,25 +114,49 @@ pub(crate) struct Blocks<'s> {
 }
 
 impl<'s> Blocks<'s> {
-    /// A block reader over the signals `s` (nothing loaded yet).
-    pub fn new(s: &'s Signals) -> Self {
+    /// A block reader over the signals `s` and the target rows `target` (nothing loaded
+    /// yet, nothing needed).
+    pub fn new(s: &'s Signals, target: Option<&'s [[f64; 6]]>) -> Self {
+        let (rigid, target_block) = SPARE_BUFFERS.with(|b| std::mem::take(&mut *b.borrow_mut()));
         Self {
             s,
-            rigid: Vec::new(),
+            target,
+            target_block,
+            need_rigid: false,
+            need_target: false,
+            rigid,
             lo: 0,
             hi: 0,
             stride: 1,
         }
     }
 
-    /// Loads the samples `lo, lo + stride, …` below `hi` (at most [`BLOCK_SAMPLES`]);
-    /// computes the rigid-body columns for them when `rigid`.
-    pub fn load(&mut self, lo: usize, hi: usize, stride: usize, rigid: bool) {
+    /// Makes the blocks loaded from now on serve `cols` (the rigid-body columns computed,
+    /// the target gathered, if any of them is one).
+    pub fn need(&mut self, cols: &[Column<'_>]) {
+        self.need_rigid |= cols.iter().any(Column::is_rigid);
+        self.need_target |= cols.iter().any(|c| matches!(c, Column::Target));
+    }
+
+    /// Loads the samples `lo, lo + stride, …` below `hi` (at most [`BLOCK_SAMPLES`]).
+    pub fn load(&mut self, lo: usize, hi: usize, stride: usize) {
         debug_assert!(stride >= 1 && (hi - lo).div_ceil(stride) <= BLOCK_SAMPLES);
         self.lo = lo;
         self.hi = hi;
         self.stride = stride;
-        if !rigid {
+        if self.need_target
+            && let Some(target) = self.target
+        {
+            if self.target_block.is_empty() {
+                self.target_block = vec![0.0; 6 * BLOCK_SAMPLES];
+            }
+            for (m, i) in (lo..hi).step_by(stride).enumerate() {
+                for c in 0..6 {
+                    self.target_block[c * BLOCK_SAMPLES + m] = target[i][c];
+                }
+            }
+        }
+        if !self.need_rigid {
             return;
         }
         if self.rigid.is_empty() {
@@ -124,8 +168,8 @@ impl<'s> Blocks<'s> {
             // Infallible: the buffer has 60 entries.
             let _ = write_rigid_body_regressor(
                 &s.accel_proper[i],
-                &s.omega[i],
-                &s.omega_dot[i],
+                &s.omega(i),
+                &s.omega_dot(i),
                 &mut y,
             );
             for q in RIGID_ENTRIES {
@@ -136,7 +180,7 @@ impl<'s> Blocks<'s> {
 
     /// The values of `col` on channel `c` at the loaded samples: a slice and the step
     /// between the loaded samples in it (`None` where the column has no values). A rigid-body
-    /// column must have been loaded (`rigid` in [`Blocks::load`]).
+    /// column or the target must have been needed ([`Blocks::need`]) before the load.
     pub fn get<'b>(&'b self, col: &Column<'b>, c: usize) -> Option<(&'b [f64], usize)> {
         match col {
             Column::Stored(d) => d[c].as_ref().map(|v| (&v[self.lo..self.hi], self.stride)),
@@ -148,7 +192,22 @@ impl<'s> Blocks<'s> {
                 let row = (10 * c + j) * ROW_STRIDE;
                 Some((&self.rigid[row..row + count], 1))
             }
+            Column::Target => {
+                let count = (self.hi - self.lo).div_ceil(self.stride);
+                let row = c * BLOCK_SAMPLES;
+                Some((&self.target_block[row..row + count], 1))
+            }
         }
+    }
+}
+
+impl Drop for Blocks<'_> {
+    fn drop(&mut self) {
+        let buffers = (
+            std::mem::take(&mut self.rigid),
+            std::mem::take(&mut self.target_block),
+        );
+        SPARE_BUFFERS.with(|b| *b.borrow_mut() = buffers);
     }
 }
 
@@ -157,13 +216,12 @@ impl<'s> Blocks<'s> {
 pub(crate) fn for_each_block(
     blocks: &mut Blocks<'_>,
     range: std::ops::Range<usize>,
-    rigid: bool,
     mut f: impl FnMut(&Blocks<'_>, usize, usize),
 ) {
     let mut lo = range.start;
     while lo < range.end {
         let hi = (lo + BLOCK_SAMPLES).min(range.end);
-        blocks.load(lo, hi, 1, rigid);
+        blocks.load(lo, hi, 1);
         f(blocks, lo, hi);
         lo = hi;
     }

@@ -32,7 +32,7 @@ pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
     for i in 0..n {
         // Infallible: the buffer has 60 entries.
         let _ =
-            write_rigid_body_regressor(&s.accel_proper[i], &s.omega[i], &s.omega_dot[i], &mut buf);
+            write_rigid_body_regressor(&s.accel_proper[i], &s.omega(i), &s.omega_dot(i), &mut buf);
         for (j, col) in cols.iter_mut().enumerate() {
             for (c, d) in col.iter_mut().enumerate() {
                 if let Some(v) = d {
@@ -55,17 +55,17 @@ pub(crate) fn rigid_design<'s>(
     match model.known_mass() {
         None => (
             (0..10).map(Column::Rigid).collect(),
-            Cow::Borrowed(&s.target),
+            Cow::Borrowed(s.target()),
         ),
         Some(m) => {
-            let mut target = s.target.clone();
+            let mut target = s.target().to_vec();
             let mut y = [0.0; 60];
             for (i, t) in target.iter_mut().enumerate() {
                 // Infallible: the buffer has 60 entries.
                 let _ = write_rigid_body_regressor(
                     &s.accel_proper[i],
-                    &s.omega[i],
-                    &s.omega_dot[i],
+                    &s.omega(i),
+                    &s.omega_dot(i),
                     &mut y,
                 );
                 for &c in rigid_channels(0) {

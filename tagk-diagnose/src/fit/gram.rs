@@ -1,7 +1,5 @@
 //! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
 
-use std::rc::Rc;
-
 use nalgebra::{DMatrix, DVector};
 
 use crate::fit::columns::{BLOCK_SAMPLES, Blocks, Column, for_each_block};
@@ -25,14 +23,16 @@ pub(crate) struct Evaluation {
 
 /// Gram-matrix engine: the weighted target `y` and the base columns are reduced once to
 /// per-piece, per-channel cross-product matrices; each candidate only adds its own cross
-/// products. Pieces implement blocked K-fold cross-validation over time with a buffer of
+/// products. Every operand (target, base, candidate, offset) is weighted on the fly by the
+/// channel weights: `(x w)(y w)` per sample, the same bits as from stored weighted copies. Pieces implement blocked K-fold cross-validation over time with a buffer of
 /// `buffer` samples on each side of the held-out block removed from training (so that
 /// autocorrelated neighbours do not leak).
 pub(crate) struct GramEngine<'a> {
     s: &'a Signals,
     w: [f64; 6],
-    /// Weighted target (shared with the scan engines made by [`GramEngine::for_scan`]).
-    y: Rc<ColData>,
+    /// The unweighted target rows, borrowed (weighted on the fly by `w`, [`Column::Target`]:
+    /// the same products as with a stored weighted copy, without the copy).
+    target: &'a [[f64; 6]],
     /// The base columns, unweighted, borrowed or computed per block (weighted on the fly by
     /// `w` in the cross products and the residual: no weighted copy of a long log's design
     /// is kept, and no copy of the rigid-body columns at all).
@@ -56,7 +56,7 @@ impl<'a> GramEngine<'a> {
         s: &'a Signals,
         w: &[f64; 6],
         base: &[Column<'a>],
-        target: Option<&[[f64; 6]]>,
+        target: Option<&'a [[f64; 6]]>,
         folds: usize,
     ) -> Self {
         Self::with_stride(s, w, base, target, folds, 1)
@@ -68,7 +68,7 @@ impl<'a> GramEngine<'a> {
         s: &'a Signals,
         w: &[f64; 6],
         base: &[Column<'a>],
-        target: Option<&[[f64; 6]]>,
+        target: Option<&'a [[f64; 6]]>,
     ) -> Self {
         Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
     }
@@ -77,14 +77,12 @@ impl<'a> GramEngine<'a> {
         s: &'a Signals,
         w: &[f64; 6],
         base: &[Column<'a>],
-        target: Option<&[[f64; 6]]>,
+        target: Option<&'a [[f64; 6]]>,
         folds: usize,
         stride: usize,
     ) -> Self {
         let n = s.len();
-        let tgt = target.unwrap_or(&s.target);
-        let y: ColData =
-            std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
+        let target = target.unwrap_or(s.target());
         let base: Vec<Column<'a>> = base.to_vec();
         let folds = folds.max(1);
         let mut pieces = Vec::new();
@@ -101,14 +99,14 @@ impl<'a> GramEngine<'a> {
                 pieces.push((b - buffer, b));
             }
         }
-        let mut all: Vec<Column<'_>> = vec![Column::Stored(&y)];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(base.iter().copied());
-        let weights = operand_weights(1, base.len(), 0, w);
-        let base_gram = cross_tensor(s, &all, &weights, &all, &weights, &pieces, stride);
+        let weights = vec![*w; 1 + base.len()];
+        let base_gram = cross_tensor(s, target, &all, &weights, &all, &weights, &pieces, stride);
         Self {
             s,
             w: *w,
-            y: Rc::new(y),
+            target,
             base,
             pieces,
             folds,
@@ -123,33 +121,29 @@ impl<'a> GramEngine<'a> {
         let n = self.s.len();
         let stride = (n / SCAN_SAMPLES).max(1);
         let pieces = vec![(0, n)];
-        let mut all: Vec<Column<'_>> = vec![Column::Stored(&*self.y)];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(self.base.iter().copied());
-        let weights = operand_weights(1, self.base.len(), 0, &self.w);
-        let base_gram = cross_tensor(self.s, &all, &weights, &all, &weights, &pieces, stride);
+        let weights = vec![self.w; 1 + self.base.len()];
+        let base_gram = cross_tensor(
+            self.s,
+            self.target,
+            &all,
+            &weights,
+            &all,
+            &weights,
+            &pieces,
+            stride,
+        );
         GramEngine {
             s: self.s,
             w: self.w,
-            y: Rc::clone(&self.y),
+            target: self.target,
             base: self.base.clone(),
             pieces,
             folds: 1,
             base_gram,
             stride,
         }
-    }
-
-    /// Weighted version of unweighted candidate columns.
-    fn weigh(&self, cols: &[ColData]) -> Vec<ColData> {
-        cols.iter()
-            .map(|col| {
-                std::array::from_fn(|c| {
-                    col[c]
-                        .as_ref()
-                        .map(|v| v.iter().map(|x| x * self.w[c]).collect())
-                })
-            })
-            .collect()
     }
 
     /// Evaluates base + `cand` (unweighted extra columns; may be empty).
@@ -160,27 +154,26 @@ impl<'a> GramEngine<'a> {
     /// Evaluates base + `cand` with the known part `offset` (unweighted; fixed columns times
     /// their values) moved to the target: the target becomes `y − offset`.
     pub fn evaluate_with(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
-        let cand = self.weigh(cand);
         let p0 = 1 + self.base.len();
         let q = cand.len();
         let pp = p0 + q;
         let np = self.pieces.len();
-        let mut left: Vec<Column<'_>> = vec![Column::Stored(&*self.y)];
+        let mut left: Vec<Column<'_>> = vec![Column::Target];
         left.extend(self.base.iter().copied());
-        left.extend(Column::stored(&cand));
-        let wl = operand_weights(1, self.base.len(), q, &self.w);
-        let candr: Vec<Column<'_>> = Column::stored(&cand).collect();
-        let wc = operand_weights(0, 0, q, &self.w);
-        let cross = cross_tensor(self.s, &left, &wl, &candr, &wc, &self.pieces, self.stride);
+        left.extend(Column::stored(cand));
+        let wl = vec![self.w; pp];
+        let candr: Vec<Column<'_>> = Column::stored(cand).collect();
+        let wc = vec![self.w; q];
+        let (s, t) = (self.s, self.target);
+        let cross = cross_tensor(s, t, &left, &wl, &candr, &wc, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
-        let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
-        let wo = operand_weights(1, 0, 0, &self.w);
-        let (ocross, oo) = match &offset {
+        let wo = [self.w];
+        let (ocross, oo) = match offset {
             Some(o) => {
                 let o = [Column::Stored(o)];
                 (
-                    cross_tensor(self.s, &o, &wo, &left, &wl, &self.pieces, self.stride),
-                    cross_tensor(self.s, &o, &wo, &o, &wo, &self.pieces, self.stride),
+                    cross_tensor(s, t, &o, &wo, &left, &wl, &self.pieces, self.stride),
+                    cross_tensor(s, t, &o, &wo, &o, &wo, &self.pieces, self.stride),
                 )
             }
             None => (Vec::new(), Vec::new()),
@@ -274,25 +267,24 @@ impl<'a> GramEngine<'a> {
         offset: Option<&ColData>,
         beta: &[f64],
     ) -> Vec<[f64; 6]> {
-        let cand = self.weigh(cand);
         let n = self.s.len();
         let mut r: Vec<[f64; 6]> = (0..n)
-            .map(|i| std::array::from_fn(|c| self.y[c].as_ref().map_or(0.0, |v| v[i])))
+            .map(|i| std::array::from_fn(|c| self.target[i][c] * self.w[c]))
             .collect();
         if let Some(o) = offset {
-            for (c, d) in self.weigh(std::slice::from_ref(o))[0].iter().enumerate() {
+            for (c, d) in o.iter().enumerate() {
                 if let Some(v) = d {
                     for i in 0..n {
-                        r[i][c] -= v[i];
+                        r[i][c] -= v[i] * self.w[c];
                     }
                 }
             }
         }
         // The base columns block by block (the rigid-body ones computed per block), in
         // column order per sample as over whole columns.
-        let rigid = self.base.iter().any(Column::is_rigid);
-        let mut blocks = Blocks::new(self.s);
-        for_each_block(&mut blocks, 0..n, rigid, |blk, lo, hi| {
+        let mut blocks = Blocks::new(self.s, None);
+        blocks.need(&self.base);
+        for_each_block(&mut blocks, 0..n, |blk, lo, hi| {
             for (col, &b) in self.base.iter().zip(beta) {
                 for c in 0..6 {
                     if let Some((v, _)) = blk.get(col, c) {
@@ -307,25 +299,13 @@ impl<'a> GramEngine<'a> {
             for (c, d) in col.iter().enumerate() {
                 if let Some(v) = d {
                     for i in 0..n {
-                        r[i][c] -= b * v[i];
+                        r[i][c] -= b * (v[i] * self.w[c]);
                     }
                 }
             }
         }
         r
     }
-}
-
-/// Per-operand, per-channel weights of `[y?, base…, cand…]` for [`cross_tensor`]: 1 for the
-/// `weighted` leading operands (the target, already weighted) and the `cand` trailing ones
-/// (weighted by [`GramEngine::weigh`]), `w` for the `base` columns in between (weighted on
-/// the fly). Multiplying by 1 is exact, so a product is the same bits as with stored
-/// weighted columns.
-fn operand_weights(weighted: usize, base: usize, cand: usize, w: &[f64; 6]) -> Vec<[f64; 6]> {
-    let mut out = vec![[1.0; 6]; weighted];
-    out.extend(std::iter::repeat_n(*w, base));
-    out.extend(std::iter::repeat_n([1.0; 6], cand));
-    out
 }
 
 /// Adds `Σ (x_i fx)(y_i fy)` to four interleaved partial sums `acc` (so the compiler can
@@ -349,13 +329,16 @@ fn dot_accumulate(x: &[f64], fx: f64, y: &[f64], fy: f64, acc: &mut [f64; 4], ta
     }
 }
 
-/// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` for every piece,
+/// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` (unweighted
+/// operands, per-operand, per-channel weights `wa`, `wb`) for every piece,
 /// channel, `j`, `k`; layout `[piece][channel][j][k]`. Every `stride`-th sample of a piece
 /// enters (summed in sample order); with stride 1, four interleaved partial sums
 /// ([`dot_accumulate`]). The samples are read block by block ([`Blocks`]): the rigid-body
 /// columns are computed once per block for every product that needs them.
+#[allow(clippy::too_many_arguments)]
 fn cross_tensor(
     s: &Signals,
+    target: &[[f64; 6]],
     a: &[Column<'_>],
     wa: &[[f64; 6]],
     b: &[Column<'_>],
@@ -383,8 +366,9 @@ fn cross_tensor(
     if pairs.is_empty() {
         return out;
     }
-    let rigid = a.iter().chain(b).any(Column::is_rigid);
-    let mut blocks = Blocks::new(s);
+    let mut blocks = Blocks::new(s, Some(target));
+    blocks.need(a);
+    blocks.need(b);
     let mut acc = vec![[0.0f64; 4]; pairs.len()];
     let mut tail = vec![0.0f64; pairs.len()];
     let mut sums = vec![0.0f64; pairs.len()];
@@ -395,7 +379,7 @@ fn cross_tensor(
         let mut blo = lo;
         while blo < hi {
             let bhi = (blo + BLOCK_SAMPLES * stride).min(hi);
-            blocks.load(blo, bhi, stride, rigid);
+            blocks.load(blo, bhi, stride);
             for (q, &(j, k, c)) in pairs.iter().enumerate() {
                 let (Some((x, sx)), Some((y, sy))) = (blocks.get(&a[j], c), blocks.get(&b[k], c))
                 else {

@@ -33,9 +33,9 @@ pub(crate) fn weighted_qr_solve(
     let rows = 6 * n;
     // Σ x² per column and channel, in sample order across the blocks.
     let mut squares: Vec<[Option<f64>; 6]> = vec![[None; 6]; p];
-    let rigid = cols.iter().any(Column::is_rigid);
-    let mut blocks = Blocks::new(s);
-    for_each_block(&mut blocks, 0..n, rigid, |blk, _, _| {
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
+    for_each_block(&mut blocks, 0..n, |blk, _, _| {
         for (j, col) in cols.iter().enumerate() {
             for c in 0..6 {
                 if let Some((v, _)) = blk.get(col, c) {
@@ -136,8 +136,8 @@ fn stacked_qr_r(
     let mut r = Mat::<f64>::zeros(p + 1, p + 1);
     let mut r_rows = 0;
     let mut lo = 0;
-    let rigid = cols.iter().any(Column::is_rigid);
-    let mut blocks = Blocks::new(s);
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
     while lo < n {
         let hi = (lo + QR_BLOCK_SAMPLES).min(n);
         let mut a = Mat::<f64>::zeros(r_rows + 6 * (hi - lo), p + 1);
@@ -146,7 +146,7 @@ fn stacked_qr_r(
                 a[(i, j)] = r[(i, j)];
             }
         }
-        for_each_block(&mut blocks, lo..hi, rigid, |blk, blo, bhi| {
+        for_each_block(&mut blocks, lo..hi, |blk, blo, bhi| {
             for (j, col) in cols.iter().enumerate() {
                 for c in 0..6 {
                     if let Some((v, _)) = blk.get(col, c) {
@@ -180,9 +180,9 @@ fn stacked_qr_r(
 pub(crate) fn predict(s: &Signals, cols: &[Column<'_>], beta: &[f64]) -> Vec<[f64; 6]> {
     let n = s.len();
     let mut out = vec![[0.0; 6]; n];
-    let rigid = cols.iter().any(Column::is_rigid);
-    let mut blocks = Blocks::new(s);
-    for_each_block(&mut blocks, 0..n, rigid, |blk, lo, hi| {
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
+    for_each_block(&mut blocks, 0..n, |blk, lo, hi| {
         for (col, &bj) in cols.iter().zip(beta) {
             if bj == 0.0 {
                 continue;

@@ -155,6 +155,30 @@ pub fn fit_model(
     s: &Signals,
     weights: Option<[f64; 6]>,
 ) -> Result<Fit, DiagnoseError> {
+    fit(model, s, weights, true)
+}
+
+/// [`fit_model`] without the prediction ([`Fit::predicted`] left empty): for the fits the
+/// diagnosis reads only the residual, weights and coefficients of (`6 n` values less, at the
+/// moment memory peaks on a long log).
+///
+/// # Errors
+/// As [`fit_model`].
+pub(crate) fn fit_residual_only(
+    model: &Model,
+    s: &Signals,
+    weights: Option<[f64; 6]>,
+) -> Result<Fit, DiagnoseError> {
+    fit(model, s, weights, false)
+}
+
+/// [`fit_model`], keeping the prediction or not.
+fn fit(
+    model: &Model,
+    s: &Signals,
+    weights: Option<[f64; 6]>,
+    keep_prediction: bool,
+) -> Result<Fit, DiagnoseError> {
     model.validate()?;
     check_effects_usable(model, s)?;
     if let Some(w) = weights
@@ -211,7 +235,14 @@ pub fn fit_model(
         settled = if pass > 0 && !moved { settled + 1 } else { 0 };
         let final_pass = pass + 1 == passes || (pass >= 1 && settled >= 1);
         last = Some(solve_pass(
-            model, s, &rigid, target, &w, &params, final_pass,
+            model,
+            s,
+            &rigid,
+            target,
+            &w,
+            &params,
+            final_pass,
+            final_pass && keep_prediction,
         )?);
         if final_pass {
             break;
@@ -237,7 +268,7 @@ pub fn fit_model(
         theta,
         theta_se,
         effects,
-        channels: channel_stats(&s.target, &residual),
+        channels: channel_stats(s.target(), &residual),
         predicted,
         residual,
         weights: w,
@@ -346,7 +377,8 @@ struct Pass {
 }
 
 /// Step 3 (each pass): the linear solve at the current parameters. Intermediate passes only
-/// set the weights, so normal equations suffice; the final pass is the QR solve.
+/// set the weights, so normal equations suffice; the final pass is the QR solve. The
+/// prediction is returned only with `keep_prediction` (empty otherwise: only the residual).
 fn solve_pass(
     model: &Model,
     s: &Signals,
@@ -355,6 +387,7 @@ fn solve_pass(
     w: &[f64; 6],
     params: &[Option<f64>],
     last_pass: bool,
+    keep_prediction: bool,
 ) -> Result<Pass, DiagnoseError> {
     let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
@@ -398,12 +431,22 @@ fn solve_pass(
         add_offset(&mut predicted, o);
     }
     add_known_mass(model, s, &mut predicted);
-    let residual: Vec<[f64; 6]> = s
-        .target
-        .iter()
-        .zip(&predicted)
-        .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
-        .collect();
+    let (predicted, residual) = if keep_prediction {
+        let residual: Vec<[f64; 6]> = s
+            .target()
+            .iter()
+            .zip(&predicted)
+            .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
+            .collect();
+        (predicted, residual)
+    } else {
+        // The residual in the prediction's place (the same differences).
+        let mut residual = predicted;
+        for (r, b) in residual.iter_mut().zip(s.target()) {
+            *r = std::array::from_fn(|c| b[c] - r[c]);
+        }
+        (Vec::new(), residual)
+    };
     Ok(Pass {
         predicted,
         residual,
