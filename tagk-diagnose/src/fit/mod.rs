@@ -241,8 +241,11 @@ fn fit(
             target,
             &w,
             &params,
-            final_pass,
-            final_pass && keep_prediction,
+            match (final_pass, keep_prediction) {
+                (false, _) => PassKind::Intermediate,
+                (true, false) => PassKind::FinalResidual,
+                (true, true) => PassKind::Final,
+            },
         )?);
         if final_pass {
             break;
@@ -369,6 +372,17 @@ fn sub_offset(values: &mut [[f64; 6]], offset: &ColData) {
     }
 }
 
+/// What a pass of [`fit_model`] solves and returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PassKind {
+    /// Normal equations; the residual only sets the next pass's weights.
+    Intermediate,
+    /// The QR solve, with the prediction and the residual.
+    Final,
+    /// The QR solve, with the residual only ([`fit_residual_only`]).
+    FinalResidual,
+}
+
 /// One pass's solution: prediction and residual (and the QR solution on the final pass).
 struct Pass {
     predicted: Vec<[f64; 6]>,
@@ -378,7 +392,7 @@ struct Pass {
 
 /// Step 3 (each pass): the linear solve at the current parameters. Intermediate passes only
 /// set the weights, so normal equations suffice; the final pass is the QR solve. The
-/// prediction is returned only with `keep_prediction` (empty otherwise: only the residual).
+/// prediction is returned only by [`PassKind::Final`] (empty otherwise: only the residual).
 fn solve_pass(
     model: &Model,
     s: &Signals,
@@ -386,8 +400,7 @@ fn solve_pass(
     target: &[[f64; 6]],
     w: &[f64; 6],
     params: &[Option<f64>],
-    last_pass: bool,
-    keep_prediction: bool,
+    kind: PassKind,
 ) -> Result<Pass, DiagnoseError> {
     let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
@@ -418,7 +431,7 @@ fn solve_pass(
     if let Some(o) = &known {
         sub_offset(shifted_target.to_mut(), o);
     }
-    let (beta, solution) = if last_pass {
+    let (beta, solution) = if kind != PassKind::Intermediate {
         let sol = weighted_qr_solve(s, &cols, &shifted_target, w, 1.0)?;
         (sol.beta.clone(), Some(sol))
     } else {
@@ -431,7 +444,7 @@ fn solve_pass(
         add_offset(&mut predicted, o);
     }
     add_known_mass(model, s, &mut predicted);
-    let (predicted, residual) = if keep_prediction {
+    let (predicted, residual) = if kind == PassKind::Final {
         let residual: Vec<[f64; 6]> = s
             .target()
             .iter()
