@@ -163,17 +163,27 @@ impl<'s> Blocks<'s> {
             self.rigid = vec![0.0; 60 * ROW_STRIDE];
         }
         let s = self.s;
-        let mut y = [0.0; 60];
-        for (m, i) in (lo..hi).step_by(stride).enumerate() {
-            // Infallible: the buffer has 60 entries.
-            let _ = write_rigid_body_regressor(
-                &s.accel_proper[i],
-                &s.omega(i),
-                &s.omega_dot(i),
-                &mut y,
-            );
+        // Eight samples' regressors at a time, then each entry's eight values written
+        // together: one row segment per entry instead of 39 scattered writes per sample.
+        const TILE: usize = 8;
+        let samples: Vec<usize> = (lo..hi).step_by(stride).collect();
+        let mut y = [[0.0; 60]; TILE];
+        for (t, chunk) in samples.chunks(TILE).enumerate() {
+            for (yk, &i) in y.iter_mut().zip(chunk) {
+                // Infallible: the buffer has 60 entries.
+                let _ = write_rigid_body_regressor(
+                    &s.accel_proper[i],
+                    &s.omega(i),
+                    &s.omega_dot(i),
+                    yk,
+                );
+            }
+            let m0 = t * TILE;
             for q in RIGID_ENTRIES {
-                self.rigid[q * ROW_STRIDE + m] = y[q];
+                let row = &mut self.rigid[q * ROW_STRIDE + m0..q * ROW_STRIDE + m0 + chunk.len()];
+                for (r, yk) in row.iter_mut().zip(&y) {
+                    *r = yk[q];
+                }
             }
         }
     }
