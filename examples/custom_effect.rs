@@ -39,9 +39,8 @@ impl Tether {
     /// The body-frame force per unit stiffness at every sample \[N per N/m\].
     fn unit_force(&self, s: &Signals) -> Vec<Vector3<f64>> {
         let anchor = Vector3::from(self.anchor);
-        s.rotation
-            .iter()
-            .zip(&s.position)
+        s.rotations()
+            .zip(s.positions())
             .map(|(r, p)| r.transpose() * (anchor - p))
             .collect()
     }
@@ -86,7 +85,7 @@ impl Effect for Tether {
         let anchor = Vector3::from(self.anchor);
         (
             "distance to the anchor [m]".into(),
-            s.position.iter().map(|p| (p - anchor).norm()).collect(),
+            s.positions().map(|p| (p - anchor).norm()).collect(),
         )
     }
 }

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use crate::diagnose::{
     AlignOptions, CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef,
-    FlightLog, Model, NextStep, Report, SamplingFindings, Signals, align_streams, builtin_by_name,
-    builtin_effects, online_pass, parse_shift, report_table, run_logs, run_loop,
+    FlightLog, Model, NextStep, Report, SamplingFindings, Signals, align_streams_owned,
+    builtin_by_name, builtin_effects, online_pass, parse_shift, report_table, run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -478,8 +478,7 @@ fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Repo
         Some(dt) => Cow::Owned(log.resample_linear(dt)?),
         None => log,
     };
-    let (aligned, streams) = align_streams(&log, &args.align_options()?)?;
-    drop(log);
+    let (aligned, streams) = align_streams_owned(log.into_owned(), &args.align_options()?)?;
     let (s, _) = Signals::from_owned_log_split(aligned)?;
     let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
     report.streams = streams;
@@ -529,7 +528,7 @@ pub fn diagnose_logs(
             Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
             None => log,
         };
-        let (log, timing) = align_streams(&log, &align).map_err(in_file)?;
+        let (log, timing) = align_streams_owned(log, &align).map_err(in_file)?;
         streams.extend(timing.into_iter().map(|mut t| {
             t.log = name.clone();
             t

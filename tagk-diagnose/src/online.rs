@@ -75,7 +75,7 @@ pub fn online_pass(s: &Signals, fit: &Fit, stride: usize) -> Result<OnlineSummar
                 for (j, col) in cols.iter().enumerate() {
                     a[r * 10 + j] = col[c].as_ref().map_or(0.0, |v| v[i]) * w[c] * scale[j];
                 }
-                b[r] = s.wrench[i][c] * w[c];
+                b[r] = s.wrench()[i][c] * w[c];
             }
         }
         est.update(&a, &b)

@@ -30,33 +30,21 @@ pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 pub struct Signals {
     /// Time \[s\].
     pub t: Vec<f64>,
-    /// Rotation body → world.
-    pub rotation: Vec<Matrix3<f64>>,
-    /// World position \[m\].
-    pub position: Vec<Vector3<f64>>,
     /// Body-frame velocity `Rᵀ v` \[m/s\], from the logged velocity smoothed by a
     /// Savitzky–Golay filter of half-width 7 (15 samples; velocity noise
     /// in a regressor column would bias drag coefficients towards zero).
     pub velocity_body: Vec<Vector3<f64>>,
     /// Proper acceleration `a = Rᵀ(p̈ − g_w)`, body frame \[m/s²\].
     pub accel_proper: Vec<Vector3<f64>>,
-    /// Body angular velocity \[rad/s\].
-    pub omega: Vec<Vector3<f64>>,
-    /// Body angular acceleration \[rad/s²\].
-    pub omega_dot: Vec<Vector3<f64>>,
-    /// Measured actuator wrench `[fx, fy, fz, tx, ty, tz]`.
-    pub wrench: Vec<[f64; 6]>,
-    /// The measured wrench as the fit compares it with the model: [`Signals::wrench`], except
-    /// on the channels whose accelerations were derived ([`Signals::smoothed`]), where it is
-    /// smoothed by the Savitzky–Golay filter that pairs with the differentiator (same
-    /// half-width), so that both sides of the regression carry the same smoothing. Every
-    /// effect column is smoothed alike ([`Signals::smooth_channels`]).
-    pub target: Vec<[f64; 6]>,
+    /// Body angular acceleration \[rad/s²\] where it was derived ([`Signals::omega_dot`]
+    /// reads the log's own otherwise).
+    omega_dot_derived: Option<Vec<Vector3<f64>>>,
+    /// [`Signals::target`] where some channel is smoothed (`None`: the measured wrench
+    /// itself, not copied).
+    target_smoothed: Option<Vec<[f64; 6]>>,
     /// Channels carrying the differentiator's smoothing: the forces when the accelerations
     /// were derived, the torques when the angular accelerations were.
     pub smoothed: [bool; 6],
-    /// Rotor speeds \[rad/s\], if logged.
-    pub rotor_speeds: Option<Vec<[f64; 4]>>,
     /// `true` if the accelerations were derived (Savitzky–Golay) rather than logged.
     pub derived_accel: bool,
     /// `true` if the angular accelerations were derived rather than logged.
@@ -159,14 +147,10 @@ impl Signals {
         };
         let mut s = Signals {
             t: log.t.clone(),
-            rotation: Vec::with_capacity(n),
-            position: Vec::with_capacity(n),
             velocity_body: Vec::with_capacity(n),
             accel_proper: Vec::with_capacity(n),
-            omega: Vec::with_capacity(n),
-            omega_dot: Vec::with_capacity(n),
-            wrench: log.wrench.clone(),
-            target: Vec::new(),
+            omega_dot_derived: None,
+            target_smoothed: None,
             smoothed: [
                 derived_accel,
                 derived_accel,
@@ -175,7 +159,6 @@ impl Signals {
                 derived_omega_dot,
                 derived_omega_dot,
             ],
-            rotor_speeds: log.rotor_speeds.clone(),
             derived_accel,
             derived_omega_dot,
             log: FlightLog::new(),
@@ -189,32 +172,32 @@ impl Signals {
             })
             .collect();
         for i in 0..n {
-            let q = log.attitude[i];
-            let uq = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
-            let r = uq.to_rotation_matrix().into_inner();
+            let r = rotation_of(&log.attitude[i]);
             let v = Vector3::new(vs[0][i], vs[1][i], vs[2][i]);
             let a = Vector3::from(accel_world[i]);
-            s.rotation.push(r);
-            s.position.push(Vector3::from(log.position[i]));
             s.velocity_body.push(r.transpose() * v);
             s.accel_proper.push(r.transpose() * (a - GRAVITY_WORLD));
-            s.omega.push(Vector3::from(log.omega[i]));
-            s.omega_dot.push(Vector3::from(omega_dot[i]));
         }
-        drop((accel_world, omega_dot, vs));
+        if let Cow::Owned(derived) = omega_dot {
+            s.omega_dot_derived = Some(derived.into_iter().map(Vector3::from).collect());
+        }
+        drop((accel_world, vs));
         s.log = log;
-        let mut target = s.wrench.clone();
-        let mut data: [Option<Vec<f64>>; 6] =
-            std::array::from_fn(|c| Some(s.wrench.iter().map(|b| b[c]).collect()));
-        s.smooth_channels(&mut data);
-        for (c, d) in data.iter().enumerate() {
-            if let Some(v) = d {
-                for (t, x) in target.iter_mut().zip(v) {
-                    t[c] = *x;
+        if s.smoothed.iter().any(|x| *x) {
+            let mut target = s.wrench().to_vec();
+            let mut data: [Option<Vec<f64>>; 6] = std::array::from_fn(|c| {
+                s.smoothed[c].then(|| s.wrench().iter().map(|b| b[c]).collect())
+            });
+            s.smooth_channels(&mut data);
+            for (c, d) in data.iter().enumerate() {
+                if let Some(v) = d {
+                    for (t, x) in target.iter_mut().zip(v) {
+                        t[c] = *x;
+                    }
                 }
             }
+            s.target_smoothed = Some(target);
         }
-        s.target = target;
         Ok(s)
     }
 
@@ -345,7 +328,7 @@ impl Signals {
             });
         }
         let mut log = FlightLog::new();
-        let all_rotor = parts.iter().all(|p| p.rotor_speeds.is_some());
+        let all_rotor = parts.iter().all(|p| p.rotor_speeds().is_some());
         let all_accel = parts.iter().all(|p| p.log.accel.is_some());
         let all_omega_dot = parts.iter().all(|p| p.log.omega_dot.is_some());
         let mut t_end = f64::NEG_INFINITY;
@@ -384,30 +367,22 @@ impl Signals {
         };
         Ok(Signals {
             t,
-            rotation: parts
-                .iter()
-                .flat_map(|p| p.rotation.iter().copied())
-                .collect(),
-            position: cat3(|p| &p.position),
             velocity_body: cat3(|p| &p.velocity_body),
             accel_proper: cat3(|p| &p.accel_proper),
-            omega: cat3(|p| &p.omega),
-            omega_dot: cat3(|p| &p.omega_dot),
-            target: parts
-                .iter()
-                .flat_map(|p| p.target.iter().copied())
-                .collect(),
-            smoothed: std::array::from_fn(|c| parts.iter().any(|p| p.smoothed[c])),
-            wrench: parts
-                .iter()
-                .flat_map(|p| p.wrench.iter().copied())
-                .collect(),
-            rotor_speeds: all_rotor.then(|| {
+            // The joined log keeps the angular accelerations only when every log has them.
+            omega_dot_derived: (!all_omega_dot).then(|| {
                 parts
                     .iter()
-                    .flat_map(|p| p.rotor_speeds.iter().flatten().copied())
+                    .flat_map(|p| (0..p.len()).map(|i| p.omega_dot(i)))
                     .collect()
             }),
+            target_smoothed: parts.iter().any(|p| p.target_smoothed.is_some()).then(|| {
+                parts
+                    .iter()
+                    .flat_map(|p| p.target().iter().copied())
+                    .collect()
+            }),
+            smoothed: std::array::from_fn(|c| parts.iter().any(|p| p.smoothed[c])),
             derived_accel: parts.iter().any(|p| p.derived_accel),
             derived_omega_dot: parts.iter().any(|p| p.derived_omega_dot),
             log,
@@ -419,6 +394,56 @@ impl Signals {
     /// The logs joined by [`Signals::concat`] (empty for a single log).
     pub fn parts(&self) -> &[Signals] {
         &self.parts
+    }
+
+    /// Rotation body → world at sample `i`, from the logged attitude quaternion (computed
+    /// on each call: a long log keeps its quaternions, not a matrix per sample).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Signals::len`].
+    pub fn rotation(&self, i: usize) -> Matrix3<f64> {
+        rotation_of(&self.log.attitude[i])
+    }
+
+    /// Rotation body → world at every sample ([`Signals::rotation`]).
+    pub fn rotations(&self) -> impl ExactSizeIterator<Item = Matrix3<f64>> + '_ {
+        self.log.attitude.iter().map(rotation_of)
+    }
+
+    /// World position \[m\] at sample `i` (the log's own).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Signals::len`].
+    pub fn position(&self, i: usize) -> Vector3<f64> {
+        Vector3::from(self.log.position[i])
+    }
+
+    /// World position \[m\] at every sample ([`Signals::position`]).
+    pub fn positions(&self) -> impl ExactSizeIterator<Item = Vector3<f64>> + '_ {
+        self.log.position.iter().map(|p| Vector3::from(*p))
+    }
+
+    /// Body angular velocity \[rad/s\] at sample `i` (the log's own).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Signals::len`].
+    pub fn omega(&self, i: usize) -> Vector3<f64> {
+        Vector3::from(self.log.omega[i])
+    }
+
+    /// Body angular acceleration \[rad/s²\] at sample `i`: the log's own, or derived by the
+    /// Savitzky–Golay differentiator when the log has none ([`Signals::derived_omega_dot`]).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Signals::len`].
+    pub fn omega_dot(&self, i: usize) -> Vector3<f64> {
+        match &self.omega_dot_derived {
+            Some(d) => d[i],
+            None => match &self.log.omega_dot {
+                Some(a) => Vector3::from(a[i]),
+                None => unreachable!("signals without a logged angular acceleration derive it"),
+            },
+        }
     }
 
     /// Number of samples.
@@ -445,17 +470,44 @@ impl Signals {
     pub fn rotor_mixer(&self) -> Option<&RotorMixer> {
         self.rotor_mixer
             .get_or_init(|| {
-                self.rotor_speeds
-                    .as_ref()
-                    .and_then(|w| identify_mixer(w, &self.wrench))
+                self.rotor_speeds()
+                    .and_then(|w| identify_mixer(w, self.wrench()))
             })
             .as_ref()
     }
 
     /// One measured wrench channel as a series.
     pub fn channel(&self, c: Channel) -> Vec<f64> {
-        self.wrench.iter().map(|w| w[c]).collect()
+        self.wrench().iter().map(|w| w[c]).collect()
     }
+
+    /// The measured wrench as the fit compares it with the model: [`Signals::wrench()`], except
+    /// on the channels whose accelerations were derived ([`Signals::smoothed`]), where it is
+    /// smoothed by the Savitzky–Golay filter that pairs with the differentiator (same
+    /// half-width), so that both sides of the regression carry the same smoothing. Every
+    /// effect column is smoothed alike ([`Signals::smooth_channels`]).
+    pub fn target(&self) -> &[[f64; 6]] {
+        self.target_smoothed.as_deref().unwrap_or(&self.log.wrench)
+    }
+
+    /// Measured actuator wrench `[fx, fy, fz, tx, ty, tz]` per sample (the log's own,
+    /// [`FlightLog::wrench`]).
+    pub fn wrench(&self) -> &[[f64; 6]] {
+        &self.log.wrench
+    }
+
+    /// Rotor speeds \[rad/s\] per sample, if logged (the log's own,
+    /// [`FlightLog::rotor_speeds`]).
+    pub fn rotor_speeds(&self) -> Option<&[[f64; 4]]> {
+        self.log.rotor_speeds.as_deref()
+    }
+}
+
+/// The rotation body → world of a logged attitude quaternion `[w, x, y, z]` (normalised).
+fn rotation_of(q: &[f64; 4]) -> Matrix3<f64> {
+    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+        .to_rotation_matrix()
+        .into_inner()
 }
 
 /// Linear interpolation of a series `x(t)` at time `tq` (clamped at the ends): the

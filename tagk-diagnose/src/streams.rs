@@ -113,6 +113,26 @@ pub fn align_streams(
     log: &FlightLog,
     options: &AlignOptions,
 ) -> Result<(FlightLog, Vec<StreamAlignment>), DiagnoseError> {
+    align(std::borrow::Cow::Borrowed(log), options)
+}
+
+/// [`align_streams`] of a log it may consume: a log whose streams stay where they are is
+/// returned as it is instead of copied (one copy of a long log less in memory).
+///
+/// # Errors
+/// As [`align_streams`].
+pub fn align_streams_owned(
+    log: FlightLog,
+    options: &AlignOptions,
+) -> Result<(FlightLog, Vec<StreamAlignment>), DiagnoseError> {
+    align(std::borrow::Cow::Owned(log), options)
+}
+
+/// [`align_streams`] of a borrowed or owned log.
+fn align(
+    log: std::borrow::Cow<'_, FlightLog>,
+    options: &AlignOptions,
+) -> Result<(FlightLog, Vec<StreamAlignment>), DiagnoseError> {
     if !(options.max_delay.is_finite() && options.max_delay > 0.0) {
         return Err(DiagnoseError::InvalidOption {
             field: "max_delay",
@@ -136,10 +156,12 @@ pub fn align_streams(
         applied: 0.0,
         action: "none",
     };
-    let mut out = log.clone();
+    // The shifted log, once a stream moves (`None`: the log as given).
+    let mut out: Option<FlightLog> = None;
     let mut entries = Vec::new();
     for (sensor, delay) in &options.shifts {
-        out = alignment::shift(&out, *sensor, *delay).map_err(alignment_error)?;
+        let from = out.as_ref().unwrap_or(&log);
+        out = Some(alignment::shift(from, *sensor, *delay).map_err(alignment_error)?);
         entries.push(StreamAlignment {
             applied: *delay,
             action: "given",
@@ -167,7 +189,7 @@ pub fn align_streams(
         d
     };
     let mut offsets = [None; 3];
-    for (sensor, result) in alignment::estimate_delays(log, options.max_delay) {
+    for (sensor, result) in alignment::estimate_delays(&log, options.max_delay) {
         let d = significant(sensor, result);
         match sensor {
             Sensor::Gyro => offsets[0] = d,
@@ -180,7 +202,8 @@ pub fn align_streams(
         if pose != 0.0 {
             // The pose sample at t shows the motion of t + d on the gyro's clock: re-read it at
             // t − d.
-            out = alignment::shift(&out, Sensor::Pose, -pose).map_err(alignment_error)?;
+            let from = out.as_ref().unwrap_or(&log);
+            out = Some(alignment::shift(from, Sensor::Pose, -pose).map_err(alignment_error)?);
             entries.push(StreamAlignment {
                 applied: -pose,
                 action: "measured",
@@ -189,13 +212,19 @@ pub fn align_streams(
         }
         let velocity = offsets[2].unwrap_or(0.0) - pose;
         if velocity != 0.0 {
-            out = alignment::shift(&out, Sensor::Velocity, velocity).map_err(alignment_error)?;
+            let from = out.as_ref().unwrap_or(&log);
+            out =
+                Some(alignment::shift(from, Sensor::Velocity, velocity).map_err(alignment_error)?);
             if let Some(v) = entries.iter_mut().find(|e| e.sensor == Sensor::Velocity) {
                 v.applied = velocity;
                 v.action = "measured";
             }
         }
     }
+    let out = match out {
+        Some(shifted) => shifted,
+        None => log.into_owned(),
+    };
     Ok((out, entries))
 }
 

@@ -31,7 +31,8 @@ use crate::diagnose::{Candidate, DiagnoseOptions};
 use crate::effects::{EffectRef, usable};
 use crate::error::DiagnoseError;
 use crate::fit::{
-    ColData, Evaluation, Fit, GramEngine, Model, effect_design, fit_model, rigid_design,
+    ColData, Column, Evaluation, Fit, GramEngine, Model, effect_design, fit_residual_only,
+    rigid_design,
 };
 use crate::signals::Signals;
 use tagk_dynamics::EffectKind;
@@ -78,12 +79,31 @@ pub(crate) fn held_out_rms(ev: &Evaluation, w: &[f64; 6], n: usize) -> [f64; 6] 
 
 /// The design of a fitted model (rigid columns, then each effect's fitted columns at its
 /// fitted parameter; the fixed columns are already in the fit's residual).
-pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> Vec<ColData> {
-    let (mut cols, _) = rigid_design(model, s);
+pub(crate) fn model_design(model: &Model, s: &Signals, fit: &Fit) -> ModelDesign {
+    let (rigid, _) = rigid_design(model, s);
+    let mut effects = Vec::new();
     for (k, e) in model.effects().iter().enumerate() {
-        cols.extend(effect_design(e.as_ref(), s, fit.params[k]).cols);
+        effects.extend(effect_design(e.as_ref(), s, fit.params[k]).cols);
     }
-    cols
+    ModelDesign { rigid, effects }
+}
+
+/// The design of a fitted model ([`model_design`]): the rigid-body columns (computed where
+/// they are read) and the effects' stored columns.
+pub(crate) struct ModelDesign {
+    rigid: Vec<Column<'static>>,
+    effects: Vec<ColData>,
+}
+
+impl ModelDesign {
+    /// Every column, rigid body first.
+    pub fn columns(&self) -> Vec<Column<'_>> {
+        self.rigid
+            .iter()
+            .copied()
+            .chain(Column::stored(&self.effects))
+            .collect()
+    }
 }
 
 /// The held-out evaluation of a fitted model: its columns against its own residual, so the
@@ -94,8 +114,15 @@ pub(crate) fn held_out_evaluation(
     fit: &Fit,
     folds: usize,
 ) -> Evaluation {
-    let cols = model_design(model, s, fit);
-    GramEngine::new(s, &fit.weights, &cols, Some(&fit.residual), folds).evaluate(&[])
+    let design = model_design(model, s, fit);
+    GramEngine::new(
+        s,
+        &fit.weights,
+        &design.columns(),
+        Some(&fit.residual),
+        folds,
+    )
+    .evaluate(&[])
 }
 
 /// The candidates that can join `model` on this log.
@@ -117,14 +144,15 @@ pub(crate) fn joinable<'a>(
 /// plausible when added alone, pruned until the joint fit is physical — one effect per round, the one
 /// whose own rules fail in the joint fit (or, if none fails but the rigid body does, mass off
 /// by more than [`crate::MAX_MASS_CHANGE`] or not positive, any) with the smallest held-out gain
-/// alone. With nothing left, the model itself.
+/// alone. With nothing left, the model itself (and `None` for its fit: `start_fit`). The
+/// saturated fit's prediction is not kept (the floor reads its residual).
 fn saturated_fit(
     model: &Model,
     s: &Signals,
     opts: &DiagnoseOptions,
     start_fit: &Fit,
     alone: &[Candidate],
-) -> Result<(Model, Fit), DiagnoseError> {
+) -> Result<(Model, Option<Fit>), DiagnoseError> {
     let gain_alone = |name: &str| {
         alone
             .iter()
@@ -163,7 +191,7 @@ fn saturated_fit(
         for e in &set {
             saturated = saturated.with_ref(e.clone());
         }
-        let fit = fit_model(&saturated, s, None)?;
+        let fit = fit_residual_only(&saturated, s, None)?;
         let bad: Vec<&str> = fit
             .effects
             .iter()
@@ -173,7 +201,7 @@ fn saturated_fit(
         let m1 = fit.theta.mass();
         let mass_ok = crate::diagnose::sanity::mass_kept(m0, m1);
         if bad.is_empty() && mass_ok {
-            return Ok((saturated, fit));
+            return Ok((saturated, Some(fit)));
         }
         let pool: Vec<&str> = if bad.is_empty() {
             set.iter().map(|e| e.name()).collect()
@@ -190,14 +218,14 @@ fn saturated_fit(
         };
         set.retain(|e| e.name() != drop);
     }
-    Ok((model.clone(), start_fit.clone()))
+    Ok((model.clone(), None))
 }
 
 /// The noise floor of a log for `model` and the candidates of `opts` (rule in the module
 /// docs).
 ///
 /// # Errors
-/// As [`fit_model`] on the saturated model (an invalid model or a failed solve).
+/// As [`crate::fit_model`] on the saturated model (an invalid model or a failed solve).
 pub(crate) fn noise_floor(
     model: &Model,
     s: &Signals,
@@ -206,8 +234,9 @@ pub(crate) fn noise_floor(
     alone: &[Candidate],
     known_noise: Option<[f64; 6]>,
 ) -> Result<NoiseFloor, DiagnoseError> {
-    let (saturated, fit) = saturated_fit(model, s, opts, start_fit, alone)?;
-    let ev = held_out_evaluation(&saturated, s, &fit, opts.folds);
+    let (saturated, saturated_fit) = saturated_fit(model, s, opts, start_fit, alone)?;
+    let fit = saturated_fit.as_ref().unwrap_or(start_fit);
+    let ev = held_out_evaluation(&saturated, s, fit, opts.folds);
     let reachable = held_out_rms(&ev, &fit.weights, s.len());
     // The noise is measured on a residual whose target is the measured wrench itself: a lag
     // (a fixed column: the target becomes the lagged wrench) filters the target, which also
@@ -215,10 +244,10 @@ pub(crate) fn noise_floor(
     let noise_estimate = match known_noise {
         // Measured already (the noise does not change with the model).
         Some(n) => n,
-        None => unfiltered_noise(model, s, &saturated, &fit)?,
+        None => unfiltered_noise(model, s, &saturated, fit)?,
     };
     let force_rms = (s
-        .wrench
+        .wrench()
         .iter()
         .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
         .sum::<f64>()
@@ -289,7 +318,7 @@ fn unfiltered_noise(
             plain = plain.with_ref(e.clone());
         }
         // The saturated fit's weights: one pass.
-        unfiltered_fit = fit_model(&plain, s, Some(fit.weights))?;
+        unfiltered_fit = fit_residual_only(&plain, s, Some(fit.weights))?;
         &unfiltered_fit
     } else {
         fit

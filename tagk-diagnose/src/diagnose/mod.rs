@@ -13,6 +13,8 @@ mod residual;
 mod sanity;
 mod stepwise;
 
+use std::sync::Arc;
+
 use serde::Serialize;
 use tagk_dynamics::SafetyGate;
 
@@ -193,15 +195,16 @@ pub struct Diagnosis {
     pub recommended: Option<String>,
     /// One-line verdict.
     pub verdict: String,
-    /// The underlying fit (residual and prediction series, for plots).
+    /// The underlying fit (residual and prediction series, for plots). Shared: a clone of
+    /// a diagnosis (the report keeps several) does not copy a long log's series.
     #[serde(skip)]
-    pub fit: Fit,
-    /// Time stamps \[s\] (for plots).
+    pub fit: Arc<Fit>,
+    /// Time stamps \[s\] (for plots; shared like [`Diagnosis::fit`]).
     #[serde(skip)]
-    pub t: Vec<f64>,
-    /// Measured wrench (for plots).
+    pub t: Arc<Vec<f64>>,
+    /// Measured wrench (for plots; shared like [`Diagnosis::fit`]).
     #[serde(skip)]
-    pub measured: Vec<[f64; 6]>,
+    pub measured: Arc<Vec<[f64; 6]>>,
     /// Top candidate's driver signal (for plots).
     #[serde(skip)]
     pub top_driver: Option<(String, Vec<f64>)>,
@@ -278,8 +281,8 @@ pub fn diagnose(
     let fit = fit_model(model, s, None)?;
     let scored = ranking::score_candidates(model, s, &fit, opts);
     let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking, None)?;
-    let missing = ranking::judge_scored(scored, &floor, opts);
-    assemble(model, s, opts, &floor, fit, missing)
+    let missing = ranking::judge_scored(scored, s, &floor, opts);
+    assemble(model, s, opts, &floor, Arc::new(fit), missing)
 }
 
 /// [`diagnose`] against a given noise floor (options already validated).
@@ -291,7 +294,7 @@ pub(crate) fn diagnose_against(
 ) -> Result<Diagnosis, DiagnoseError> {
     let fit = fit_model(model, s, None)?;
     let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
-    assemble(model, s, opts, floor, fit, missing)
+    assemble(model, s, opts, floor, Arc::new(fit), missing)
 }
 
 /// [`diagnose_against`] with the model's fit already at hand (a new floor, the same fit).
@@ -300,7 +303,7 @@ pub(crate) fn diagnose_with_fit(
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
-    fit: Fit,
+    fit: Arc<Fit>,
 ) -> Result<Diagnosis, DiagnoseError> {
     let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
     assemble(model, s, opts, floor, fit, missing)
@@ -313,7 +316,7 @@ fn assemble(
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
-    fit: Fit,
+    fit: Arc<Fit>,
     missing: ranking::Ranking,
 ) -> Result<Diagnosis, DiagnoseError> {
     let failures = residual::where_it_fails(s, &fit);
@@ -350,8 +353,8 @@ fn assemble(
         recommended: missing.recommended,
         verdict,
         fit,
-        t: s.t.clone(),
-        measured: s.wrench.clone(),
+        t: Arc::new(s.t.clone()),
+        measured: Arc::new(s.wrench().to_vec()),
         top_driver: missing.top_driver,
         partial_residuals,
     })

@@ -5,11 +5,11 @@
 use serde::Serialize;
 
 use crate::diagnose::DiagnoseOptions;
-use crate::diagnose::floor::{NoiseFloor, held_out_rms, model_design};
+use crate::diagnose::floor::{ModelDesign, NoiseFloor, held_out_rms, model_design};
 use crate::diagnose::sanity::{SanityContext, check_refit};
 use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
-    Coefficient, ColData, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
+    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
 };
 use crate::format::change_percent;
 use crate::signals::{CHANNEL_NAMES, Signals};
@@ -160,8 +160,9 @@ pub(crate) struct Scored {
     pub ranking: Vec<Candidate>,
     /// Candidates that could not be evaluated.
     pub unavailable: Vec<Unavailable>,
-    /// `(effect, driver name, driver series)` per scored candidate.
-    drivers: Vec<(String, String, Vec<f64>)>,
+    /// The scored candidates' effects (the top one's driving signal is computed once the
+    /// ranking is judged, not kept for every candidate).
+    effects: Vec<EffectRef>,
     /// Held-out residual RMS per channel of the model itself.
     pub held_out_rms: [f64; 6],
 }
@@ -179,35 +180,40 @@ pub(crate) fn score_candidates(
         .iter()
         .filter(|c| !model.has(c.name()))
         .collect();
-    let base_cols = model_design(model, s, fit);
-    let baseline = baseline(model, s, fit, opts, &base_cols, candidates.len());
+    let design = model_design(model, s, fit);
+    let baseline = baseline(model, s, fit, opts, &design, candidates.len());
     let mut ranking = Vec::new();
     let mut unavailable = Vec::new();
-    let mut drivers = Vec::new();
+    let mut effects = Vec::new();
     for e in candidates {
         if let Some(u) = availability(e.as_ref(), model, s) {
             unavailable.push(u);
             continue;
         }
-        let (candidate, driver) = score_candidate(e.as_ref(), s, &baseline, opts);
-        drivers.push((candidate.effect.clone(), candidate.driver.clone(), driver));
+        let candidate = score_candidate(e.as_ref(), s, &baseline, opts);
+        effects.push(e.clone());
         ranking.push(candidate);
     }
     Scored {
         ranking,
         unavailable,
-        drivers,
+        effects,
         held_out_rms: baseline.held_out_rms,
     }
 }
 
 /// Judges scored candidates against the noise floor `floor`: statuses, order, the
-/// recommendation, explanations.
-pub(crate) fn judge_scored(scored: Scored, floor: &NoiseFloor, opts: &DiagnoseOptions) -> Ranking {
+/// recommendation, explanations, and the top candidate's driving signal on `s`.
+pub(crate) fn judge_scored(
+    scored: Scored,
+    s: &Signals,
+    floor: &NoiseFloor,
+    opts: &DiagnoseOptions,
+) -> Ranking {
     let Scored {
         mut ranking,
         unavailable,
-        drivers,
+        effects,
         held_out_rms,
     } = scored;
     for c in ranking.iter_mut() {
@@ -228,10 +234,10 @@ pub(crate) fn judge_scored(scored: Scored, floor: &NoiseFloor, opts: &DiagnoseOp
     let at_floor = (0..6).all(|c| held_out_rms[c] <= (1.0 + FLOOR_MARGIN) * floor.rms[c]);
     let recommended = judge(&mut ranking, &held_out_rms, floor, opts, at_floor);
     let top_driver = ranking.first().and_then(|top| {
-        drivers
+        effects
             .iter()
-            .find(|d| d.0 == top.effect)
-            .map(|d| (d.1.clone(), d.2.clone()))
+            .find(|e| e.name() == top.effect)
+            .map(|e| e.driver(s))
     });
     Ranking {
         ranking,
@@ -252,23 +258,24 @@ pub(crate) fn rank_candidates(
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
 ) -> Ranking {
-    judge_scored(score_candidates(model, s, fit, opts), floor, opts)
+    judge_scored(score_candidates(model, s, fit, opts), s, floor, opts)
 }
 
-/// The baseline of the tests: the engine over the fitted model's design `base_cols`
+/// The baseline of the tests: the engine over the fitted model's design
 /// ([`model_design`], borrowed by the engine) and its evaluation without a candidate.
 fn baseline<'a>(
     model: &Model,
     s: &'a Signals,
     fit: &'a Fit,
     opts: &DiagnoseOptions,
-    base_cols: &'a [ColData],
+    design: &'a ModelDesign,
     candidates: usize,
 ) -> Baseline<'a> {
-    let engine = GramEngine::new(s, &fit.weights, base_cols, Some(&fit.residual), opts.folds);
+    let base_cols = design.columns();
+    let engine = GramEngine::new(s, &fit.weights, &base_cols, Some(&fit.residual), opts.folds);
     let evaluation = engine.evaluate(&[]);
     let held_out_rms = held_out_rms(&evaluation, &fit.weights, s.len());
-    let mean_thrust = s.wrench.iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64;
+    let mean_thrust = s.wrench().iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64;
     Baseline {
         engine,
         evaluation,
@@ -328,14 +335,13 @@ fn best_design(
 /// floor), the partial test with an autocorrelation-corrected variance, coefficients with
 /// standard errors and confidence intervals, the plausibility verdict (the effect's rules,
 /// then the rigid body's, [`crate::diagnose`]'s sanity rules). The status and explanation are
-/// filled in by [`order_and_recommend`]. Also returns the series of the candidate's driving
-/// signal (for plots).
+/// filled in by [`order_and_recommend`].
 fn score_candidate(
     e: &dyn Effect,
     s: &Signals,
     base: &Baseline<'_>,
     opts: &DiagnoseOptions,
-) -> (Candidate, Vec<f64>) {
+) -> Candidate {
     let spec = e.scan();
     let (param, design, ev) = best_design(e, s, &base.engine);
     let cols = &design.cols;
@@ -428,8 +434,8 @@ fn score_candidate(
             sp.unit,
         )
     });
-    let (dname, dsig) = e.driver(s);
-    let candidate = Candidate {
+    let (dname, _) = e.driver(s);
+    Candidate {
         effect: e.name().to_string(),
         reduction,
         reduction_per_channel,
@@ -449,8 +455,7 @@ fn score_candidate(
         affected_channels: affected,
         explanation: String::new(),
         driver: dname,
-    };
-    (candidate, dsig)
+    }
 }
 
 /// The status of a scored candidate before the recommendation is picked (the first rule

@@ -129,7 +129,7 @@ pub(crate) fn at_rounding_level(s: &Signals, fit: &Fit) -> [bool; 6] {
         let (sum, n) = v.fold((0.0, 0usize), |(a, n), x| (a + x * x, n + 1));
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     };
-    let measured: [f64; 6] = std::array::from_fn(|c| rms(&mut s.target.iter().map(|w| w[c])));
+    let measured: [f64; 6] = std::array::from_fn(|c| rms(&mut s.target().iter().map(|w| w[c])));
     std::array::from_fn(|c| {
         let group = if c < 3 {
             &measured[..3]
@@ -241,12 +241,12 @@ fn regimes(s: &Signals, fit: &Fit) -> Vec<RegimeStat> {
             "m/s",
             s.velocity_body.iter().map(|v| v.norm()).collect(),
         ),
-        ("height", "m", s.position.iter().map(|p| p.z).collect()),
+        ("height", "m", s.positions().map(|p| p.z).collect()),
         ("thrust", "N", s.channel(2)),
         (
             "angular rate",
             "rad/s",
-            s.omega.iter().map(|w| w.norm()).collect(),
+            (0..s.len()).map(|i| s.omega(i).norm()).collect(),
         ),
     ];
     vars.into_iter()

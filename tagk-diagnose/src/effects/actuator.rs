@@ -97,7 +97,7 @@ pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
 /// without one the lag is applied to the wrench directly, `None`), the delivered wrench is
 /// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` per sample.
 fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
-    let w = s.rotor_speeds.as_ref()?;
+    let w = s.rotor_speeds()?;
     let mixer = s.rotor_mixer()?;
     // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
     // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
@@ -175,7 +175,7 @@ impl Effect for MotorLag {
                 *d = Some(
                     lagged
                         .iter()
-                        .zip(&s.wrench)
+                        .zip(s.wrench())
                         .map(|(y, b)| y[c - 2] - b[c])
                         .collect(),
                 );

@@ -111,14 +111,14 @@ impl Effect for RotorDrag {
         (0..6).collect()
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
-        if s.rotor_speeds.is_some() {
+        if s.rotor_speeds().is_some() {
             Ok(())
         } else {
             Err("needs rotor speeds (columns w1..w4)".into())
         }
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
-        let Some(w) = &s.rotor_speeds else {
+        let Some(w) = s.rotor_speeds() else {
             return Vec::new();
         };
         let hubs = s.rotor_mixer().map(|m| m.hubs);
@@ -151,7 +151,7 @@ impl Effect for RotorDrag {
                     add(&mut vertical, 2, i, -v.z * sum);
                 }
                 Some(h) => {
-                    let om = s.omega[i];
+                    let om = s.omega(i);
                     for (r, hub) in h.iter().enumerate() {
                         let (x, y) = (hub[0], hub[1]);
                         let p = nalgebra::Vector3::new(x, y, 0.0);

@@ -98,11 +98,11 @@ impl Effect for Wind {
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
         // With rotor speeds the drag is the rotor drag, scaled by Σ|ω_i|: both the drag and
         // the wind force columns carry the factor (the coefficients become K and K v_w).
-        let scale: Vec<f64> = match &s.rotor_speeds {
+        let scale: Vec<f64> = match s.rotor_speeds() {
             Some(w) => w.iter().map(|x| x.iter().map(|v| v.abs()).sum()).collect(),
             None => vec![1.0; s.len()],
         };
-        let names = if s.rotor_speeds.is_some() {
+        let names = if s.rotor_speeds().is_some() {
             ROTOR_WIND_COLUMNS
         } else {
             WIND_COLUMNS
@@ -126,7 +126,7 @@ impl Effect for Wind {
         for j in 0..2 {
             let mut e = Vector3::zeros();
             e[j] = 1.0;
-            let body: Vec<Vector3<f64>> = s.rotation.iter().map(|r| r.transpose() * e).collect();
+            let body: Vec<Vector3<f64>> = s.rotations().map(|r| r.transpose() * e).collect();
             let mut data: [Option<Vec<f64>>; 6] = Default::default();
             for (c, d) in data.iter_mut().enumerate().take(3) {
                 *d = Some(body.iter().zip(&scale).map(|(v, f)| v[c] * f).collect());
@@ -194,10 +194,7 @@ impl Effect for Wind {
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         (
             "yaw angle [rad]".into(),
-            s.rotation
-                .iter()
-                .map(|r| r[(1, 0)].atan2(r[(0, 0)]))
-                .collect(),
+            s.rotations().map(|r| r[(1, 0)].atan2(r[(0, 0)])).collect(),
         )
     }
 }

@@ -48,9 +48,8 @@ impl Effect for GroundEffect {
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         for (c, d) in data.iter_mut().enumerate().skip(2) {
             *d = Some(
-                s.position
-                    .iter()
-                    .zip(&s.wrench)
+                s.positions()
+                    .zip(s.wrench())
                     .map(|(p, w)| w[c] * self.shape(p.z))
                     .collect(),
             );
@@ -66,9 +65,6 @@ impl Effect for GroundEffect {
         nonneg(&["c_ge"], coef, se, "ground-effect gain")
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
-        (
-            "height [m]".into(),
-            s.position.iter().map(|p| p.z).collect(),
-        )
+        ("height [m]".into(), s.positions().map(|p| p.z).collect())
     }
 }

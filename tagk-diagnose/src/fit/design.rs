@@ -1,29 +1,28 @@
 //! The regression design: the rigid-body columns, the effects' columns, the known-mass
 //! target and the channel weights.
 
+use std::borrow::Cow;
+
 use tagk_dynamics::write_rigid_body_regressor;
 
 use crate::effects::Effect;
 use crate::fit::Model;
+use crate::fit::columns::{Column, rigid_channels};
 use crate::signals::Signals;
 use crate::stats;
 
 /// A regressor column: one value per sample on each channel it touches.
 pub(crate) type ColData = [Option<Vec<f64>>; 6];
 
-/// The ten rigid-body columns on a log, computed on each call (as fast as copying a cached
-/// set, and a long log does not keep `39 n` values alive between fits).
+/// The ten rigid-body columns on a log, stored (`39 n` values: the fit itself reads them
+/// block by block instead, [`Column::Rigid`]; this is for the online pass and as the
+/// reference of the unit tests).
 pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
     let n = s.len();
     let mut cols: Vec<ColData> = (0..10)
         .map(|j| {
             let mut d: ColData = Default::default();
-            let chans: &[usize] = match j {
-                0 => &[0, 1, 2],
-                1..=3 => &[0, 1, 2, 3, 4, 5],
-                _ => &[3, 4, 5],
-            };
-            for &c in chans {
+            for &c in rigid_channels(j) {
                 d[c] = Some(vec![0.0; n]);
             }
             d
@@ -33,7 +32,7 @@ pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
     for i in 0..n {
         // Infallible: the buffer has 60 entries.
         let _ =
-            write_rigid_body_regressor(&s.accel_proper[i], &s.omega[i], &s.omega_dot[i], &mut buf);
+            write_rigid_body_regressor(&s.accel_proper[i], &s.omega(i), &s.omega_dot(i), &mut buf);
         for (j, col) in cols.iter_mut().enumerate() {
             for (c, d) in col.iter_mut().enumerate() {
                 if let Some(v) = d {
@@ -46,22 +45,34 @@ pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
 }
 
 /// The rigid-body design of a model and its regression target: with a known mass the mass
-/// column moves to the target (`b − m·Y₀`) and only nine columns remain.
-pub(crate) fn rigid_design(model: &Model, s: &Signals) -> (Vec<ColData>, Vec<[f64; 6]>) {
-    let mut cols = rigid_columns(s);
+/// column moves to the target (`b − m·Y₀`) and only nine columns remain. The columns are
+/// computed block by block where they are read ([`Column::Rigid`]); the target is the
+/// signals' own ([`Signals::target`]) without a known mass.
+pub(crate) fn rigid_design<'s>(
+    model: &Model,
+    s: &'s Signals,
+) -> (Vec<Column<'static>>, Cow<'s, [[f64; 6]]>) {
     match model.known_mass() {
-        None => (cols, s.target.clone()),
+        None => (
+            (0..10).map(Column::Rigid).collect(),
+            Cow::Borrowed(s.target()),
+        ),
         Some(m) => {
-            let c0 = cols.remove(0);
-            let mut target = s.target.clone();
-            for (c, d) in c0.iter().enumerate() {
-                if let Some(v) = d {
-                    for (t, x) in target.iter_mut().zip(v) {
-                        t[c] -= m * x;
-                    }
+            let mut target = s.target().to_vec();
+            let mut y = [0.0; 60];
+            for (i, t) in target.iter_mut().enumerate() {
+                // Infallible: the buffer has 60 entries.
+                let _ = write_rigid_body_regressor(
+                    &s.accel_proper[i],
+                    &s.omega(i),
+                    &s.omega_dot(i),
+                    &mut y,
+                );
+                for &c in rigid_channels(0) {
+                    t[c] -= m * y[10 * c];
                 }
             }
-            (cols, target)
+            ((1..10).map(Column::Rigid).collect(), Cow::Owned(target))
         }
     }
 }

@@ -1,10 +1,8 @@
 //! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
 
-use std::borrow::Borrow;
-use std::rc::Rc;
-
 use nalgebra::{DMatrix, DVector};
 
+use crate::fit::columns::{BLOCK_SAMPLES, Blocks, Column, for_each_block};
 use crate::fit::design::ColData;
 use crate::signals::Signals;
 
@@ -25,17 +23,20 @@ pub(crate) struct Evaluation {
 
 /// Gram-matrix engine: the weighted target `y` and the base columns are reduced once to
 /// per-piece, per-channel cross-product matrices; each candidate only adds its own cross
-/// products. Pieces implement blocked K-fold cross-validation over time with a buffer of
+/// products. Every operand (target, base, candidate, offset) is weighted on the fly by the
+/// channel weights: `(x w)(y w)` per sample, the same bits as from stored weighted copies. Pieces implement blocked K-fold cross-validation over time with a buffer of
 /// `buffer` samples on each side of the held-out block removed from training (so that
 /// autocorrelated neighbours do not leak).
 pub(crate) struct GramEngine<'a> {
     s: &'a Signals,
     w: [f64; 6],
-    /// Weighted target (shared with the scan engines made by [`GramEngine::for_scan`]).
-    y: Rc<ColData>,
-    /// The base columns, unweighted and borrowed (weighted on the fly by `w` in the cross
-    /// products and the residual: no weighted copy of a long log's design is kept).
-    base: Vec<&'a ColData>,
+    /// The unweighted target rows, borrowed (weighted on the fly by `w`, [`Column::Target`]:
+    /// the same products as with a stored weighted copy, without the copy).
+    target: &'a [[f64; 6]],
+    /// The base columns, unweighted, borrowed or computed per block (weighted on the fly by
+    /// `w` in the cross products and the residual: no weighted copy of a long log's design
+    /// is kept, and no copy of the rigid-body columns at all).
+    base: Vec<Column<'a>>,
     pieces: Vec<(usize, usize)>,
     folds: usize,
     /// Every `stride`-th sample enters the cross products (1: all; more in scan engines).
@@ -51,11 +52,11 @@ pub(crate) const SCAN_SAMPLES: usize = 10_000;
 
 impl<'a> GramEngine<'a> {
     /// `target`: the unweighted target (the measured wrench when `None`).
-    pub fn new<C: Borrow<ColData>>(
+    pub fn new(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
-        target: Option<&[[f64; 6]]>,
+        base: &[Column<'a>],
+        target: Option<&'a [[f64; 6]]>,
         folds: usize,
     ) -> Self {
         Self::with_stride(s, w, base, target, folds, 1)
@@ -63,28 +64,26 @@ impl<'a> GramEngine<'a> {
 
     /// An engine for a scan from the start ([`GramEngine::for_scan`] without the full-size
     /// cross products first): no folds, every `n / SCAN_SAMPLES`-th sample.
-    pub fn new_for_scan<C: Borrow<ColData>>(
+    pub fn new_for_scan(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
-        target: Option<&[[f64; 6]]>,
+        base: &[Column<'a>],
+        target: Option<&'a [[f64; 6]]>,
     ) -> Self {
         Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
     }
 
-    fn with_stride<C: Borrow<ColData>>(
+    fn with_stride(
         s: &'a Signals,
         w: &[f64; 6],
-        base: &'a [C],
-        target: Option<&[[f64; 6]]>,
+        base: &[Column<'a>],
+        target: Option<&'a [[f64; 6]]>,
         folds: usize,
         stride: usize,
     ) -> Self {
         let n = s.len();
-        let tgt = target.unwrap_or(&s.target);
-        let y: ColData =
-            std::array::from_fn(|c| Some(tgt.iter().map(|b| b[c] * w[c]).collect::<Vec<f64>>()));
-        let base: Vec<&'a ColData> = base.iter().map(Borrow::borrow).collect();
+        let target = target.unwrap_or(s.target());
+        let base: Vec<Column<'a>> = base.to_vec();
         let folds = folds.max(1);
         let mut pieces = Vec::new();
         if folds == 1 {
@@ -100,14 +99,14 @@ impl<'a> GramEngine<'a> {
                 pieces.push((b - buffer, b));
             }
         }
-        let mut all: Vec<&ColData> = vec![&y];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(base.iter().copied());
-        let weights = operand_weights(1, base.len(), 0, w);
-        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
+        let weights = vec![*w; 1 + base.len()];
+        let base_gram = cross_tensor(s, target, &all, &weights, &all, &weights, &pieces, stride);
         Self {
             s,
             w: *w,
-            y: Rc::new(y),
+            target,
             base,
             pieces,
             folds,
@@ -122,33 +121,29 @@ impl<'a> GramEngine<'a> {
         let n = self.s.len();
         let stride = (n / SCAN_SAMPLES).max(1);
         let pieces = vec![(0, n)];
-        let mut all: Vec<&ColData> = vec![&*self.y];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(self.base.iter().copied());
-        let weights = operand_weights(1, self.base.len(), 0, &self.w);
-        let base_gram = cross_tensor(&all, &weights, &all, &weights, &pieces, stride);
+        let weights = vec![self.w; 1 + self.base.len()];
+        let base_gram = cross_tensor(
+            self.s,
+            self.target,
+            &all,
+            &weights,
+            &all,
+            &weights,
+            &pieces,
+            stride,
+        );
         GramEngine {
             s: self.s,
             w: self.w,
-            y: Rc::clone(&self.y),
+            target: self.target,
             base: self.base.clone(),
             pieces,
             folds: 1,
             base_gram,
             stride,
         }
-    }
-
-    /// Weighted version of unweighted candidate columns.
-    fn weigh(&self, cols: &[ColData]) -> Vec<ColData> {
-        cols.iter()
-            .map(|col| {
-                std::array::from_fn(|c| {
-                    col[c]
-                        .as_ref()
-                        .map(|v| v.iter().map(|x| x * self.w[c]).collect())
-                })
-            })
-            .collect()
     }
 
     /// Evaluates base + `cand` (unweighted extra columns; may be empty).
@@ -159,26 +154,28 @@ impl<'a> GramEngine<'a> {
     /// Evaluates base + `cand` with the known part `offset` (unweighted; fixed columns times
     /// their values) moved to the target: the target becomes `y − offset`.
     pub fn evaluate_with(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
-        let cand = self.weigh(cand);
         let p0 = 1 + self.base.len();
         let q = cand.len();
         let pp = p0 + q;
         let np = self.pieces.len();
-        let mut left: Vec<&ColData> = vec![&*self.y];
+        let mut left: Vec<Column<'_>> = vec![Column::Target];
         left.extend(self.base.iter().copied());
-        left.extend(cand.iter());
-        let wl = operand_weights(1, self.base.len(), q, &self.w);
-        let candr: Vec<&ColData> = cand.iter().collect();
-        let wc = operand_weights(0, 0, q, &self.w);
-        let cross = cross_tensor(&left, &wl, &candr, &wc, &self.pieces, self.stride);
+        left.extend(Column::stored(cand));
+        let wl = vec![self.w; pp];
+        let candr: Vec<Column<'_>> = Column::stored(cand).collect();
+        let wc = vec![self.w; q];
+        let (s, t) = (self.s, self.target);
+        let cross = cross_tensor(s, t, &left, &wl, &candr, &wc, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
-        let offset = offset.map(|o| self.weigh(std::slice::from_ref(o)).remove(0));
-        let wo = operand_weights(1, 0, 0, &self.w);
-        let (ocross, oo) = match &offset {
-            Some(o) => (
-                cross_tensor(&[o], &wo, &left, &wl, &self.pieces, self.stride),
-                cross_tensor(&[o], &wo, &[o], &wo, &self.pieces, self.stride),
-            ),
+        let wo = [self.w];
+        let (ocross, oo) = match offset {
+            Some(o) => {
+                let o = [Column::Stored(o)];
+                (
+                    cross_tensor(s, t, &o, &wo, &left, &wl, &self.pieces, self.stride),
+                    cross_tensor(s, t, &o, &wo, &o, &wo, &self.pieces, self.stride),
+                )
+            }
             None => (Vec::new(), Vec::new()),
         };
         // Assemble the full (pp × pp) matrices per piece and channel.
@@ -270,21 +267,35 @@ impl<'a> GramEngine<'a> {
         offset: Option<&ColData>,
         beta: &[f64],
     ) -> Vec<[f64; 6]> {
-        let cand = self.weigh(cand);
         let n = self.s.len();
         let mut r: Vec<[f64; 6]> = (0..n)
-            .map(|i| std::array::from_fn(|c| self.y[c].as_ref().map_or(0.0, |v| v[i])))
+            .map(|i| std::array::from_fn(|c| self.target[i][c] * self.w[c]))
             .collect();
         if let Some(o) = offset {
-            for (c, d) in self.weigh(std::slice::from_ref(o))[0].iter().enumerate() {
+            for (c, d) in o.iter().enumerate() {
                 if let Some(v) = d {
                     for i in 0..n {
-                        r[i][c] -= v[i];
+                        r[i][c] -= v[i] * self.w[c];
                     }
                 }
             }
         }
-        for (col, &b) in self.base.iter().zip(beta) {
+        // The base columns block by block (the rigid-body ones computed per block), in
+        // column order per sample as over whole columns.
+        let mut blocks = Blocks::new(self.s, None);
+        blocks.need(&self.base);
+        for_each_block(&mut blocks, 0..n, |blk, lo, hi| {
+            for (col, &b) in self.base.iter().zip(beta) {
+                for c in 0..6 {
+                    if let Some((v, _)) = blk.get(col, c) {
+                        for (ri, x) in r[lo..hi].iter_mut().zip(v) {
+                            ri[c] -= b * (x * self.w[c]);
+                        }
+                    }
+                }
+            }
+        });
+        for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.iter().enumerate() {
                 if let Some(v) = d {
                     for i in 0..n {
@@ -293,38 +304,18 @@ impl<'a> GramEngine<'a> {
                 }
             }
         }
-        for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
-            for (c, d) in col.iter().enumerate() {
-                if let Some(v) = d {
-                    for i in 0..n {
-                        r[i][c] -= b * v[i];
-                    }
-                }
-            }
-        }
         r
     }
 }
 
-/// Per-operand, per-channel weights of `[y?, base…, cand…]` for [`cross_tensor`]: 1 for the
-/// `weighted` leading operands (the target, already weighted) and the `cand` trailing ones
-/// (weighted by [`GramEngine::weigh`]), `w` for the `base` columns in between (weighted on
-/// the fly). Multiplying by 1 is exact, so a product is the same bits as with stored
-/// weighted columns.
-fn operand_weights(weighted: usize, base: usize, cand: usize, w: &[f64; 6]) -> Vec<[f64; 6]> {
-    let mut out = vec![[1.0; 6]; weighted];
-    out.extend(std::iter::repeat_n(*w, base));
-    out.extend(std::iter::repeat_n([1.0; 6], cand));
-    out
-}
-
-/// `Σ (x_i fx)(y_i fy)` with four interleaved partial sums (so the compiler can keep four
-/// products in flight), added pairwise at the end; the order is fixed, so results are
-/// reproducible.
-fn dot(x: &[f64], fx: f64, y: &[f64], fy: f64) -> f64 {
+/// Adds `Σ (x_i fx)(y_i fy)` to four interleaved partial sums `acc` (so the compiler can
+/// keep four products in flight), the samples past the last multiple of 4 to `tail`; the
+/// dot product is `(acc₀ + acc₁) + (acc₂ + acc₃) + tail`. Fed consecutive blocks whose
+/// lengths are multiples of 4 (all but the last), the sums are those over the whole series:
+/// the order is fixed, so results are reproducible.
+fn dot_accumulate(x: &[f64], fx: f64, y: &[f64], fy: f64, acc: &mut [f64; 4], tail: &mut f64) {
     let n = x.len().min(y.len());
     let (x, y) = (&x[..n], &y[..n]);
-    let mut acc = [0.0f64; 4];
     let mut xs = x.chunks_exact(4);
     let mut ys = y.chunks_exact(4);
     for (a, b) in (&mut xs).zip(&mut ys) {
@@ -333,19 +324,24 @@ fn dot(x: &[f64], fx: f64, y: &[f64], fy: f64) -> f64 {
         acc[2] += (a[2] * fx) * (b[2] * fy);
         acc[3] += (a[3] * fx) * (b[3] * fy);
     }
-    let mut tail = 0.0;
     for (a, b) in xs.remainder().iter().zip(ys.remainder()) {
-        tail += (a * fx) * (b * fy);
+        *tail += (a * fx) * (b * fy);
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` for every piece,
-/// channel, `j`, `k`; layout `[piece][channel][j][k]`.
+/// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` (unweighted
+/// operands, per-operand, per-channel weights `wa`, `wb`) for every piece,
+/// channel, `j`, `k`; layout `[piece][channel][j][k]`. Every `stride`-th sample of a piece
+/// enters (summed in sample order); with stride 1, four interleaved partial sums
+/// ([`dot_accumulate`]). The samples are read block by block ([`Blocks`]): the rigid-body
+/// columns are computed once per block for every product that needs them.
+#[allow(clippy::too_many_arguments)]
 fn cross_tensor(
-    a: &[&ColData],
+    s: &Signals,
+    target: &[[f64; 6]],
+    a: &[Column<'_>],
     wa: &[[f64; 6]],
-    b: &[&ColData],
+    b: &[Column<'_>],
     wb: &[[f64; 6]],
     pieces: &[(usize, usize)],
     stride: usize,
@@ -353,31 +349,73 @@ fn cross_tensor(
     let (pa, pb) = (a.len(), b.len());
     let mut out = vec![0.0; pieces.len() * 6 * pa * pb];
     // The Gram of a set with itself is symmetric: the upper triangle is mirrored.
-    let symmetric = pa == pb && a.iter().zip(b).all(|(x, y)| std::ptr::eq(*x, *y));
+    let symmetric = pa == pb && a.iter().zip(b).all(|(x, y)| x.same(y));
+    let mut pairs: Vec<(usize, usize, usize)> = Vec::new();
     for (j, aj) in a.iter().enumerate() {
         for (k, bk) in b.iter().enumerate() {
             if symmetric && k < j {
                 continue;
             }
             for c in 0..6 {
-                let (Some(x), Some(y)) = (&aj[c], &bk[c]) else {
+                if aj.has(c) && bk.has(c) {
+                    pairs.push((j, k, c));
+                }
+            }
+        }
+    }
+    if pairs.is_empty() {
+        return out;
+    }
+    let mut blocks = Blocks::new(s, Some(target));
+    blocks.need(a);
+    blocks.need(b);
+    let mut acc = vec![[0.0f64; 4]; pairs.len()];
+    let mut tail = vec![0.0f64; pairs.len()];
+    let mut sums = vec![0.0f64; pairs.len()];
+    for (pi, &(lo, hi)) in pieces.iter().enumerate() {
+        acc.iter_mut().for_each(|x| *x = [0.0; 4]);
+        tail.iter_mut().for_each(|x| *x = 0.0);
+        let mut first = true;
+        let mut blo = lo;
+        while blo < hi {
+            let bhi = (blo + BLOCK_SAMPLES * stride).min(hi);
+            blocks.load(blo, bhi, stride);
+            for (q, &(j, k, c)) in pairs.iter().enumerate() {
+                let (Some((x, sx)), Some((y, sy))) = (blocks.get(&a[j], c), blocks.get(&b[k], c))
+                else {
                     continue;
                 };
-                for (pi, &(lo, hi)) in pieces.iter().enumerate() {
-                    let (fx, fy) = (wa[j][c], wb[k][c]);
-                    let v = if stride == 1 {
-                        dot(&x[lo..hi], fx, &y[lo..hi], fy)
+                let (fx, fy) = (wa[j][c], wb[k][c]);
+                if stride == 1 {
+                    dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]);
+                } else {
+                    let terms = x
+                        .iter()
+                        .step_by(sx)
+                        .zip(y.iter().step_by(sy))
+                        .map(|(u, v)| (u * fx) * (v * fy));
+                    // In sample order across the blocks, as one sum over the piece.
+                    sums[q] = if first {
+                        terms.sum()
                     } else {
-                        (lo..hi)
-                            .step_by(stride)
-                            .map(|i| (x[i] * fx) * (y[i] * fy))
-                            .sum()
+                        terms.fold(sums[q], |acc, t| acc + t)
                     };
-                    out[((pi * 6 + c) * pa + j) * pb + k] = v;
-                    if symmetric {
-                        out[((pi * 6 + c) * pa + k) * pb + j] = v;
-                    }
                 }
+            }
+            first = false;
+            blo = bhi;
+        }
+        for (q, &(j, k, c)) in pairs.iter().enumerate() {
+            let v = if stride == 1 {
+                (acc[q][0] + acc[q][1]) + (acc[q][2] + acc[q][3]) + tail[q]
+            } else if first {
+                std::iter::empty::<f64>().sum()
+            } else {
+                sums[q]
+            };
+            out[((pi * 6 + c) * pa + j) * pb + k] = v;
+            if symmetric {
+                out[((pi * 6 + c) * pa + k) * pb + j] = v;
             }
         }
     }

@@ -1,15 +1,13 @@
 //! The weighted least-squares solve (faer QR, SVD of `R`), predictions, per-channel
 //! statistics and the 1-D scan of a nonlinear parameter.
 
-use std::borrow::Borrow;
-
 use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::DiagnoseError;
 use crate::fit::ChannelFit;
-use crate::fit::design::ColData;
-use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS};
+use crate::fit::columns::{Blocks, Column, for_each_block};
+use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
 use crate::stats;
 
 /// Result of the QR least-squares solve.
@@ -21,9 +19,11 @@ pub(crate) struct LsSolution {
 /// Weighted least squares `min Σ_c w_c² ‖b_c − X_c β‖²` with a Householder QR of
 /// `[A | b]` (faer; columns equilibrated; factored by blocks of rows, [`stacked_qr_r`]), then an SVD of the small `R` (truncated at a
 /// relative 1e-11 so collinear columns get a minimum-norm solution and no standard error).
-/// `kappa` inflates the covariance for autocorrelated residuals.
-pub(crate) fn weighted_qr_solve<C: Borrow<ColData>>(
-    cols: &[C],
+/// `kappa` inflates the covariance for autocorrelated residuals. The rigid-body columns
+/// ([`Column::Rigid`]) are computed block by block from `s`.
+pub(crate) fn weighted_qr_solve(
+    s: &Signals,
+    cols: &[Column<'_>],
     b: &[[f64; 6]],
     w: &[f64; 6],
     kappa: f64,
@@ -31,17 +31,35 @@ pub(crate) fn weighted_qr_solve<C: Borrow<ColData>>(
     let n = b.len();
     let p = cols.len();
     let rows = 6 * n;
+    // Σ x² per column and channel, in sample order across the blocks.
+    let mut squares: Vec<[Option<f64>; 6]> = vec![[None; 6]; p];
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
+    for_each_block(&mut blocks, 0..n, |blk, _, _| {
+        for (j, col) in cols.iter().enumerate() {
+            for c in 0..6 {
+                if let Some((v, _)) = blk.get(col, c) {
+                    let terms = v.iter().map(|x| x * x);
+                    squares[j][c] = Some(match squares[j][c] {
+                        None => terms.sum::<f64>(),
+                        Some(acc) => terms.fold(acc, |a, t| a + t),
+                    });
+                }
+            }
+        }
+    });
     let mut scale = vec![0.0; p];
     for (j, col) in cols.iter().enumerate() {
         let mut s2 = 0.0;
-        for (c, d) in col.borrow().iter().enumerate() {
-            if let Some(v) = d {
-                s2 += w[c] * w[c] * v.iter().map(|x| x * x).sum::<f64>();
+        for c in 0..6 {
+            if col.has(c) {
+                let sq = squares[j][c].unwrap_or_else(|| std::iter::empty::<f64>().sum());
+                s2 += w[c] * w[c] * sq;
             }
         }
         scale[j] = if s2 > 0.0 { 1.0 / s2.sqrt() } else { 0.0 };
     }
-    let r = stacked_qr_r(cols, b, w, &scale);
+    let r = stacked_qr_r(s, cols, b, w, &scale);
     let mut r11 = DMatrix::<f64>::zeros(p, p);
     let mut z = DVector::<f64>::zeros(p);
     for i in 0..p {
@@ -106,8 +124,9 @@ const QR_BLOCK_SAMPLES: usize = 4096;
 /// (`[A₁; A₂] = Q R` has the same `R`, up to the signs of its rows, as the QR of
 /// `[R₁; A₂]`), so that only one block of rows is ever in memory instead of all `6 n`.
 /// Rows of `R` beyond the number of rows seen are zero.
-fn stacked_qr_r<C: Borrow<ColData>>(
-    cols: &[C],
+fn stacked_qr_r(
+    s: &Signals,
+    cols: &[Column<'_>],
     b: &[[f64; 6]],
     w: &[f64; 6],
     scale: &[f64],
@@ -117,6 +136,8 @@ fn stacked_qr_r<C: Borrow<ColData>>(
     let mut r = Mat::<f64>::zeros(p + 1, p + 1);
     let mut r_rows = 0;
     let mut lo = 0;
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
     while lo < n {
         let hi = (lo + QR_BLOCK_SAMPLES).min(n);
         let mut a = Mat::<f64>::zeros(r_rows + 6 * (hi - lo), p + 1);
@@ -125,16 +146,18 @@ fn stacked_qr_r<C: Borrow<ColData>>(
                 a[(i, j)] = r[(i, j)];
             }
         }
-        for (j, col) in cols.iter().enumerate() {
-            for (c, d) in col.borrow().iter().enumerate() {
-                if let Some(v) = d {
-                    let f = w[c] * scale[j];
-                    for i in lo..hi {
-                        a[(r_rows + 6 * (i - lo) + c, j)] = v[i] * f;
+        for_each_block(&mut blocks, lo..hi, |blk, blo, bhi| {
+            for (j, col) in cols.iter().enumerate() {
+                for c in 0..6 {
+                    if let Some((v, _)) = blk.get(col, c) {
+                        let f = w[c] * scale[j];
+                        for (i, x) in (blo..bhi).zip(v) {
+                            a[(r_rows + 6 * (i - lo) + c, j)] = x * f;
+                        }
                     }
                 }
             }
-        }
+        });
         for i in lo..hi {
             for c in 0..6 {
                 a[(r_rows + 6 * (i - lo) + c, p)] = b[i][c] * w[c];
@@ -153,21 +176,26 @@ fn stacked_qr_r<C: Borrow<ColData>>(
     r
 }
 
-/// Prediction `X β` per sample.
-pub(crate) fn predict<C: Borrow<ColData>>(cols: &[C], beta: &[f64], n: usize) -> Vec<[f64; 6]> {
+/// Prediction `X β` per sample (the rigid-body columns computed block by block from `s`).
+pub(crate) fn predict(s: &Signals, cols: &[Column<'_>], beta: &[f64]) -> Vec<[f64; 6]> {
+    let n = s.len();
     let mut out = vec![[0.0; 6]; n];
-    for (col, &bj) in cols.iter().zip(beta) {
-        if bj == 0.0 {
-            continue;
-        }
-        for (c, d) in col.borrow().iter().enumerate() {
-            if let Some(v) = d {
-                for i in 0..n {
-                    out[i][c] += v[i] * bj;
+    let mut blocks = Blocks::new(s, None);
+    blocks.need(cols);
+    for_each_block(&mut blocks, 0..n, |blk, lo, hi| {
+        for (col, &bj) in cols.iter().zip(beta) {
+            if bj == 0.0 {
+                continue;
+            }
+            for c in 0..6 {
+                if let Some((v, _)) = blk.get(col, c) {
+                    for (o, x) in out[lo..hi].iter_mut().zip(v) {
+                        o[c] += x * bj;
+                    }
                 }
             }
         }
-    }
+    });
     out
 }
 

@@ -2,6 +2,7 @@
 //! ([`design`]), the weighted QR solve ([`lsq`]) and the Gram-matrix engine behind the blocked
 //! cross-validation and the 1-D scans ([`gram`]).
 
+mod columns;
 mod design;
 mod gram;
 mod lsq;
@@ -14,6 +15,7 @@ use crate::effects::{Plausibility, usable};
 use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
+pub(crate) use columns::Column;
 pub(crate) use design::{
     ColData, EffectDesign, add_offset, effect_design, rigid_columns, rigid_design,
 };
@@ -153,6 +155,30 @@ pub fn fit_model(
     s: &Signals,
     weights: Option<[f64; 6]>,
 ) -> Result<Fit, DiagnoseError> {
+    fit(model, s, weights, true)
+}
+
+/// [`fit_model`] without the prediction ([`Fit::predicted`] left empty): for the fits the
+/// diagnosis reads only the residual, weights and coefficients of (`6 n` values less, at the
+/// moment memory peaks on a long log).
+///
+/// # Errors
+/// As [`fit_model`].
+pub(crate) fn fit_residual_only(
+    model: &Model,
+    s: &Signals,
+    weights: Option<[f64; 6]>,
+) -> Result<Fit, DiagnoseError> {
+    fit(model, s, weights, false)
+}
+
+/// [`fit_model`], keeping the prediction or not.
+fn fit(
+    model: &Model,
+    s: &Signals,
+    weights: Option<[f64; 6]>,
+    keep_prediction: bool,
+) -> Result<Fit, DiagnoseError> {
     model.validate()?;
     check_effects_usable(model, s)?;
     if let Some(w) = weights
@@ -164,6 +190,7 @@ pub fn fit_model(
         });
     }
     let (rigid, target) = rigid_design(model, s);
+    let target: &[[f64; 6]] = &target;
     let mut w = weights.unwrap_or_else(|| initial_weights(s));
     // Weighting passes: the measurement scale first, then 1 / residual RMS of the previous
     // pass; with scanned effects the weights and the scanned parameters are iterated until the
@@ -183,7 +210,9 @@ pub fn fit_model(
     let mut last: Option<Pass> = None;
     let mut settled = 0;
     for pass in 0..passes {
-        if let Some(previous) = &last {
+        if let Some(previous) = last.take() {
+            // Only the weights are kept of an intermediate pass (its prediction and
+            // residual, `12 n` values, go before the next pass makes its own).
             w = weights_from_residual(&previous.residual);
         }
         let before = params.clone();
@@ -191,7 +220,7 @@ pub fn fit_model(
         // most three; one when fewer than two effects are scanned).
         for _ in 0..if scanned > 1 { 3 } else { 1 } {
             let round = params.clone();
-            scan_parameters(model, s, &rigid, &target, &w, &mut params, pass > 0);
+            scan_parameters(model, s, &rigid, target, &w, &mut params, pass > 0);
             if params == round {
                 break;
             }
@@ -206,7 +235,17 @@ pub fn fit_model(
         settled = if pass > 0 && !moved { settled + 1 } else { 0 };
         let final_pass = pass + 1 == passes || (pass >= 1 && settled >= 1);
         last = Some(solve_pass(
-            model, s, &rigid, &target, &w, &params, final_pass,
+            model,
+            s,
+            &rigid,
+            target,
+            &w,
+            &params,
+            match (final_pass, keep_prediction) {
+                (false, _) => PassKind::Intermediate,
+                (true, false) => PassKind::FinalResidual,
+                (true, true) => PassKind::Final,
+            },
         )?);
         if final_pass {
             break;
@@ -232,7 +271,7 @@ pub fn fit_model(
         theta,
         theta_se,
         effects,
-        channels: channel_stats(&s.target, &residual),
+        channels: channel_stats(s.target(), &residual),
         predicted,
         residual,
         weights: w,
@@ -271,7 +310,7 @@ fn initial_scan_parameters(model: &Model) -> Vec<Option<f64>> {
 fn scan_parameters(
     model: &Model,
     s: &Signals,
-    rigid: &[ColData],
+    rigid: &[Column<'static>],
     target: &[[f64; 6]],
     w: &[f64; 6],
     params: &mut [Option<f64>],
@@ -286,17 +325,21 @@ fn scan_parameters(
             _ => spec.grid.clone(),
         };
         let mut others: Vec<ColData> = Vec::new();
-        let mut shifted_target = target.to_vec();
+        let mut shifted_target = std::borrow::Cow::Borrowed(target);
         for (j, f) in model.effects().iter().enumerate() {
             if j != k {
                 let d = effect_design(f.as_ref(), s, params[j]);
                 others.extend(d.cols);
                 if let Some(o) = &d.offset {
-                    sub_offset(&mut shifted_target, o);
+                    sub_offset(shifted_target.to_mut(), o);
                 }
             }
         }
-        let fixed: Vec<&ColData> = rigid.iter().chain(&others).collect();
+        let fixed: Vec<Column<'_>> = rigid
+            .iter()
+            .copied()
+            .chain(Column::stored(&others))
+            .collect();
         let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
         let (best, _) = scan_min(&grid, |g| {
             let d = effect_design(e.as_ref(), s, Some(g));
@@ -329,6 +372,17 @@ fn sub_offset(values: &mut [[f64; 6]], offset: &ColData) {
     }
 }
 
+/// What a pass of [`fit_model`] solves and returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PassKind {
+    /// Normal equations; the residual only sets the next pass's weights.
+    Intermediate,
+    /// The QR solve, with the prediction and the residual.
+    Final,
+    /// The QR solve, with the residual only ([`fit_residual_only`]).
+    FinalResidual,
+}
+
 /// One pass's solution: prediction and residual (and the QR solution on the final pass).
 struct Pass {
     predicted: Vec<[f64; 6]>,
@@ -337,15 +391,16 @@ struct Pass {
 }
 
 /// Step 3 (each pass): the linear solve at the current parameters. Intermediate passes only
-/// set the weights, so normal equations suffice; the final pass is the QR solve.
+/// set the weights, so normal equations suffice; the final pass is the QR solve. The
+/// prediction is returned only by [`PassKind::Final`] (empty otherwise: only the residual).
 fn solve_pass(
     model: &Model,
     s: &Signals,
-    rigid: &[ColData],
+    rigid: &[Column<'static>],
     target: &[[f64; 6]],
     w: &[f64; 6],
     params: &[Option<f64>],
-    last_pass: bool,
+    kind: PassKind,
 ) -> Result<Pass, DiagnoseError> {
     let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
@@ -367,29 +422,44 @@ fn solve_pass(
             }
         }
     }
-    let cols: Vec<&ColData> = rigid.iter().chain(&effect_cols).collect();
-    let mut shifted_target = target.to_vec();
+    let cols: Vec<Column<'_>> = rigid
+        .iter()
+        .copied()
+        .chain(Column::stored(&effect_cols))
+        .collect();
+    let mut shifted_target = std::borrow::Cow::Borrowed(target);
     if let Some(o) = &known {
-        sub_offset(&mut shifted_target, o);
+        sub_offset(shifted_target.to_mut(), o);
     }
-    let (beta, solution) = if last_pass {
-        let sol = weighted_qr_solve(&cols, &shifted_target, w, 1.0)?;
+    let (beta, solution) = if kind != PassKind::Intermediate {
+        let sol = weighted_qr_solve(s, &cols, &shifted_target, w, 1.0)?;
         (sol.beta.clone(), Some(sol))
     } else {
         let engine = GramEngine::new(s, w, &cols, Some(&shifted_target), 1);
         (engine.evaluate(&[]).beta, None)
     };
-    let mut predicted = predict(&cols, &beta, s.len());
+    drop(shifted_target);
+    let mut predicted = predict(s, &cols, &beta);
     if let Some(o) = &known {
         add_offset(&mut predicted, o);
     }
     add_known_mass(model, s, &mut predicted);
-    let residual: Vec<[f64; 6]> = s
-        .target
-        .iter()
-        .zip(&predicted)
-        .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
-        .collect();
+    let (predicted, residual) = if kind == PassKind::Final {
+        let residual: Vec<[f64; 6]> = s
+            .target()
+            .iter()
+            .zip(&predicted)
+            .map(|(b, p)| std::array::from_fn(|c| b[c] - p[c]))
+            .collect();
+        (predicted, residual)
+    } else {
+        // The residual in the prediction's place (the same differences).
+        let mut residual = predicted;
+        for (r, b) in residual.iter_mut().zip(s.target()) {
+            *r = std::array::from_fn(|c| b[c] - r[c]);
+        }
+        (Vec::new(), residual)
+    };
     Ok(Pass {
         predicted,
         residual,
