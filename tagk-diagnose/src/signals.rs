@@ -49,8 +49,9 @@ pub struct Signals {
     pub derived_accel: bool,
     /// `true` if the angular accelerations were derived rather than logged.
     pub derived_omega_dot: bool,
-    /// The source log (for custom effects and extra columns).
-    pub log: FlightLog,
+    /// The source log (for custom effects and extra columns); private so that the samples the
+    /// signals read from it cannot change under them ([`Signals::log`] reads it).
+    log: FlightLog,
     /// The rotor mixer identified from the log, computed on first use.
     rotor_mixer: std::sync::OnceLock<Option<RotorMixer>>,
     /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
@@ -441,9 +442,15 @@ impl Signals {
             Some(d) => d[i],
             None => match &self.log.omega_dot {
                 Some(a) => Vector3::from(a[i]),
+                // Every constructor derives ω̇ when the log has none, and the log is private.
                 None => unreachable!("signals without a logged angular acceleration derive it"),
             },
         }
+    }
+
+    /// The source log (for custom effects and extra columns, [`FlightLog::signal`]).
+    pub fn log(&self) -> &FlightLog {
+        &self.log
     }
 
     /// Number of samples.

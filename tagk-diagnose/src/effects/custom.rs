@@ -136,7 +136,7 @@ impl CustomEffect {
         let mut out = vec![1.0; s.len()];
         for f in &self.factors {
             let v = s
-                .log
+                .log()
                 .signal(f)
                 .ok_or_else(|| format!("log has no column `{f}`"))?;
             for (o, x) in out.iter_mut().zip(v) {
