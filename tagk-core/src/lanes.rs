@@ -198,6 +198,11 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     let mut draws = Draws::new(rng, s.t_total);
     let mut iterations = 0;
     let mut converged = rnorm2 <= s.tol2;
+    // A window's draws in one batch when they fit (`T ≤ 32`: the AVX2 and NEON windows), read
+    // by index: iteration `s` (1-based) takes draw `s − 1 − skipped`, `skipped` counting the
+    // iterations that took none (every weight zero), so every index is below `s ≤ T`.
+    let prefilled = !converged && draws.prefill();
+    let mut skipped = 0;
     while !converged && iterations < s.t_total {
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
@@ -214,7 +219,13 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         let (down, before, total) = prefix_chunks(&weights);
         let mut chosen = None;
         if total.first() > V::T::cast(0.0) {
-            let target = V::splat(V::T::cast(draws.next())).mul(total);
+            let u = if prefilled {
+                // SAFETY: `iterations − 1 − skipped < T` (see above).
+                unsafe { draws.prefilled(iterations - 1 - skipped) }
+            } else {
+                draws.next()
+            };
+            let target = V::splat(V::T::cast(u)).mul(total);
             // The positive weights: with θ > 0 exactly the candidates (r_j²/‖a_j‖² ≥ θ > 0
             // needs r_j² > 0, and a NaN ratio is no candidate), else the candidates with
             // r_j² > 0 (squares of the residual in memory, the current one: the weights need
@@ -237,6 +248,8 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
                 positive
             };
             chosen = pick_chunks(&positive, &down, before, target);
+        } else {
+            skipped += 1;
         }
         // The residual in memory is the current one (stored every iteration).
         // SAFETY: p entries of each, and no other live reference to the residual.
@@ -294,6 +307,9 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         max_v = best.max_all();
         rnorm2 = sum_v.first();
         converged = rnorm2 <= s.tol2;
+    }
+    if prefilled {
+        draws.taken(iterations - skipped);
     }
     draws.finish();
     if V::NEGATED_RESIDUAL {
