@@ -120,6 +120,12 @@ pub(crate) trait Lanes8: Copy {
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
     /// Lane `l` takes lane `l − D` (`D ∈ {1, 2, 4}`), lanes below `D` take `+0`.
     fn shift<const D: usize>(self) -> Self;
+    /// `self + self.shift::<4>()` for lanes that are never `−0` (the lanes below 4 add `+0`,
+    /// which leaves any other value's bits as they are, so an implementation may skip it).
+    #[inline(always)]
+    fn add_shift4(self) -> Self {
+        self.add(self.shift::<4>())
+    }
     /// Lane 7 in every lane.
     fn broadcast_last(self) -> Self;
     /// In every lane: `t_l = x_l + x_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)` (the documented sum).
@@ -136,7 +142,7 @@ pub(crate) trait Lanes8: Copy {
 fn scan8<V: Lanes8>(x: V) -> V {
     let x = x.add(x.shift::<1>());
     let x = x.add(x.shift::<2>());
-    x.add(x.shift::<4>())
+    x.add_shift4()
 }
 
 /// The greedy loop of [`crate::greedy::iterate_portable`] on a window of `p = 8C ≤ 32` rows

@@ -395,6 +395,11 @@ impl Lanes8 for F64x8 {
         }
     }
     #[inline(always)]
+    fn add_shift4(self) -> Self {
+        // Lanes 0–3 as they are (`x + 0 = x`, no lane being `−0`).
+        unsafe { Self(self.0, _mm256_add_pd(self.1, self.0)) }
+    }
+    #[inline(always)]
     fn broadcast_last(self) -> Self {
         unsafe {
             let x = _mm256_permute4x64_pd::<0xff>(self.1);
