@@ -217,6 +217,14 @@ impl<'a> Draws<'a> {
     /// its `k`-th draw with [`Draws::prefilled`], without a check per iteration, and records
     /// how many it took with [`Draws::taken`] before [`Draws::finish`] (which returns the
     /// rest, all of them if none was taken).
+    // (Only the eight-lane loop of `lanes.rs` takes a batch at once.)
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
     #[inline(always)]
     pub fn prefill(&mut self) -> bool {
         let fits = (1..=DRAW_BATCH).contains(&self.left) && self.len == 0;
@@ -230,6 +238,13 @@ impl<'a> Draws<'a> {
     ///
     /// # Safety
     /// `prefill` returned `true` and `k` is below the `most` of [`Draws::new`].
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
     #[inline(always)]
     pub unsafe fn prefilled(&self, k: usize) -> f64 {
         // SAFETY: the batch holds `most` draws (the caller's promise).
@@ -237,6 +252,13 @@ impl<'a> Draws<'a> {
     }
 
     /// Records that the first `k` draws of a prefilled batch were taken.
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
     #[inline(always)]
     pub fn taken(&mut self, k: usize) {
         self.next = k.min(self.len);
