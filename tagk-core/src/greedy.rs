@@ -211,6 +211,59 @@ impl<'a> Draws<'a> {
         self.next = 0;
     }
 
+    /// Takes every draw the window can need from the generator now, when they fit one batch
+    /// (`1 ≤ most ≤ DRAW_BATCH`), and says whether it did: the same words a first
+    /// [`Draws::next`] would take (nothing else draws meanwhile), so that a SIMD loop reads
+    /// its `k`-th draw with [`Draws::prefilled`], without a check per iteration, and records
+    /// how many it took with [`Draws::taken`] before [`Draws::finish`] (which returns the
+    /// rest, all of them if none was taken).
+    // (Only the eight-lane loop of `lanes.rs` takes a batch at once.)
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
+    #[inline(always)]
+    pub fn prefill(&mut self) -> bool {
+        let fits = (1..=DRAW_BATCH).contains(&self.left) && self.len == 0;
+        if fits {
+            self.refill();
+        }
+        fits
+    }
+
+    /// Draw `k` of a batch [`Draws::prefill`] took.
+    ///
+    /// # Safety
+    /// `prefill` returned `true` and `k` is below the `most` of [`Draws::new`].
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
+    #[inline(always)]
+    pub unsafe fn prefilled(&self, k: usize) -> f64 {
+        // SAFETY: the batch holds `most` draws (the caller's promise).
+        unsafe { *self.buf.get_unchecked(k) }
+    }
+
+    /// Records that the first `k` draws of a prefilled batch were taken.
+    #[cfg_attr(
+        not(any(
+            all(feature = "std", target_arch = "x86_64"),
+            all(target_arch = "aarch64", target_feature = "neon")
+        )),
+        allow(dead_code)
+    )]
+    #[inline(always)]
+    pub fn taken(&mut self, k: usize) {
+        self.next = k.min(self.len);
+    }
+
     /// Returns the unused draws of the batch to the generator (each draw is one word).
     #[inline(always)]
     pub fn finish(self) {

@@ -82,11 +82,6 @@ pub(crate) trait Lanes8: Copy {
     /// load and a subtraction; on a load/store architecture it gains nothing.
     const NEGATED_RESIDUAL: bool = false;
 
-    /// Whether [`iterate_chunks`] takes the candidate masks as the positive weights' masks
-    /// when the threshold is positive (sparing a comparison per vector, at the price of the
-    /// masks staying live until the row is drawn), instead of comparing the weights with zero.
-    const CANDIDATES_ARE_POSITIVE: bool = false;
-
     /// Eight scalars from `p`.
     ///
     /// # Safety
@@ -125,6 +120,12 @@ pub(crate) trait Lanes8: Copy {
     fn lane_major_bits<const C: usize>(masks: &[Self; C]) -> u32;
     /// Lane `l` takes lane `l − D` (`D ∈ {1, 2, 4}`), lanes below `D` take `+0`.
     fn shift<const D: usize>(self) -> Self;
+    /// `self + self.shift::<4>()` for lanes that are never `−0` (the lanes below 4 add `+0`,
+    /// which leaves any other value's bits as they are, so an implementation may skip it).
+    #[inline(always)]
+    fn add_shift4(self) -> Self {
+        self.add(self.shift::<4>())
+    }
     /// Lane 7 in every lane.
     fn broadcast_last(self) -> Self;
     /// In every lane: `t_l = x_l + x_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)` (the documented sum).
@@ -141,7 +142,7 @@ pub(crate) trait Lanes8: Copy {
 fn scan8<V: Lanes8>(x: V) -> V {
     let x = x.add(x.shift::<1>());
     let x = x.add(x.shift::<2>());
-    x.add(x.shift::<4>())
+    x.add_shift4()
 }
 
 /// The greedy loop of [`crate::greedy::iterate_portable`] on a window of `p = 8C ≤ 32` rows
@@ -198,45 +199,59 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
     let mut draws = Draws::new(rng, s.t_total);
     let mut iterations = 0;
     let mut converged = rnorm2 <= s.tol2;
+    // A window's draws in one batch when they fit (`T ≤ 32`: the AVX2 and NEON windows), read
+    // by index: iteration `s` (1-based) takes draw `s − 1 − skipped`, `skipped` counting the
+    // iterations that took none (every weight zero), so every index is below `s ≤ T`.
+    let prefilled = !converged && draws.prefill();
+    let mut skipped = 0;
     while !converged && iterations < s.t_total {
         iterations += 1;
         // θ = M·½ + S·(½/‖A‖_F²), with S and M held in every lane.
         let threshold = max_v.mul(half).add(sum_v.mul(half_inv_fro2));
-        let threshold_positive = threshold.first() > V::T::cast(0.0);
         // Candidate weights r_j² (where r_j²/‖a_j‖² ≥ θ), their running sums down the chunks,
         // lane by lane, then across the lanes. Rows are drawn among positive weights only (a
         // candidate's weight can be zero when θ underflows to zero).
-        let (mut candidate, mut weights) = ([zero; C], [zero; C]);
+        let mut weights = [zero; C];
         for c in 0..C {
-            candidate[c] = ratio[c].ge_mask(threshold);
-            weights[c] = candidate[c].and(sq[c]);
+            weights[c] = ratio[c].ge_mask(threshold).and(sq[c]);
         }
         let (down, before, total) = prefix_chunks(&weights);
         let mut chosen = None;
         if total.first() > V::T::cast(0.0) {
-            let target = V::splat(V::T::cast(draws.next())).mul(total);
-            // The positive weights: with θ > 0 exactly the candidates (r_j²/‖a_j‖² ≥ θ > 0
-            // needs r_j² > 0, and a NaN ratio is no candidate), else the candidates with
-            // r_j² > 0 (squares of the residual in memory, the current one: the weights need
-            // not stay in registers for this rare case).
-            let positive = if !V::CANDIDATES_ARE_POSITIVE {
-                let mut positive = [zero; C];
-                for c in 0..C {
-                    positive[c] = weights[c].gt_mask(zero);
-                }
-                positive
-            } else if threshold_positive {
-                candidate
+            let u = if prefilled {
+                // SAFETY: `iterations − 1 − skipped < T` (see above).
+                unsafe { draws.prefilled(iterations - 1 - skipped) }
             } else {
-                let mut positive = [zero; C];
-                for c in 0..C {
-                    // SAFETY: p entries of the residual.
-                    let r = unsafe { V::load(rp.add(LANES * c)) };
-                    positive[c] = candidate[c].and(r.mul(r)).gt_mask(zero);
-                }
-                positive
+                draws.next()
             };
-            chosen = pick_chunks(&positive, &down, before, target);
+            let target = V::splat(V::T::cast(u)).mul(total);
+            // The first row in lane-major order with P > target, whatever its weight, is the
+            // row `pick_chunks` draws when its weight is positive (then it is the first row of
+            // positive weight with P > target). It nearly always is: a zero weight leaves the
+            // running sum as it was, so a zero-weight row with P > target follows one with the
+            // same P earlier in its lane, or starts its lane, where only round-off between the
+            // scan across the lanes and the sums down them can put P above the target. Else,
+            // and when no row has P > target, `pick_chunks` with the positive masks (weights
+            // from the residual in memory, the current one, so the candidate masks need not
+            // stay in registers).
+            let theta = threshold.first();
+            chosen = match first_above(&down, before, target) {
+                // SAFETY: j < p entries of each.
+                Some(j) if unsafe { positive_in_memory(rp, ip, j, theta) } => Some(j),
+                _ => {
+                    let mut positive = [zero; C];
+                    for (c, positive) in positive.iter_mut().enumerate() {
+                        // SAFETY: p entries of each.
+                        let (r, inv) =
+                            unsafe { (V::load(rp.add(LANES * c)), V::load(ip.add(LANES * c))) };
+                        let sq = r.mul(r);
+                        *positive = sq.mul(inv).ge_mask(threshold).and(sq).gt_mask(zero);
+                    }
+                    pick_chunks(&positive, &down, before, target)
+                }
+            };
+        } else {
+            skipped += 1;
         }
         // The residual in memory is the current one (stored every iteration).
         // SAFETY: p entries of each, and no other live reference to the residual.
@@ -295,6 +310,9 @@ pub(crate) unsafe fn iterate_chunks<V: Lanes8, const C: usize, const AVERAGE: bo
         rnorm2 = sum_v.first();
         converged = rnorm2 <= s.tol2;
     }
+    if prefilled {
+        draws.taken(iterations - skipped);
+    }
     draws.finish();
     if V::NEGATED_RESIDUAL {
         for c in 0..C {
@@ -342,14 +360,54 @@ pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
         hits[c] = positive[c].and(before.add(down[c]).gt_mask(target));
     }
     let hit = V::lane_major_bits(&hits);
-    let row = |bit: u32| LANES * (bit as usize % 4) + bit as usize / 4;
     if hit != 0 {
-        Some(row(hit.trailing_zeros()))
+        Some(lane_major_row(hit.trailing_zeros()))
     } else {
         // Round-off: the last positive weight in lane-major order.
         let positive = V::lane_major_bits(positive);
-        (positive != 0).then(|| row(31 - positive.leading_zeros()))
+        (positive != 0).then(|| lane_major_row(31 - positive.leading_zeros()))
     }
+}
+
+/// The row of bit `4l + c` of [`Lanes8::lane_major_bits`]: `8c + l`.
+#[inline(always)]
+fn lane_major_row(bit: u32) -> usize {
+    LANES * (bit as usize % 4) + bit as usize / 4
+}
+
+/// The first row in lane-major order with `P > target` (`P_{c,l} = before_l + down_{c,l}`, as
+/// in [`pick_chunks`]), whatever its weight; `None` if there is none.
+#[inline(always)]
+pub(crate) fn first_above<V: Lanes8, const C: usize>(
+    down: &[V; C],
+    before: V,
+    target: V,
+) -> Option<usize> {
+    let zero = V::splat(V::T::cast(0.0));
+    let mut hits = [zero; C];
+    for c in 0..C {
+        hits[c] = before.add(down[c]).gt_mask(target);
+    }
+    let hit = V::lane_major_bits(&hits);
+    (hit != 0).then(|| lane_major_row(hit.trailing_zeros()))
+}
+
+/// Whether row `j`'s weight is positive, from the residual and reciprocal norms in memory by
+/// the loop's own operations: `r_j²·(1/‖a_j‖²) ≥ θ` (a candidate) and `r_j² > 0`.
+///
+/// # Safety
+/// `r` and `inv_norm2` must be valid for reading `j + 1` scalars.
+#[inline(always)]
+unsafe fn positive_in_memory<T: Real>(
+    r: *const T,
+    inv_norm2: *const T,
+    j: usize,
+    theta: T,
+) -> bool {
+    // SAFETY: the caller's promise.
+    let (r, inv) = unsafe { (*r.add(j), *inv_norm2.add(j)) };
+    let sq = r * r;
+    sq * inv >= theta && sq > T::cast(0.0)
 }
 
 /// [`argmax_ratio`] over the residual and reciprocal norms in memory, out of line: the loop

@@ -282,7 +282,6 @@ struct F32x8(__m256);
 // compiled for AVX2 (`iterate_avx2`), and pointers are the callers' promise.
 impl Lanes8 for F64x8 {
     type T = f64;
-    const CANDIDATES_ARE_POSITIVE: bool = true;
     // (The negated residual measured +38 instructions per update here: the compiler then
     // keeps the stored residual in spill slots for the next iteration instead of reading it
     // back as a memory operand.)
@@ -396,6 +395,11 @@ impl Lanes8 for F64x8 {
         }
     }
     #[inline(always)]
+    fn add_shift4(self) -> Self {
+        // Lanes 0–3 as they are (`x + 0 = x`, no lane being `−0`).
+        unsafe { Self(self.0, _mm256_add_pd(self.1, self.0)) }
+    }
+    #[inline(always)]
     fn broadcast_last(self) -> Self {
         unsafe {
             let x = _mm256_permute4x64_pd::<0xff>(self.1);
@@ -429,7 +433,6 @@ impl Lanes8 for F64x8 {
 impl Lanes8 for F32x8 {
     type T = f32;
     const NEGATED_RESIDUAL: bool = true;
-    const CANDIDATES_ARE_POSITIVE: bool = true;
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         unsafe { Self(_mm256_loadu_ps(p)) }
@@ -1704,13 +1707,15 @@ fn scan8(x: __m512d) -> __m512d {
 mod tests {
     use super::*;
     use crate::greedy::{draw_row, lane_major_prefix};
-    use crate::lanes::{pick_chunks, prefix_chunks};
+    use crate::lanes::{first_above, pick_chunks, prefix_chunks};
     use rand_chacha::rand_core::SeedableRng;
     use rand_core::Rng;
     use std::vec;
     use std::vec::Vec;
 
-    /// The row the eight-lane loop (AVX2) draws for weights `w` (`8C` entries) and `target`.
+    /// The row the eight-lane loop (AVX2) draws for weights `w` (`8C` entries) and `target`:
+    /// the first row above the target if its weight is positive, else `pick_chunks` (which
+    /// must agree with the shortcut whenever that finds a row).
     #[target_feature(enable = "avx2")]
     unsafe fn draw_lanes<V: Lanes8, const C: usize>(w: &[V::T], target: V::T) -> Option<usize> {
         // SAFETY: 8C entries.
@@ -1722,7 +1727,14 @@ mod tests {
         for w in positive.iter_mut() {
             *w = w.gt_mask(zero);
         }
-        pick_chunks(&positive, &down, before, V::splat(target))
+        let target = V::splat(target);
+        let drawn = pick_chunks(&positive, &down, before, target);
+        let shortcut = first_above(&down, before, target).filter(|&j| w[j] > V::T::cast(0.0));
+        assert!(
+            shortcut.is_none() || shortcut == drawn,
+            "{shortcut:?} {drawn:?}"
+        );
+        shortcut.or(drawn)
     }
 
     /// The row the AVX-512 loop draws for weights `w` (`8C` entries) and `target`.
@@ -1895,7 +1907,7 @@ mod tests {
         }
     }
 
-    /// The eight-lane loop's shortcut: with a threshold `θ > 0` the candidates
+    /// With a threshold `θ > 0` the candidates
     /// (`r²·(1/‖a‖²) ≥ θ`) are exactly the rows of positive weight, over squares and reciprocal
     /// norms with zeros, subnormals, infinities and NaNs.
     #[test]
