@@ -211,20 +211,32 @@ impl<'a> Draws<'a> {
         self.next = 0;
     }
 
+    /// Returns the unused draws of the batch to the generator (each draw is one word).
+    #[inline(always)]
+    pub fn finish(self) {
+        if self.next < self.len {
+            self.rng.set_word_pos(self.start + self.next as u128);
+        }
+    }
+}
+
+/// The batch interface of [`Draws`]: only the eight-lane loop of `lanes.rs` (AVX2 and NEON)
+/// takes a window's draws at once, so elsewhere (the Cortex-M7, builds without `std`) these
+/// are unused.
+#[cfg_attr(
+    not(any(
+        all(feature = "std", target_arch = "x86_64"),
+        all(target_arch = "aarch64", target_feature = "neon")
+    )),
+    allow(dead_code)
+)]
+impl Draws<'_> {
     /// Takes every draw the window can need from the generator now, when they fit one batch
     /// (`1 ≤ most ≤ DRAW_BATCH`), and says whether it did: the same words a first
     /// [`Draws::next`] would take (nothing else draws meanwhile), so that a SIMD loop reads
     /// its `k`-th draw with [`Draws::prefilled`], without a check per iteration, and records
     /// how many it took with [`Draws::taken`] before [`Draws::finish`] (which returns the
     /// rest, all of them if none was taken).
-    // (Only the eight-lane loop of `lanes.rs` takes a batch at once.)
-    #[cfg_attr(
-        not(any(
-            all(feature = "std", target_arch = "x86_64"),
-            all(target_arch = "aarch64", target_feature = "neon")
-        )),
-        allow(dead_code)
-    )]
     #[inline(always)]
     pub fn prefill(&mut self) -> bool {
         let fits = (1..=DRAW_BATCH).contains(&self.left) && self.len == 0;
@@ -238,13 +250,6 @@ impl<'a> Draws<'a> {
     ///
     /// # Safety
     /// `prefill` returned `true` and `k` is below the `most` of [`Draws::new`].
-    #[cfg_attr(
-        not(any(
-            all(feature = "std", target_arch = "x86_64"),
-            all(target_arch = "aarch64", target_feature = "neon")
-        )),
-        allow(dead_code)
-    )]
     #[inline(always)]
     pub unsafe fn prefilled(&self, k: usize) -> f64 {
         // SAFETY: the batch holds `most` draws (the caller's promise).
@@ -252,24 +257,9 @@ impl<'a> Draws<'a> {
     }
 
     /// Records that the first `k` draws of a prefilled batch were taken.
-    #[cfg_attr(
-        not(any(
-            all(feature = "std", target_arch = "x86_64"),
-            all(target_arch = "aarch64", target_feature = "neon")
-        )),
-        allow(dead_code)
-    )]
     #[inline(always)]
     pub fn taken(&mut self, k: usize) {
         self.next = k.min(self.len);
-    }
-
-    /// Returns the unused draws of the batch to the generator (each draw is one word).
-    #[inline(always)]
-    pub fn finish(self) {
-        if self.next < self.len {
-            self.rng.set_word_pos(self.start + self.next as u128);
-        }
     }
 }
 
