@@ -27,7 +27,7 @@ pub use diagnose::{
 };
 pub use effects::{
     BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,
-    builtin_by_name, builtin_effects, builtin_with, effect_columns,
+    builtin_by_name, builtin_effects, builtin_with, effect_columns, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, Z_95, fit_model};
@@ -47,6 +47,8 @@ pub use streams::{
 pub use tagk_dynamics::EffectKind;
 pub use tagk_dynamics::alignment::{DelayEstimate, Sensor};
 
+#[cfg(test)]
+mod sampled_tests;
 #[cfg(test)]
 pub(crate) mod testdata;
 #[cfg(test)]

@@ -9,7 +9,8 @@ use crate::diagnose::floor::{ModelDesign, NoiseFloor, held_out_rms, model_design
 use crate::diagnose::sanity::{SanityContext, check_refit};
 use crate::effects::{Effect, EffectRef, usable};
 use crate::fit::{
-    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design, scan_min,
+    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design,
+    sampled_effect_design, scan_min,
 };
 use crate::format::change_percent;
 use crate::signals::{CHANNEL_NAMES, Signals};
@@ -321,8 +322,8 @@ fn best_design(
         Some(sp) => {
             let scan = engine.for_scan();
             let (g, _) = scan_min(&sp.grid, |g| {
-                let d = effect_design(e, s, Some(g));
-                scan.evaluate_with(&d.cols, d.offset.as_ref()).sse_full
+                let d = sampled_effect_design(e, s, Some(g), scan.stride());
+                scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
             });
             let d = effect_design(e, s, Some(g));
             let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
@@ -394,20 +395,12 @@ fn score_candidate(
         .iter()
         .map(|d| (d * sigma2 * kappa).sqrt())
         .collect();
-    let ecols: Vec<_> = crate::effects::effect_columns(e, s, param)
-        .into_iter()
-        .filter(|c| c.fixed.is_none())
-        .collect();
-    let coefficients: Vec<Coefficient> = ecols
+    let coefficients: Vec<Coefficient> = design
+        .names
         .iter()
         .enumerate()
-        .map(|(i, c)| {
-            Coefficient::new(
-                &c.name,
-                &c.unit,
-                coef[i],
-                se[i].is_finite().then_some(se[i]),
-            )
+        .map(|(i, (name, unit))| {
+            Coefficient::new(name, unit, coef[i], se[i].is_finite().then_some(se[i]))
         })
         .collect();
     let own = e.plausibility(&coef, &se, param);

@@ -37,15 +37,49 @@ fn same_step(dt: f64, previous: f64) -> bool {
     (dt - previous).abs() <= 1e-9 * dt.abs()
 }
 
-/// `e^{−(t − t₀)/τ}` at every sample (0 once below 1e-12; all 0 for `τ ≤ 0`), by the
-/// recursion `x_k = x_{k−1} e^{−Δt_k/τ}` (one exponential per distinct step).
-fn start_decay(t: &[f64], tau: f64) -> Vec<f64> {
-    let mut out = vec![0.0; t.len()];
+/// The samples `0, stride, 2 stride, …` of a series of `n`, as they pass by in a loop over
+/// every sample: `take(k)` is `Some(slot)` when sample `k` is one of them (without a division
+/// per sample).
+struct Sampled {
+    stride: usize,
+    phase: usize,
+    slot: usize,
+}
+
+impl Sampled {
+    /// Positioned at sample 0 (which is taken by the caller); a `stride` of 0 is read as 1.
+    fn new(stride: usize) -> Self {
+        Self {
+            stride: stride.max(1),
+            phase: 0,
+            slot: 0,
+        }
+    }
+
+    /// Advances to the next sample: its slot in the sampled series if it is sampled.
+    fn next(&mut self) -> Option<usize> {
+        self.phase += 1;
+        if self.phase == self.stride {
+            self.phase = 0;
+            self.slot += 1;
+            Some(self.slot)
+        } else {
+            None
+        }
+    }
+}
+
+/// `e^{−(t − t₀)/τ}` at the samples `0, stride, 2 stride, …` (0 once below 1e-12; all 0 for
+/// `τ ≤ 0`), by the recursion `x_k = x_{k−1} e^{−Δt_k/τ}` over every sample (one exponential
+/// per distinct step).
+fn start_decay(t: &[f64], tau: f64, stride: usize) -> Vec<f64> {
+    let mut out = vec![0.0; t.len().div_ceil(stride.max(1))];
     if t.is_empty() || tau <= 0.0 {
         return out;
     }
     let (mut x, mut last_dt, mut factor) = (1.0, f64::NAN, 0.0);
     out[0] = 1.0;
+    let mut sampled = Sampled::new(stride);
     for k in 1..t.len() {
         let dt = t[k] - t[k - 1];
         if !same_step(dt, last_dt) {
@@ -56,7 +90,9 @@ fn start_decay(t: &[f64], tau: f64) -> Vec<f64> {
         if x < 1e-12 {
             break;
         }
-        out[k] = x;
+        if let Some(slot) = sampled.next() {
+            out[slot] = x;
+        }
     }
     out
 }
@@ -67,15 +103,28 @@ fn start_decay(t: &[f64], tau: f64) -> Vec<f64> {
 /// with `Y_k` the state at the end of interval `k`,
 /// `y_k = u_k + e^{−Δt/2τ} (Y_{k−1} − u_k)`, `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`,
 /// starting at rest on the first command (`Y_0 = u_0`).
+#[cfg(test)]
 pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
-    let mut y = Vec::with_capacity(u.len());
-    if u.is_empty() {
+    sampled_first_order_lag(t, |k| u[k], tau, 1)
+}
+
+/// [`first_order_lag`] of the command `u(k)` (`k < t.len()`) at the samples
+/// `0, stride, 2 stride, …` only (the recursion runs over every sample).
+fn sampled_first_order_lag(
+    t: &[f64],
+    u: impl Fn(usize) -> f64,
+    tau: f64,
+    stride: usize,
+) -> Vec<f64> {
+    let mut y = Vec::with_capacity(t.len().div_ceil(stride.max(1)));
+    if t.is_empty() {
         return y;
     }
-    y.push(u[0]);
-    let mut end = u[0];
+    let mut end = u(0);
+    y.push(end);
     let (mut last_dt, mut a_half, mut a_full) = (f64::NAN, 0.0, 0.0);
-    for k in 1..u.len() {
+    let mut sampled = Sampled::new(stride);
+    for k in 1..t.len() {
         let dt = t[k] - t[k - 1];
         // Uniformly sampled logs reuse the factors (exp is the cost of a 1-D scan).
         if !same_step(dt, last_dt) {
@@ -86,8 +135,11 @@ pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
                 (0.0, 0.0)
             };
         }
-        y.push(u[k] + a_half * (end - u[k]));
-        end = u[k] + a_full * (end - u[k]);
+        let uk = u(k);
+        if sampled.next().is_some() {
+            y.push(uk + a_half * (end - uk));
+        }
+        end = uk + a_full * (end - uk);
     }
     y
 }
@@ -95,20 +147,23 @@ pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
 /// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
 /// through the squares: with the mixer identified from the log ([`Signals::rotor_mixer`];
 /// without one the lag is applied to the wrench directly, `None`), the delivered wrench is
-/// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` per sample.
-fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
+/// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` at the samples `0, stride, 2 stride, …` (the
+/// lag runs over every sample).
+fn lagged_wrench_from_rotors(s: &Signals, tau: f64, stride: usize) -> Option<Vec<[f64; 4]>> {
     let w = s.rotor_speeds()?;
     let mixer = s.rotor_mixer()?;
     // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
     // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
     let n = s.len();
-    let mut mid = vec![[0.0; 4]; n];
-    let mut mean = vec![[0.0; 4]; n];
+    let m = n.div_ceil(stride.max(1));
+    let mut mid = vec![[0.0; 4]; m];
+    let mut mean = vec![[0.0; 4]; m];
     let mut factors = (f64::NAN, (0.0, 0.0, 0.0, 0.0));
     for r in 0..4 {
         let mut end = w[0][r];
         mid[0][r] = end * end;
         mean[0][r] = mid[0][r];
+        let mut sampled = Sampled::new(stride);
         for i in 1..n {
             let dt = s.t[i] - s.t[i - 1];
             let u = w[i][r];
@@ -131,17 +186,20 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64) -> Option<Vec<[f64; 4]>> {
                 );
             }
             let (a_half, a_full, m1, m2) = factors.1;
-            let ym = u + a_half * e;
-            mid[i][r] = ym * ym;
-            mean[i][r] = u * u + 2.0 * u * e * m1 + e * e * m2;
+            if let Some(slot) = sampled.next() {
+                let ym = u + a_half * e;
+                mid[slot][r] = ym * ym;
+                mean[slot][r] = u * u + 2.0 * u * e * m1 + e * e * m2;
+            }
             end = u + a_full * e;
         }
     }
     Some(
-        (0..n)
-            .map(|i| {
-                let ym = mixer.apply(&mid[i]);
-                let ya = mixer.apply(&mean[i]);
+        mid.iter()
+            .zip(&mean)
+            .map(|(mid, mean)| {
+                let ym = mixer.apply(mid);
+                let ya = mixer.apply(mean);
                 [ym[0], ya[1], ya[2], ya[3]]
             })
             .collect(),
@@ -168,23 +226,32 @@ impl Effect for MotorLag {
         })
     }
     fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        self.sampled_columns(s, p, 1)
+    }
+    fn sampled_columns(&self, s: &Signals, p: Option<f64>, stride: usize) -> Vec<EffectColumn> {
+        let stride = stride.max(1);
         let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        let b = s.wrench();
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
-        if let Some(lagged) = lagged_wrench_from_rotors(s, tau) {
+        if let Some(lagged) = lagged_wrench_from_rotors(s, tau, stride) {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
                 *d = Some(
                     lagged
                         .iter()
-                        .zip(s.wrench())
+                        .zip(b.iter().step_by(stride))
                         .map(|(y, b)| y[c - 2] - b[c])
                         .collect(),
                 );
             }
         } else {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
-                let u = s.channel(c);
-                let y = first_order_lag(&s.t, &u, tau);
-                *d = Some(y.iter().zip(&u).map(|(y, u)| y - u).collect());
+                let y = sampled_first_order_lag(&s.t, |k| b[k][c], tau, stride);
+                *d = Some(
+                    y.iter()
+                        .zip(b.iter().step_by(stride))
+                        .map(|(y, b)| y - b[c])
+                        .collect(),
+                );
             }
         }
         let mut cols = vec![EffectColumn {
@@ -195,7 +262,7 @@ impl Effect for MotorLag {
         }];
         // The actuators' state when the log starts is unknown: its effect decays like
         // e^{−(t − t₀)/τ}, a nuisance column per channel.
-        let decay = start_decay(&s.t, tau);
+        let decay = start_decay(&s.t, tau, stride);
         for c in 2..6 {
             cols.push(EffectColumn::on(
                 &format!("start_{}", CHANNEL_NAMES[c]),
@@ -309,17 +376,21 @@ impl Effect for TimeDelay {
         whole_samples(s, d) as f64 * s.mean_dt()
     }
     fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        self.sampled_columns(s, p, 1)
+    }
+    fn sampled_columns(&self, s: &Signals, p: Option<f64>, stride: usize) -> Vec<EffectColumn> {
         let k = whole_samples(s, p.unwrap_or(0.02));
+        let b = s.wrench();
+        let n = b.len() as i64;
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         for (c, dd) in data.iter_mut().enumerate() {
-            let u = s.channel(c);
-            if u.iter().all(|x| *x == 0.0) {
+            if b.iter().all(|x| x[c] == 0.0) {
                 continue;
             }
-            let n = u.len() as i64;
             *dd = Some(
                 (0..n)
-                    .map(|i| u[(i - k).clamp(0, n - 1) as usize] - u[i as usize])
+                    .step_by(stride.max(1))
+                    .map(|i| b[(i - k).clamp(0, n - 1) as usize][c] - b[i as usize][c])
                     .collect(),
             );
         }

@@ -159,6 +159,21 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// The columns of `Φ` on this log (`param` is the scanned parameter, if any): at least
     /// one, each with one finite value per sample on the channels it touches.
     fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;
+    /// [`Effect::columns`] at every `stride`-th sample only (samples `0, stride, 2 stride, …`
+    /// of the log; `stride ≥ 1`): what a scan of the parameter reads of a long log (about
+    /// 10 000 samples). Each vector holds `signals.len().div_ceil(stride)` values, bit for bit
+    /// those of [`Effect::columns`] at these samples (a vector of another length makes the
+    /// scan fall back to the full columns). Default: [`Effect::columns`], subsampled ([`subsample`]);
+    /// override it when the sampled values cost less than all of them (a column computed
+    /// sample by sample, or a filter run over the log without storing its output).
+    fn sampled_columns(
+        &self,
+        signals: &Signals,
+        param: Option<f64>,
+        stride: usize,
+    ) -> Vec<EffectColumn> {
+        subsample(self.columns(signals, param), stride)
+    }
     /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
     /// fitted column of [`Effect::columns`] — fixed columns have none — in that order).
     fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
@@ -174,6 +189,20 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
 
 /// Shared handle on an effect.
 pub type EffectRef = Arc<dyn Effect>;
+
+/// Every `stride`-th value (`0, stride, 2 stride, …`) of each column's vectors: the default
+/// of [`Effect::sampled_columns`]. A `stride` of 0 is read as 1.
+pub fn subsample(mut columns: Vec<EffectColumn>, stride: usize) -> Vec<EffectColumn> {
+    let stride = stride.max(1);
+    if stride > 1 {
+        for column in &mut columns {
+            for v in column.data.iter_mut().flatten() {
+                *v = v.iter().copied().step_by(stride).collect();
+            }
+        }
+    }
+    columns
+}
 
 /// Plausible unless a coefficient is significantly negative (beyond 3 standard errors).
 pub(crate) fn nonneg(names: &[&str], coef: &[f64], se: &[f64], what: &str) -> Plausibility {

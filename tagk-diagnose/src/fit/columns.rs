@@ -47,6 +47,10 @@ pub(crate) fn rigid_channels(j: usize) -> &'static [usize] {
 pub(crate) enum Column<'a> {
     /// Values kept in memory (an effect's column, a weighted target).
     Stored(&'a ColData),
+    /// Values kept at the samples `0, stride, 2 stride, …` only, `stride` being that of the
+    /// blocks that read them ([`Blocks::load`] from a multiple of it): a scanned candidate's
+    /// columns in a scan ([`crate::fit::design::sampled_effect_design`]).
+    Sampled(&'a ColData),
     /// Rigid-body column `j` (`0..10`), computed per block from the signals.
     Rigid(usize),
     /// The regression target (per-sample rows of the six channels, given to
@@ -63,7 +67,7 @@ impl<'a> Column<'a> {
     /// `true` if the column has values on channel `c`.
     pub fn has(&self, c: usize) -> bool {
         match self {
-            Column::Stored(d) => d[c].is_some(),
+            Column::Stored(d) | Column::Sampled(d) => d[c].is_some(),
             Column::Rigid(j) => rigid_channels(*j).contains(&c),
             Column::Target => true,
         }
@@ -78,7 +82,9 @@ impl<'a> Column<'a> {
     /// column).
     pub fn same(&self, other: &Column<'_>) -> bool {
         match (self, other) {
-            (Column::Stored(a), Column::Stored(b)) => std::ptr::eq(*a, *b),
+            (Column::Stored(a), Column::Stored(b)) | (Column::Sampled(a), Column::Sampled(b)) => {
+                std::ptr::eq(*a, *b)
+            }
             (Column::Rigid(a), Column::Rigid(b)) => a == b,
             (Column::Target, Column::Target) => true,
             _ => false,
@@ -194,6 +200,17 @@ impl<'s> Blocks<'s> {
     pub fn get<'b>(&'b self, col: &Column<'b>, c: usize) -> Option<(&'b [f64], usize)> {
         match col {
             Column::Stored(d) => d[c].as_ref().map(|v| (&v[self.lo..self.hi], self.stride)),
+            Column::Sampled(d) => d[c].as_ref().map(|v| {
+                // The blocks of a scan start at multiples of the stride (one piece from 0).
+                assert_eq!(
+                    self.lo % self.stride,
+                    0,
+                    "sampled column read off its samples"
+                );
+                let first = self.lo / self.stride;
+                let count = (self.hi - self.lo).div_ceil(self.stride);
+                (&v[first..first + count], 1)
+            }),
             Column::Rigid(j) => {
                 if !rigid_channels(*j).contains(&c) {
                     return None;

@@ -96,18 +96,72 @@ pub(crate) struct EffectDesign {
     pub cols: Vec<ColData>,
     /// The fixed columns' sum, to move to the target (`None`: none).
     pub offset: Option<ColData>,
+    /// Name and unit of each fitted column's coefficient ([`crate::effects::EffectColumn`]),
+    /// in the order of `cols`.
+    pub names: Vec<(String, String)>,
 }
 
 /// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped), smoothed like
 /// the target ([`Signals::smooth_channels`]); fixed columns go into the offset.
 pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> EffectDesign {
+    let mut columns = crate::effects::effect_columns(effect, s, p);
+    for c in &mut columns {
+        s.smooth_channels(&mut c.data);
+    }
+    design_of(columns)
+}
+
+/// [`effect_design`] at the samples `0, stride, 2 stride, …` only (each vector
+/// `s.len().div_ceil(stride)` long, bit for bit the full design's values there): the columns
+/// a scan reads ([`crate::fit::GramEngine::evaluate_sampled`]). From the effect's own
+/// [`Effect::sampled_columns`] on a single log without smoothed channels; else (joined logs,
+/// a smoothing filter, or sampled columns of the wrong length) the full design, subsampled.
+pub(crate) fn sampled_effect_design(
+    effect: &dyn Effect,
+    s: &Signals,
+    p: Option<f64>,
+    stride: usize,
+) -> EffectDesign {
+    let stride = stride.max(1);
+    let full = || {
+        let mut d = effect_design(effect, s, p);
+        if stride > 1 {
+            for v in d.cols.iter_mut().chain(&mut d.offset).flatten().flatten() {
+                *v = v.iter().copied().step_by(stride).collect();
+            }
+        }
+        d
+    };
+    if stride == 1 || !s.parts().is_empty() || s.smoothed.iter().any(|x| *x) {
+        return full();
+    }
+    let columns = effect.sampled_columns(s, p, stride);
+    let m = s.len().div_ceil(stride);
+    if columns.is_empty()
+        || columns
+            .iter()
+            .flat_map(|c| c.data.iter().flatten())
+            .any(|v| v.len() != m)
+    {
+        return full();
+    }
+    design_of(columns)
+}
+
+/// The regression's side of effect columns: sign flipped (`b = Yθ − Φβ`), fitted columns kept,
+/// fixed ones summed (times their values) into the offset. Pointwise: the same bits for any
+/// subset of the samples.
+fn design_of(columns: Vec<crate::effects::EffectColumn>) -> EffectDesign {
     let mut out = EffectDesign::default();
-    for c in crate::effects::effect_columns(effect, s, p) {
-        let mut data = c.data;
-        s.smooth_channels(&mut data);
-        let data: ColData = data.map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()));
+    for c in columns {
+        let data: ColData = c
+            .data
+            .map(|d| d.map(|v| v.into_iter().map(|x| -x).collect()));
         match c.fixed {
-            None => out.cols.push(data),
+            None => {
+                out.cols.push(data);
+                out.names.push((c.name, c.unit));
+            }
             Some(value) => {
                 let offset = out.offset.get_or_insert_with(Default::default);
                 for (o, d) in offset.iter_mut().zip(data) {

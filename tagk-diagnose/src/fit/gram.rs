@@ -154,23 +154,46 @@ impl<'a> GramEngine<'a> {
     /// Evaluates base + `cand` with the known part `offset` (unweighted; fixed columns times
     /// their values) moved to the target: the target becomes `y − offset`.
     pub fn evaluate_with(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
+        let cand: Vec<Column<'_>> = Column::stored(cand).collect();
+        self.evaluate_columns(&cand, offset.map(Column::Stored))
+    }
+
+    /// [`Self::evaluate_with`] for candidate columns and offset given at the samples this
+    /// engine reads only, `0, stride, 2 stride, …` ([`Self::stride`];
+    /// [`crate::fit::design::sampled_effect_design`]): the same bits as from the full columns.
+    /// For engines without folds ([`Self::for_scan`], [`Self::new_for_scan`]).
+    pub fn evaluate_sampled(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
+        assert_eq!(
+            self.pieces,
+            [(0, self.s.len())],
+            "sampled columns need one piece"
+        );
+        let cand: Vec<Column<'_>> = cand.iter().map(Column::Sampled).collect();
+        self.evaluate_columns(&cand, offset.map(Column::Sampled))
+    }
+
+    /// Every `stride`-th sample enters this engine's cross products.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    fn evaluate_columns(&self, candr: &[Column<'_>], offset: Option<Column<'_>>) -> Evaluation {
         let p0 = 1 + self.base.len();
-        let q = cand.len();
+        let q = candr.len();
         let pp = p0 + q;
         let np = self.pieces.len();
         let mut left: Vec<Column<'_>> = vec![Column::Target];
         left.extend(self.base.iter().copied());
-        left.extend(Column::stored(cand));
+        left.extend(candr.iter().copied());
         let wl = vec![self.w; pp];
-        let candr: Vec<Column<'_>> = Column::stored(cand).collect();
         let wc = vec![self.w; q];
         let (s, t) = (self.s, self.target);
-        let cross = cross_tensor(s, t, &left, &wl, &candr, &wc, &self.pieces, self.stride);
+        let cross = cross_tensor(s, t, &left, &wl, candr, &wc, &self.pieces, self.stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let wo = [self.w];
         let (ocross, oo) = match offset {
             Some(o) => {
-                let o = [Column::Stored(o)];
+                let o = [o];
                 (
                     cross_tensor(s, t, &o, &wo, &left, &wl, &self.pieces, self.stride),
                     cross_tensor(s, t, &o, &wo, &o, &wo, &self.pieces, self.stride),

@@ -1,0 +1,211 @@
+//! The scans' sampled columns ([`Effect::sampled_columns`], [`sampled_effect_design`],
+//! [`GramEngine::evaluate_sampled`]) against the full columns subsampled: the same bits, for
+//! every built-in effect, with and without rotor speeds, on smoothed and joined logs, and for
+//! a user effect whose sampled columns are malformed.
+
+use nalgebra::{Matrix4, Vector4};
+
+use crate::effects::{Effect, EffectColumn, Plausibility, builtin_effects, subsample};
+use crate::fit::{ColData, Column, GramEngine, effect_design, sampled_effect_design};
+use crate::log::FlightLog;
+use crate::signals::{Channel, Signals};
+use crate::testdata::{crazyflie, synthetic_log};
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// A synthetic log whose wrench comes from four rotors: the rotor speeds that produce its
+/// `[fz, tx, ty, tz]` through a Crazyflie-like mixer (the mixer the signals identify).
+fn log_with_rotors(n: usize, seed: u64) -> FlightLog {
+    let mut log = synthetic_log(&crazyflie(), n, 5e-3, seed, &|_, vb| {
+        [-0.02 * vb.x, -0.01 * vb.y, -0.03 * vb.z, 0.0, 0.0, 0.0]
+    });
+    let (kf, km, l) = (2.88e-8, 7.24e-10, 0.0325 / std::f64::consts::SQRT_2);
+    let mixer = Matrix4::new(
+        kf,
+        kf,
+        kf,
+        kf,
+        -kf * l,
+        -kf * l,
+        kf * l,
+        kf * l,
+        -kf * l,
+        kf * l,
+        kf * l,
+        -kf * l,
+        -km,
+        km,
+        -km,
+        km,
+    );
+    let inverse = mixer.try_inverse().unwrap();
+    let speeds = log
+        .wrench
+        .iter()
+        .map(|b| {
+            let sq = inverse * Vector4::new(b[2], b[3], b[4], b[5]);
+            std::array::from_fn(|r| sq[r].max(0.0).sqrt())
+        })
+        .collect();
+    log.rotor_speeds = Some(speeds);
+    log
+}
+
+/// Every column of `a` equals the same column of `b`: names, units, fixed values, bits.
+fn assert_same_columns(a: &[EffectColumn], b: &[EffectColumn], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: column count");
+    for (x, y) in a.iter().zip(b) {
+        assert_eq!(
+            (&x.name, &x.unit, x.fixed),
+            (&y.name, &y.unit, y.fixed),
+            "{what}"
+        );
+        for c in 0..6 {
+            assert_eq!(
+                x.data[c].as_deref().map(bits),
+                y.data[c].as_deref().map(bits),
+                "{what}: column {} channel {c}",
+                x.name
+            );
+        }
+    }
+}
+
+/// Each built-in effect's sampled columns are its full columns at the sampled samples, bit
+/// for bit: at strides that divide the log's length and that do not, at several values of a
+/// scanned parameter, with the rotor mixer (the lag on each rotor) and without it.
+#[test]
+fn sampled_columns_are_the_full_columns_subsampled() {
+    let with_rotors = Signals::from_log(&log_with_rotors(1_003, 3)).unwrap();
+    assert!(with_rotors.rotor_mixer().is_some());
+    let without = Signals::from_log(&synthetic_log(&crazyflie(), 1_003, 5e-3, 4, &|_, _| {
+        [0.0; 6]
+    }))
+    .unwrap();
+    for s in [&with_rotors, &without] {
+        for e in builtin_effects() {
+            if e.check(s).is_err() {
+                continue;
+            }
+            let params: Vec<Option<f64>> = match e.scan() {
+                None => vec![None],
+                Some(spec) => spec
+                    .grid
+                    .iter()
+                    .step_by(5)
+                    .map(|g| Some(*g))
+                    .chain([None])
+                    .collect(),
+            };
+            for p in params {
+                let full = e.columns(s, p);
+                for stride in [1, 2, 7, 100, 1_003, 5_000] {
+                    assert_same_columns(
+                        &e.sampled_columns(s, p, stride),
+                        &subsample(full.clone(), stride),
+                        &format!("{} at {p:?}, stride {stride}", e.name()),
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A scan engine's evaluation of the sampled design equals its evaluation of the full design
+/// (which reads the same samples), bit for bit: for the two scanned built-ins at several
+/// values, on a plain log, a log with rotor speeds, a log whose accelerations are derived
+/// (smoothed channels: the full design, subsampled) and two joined logs (per-log columns:
+/// likewise).
+#[test]
+fn scans_on_sampled_designs_equal_scans_on_full_designs() {
+    let plain = Signals::from_log(&log_with_rotors(20_011, 5)).unwrap();
+    let mut no_rotors = log_with_rotors(20_011, 6);
+    no_rotors.rotor_speeds = None;
+    let no_rotors = Signals::from_log(&no_rotors).unwrap();
+    let mut derived = log_with_rotors(20_011, 7);
+    derived.accel = None;
+    derived.omega_dot = None;
+    let derived = Signals::from_log(&derived).unwrap();
+    assert!(derived.smoothed.iter().any(|x| *x));
+    let joined = Signals::concat(vec![
+        Signals::from_log(&log_with_rotors(10_007, 8)).unwrap(),
+        Signals::from_log(&log_with_rotors(10_009, 9)).unwrap(),
+    ])
+    .unwrap();
+    let rigid: Vec<Column<'_>> = (0..10).map(Column::Rigid).collect();
+    let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
+    for s in [&plain, &no_rotors, &derived, &joined] {
+        let engine = GramEngine::new(s, &w, &rigid, None, 5);
+        let scan = engine.for_scan();
+        assert_eq!(scan.stride(), 2);
+        for e in builtin_effects().iter().filter(|e| e.scan().is_some()) {
+            let grid = e.scan().unwrap().grid;
+            for g in [grid[0], grid[grid.len() / 2], grid[grid.len() - 1]] {
+                let full = effect_design(e.as_ref(), s, Some(g));
+                let sampled = sampled_effect_design(e.as_ref(), s, Some(g), scan.stride());
+                let a = scan.evaluate_with(&full.cols, full.offset.as_ref());
+                let b = scan.evaluate_sampled(&sampled.cols, sampled.offset.as_ref());
+                assert_eq!(
+                    a.sse_full.to_bits(),
+                    b.sse_full.to_bits(),
+                    "{} at {g}",
+                    e.name()
+                );
+                assert_eq!(bits(&a.beta), bits(&b.beta), "{} at {g}", e.name());
+                assert_eq!(full.names, sampled.names);
+            }
+        }
+    }
+}
+
+/// A user effect whose sampled columns have the wrong length: the scan falls back to its full
+/// columns, subsampled.
+#[derive(Debug)]
+struct WrongSampledLength;
+
+impl Effect for WrongSampledLength {
+    fn name(&self) -> &str {
+        "wrong-sampled-length"
+    }
+    fn description(&self) -> &str {
+        "a force along x proportional to the thrust, with sampled columns of the full length"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![0]
+    }
+    fn columns(&self, s: &Signals, _param: Option<f64>) -> Vec<EffectColumn> {
+        vec![EffectColumn::on("k", "1", 0, s.channel(2))]
+    }
+    fn sampled_columns(&self, s: &Signals, p: Option<f64>, _stride: usize) -> Vec<EffectColumn> {
+        self.columns(s, p)
+    }
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
+        Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        ("thrust fz [N]".into(), s.channel(2))
+    }
+}
+
+#[test]
+fn malformed_sampled_columns_fall_back_to_the_full_columns() {
+    let s = Signals::from_log(&log_with_rotors(1_000, 10)).unwrap();
+    let full = effect_design(&WrongSampledLength, &s, None);
+    let sampled = sampled_effect_design(&WrongSampledLength, &s, None, 9);
+    let want: Vec<ColData> = full
+        .cols
+        .iter()
+        .map(|col| {
+            col.clone()
+                .map(|d| d.map(|v| v.into_iter().step_by(9).collect()))
+        })
+        .collect();
+    assert_eq!(sampled.cols.len(), want.len());
+    for (a, b) in sampled.cols.iter().zip(&want) {
+        for c in 0..6 {
+            assert_eq!(a[c].as_deref().map(bits), b[c].as_deref().map(bits));
+        }
+    }
+}
