@@ -28,7 +28,7 @@
 use serde::Serialize;
 
 use crate::diagnose::{Candidate, DiagnoseOptions};
-use crate::effects::{EffectRef, usable};
+use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
 use crate::fit::{
     ColData, Column, Evaluation, Fit, GramEngine, Model, effect_design, fit_residual_only,
@@ -125,17 +125,25 @@ pub(crate) fn held_out_evaluation(
     .evaluate(&[])
 }
 
-/// The candidates that can join `model` on this log.
-pub(crate) fn joinable<'a>(
+/// The candidates that can join `model` on this log: those not in it, scored alone on this
+/// log (`alone`, from [`crate::diagnose::ranking::score_candidates`], which scores only the
+/// candidates usable here: [`crate::effects::usable`]) and plausible there, each with its
+/// score.
+fn joinable<'a>(
     model: &Model,
-    s: &Signals,
     candidates: &'a [EffectRef],
-) -> Vec<&'a EffectRef> {
+    alone: &'a [Candidate],
+) -> Vec<(&'a EffectRef, &'a Candidate)> {
     candidates
         .iter()
         .filter(|c| !model.has(c.name()))
         .filter(|c| !(c.needs_known_mass() && model.known_mass().is_none()))
-        .filter(|c| usable(c.as_ref(), s).is_ok())
+        .filter_map(|e| {
+            alone
+                .iter()
+                .find(|c| c.effect == e.name() && c.plausible)
+                .map(|c| (e, c))
+        })
         .collect()
 }
 
@@ -163,10 +171,7 @@ fn saturated_fit(
     // (the drag laws) or alike to first order (a lag and a delay), and fitted together they
     // split one physical effect between them. A wind includes its drag.
     let mut best: std::collections::BTreeMap<String, (f64, EffectRef)> = Default::default();
-    for e in joinable(model, s, &opts.candidates) {
-        let Some(c) = alone.iter().find(|c| c.effect == e.name() && c.plausible) else {
-            continue;
-        };
+    for (e, c) in joinable(model, &opts.candidates, alone) {
         let family = EffectKind::from_name(e.name())
             .map_or_else(|| e.name().to_string(), |k| k.family().to_string());
         if best.get(&family).is_none_or(|(r, _)| c.reduction > *r) {
