@@ -144,7 +144,7 @@ fn scans_on_sampled_designs_equal_scans_on_full_designs() {
             let grid = e.scan().unwrap().grid;
             for g in [grid[0], grid[grid.len() / 2], grid[grid.len() - 1]] {
                 let full = effect_design(e.as_ref(), s, Some(g));
-                let sampled = sampled_effect_design(e.as_ref(), s, Some(g), scan.stride());
+                let sampled = sampled_effect_design(e.as_ref(), s, Some(g), scan.stride()).unwrap();
                 let a = scan.evaluate_with(&full.cols, full.offset.as_ref());
                 let b = scan.evaluate_sampled(&sampled.cols, sampled.offset.as_ref());
                 assert_eq!(
@@ -193,7 +193,7 @@ impl Effect for WrongSampledLength {
 fn malformed_sampled_columns_fall_back_to_the_full_columns() {
     let s = Signals::from_log(&log_with_rotors(1_000, 10)).unwrap();
     let full = effect_design(&WrongSampledLength, &s, None);
-    let sampled = sampled_effect_design(&WrongSampledLength, &s, None, 9);
+    let sampled = sampled_effect_design(&WrongSampledLength, &s, None, 9).unwrap();
     let want: Vec<ColData> = full
         .cols
         .iter()
@@ -208,4 +208,78 @@ fn malformed_sampled_columns_fall_back_to_the_full_columns() {
             assert_eq!(a[c].as_deref().map(bits), b[c].as_deref().map(bits));
         }
     }
+}
+
+/// A scanned user effect, a lateral drag `sign(v) |v|^p` along body x: at `p = 1` (the
+/// drag hidden in the test log) its column is not finite at sample 1, which a scan of a long
+/// log does not read; at `p = 3` its columns are one value short.
+#[derive(Debug)]
+struct FaultyScanned;
+
+impl Effect for FaultyScanned {
+    fn name(&self) -> &str {
+        "faulty-scanned"
+    }
+    fn description(&self) -> &str {
+        "a drag sign(v)|v|^p along body x, with faults at p = 1 and p = 3"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![0]
+    }
+    fn scan(&self) -> Option<crate::ScanSpec> {
+        Some(crate::ScanSpec {
+            name: "p".into(),
+            unit: "1".into(),
+            grid: vec![1.0, 2.0, 3.0],
+            start: None,
+        })
+    }
+    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        let p = p.unwrap_or(2.0);
+        let mut v: Vec<f64> = s
+            .velocity_body
+            .iter()
+            .map(|v| v.x.signum() * v.x.abs().powf(p))
+            .collect();
+        if p == 1.0 {
+            v[1] = f64::NAN;
+        }
+        if p == 3.0 {
+            v.pop();
+        }
+        vec![EffectColumn::on("k", "N s^p/m^p", 0, v)]
+    }
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
+        Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        (
+            "speed [m/s]".into(),
+            s.velocity_body.iter().map(|v| v.x).collect(),
+        )
+    }
+}
+
+/// The scan of a faulty user effect neither panics on the value whose columns are short nor
+/// lets a non-finite value it did not read into the ranking: the candidate is listed as
+/// unavailable, naming the sample.
+#[test]
+fn a_faulty_scanned_effect_is_unavailable_not_a_panic() {
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 20_011, 5e-3, 12, &|_, vb| {
+        [-0.02 * vb.x, 0.0, 0.0, 0.0, 0.0, 0.0]
+    }))
+    .unwrap();
+    assert!(crate::effects::usable(&FaultyScanned, &s).is_ok());
+    let opts = crate::DiagnoseOptions {
+        candidates: vec![std::sync::Arc::new(FaultyScanned) as crate::EffectRef],
+        ..Default::default()
+    };
+    let d = crate::diagnose(&crate::Model::rigid_body(), &s, &opts).unwrap();
+    assert!(d.ranking.is_empty(), "{:?}", d.ranking);
+    assert_eq!(d.unavailable.len(), 1);
+    assert!(
+        d.unavailable[0].reason.contains("not finite at sample 1 "),
+        "{}",
+        d.unavailable[0].reason
+    );
 }

@@ -92,7 +92,7 @@ fn qr_solution_matches_normal_equations() {
     }
 }
 
-/// The blocked QR ([`weighted_qr_solve`] factors 4096 samples at a time) over several blocks,
+/// The blocked QR ([`weighted_qr_solve`] factors 512 samples at a time) over many blocks,
 /// the last one partial: coefficients and standard errors against the dense normal equations.
 #[test]
 fn blocked_qr_matches_normal_equations_over_several_blocks() {

@@ -7,9 +7,9 @@ use serde::Serialize;
 use crate::diagnose::DiagnoseOptions;
 use crate::diagnose::floor::{ModelDesign, NoiseFloor, held_out_rms, model_design};
 use crate::diagnose::sanity::{SanityContext, check_refit};
-use crate::effects::{Effect, EffectRef, usable};
+use crate::effects::{Effect, EffectRef};
 use crate::fit::{
-    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, effect_design,
+    Coefficient, EffectDesign, Evaluation, Fit, GramEngine, Model, checked_effect_design,
     sampled_effect_design, scan_min,
 };
 use crate::format::change_percent;
@@ -191,9 +191,16 @@ pub(crate) fn score_candidates(
             unavailable.push(u);
             continue;
         }
-        let candidate = score_candidate(e.as_ref(), s, &baseline, opts);
-        effects.push(e.clone());
-        ranking.push(candidate);
+        match score_candidate(e.as_ref(), s, &baseline, opts) {
+            Ok(candidate) => {
+                effects.push(e.clone());
+                ranking.push(candidate);
+            }
+            Err(reason) => unavailable.push(Unavailable {
+                effect: e.name().to_string(),
+                reason,
+            }),
+        }
     }
     Scored {
         ranking,
@@ -292,59 +299,57 @@ fn baseline<'a>(
     }
 }
 
-/// Why a candidate cannot be evaluated on this log with this model, if it cannot.
+/// Why a candidate cannot be evaluated with this model or fails its own check on this log,
+/// if it does (its columns are checked where they are computed: [`best_design`]).
 fn availability(e: &dyn Effect, model: &Model, s: &Signals) -> Option<Unavailable> {
-    if e.needs_known_mass() && model.known_mass().is_none() {
-        return Some(Unavailable {
-            effect: e.name().to_string(),
-            reason: "needs a known mass (`--mass KG`): a thrust-gain error and a mass error scale the regression alike".into(),
-        });
-    }
-    usable(e, s).err().map(|reason| Unavailable {
+    let reason = if e.needs_known_mass() && model.known_mass().is_none() {
+        "needs a known mass (`--mass KG`): a thrust-gain error and a mass error scale the regression alike".into()
+    } else {
+        e.check(s).err()?
+    };
+    Some(Unavailable {
         effect: e.name().to_string(),
         reason,
     })
 }
 
 /// The candidate's columns at its best scanned parameter (if it has one) and their
-/// evaluation.
+/// evaluation; `Err(reason)` when its columns there cannot enter the regression
+/// ([`crate::effects::check_columns`]; a scanned value whose columns have the wrong length is
+/// skipped by the scan).
 fn best_design(
     e: &dyn Effect,
     s: &Signals,
     engine: &GramEngine<'_>,
-) -> (Option<f64>, EffectDesign, Evaluation) {
-    match e.scan() {
-        None => {
-            let d = effect_design(e, s, None);
-            let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-            (None, d, ev)
-        }
-        Some(sp) => {
-            let scan = engine.for_scan();
-            let (g, _) = scan_min(&sp.grid, |g| {
-                let d = sampled_effect_design(e, s, Some(g), scan.stride());
+) -> Result<(Option<f64>, EffectDesign, Evaluation), String> {
+    let param = e.scan().map(|sp| {
+        let scan = engine.for_scan();
+        scan_min(&sp.grid, |g| {
+            sampled_effect_design(e, s, Some(g), scan.stride()).map_or(f64::INFINITY, |d| {
                 scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
-            });
-            let d = effect_design(e, s, Some(g));
-            let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-            (Some(g), d, ev)
-        }
-    }
+            })
+        })
+        .0
+    });
+    let d = checked_effect_design(e, s, param)?;
+    let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+    Ok((param, d, ev))
 }
 
 /// Scores one candidate: held-out reduction (overall and per channel, and against the noise
 /// floor), the partial test with an autocorrelation-corrected variance, coefficients with
 /// standard errors and confidence intervals, the plausibility verdict (the effect's rules,
 /// then the rigid body's, [`crate::diagnose`]'s sanity rules). The status and explanation are
-/// filled in by [`order_and_recommend`].
+/// filled in by [`order_and_recommend`]. `Err(reason)` when the candidate's columns cannot
+/// enter the regression on this log ([`best_design`]).
 fn score_candidate(
     e: &dyn Effect,
     s: &Signals,
     base: &Baseline<'_>,
     opts: &DiagnoseOptions,
-) -> Candidate {
+) -> Result<Candidate, String> {
     let spec = e.scan();
-    let (param, design, ev) = best_design(e, s, &base.engine);
+    let (param, design, ev) = best_design(e, s, &base.engine)?;
     let cols = &design.cols;
     let base_ev = &base.evaluation;
     let p_base = base.columns;
@@ -428,7 +433,7 @@ fn score_candidate(
         )
     });
     let (dname, _) = e.driver(s);
-    Candidate {
+    Ok(Candidate {
         effect: e.name().to_string(),
         reduction,
         reduction_per_channel,
@@ -448,7 +453,7 @@ fn score_candidate(
         affected_channels: affected,
         explanation: String::new(),
         driver: dname,
-    }
+    })
 }
 
 /// The status of a scored candidate before the recommendation is picked (the first rule

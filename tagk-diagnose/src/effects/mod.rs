@@ -444,33 +444,48 @@ pub(crate) fn scan_problem(effect: &dyn Effect) -> Option<String> {
 }
 
 /// Whether an effect can be used on this log: its own [`Effect::check`], then its columns at
-/// the start of its scan (the middle of the grid) must be at least one, each with one finite
-/// value per sample on the channels it touches. `Err(reason)` otherwise — so that a faulty
-/// user-defined effect gets a clear message instead of a panic in the regression.
+/// the start of its scan (the middle of the grid) must pass [`check_columns`]. `Err(reason)`
+/// otherwise — so that a faulty user-defined effect gets a clear message instead of a panic
+/// in the regression.
 pub(crate) fn usable(effect: &dyn Effect, s: &Signals) -> Result<(), String> {
     effect.check(s)?;
     let param = effect
         .scan()
         .and_then(|spec| spec.grid.get(spec.grid.len() / 2).copied());
-    let columns = effect_columns(effect, s, param);
+    check_columns(&effect_columns(effect, s, param), s)
+}
+
+/// Whether an effect's columns on this log can enter the regression: at least one, each with
+/// one finite value per sample on the channels it touches. `Err(reason)` names the first
+/// fault.
+pub(crate) fn check_columns(columns: &[EffectColumn], s: &Signals) -> Result<(), String> {
     if columns.is_empty() {
         return Err("it has no regressor column on this log".into());
     }
-    for column in &columns {
-        for (c, data) in column.data.iter().enumerate() {
-            let Some(values) = data else { continue };
-            if values.len() != s.len() {
-                return Err(format!(
-                    "column `{}` has {} values on channel {c}, the log {} samples",
-                    column.name,
-                    values.len(),
-                    s.len()
-                ));
-            }
-            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+    check_lengths(columns, s.len())?;
+    for column in columns {
+        for data in column.data.iter().flatten() {
+            if let Some(i) = data.iter().position(|v| !v.is_finite()) {
                 return Err(format!(
                     "column `{}` is not finite at sample {i} (t = {} s)",
                     column.name, s.t[i]
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `Err(reason)` unless every vector of `columns` holds `len` values.
+pub(crate) fn check_lengths(columns: &[EffectColumn], len: usize) -> Result<(), String> {
+    for column in columns {
+        for (c, data) in column.data.iter().enumerate() {
+            let Some(values) = data else { continue };
+            if values.len() != len {
+                return Err(format!(
+                    "column `{}` has {} values on channel {c}, the log {len} samples",
+                    column.name,
+                    values.len(),
                 ));
             }
         }

@@ -5,7 +5,7 @@ use std::borrow::Cow;
 
 use tagk_dynamics::write_rigid_body_regressor;
 
-use crate::effects::Effect;
+use crate::effects::{Effect, EffectColumn, check_columns, check_lengths, subsample};
 use crate::fit::Model;
 use crate::fit::columns::{Column, rigid_channels};
 use crate::signals::Signals;
@@ -102,13 +102,31 @@ pub(crate) struct EffectDesign {
 }
 
 /// Turns effect columns into regression columns (`b = Yθ − Φβ`: sign flipped), smoothed like
-/// the target ([`Signals::smooth_channels`]); fixed columns go into the offset.
+/// the target ([`Signals::smooth_channels`]); fixed columns go into the offset. The effect
+/// must be usable on the log ([`crate::effects::usable`]).
 pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> EffectDesign {
-    let mut columns = crate::effects::effect_columns(effect, s, p);
+    design_of(smoothed(crate::effects::effect_columns(effect, s, p), s))
+}
+
+/// [`effect_design`] for an effect not yet known to be usable at `p`: `Err(reason)` when its
+/// columns there fail [`check_columns`] (the columns are computed once, for the check and the
+/// design).
+pub(crate) fn checked_effect_design(
+    effect: &dyn Effect,
+    s: &Signals,
+    p: Option<f64>,
+) -> Result<EffectDesign, String> {
+    let columns = crate::effects::effect_columns(effect, s, p);
+    check_columns(&columns, s)?;
+    Ok(design_of(smoothed(columns, s)))
+}
+
+/// The columns smoothed like the target ([`Signals::smooth_channels`]).
+fn smoothed(mut columns: Vec<EffectColumn>, s: &Signals) -> Vec<EffectColumn> {
     for c in &mut columns {
         s.smooth_channels(&mut c.data);
     }
-    design_of(columns)
+    columns
 }
 
 /// [`effect_design`] at the samples `0, stride, 2 stride, …` only (each vector
@@ -116,42 +134,31 @@ pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) ->
 /// a scan reads ([`crate::fit::GramEngine::evaluate_sampled`]). From the effect's own
 /// [`Effect::sampled_columns`] on a single log without smoothed channels; else (joined logs,
 /// a smoothing filter, or sampled columns of the wrong length) the full design, subsampled.
+/// `None` when the full columns have the wrong length too (a faulty user effect: the scan
+/// skips the value).
 pub(crate) fn sampled_effect_design(
     effect: &dyn Effect,
     s: &Signals,
     p: Option<f64>,
     stride: usize,
-) -> EffectDesign {
+) -> Option<EffectDesign> {
     let stride = stride.max(1);
-    let full = || {
-        let mut d = effect_design(effect, s, p);
-        if stride > 1 {
-            for v in d.cols.iter_mut().chain(&mut d.offset).flatten().flatten() {
-                *v = v.iter().copied().step_by(stride).collect();
-            }
+    let sampled_len = s.len().div_ceil(stride);
+    if stride > 1 && s.parts().is_empty() && !s.smoothed.iter().any(|x| *x) {
+        let columns = effect.sampled_columns(s, p, stride);
+        if !columns.is_empty() && check_lengths(&columns, sampled_len).is_ok() {
+            return Some(design_of(columns));
         }
-        d
-    };
-    if stride == 1 || !s.parts().is_empty() || s.smoothed.iter().any(|x| *x) {
-        return full();
     }
-    let columns = effect.sampled_columns(s, p, stride);
-    let m = s.len().div_ceil(stride);
-    if columns.is_empty()
-        || columns
-            .iter()
-            .flat_map(|c| c.data.iter().flatten())
-            .any(|v| v.len() != m)
-    {
-        return full();
-    }
-    design_of(columns)
+    let columns = crate::effects::effect_columns(effect, s, p);
+    check_lengths(&columns, s.len()).ok()?;
+    Some(design_of(subsample(smoothed(columns, s), stride)))
 }
 
 /// The regression's side of effect columns: sign flipped (`b = Yθ − Φβ`), fitted columns kept,
 /// fixed ones summed (times their values) into the offset. Pointwise: the same bits for any
 /// subset of the samples.
-fn design_of(columns: Vec<crate::effects::EffectColumn>) -> EffectDesign {
+fn design_of(columns: Vec<EffectColumn>) -> EffectDesign {
     let mut out = EffectDesign::default();
     for c in columns {
         let data: ColData = c

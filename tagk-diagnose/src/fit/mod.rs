@@ -17,8 +17,8 @@ use crate::signals::Signals;
 
 pub(crate) use columns::Column;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, effect_design, rigid_columns, rigid_design,
-    sampled_effect_design,
+    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_columns,
+    rigid_design, sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
@@ -343,8 +343,10 @@ fn scan_parameters(
             .collect();
         let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
         let (best, _) = scan_min(&grid, |g| {
-            let d = sampled_effect_design(e.as_ref(), s, Some(g), engine.stride());
-            engine.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+            sampled_effect_design(e.as_ref(), s, Some(g), engine.stride())
+                .map_or(f64::INFINITY, |d| {
+                    engine.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+                })
         });
         params[k] = Some(best);
     }
