@@ -159,40 +159,40 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64, stride: usize) -> Option<Vec
     let mut mid = vec![[0.0; 4]; m];
     let mut mean = vec![[0.0; 4]; m];
     let mut factors = (f64::NAN, (0.0, 0.0, 0.0, 0.0));
-    for r in 0..4 {
-        let mut end = w[0][r];
-        mid[0][r] = end * end;
-        mean[0][r] = mid[0][r];
-        let mut sampled = Sampled::new(stride);
-        for i in 1..n {
-            let dt = s.t[i] - s.t[i - 1];
-            let u = w[i][r];
-            let e = end - u;
-            // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
-            if !same_step(dt, factors.0) {
-                factors = (
-                    dt,
-                    if tau > 0.0 {
-                        let x = dt / tau;
-                        (
-                            (-0.5 * x).exp(),
-                            (-x).exp(),
-                            (1.0 - (-x).exp()) / x,
-                            (1.0 - (-2.0 * x).exp()) / (2.0 * x),
-                        )
-                    } else {
-                        (0.0, 0.0, 0.0, 0.0)
-                    },
-                );
-            }
-            let (a_half, a_full, m1, m2) = factors.1;
-            if let Some(slot) = sampled.next() {
-                let ym = u + a_half * e;
-                mid[slot][r] = ym * ym;
-                mean[slot][r] = u * u + 2.0 * u * e * m1 + e * e * m2;
-            }
-            end = u + a_full * e;
+    let mut end = w[0];
+    mid[0] = end.map(|x| x * x);
+    mean[0] = mid[0];
+    let mut sampled = Sampled::new(stride);
+    for i in 1..n {
+        let dt = s.t[i] - s.t[i - 1];
+        // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
+        if !same_step(dt, factors.0) {
+            factors = (
+                dt,
+                if tau > 0.0 {
+                    let x = dt / tau;
+                    (
+                        (-0.5 * x).exp(),
+                        (-x).exp(),
+                        (1.0 - (-x).exp()) / x,
+                        (1.0 - (-2.0 * x).exp()) / (2.0 * x),
+                    )
+                } else {
+                    (0.0, 0.0, 0.0, 0.0)
+                },
+            );
         }
+        let (a_half, a_full, m1, m2) = factors.1;
+        let u = w[i];
+        let e: [f64; 4] = std::array::from_fn(|r| end[r] - u[r]);
+        if let Some(slot) = sampled.next() {
+            for r in 0..4 {
+                let ym = u[r] + a_half * e[r];
+                mid[slot][r] = ym * ym;
+                mean[slot][r] = u[r] * u[r] + 2.0 * u[r] * e[r] * m1 + e[r] * e[r] * m2;
+            }
+        }
+        end = std::array::from_fn(|r| u[r] + a_full * e[r]);
     }
     Some(
         mid.iter()
