@@ -27,10 +27,13 @@
 //! degrees of freedom), which holds for coloured noise where a formula for white noise would
 //! not. The rule is in `docs/CONVENTIONS.md` §7.2.
 
+use std::borrow::Cow;
+use std::cell::OnceCell;
+
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
-use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative, savitzky_golay_derivative3};
-use crate::log::{FlightLog, LogError};
+use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3, savitzky_golay_derivatives};
+use crate::log::{FlightLog, LogError, Sampling};
 
 /// The largest offset searched by default \[s\]: 100 ms, beyond the latency of any
 /// motion-capture system, IMU driver or telemetry link of a small robot.
@@ -41,6 +44,11 @@ pub const BLOCKS: usize = 8;
 
 /// Two-sided 95 % quantile of Student's `t` with `BLOCKS − 1 = 7` degrees of freedom.
 const T_975_7: f64 = 2.364_624_251_592_785;
+
+/// Samples left out at each end of the log and of each segment between gaps \[samples\]: two
+/// filter half-widths, where the derivatives' windows reach past the data and the twins are
+/// not comparable.
+const FILTER_EDGE: usize = 2 * DEFAULT_HALF_WIDTH;
 
 /// Fewest samples per block: a block must hold the lag window several times over.
 const MIN_BLOCK_SAMPLES: usize = 50;
@@ -193,27 +201,68 @@ impl DelayEstimate {
     }
 }
 
-/// A sensor's signal (borrowed from the log) and its twin from the pose, sample by sample.
-type SignalPair<'a> = (&'a [[f64; 3]], Vec<[f64; 3]>);
+/// A sensor's signal (borrowed from the log) and its twin from the pose, sample by sample
+/// (borrowed when [`Shared`] keeps it).
+type SignalPair<'a> = (&'a [[f64; 3]], Cow<'a, [[f64; 3]]>);
+
+/// What the estimates of several sensors on one log share, each part computed on first use:
+/// the median step with each sample's segment, and the velocity from the position (the
+/// accelerometer's twin and the velocity's twin both start from it).
+struct Shared<'a> {
+    log: &'a FlightLog,
+    /// The median step \[s\] and [`segment_ids`] with [`FILTER_EDGE`] left out.
+    timing: OnceCell<(f64, Vec<Option<u32>>)>,
+    /// `ṗ` from the position \[m/s\].
+    velocity: OnceCell<Vec<[f64; 3]>>,
+}
+
+impl<'a> Shared<'a> {
+    fn new(log: &'a FlightLog) -> Self {
+        Self {
+            log,
+            timing: OnceCell::new(),
+            velocity: OnceCell::new(),
+        }
+    }
+
+    /// The median step \[s\] (a gap does not stretch it) and the segment of each sample,
+    /// `None` within [`FILTER_EDGE`] samples of a segment's ends.
+    fn timing(&self) -> (f64, &[Option<u32>]) {
+        let (dt, seg) = self.timing.get_or_init(|| {
+            let sampling = self.log.sampling();
+            let seg = segment_ids(&sampling, self.log.len(), FILTER_EDGE);
+            (sampling.median_step, seg)
+        });
+        (*dt, seg)
+    }
+
+    /// The velocity from the position \[m/s\].
+    fn velocity(&self) -> &[[f64; 3]] {
+        self.velocity.get_or_init(|| {
+            savitzky_golay_derivative3(&self.log.t, &self.log.position, DEFAULT_HALF_WIDTH)
+        })
+    }
+}
 
 /// The sensor's signal and its twin from the pose.
-fn pair(log: &FlightLog, sensor: Sensor) -> Result<SignalPair<'_>, AlignmentError> {
+fn pair<'s>(shared: &'s Shared<'_>, sensor: Sensor) -> Result<SignalPair<'s>, AlignmentError> {
+    let log = shared.log;
     pair_available(log, sensor)?;
     let h = DEFAULT_HALF_WIDTH;
     Ok(match sensor {
-        Sensor::Gyro => (&log.omega, omega_from_attitude(&log.t, &log.attitude)),
+        Sensor::Gyro => (
+            &log.omega,
+            Cow::Owned(omega_from_attitude(&log.t, &log.attitude)),
+        ),
         Sensor::Accelerometer => {
-            let v = savitzky_golay_derivative3(&log.t, &log.position, h);
+            let v = shared.velocity();
             let accel = log
                 .accel
                 .as_deref()
                 .ok_or(AlignmentError::NotLogged(sensor))?;
-            (accel, savitzky_golay_derivative3(&log.t, &v, h))
+            (accel, Cow::Owned(savitzky_golay_derivative3(&log.t, v, h)))
         }
-        Sensor::Velocity => (
-            &log.velocity,
-            savitzky_golay_derivative3(&log.t, &log.position, h),
-        ),
+        Sensor::Velocity => (&log.velocity, Cow::Borrowed(shared.velocity())),
         Sensor::Actuators | Sensor::Pose => return Err(AlignmentError::NeedsModel(sensor)),
     })
 }
@@ -229,22 +278,19 @@ pub fn omega_from_attitude(t: &[f64], attitude: &[[f64; 4]]) -> Vec<[f64; 3]> {
                 .into_inner()
         })
         .collect();
-    let mut r_dot = vec![Matrix3::zeros(); r.len()];
-    for i in 0..3 {
-        for j in 0..3 {
-            let entry: Vec<f64> = r.iter().map(|m| m[(i, j)]).collect();
-            for (d, v) in
-                r_dot
-                    .iter_mut()
-                    .zip(savitzky_golay_derivative(t, &entry, DEFAULT_HALF_WIDTH))
-            {
-                d[(i, j)] = v;
-            }
-        }
-    }
+    // The nine entries' derivatives in one pass, entry (i, j) at 3 i + j.
+    let n = t.len().min(r.len());
+    let mut r_dot = savitzky_golay_derivatives(
+        &t[..n],
+        |k| std::array::from_fn(|e| r[k][(e / 3, e % 3)]),
+        DEFAULT_HALF_WIDTH,
+    );
+    // Without a time for it, a sample's derivative is zero.
+    r_dot.resize(r.len(), [0.0; 9]);
     r.iter()
         .zip(&r_dot)
         .map(|(r, rd)| {
+            let rd = Matrix3::from_fn(|i, j| rd[3 * i + j]);
             let w = r.transpose() * rd;
             // The antisymmetric part: the derivative of a rotation is R [ω]×.
             let v = Vector3::new(
@@ -257,11 +303,12 @@ pub fn omega_from_attitude(t: &[f64], attitude: &[[f64; 4]]) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The segment of each sample between gaps ([`FlightLog::sampling`]), `None` within
-/// `edge` samples of a segment's ends (where the derivatives' windows reach past it).
-fn segment_ids(log: &FlightLog, edge: usize) -> Vec<Option<u32>> {
-    let mut out = vec![None; log.len()];
-    for (id, r) in log.sampling().segments().into_iter().enumerate() {
+/// The segment of each of the `n` samples between gaps (of `sampling`, the log's
+/// [`FlightLog::sampling`]), `None` within `edge` samples of a segment's ends (where the
+/// derivatives' windows reach past it).
+fn segment_ids(sampling: &Sampling, n: usize, edge: usize) -> Vec<Option<u32>> {
+    let mut out = vec![None; n];
+    for (id, r) in sampling.segments().into_iter().enumerate() {
         if r.len() > 2 * edge {
             for v in &mut out[r.start + edge..r.end - edge] {
                 *v = Some(id as u32);
@@ -271,33 +318,46 @@ fn segment_ids(log: &FlightLog, edge: usize) -> Vec<Option<u32>> {
     out
 }
 
-/// Variance of `x(i) − y(i − k)` over `i ∈ range` where `i − k` is a sample of the same
-/// segment (`seg`: never across a gap, never at a segment's filtered edge).
-fn lag_cost(
+/// Variance of `x(i) − y(i − k)` for every lag `k` in `−max_lag..=max_lag` (at index
+/// `k + max_lag`) over `i ∈ range` where `i − k` is a sample of the same segment (`seg`:
+/// never across a gap, never at a segment's filtered edge); infinite for a lag without such
+/// a sample. One pass over the samples for all lags; each lag's sums add up its terms in the
+/// order of `i`, as a pass per lag would.
+fn lag_costs(
     x: &[[f64; 3]],
     y: &[[f64; 3]],
     seg: &[Option<u32>],
-    k: isize,
+    max_lag: isize,
     range: std::ops::Range<usize>,
-) -> f64 {
-    let (mut sum, mut sq, mut count) = ([0.0; 3], 0.0, 0usize);
+) -> Vec<f64> {
+    // Per lag: the sum of each component's difference, the sum of squares, the count.
+    let mut sums = vec![([0.0; 3], 0.0, 0usize); (2 * max_lag + 1) as usize];
     for i in range {
-        let j = i as isize - k;
-        if j < 0 || j as usize >= y.len() || seg[i].is_none() || seg[i] != seg[j as usize] {
+        if seg[i].is_none() {
             continue;
         }
-        for c in 0..3 {
-            let e = x[i][c] - y[j as usize][c];
-            sum[c] += e;
-            sq += e * e;
+        for ((sum, sq, count), k) in sums.iter_mut().zip(-max_lag..=max_lag) {
+            let j = i as isize - k;
+            if j < 0 || j as usize >= y.len() || seg[i] != seg[j as usize] {
+                continue;
+            }
+            for c in 0..3 {
+                let e = x[i][c] - y[j as usize][c];
+                sum[c] += e;
+                *sq += e * e;
+            }
+            *count += 1;
         }
-        count += 1;
     }
-    if count == 0 {
-        return f64::INFINITY;
-    }
-    let n = count as f64;
-    sq / n - sum.iter().map(|s| (s / n) * (s / n)).sum::<f64>()
+    sums.iter()
+        .map(|(sum, sq, count)| {
+            if *count == 0 {
+                return f64::INFINITY;
+            }
+            let n = *count as f64;
+            sq / n - sum.iter().map(|s| (s / n) * (s / n)).sum::<f64>()
+        })
+        .collect()
 }
 
 /// Best lag in samples (whole lag refined by a parabola), or `None` at the edge of `±max_lag`
@@ -309,9 +369,7 @@ fn best_lag(
     max_lag: isize,
     range: std::ops::Range<usize>,
 ) -> Option<f64> {
-    let costs: Vec<f64> = (-max_lag..=max_lag)
-        .map(|k| lag_cost(x, y, seg, k, range.clone()))
-        .collect();
+    let costs = lag_costs(x, y, seg, max_lag, range);
     let (best, _) = costs
         .iter()
         .enumerate()
@@ -342,6 +400,15 @@ pub fn estimate_delay(
     sensor: Sensor,
     max_delay: f64,
 ) -> Result<DelayEstimate, AlignmentError> {
+    estimate_delay_shared(&Shared::new(log), sensor, max_delay)
+}
+
+/// [`estimate_delay`] with what the sensors of one log share computed once.
+fn estimate_delay_shared(
+    shared: &Shared<'_>,
+    sensor: Sensor,
+    max_delay: f64,
+) -> Result<DelayEstimate, AlignmentError> {
     if !(max_delay.is_finite() && max_delay > 0.0) {
         return Err(AlignmentError::BadShift {
             sensor,
@@ -349,7 +416,7 @@ pub fn estimate_delay(
             reason: "the searched range must be a positive number of seconds".into(),
         });
     }
-    let (x, y) = pair(log, sensor)?;
+    let (x, y) = pair(shared, sensor)?;
     let n = x.len();
     let needed = BLOCKS * MIN_BLOCK_SAMPLES;
     if n < needed || n < 2 {
@@ -360,20 +427,18 @@ pub fn estimate_delay(
         });
     }
     // The median step: a gap does not stretch it.
-    let dt = log.sampling().median_step;
+    let (dt, seg) = shared.timing();
     let max_lag = ((max_delay / dt).ceil() as isize).max(2);
-    // The filters' edges (of the log and of each segment between gaps) are not comparable:
-    // leave out two half-widths at each end.
-    let edge = 2 * DEFAULT_HALF_WIDTH;
-    let seg = segment_ids(log, edge);
+    // The filters' edges (of the log and of each segment between gaps) are not comparable.
+    let edge = FILTER_EDGE;
     let inner = edge..n.saturating_sub(edge);
     let no_minimum = AlignmentError::NoMinimum { sensor, max_delay };
-    let whole = best_lag(x, &y, &seg, max_lag, inner.clone()).ok_or(no_minimum.clone())?;
+    let whole = best_lag(x, &y, seg, max_lag, inner.clone()).ok_or(no_minimum.clone())?;
     let block = inner.len() / BLOCKS;
     let blocks: Vec<f64> = (0..BLOCKS)
         .filter_map(|b| {
             let start = inner.start + b * block;
-            best_lag(x, &y, &seg, max_lag, start..start + block)
+            best_lag(x, &y, seg, max_lag, start..start + block)
         })
         .collect();
     let half_width = if blocks.len() == BLOCKS {
@@ -401,10 +466,11 @@ pub fn estimate_delays(
     log: &FlightLog,
     max_delay: f64,
 ) -> Vec<(Sensor, Result<DelayEstimate, AlignmentError>)> {
+    let shared = Shared::new(log);
     Sensor::MEASURABLE
         .into_iter()
         .filter(|s| !matches!(pair_available(log, *s), Err(AlignmentError::NotLogged(_))))
-        .map(|s| (s, estimate_delay(log, s, max_delay)))
+        .map(|s| (s, estimate_delay_shared(&shared, s, max_delay)))
         .collect()
 }
 
@@ -644,6 +710,113 @@ mod tests {
         }
         log.accel = Some(accel);
         log
+    }
+
+    /// The cost of one lag as this module computed it before all lags shared one pass: the
+    /// independent reference for [`lag_costs`].
+    fn reference_lag_cost(
+        x: &[[f64; 3]],
+        y: &[[f64; 3]],
+        seg: &[Option<u32>],
+        k: isize,
+        range: std::ops::Range<usize>,
+    ) -> f64 {
+        let (mut sum, mut sq, mut count) = ([0.0; 3], 0.0, 0usize);
+        for i in range {
+            let j = i as isize - k;
+            if j < 0 || j as usize >= y.len() || seg[i].is_none() || seg[i] != seg[j as usize] {
+                continue;
+            }
+            for c in 0..3 {
+                let e = x[i][c] - y[j as usize][c];
+                sum[c] += e;
+                sq += e * e;
+            }
+            count += 1;
+        }
+        if count == 0 {
+            return f64::INFINITY;
+        }
+        let n = count as f64;
+        sq / n - sum.iter().map(|s| (s / n) * (s / n)).sum::<f64>()
+    }
+
+    #[test]
+    fn one_pass_lag_costs_equal_a_pass_per_lag_bit_for_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let n = 400;
+        let mut signal = || -> Vec<[f64; 3]> {
+            (0..n)
+                .map(|_| std::array::from_fn(|_| rng.random::<f64>() * 2.0 - 1.0))
+                .collect()
+        };
+        let (x, y) = (signal(), signal());
+        // Two segments with filtered edges, and a stretch that belongs to none.
+        let seg: Vec<Option<u32>> = (0..n)
+            .map(|i| match i {
+                0..10 | 150..170 => None,
+                10..150 => Some(0),
+                _ => Some(1),
+            })
+            .collect();
+        for max_lag in [2isize, 5, 30] {
+            for range in [0..n, 5..n - 3, 140..180, 100..100, 0..4] {
+                let costs = lag_costs(&x, &y[..n - 7], &seg, max_lag, range.clone());
+                let reference: Vec<f64> = (-max_lag..=max_lag)
+                    .map(|k| reference_lag_cost(&x, &y[..n - 7], &seg, k, range.clone()))
+                    .collect();
+                let bits = |v: &[f64]| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&costs),
+                    bits(&reference),
+                    "max_lag {max_lag}, {range:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn attitude_rate_in_one_pass_equals_nine_derivatives_bit_for_bit() {
+        let log = synthetic(100.0, 3.0, [0.0; 3], 0.01, 5);
+        // The rate as computed before the nine entries shared their windows.
+        let r: Vec<Matrix3<f64>> = log
+            .attitude
+            .iter()
+            .map(|q| {
+                UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+                    .to_rotation_matrix()
+                    .into_inner()
+            })
+            .collect();
+        let mut r_dot = vec![Matrix3::zeros(); r.len()];
+        for i in 0..3 {
+            for j in 0..3 {
+                let entry: Vec<f64> = r.iter().map(|m| m[(i, j)]).collect();
+                let d = crate::deriv::savitzky_golay_derivative(&log.t, &entry, DEFAULT_HALF_WIDTH);
+                for (m, v) in r_dot.iter_mut().zip(d) {
+                    m[(i, j)] = v;
+                }
+            }
+        }
+        let reference: Vec<[f64; 3]> = r
+            .iter()
+            .zip(&r_dot)
+            .map(|(r, rd)| {
+                let w = r.transpose() * rd;
+                let v = Vector3::new(
+                    w[(2, 1)] - w[(1, 2)],
+                    w[(0, 2)] - w[(2, 0)],
+                    w[(1, 0)] - w[(0, 1)],
+                );
+                [0.5 * v.x, 0.5 * v.y, 0.5 * v.z]
+            })
+            .collect();
+        let bits = |v: &[[f64; 3]]| v.iter().flatten().map(|c| c.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&omega_from_attitude(&log.t, &log.attitude)),
+            bits(&reference)
+        );
     }
 
     #[test]

@@ -1102,22 +1102,33 @@ fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
 }
 
 /// A CSV table of numbers read row by row with the checks every log reader makes: a header
-/// without duplicate names, as many fields per row as the header has, and every cell a finite
-/// number. Errors name the 1-based line (the header is line 1) and the column.
+/// without duplicate names, as many fields per row as the header has, every row valid UTF-8
+/// and every cell a finite number. Errors name the 1-based line (the header is line 1) and the
+/// column.
+///
+/// Rows are read as raw bytes into one reused record: only the header is trimmed by the CSV
+/// reader; a cell is checked for UTF-8, trimmed of (Unicode) white space and parsed in one pass,
+/// so a row costs no allocation. The results and errors are those of reading each row as a
+/// trimmed `csv::StringRecord` (`csv::Trim::All`), which this reader replaced.
 pub(crate) struct NumericRows<R: Read> {
     rdr: csv::Reader<R>,
-    record: csv::StringRecord,
+    record: csv::ByteRecord,
     /// The column names, in file order.
     pub(crate) header: Vec<String>,
     line: usize,
 }
+
+/// The CSV reader's input buffer \[bytes\]: large enough that a long log is read in few system
+/// calls, small enough not to matter for memory.
+const CSV_BUFFER_BYTES: usize = 1 << 16;
 
 impl<R: Read> NumericRows<R> {
     /// Reads and checks the header.
     pub(crate) fn new(reader: R) -> Result<Self, LogError> {
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
-            .trim(csv::Trim::All)
+            .trim(csv::Trim::Headers)
+            .buffer_capacity(CSV_BUFFER_BYTES)
             .from_reader(reader);
         let header: Vec<String> = rdr
             .headers()
@@ -1142,7 +1153,7 @@ impl<R: Read> NumericRows<R> {
         }
         Ok(Self {
             rdr,
-            record: csv::StringRecord::new(),
+            record: csv::ByteRecord::new(),
             header,
             line: 1,
         })
@@ -1151,7 +1162,7 @@ impl<R: Read> NumericRows<R> {
     /// Reads the next row into `values` (one per header column) and returns its line, or
     /// `None` at the end of the file.
     pub(crate) fn next_into(&mut self, values: &mut [f64]) -> Result<Option<usize>, LogError> {
-        match self.rdr.read_record(&mut self.record) {
+        match self.rdr.read_byte_record(&mut self.record) {
             Ok(false) => return Ok(None),
             Ok(true) => {}
             Err(e) => {
@@ -1166,6 +1177,13 @@ impl<R: Read> NumericRows<R> {
             .position()
             .map_or(self.line + 1, |p| p.line() as usize);
         self.line = line;
+        // A row that is not all ASCII is checked for UTF-8 before any cell is parsed, as the
+        // string reader did (its error comes before a non-number in an earlier column).
+        if !self.record.as_slice().is_ascii()
+            && let Some(e) = utf8_error(&self.record)
+        {
+            return Err(e);
+        }
         let header = &self.header;
         if self.record.len() != header.len() {
             return Err(LogError::Malformed {
@@ -1173,12 +1191,24 @@ impl<R: Read> NumericRows<R> {
                 message: format!("{} fields, header has {}", self.record.len(), header.len()),
             });
         }
-        for (j, field) in self.record.iter().enumerate() {
-            let x: f64 = field.parse().map_err(|_| LogError::NotANumber {
-                line,
-                column: header[j].clone(),
-                value: field.to_string(),
-            })?;
+        // Every cell is valid UTF-8, so the row is, and each cell's range in it falls on
+        // character boundaries: one check of the row instead of one per cell.
+        let row = std::str::from_utf8(self.record.as_slice()).unwrap_or_default();
+        for (j, value) in values.iter_mut().enumerate().take(header.len()) {
+            let text = self.record.range(j).and_then(|r| row.get(r)).map(trim_cell);
+            let Some(Ok(x)) = text.map(str::parse::<f64>) else {
+                return Err(LogError::NotANumber {
+                    line,
+                    column: header[j].clone(),
+                    value: text.map_or_else(
+                        || {
+                            let cell = self.record.get(j).unwrap_or_default();
+                            String::from_utf8_lossy(cell).trim().to_string()
+                        },
+                        str::to_string,
+                    ),
+                });
+            };
             if !x.is_finite() {
                 return Err(LogError::NonFinite {
                     line,
@@ -1186,8 +1216,226 @@ impl<R: Read> NumericRows<R> {
                     value: x,
                 });
             }
-            values[j] = x;
+            *value = x;
         }
         Ok(Some(line))
+    }
+}
+
+/// A cell without its leading and trailing white space: [`str::trim`], skipped when the cell
+/// begins and ends with a visible ASCII character (the common case), which `str::trim` would
+/// keep.
+fn trim_cell(cell: &str) -> &str {
+    match (cell.as_bytes().first(), cell.as_bytes().last()) {
+        (Some(&first), Some(&last))
+            if (0x21..0x7f).contains(&first) && (0x21..0x7f).contains(&last) =>
+        {
+            cell
+        }
+        _ => cell.trim(),
+    }
+}
+
+/// The error of a row that is not valid UTF-8, worded as the CSV reader words it when it reads
+/// the row as a trimmed `csv::StringRecord` (the field's index and the byte up to which it is
+/// valid counted after ASCII trimming), or `None` if the row is valid UTF-8.
+fn utf8_error(record: &csv::ByteRecord) -> Option<LogError> {
+    let mut trimmed = record.clone();
+    trimmed.trim();
+    let err = csv::StringRecord::from_byte_record(trimmed).err()?;
+    let err = err.utf8_error();
+    let pos = record.position()?;
+    Some(LogError::Malformed {
+        line: pos.line() as usize,
+        message: format!(
+            "CSV parse error: record {} (line {}, field: {}, byte: {}): {}",
+            pos.record(),
+            pos.line(),
+            err.field(),
+            pos.byte(),
+            err
+        ),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// What a reader makes of a table: the header and each row's line and value bits, or the
+    /// first error (its `Debug` form: every field, so line, column, value and wording).
+    type Outcome = Result<(Vec<String>, Vec<(usize, Vec<u64>)>), String>;
+
+    /// The reader this module had before rows were read as bytes, kept as the independent
+    /// reference: every row a `csv::StringRecord` trimmed by the CSV crate (`Trim::All`).
+    fn reference(input: &[u8]) -> Outcome {
+        let err = |e: LogError| format!("{e:?}");
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(input);
+        let header: Vec<String> = rdr
+            .headers()
+            .map_err(|e| {
+                err(LogError::Malformed {
+                    line: 1,
+                    message: e.to_string(),
+                })
+            })?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        if header.iter().all(String::is_empty) && rdr.is_done() {
+            return Err(err(LogError::EmptyFile));
+        }
+        for (j, name) in header.iter().enumerate() {
+            if let Some(k) = header[..j].iter().position(|h| h == name) {
+                return Err(err(LogError::DuplicateColumn {
+                    column: name.clone(),
+                    first: k + 1,
+                    second: j + 1,
+                }));
+            }
+        }
+        let mut record = csv::StringRecord::new();
+        let mut rows = Vec::new();
+        let mut last = 1;
+        loop {
+            match rdr.read_record(&mut record) {
+                Ok(false) => return Ok((header, rows)),
+                Ok(true) => {}
+                Err(e) => {
+                    return Err(err(LogError::Malformed {
+                        line: e.position().map_or(last + 1, |p| p.line() as usize),
+                        message: e.to_string(),
+                    }));
+                }
+            }
+            let line = record.position().map_or(last + 1, |p| p.line() as usize);
+            last = line;
+            if record.len() != header.len() {
+                return Err(err(LogError::Malformed {
+                    line,
+                    message: format!("{} fields, header has {}", record.len(), header.len()),
+                }));
+            }
+            let mut bits = Vec::new();
+            for (j, field) in record.iter().enumerate() {
+                let x: f64 = field.parse().map_err(|_| {
+                    err(LogError::NotANumber {
+                        line,
+                        column: header[j].clone(),
+                        value: field.to_string(),
+                    })
+                })?;
+                if !x.is_finite() {
+                    return Err(err(LogError::NonFinite {
+                        line,
+                        column: header[j].clone(),
+                        value: x,
+                    }));
+                }
+                bits.push(x.to_bits());
+            }
+            rows.push((line, bits));
+        }
+    }
+
+    /// The same table through [`NumericRows`].
+    fn numeric_rows(input: &[u8]) -> Outcome {
+        let err = |e: LogError| format!("{e:?}");
+        let mut rows = NumericRows::new(input).map_err(err)?;
+        let mut values = vec![0.0; rows.header.len()];
+        let mut out = Vec::new();
+        while let Some(line) = rows.next_into(&mut values).map_err(err)? {
+            out.push((line, values.iter().map(|x| x.to_bits()).collect()));
+        }
+        Ok((rows.header.clone(), out))
+    }
+
+    #[test]
+    fn rows_read_as_bytes_match_the_string_reader() {
+        let cases: &[&[u8]] = &[
+            b"a,b\n1,2\n3,4\n",
+            b" a , b \n 1 ,\t2\t\n",
+            // Unicode white space: trimmed by `str::trim`, not by ASCII trimming.
+            "a,b\n\u{a0}1,2\u{2003}\n\u{b}3\u{c},4\u{85}\n".as_bytes(),
+            b"a,b\n\"1\",\" 2 \"\n",
+            b"a,b\n1,x\n",
+            b"a,b\n1,\n",
+            b"a,b\n1,nan\n",
+            b"a,b\n1,-inf\n",
+            b"a,b\n1,1e400\n",
+            b"a,b\n1,2,3\n",
+            b"a,b\n1\n",
+            b"a,a\n1,2\n",
+            b"",
+            b"a,b\n",
+            b"a,b\r\n1,2\r\n\r\n3,4",
+            // Not UTF-8: in a later cell than a non-number, after white space, split by a
+            // delimiter, in the header, in an otherwise valid row.
+            b"a,b\nx,\xff\n",
+            b"a,b\n1,  \xff\n",
+            b"a,b\n1\xc3,\xa92\n",
+            b"a,\xffb\n1,2\n",
+            b"a,b\n1,2\n\xe9,4\n",
+            "a,b\n1,\u{e9}\n".as_bytes(),
+        ];
+        for case in cases {
+            assert_eq!(
+                numeric_rows(case),
+                reference(case),
+                "input {:?}",
+                String::from_utf8_lossy(case)
+            );
+        }
+    }
+
+    /// Pieces of cells and separators that exercise trimming, quoting, UTF-8 and numbers.
+    const PIECES: &[&[u8]] = &[
+        b"1",
+        b"-2.5e3",
+        b"0.1",
+        b"7e-5",
+        b" ",
+        b"\t",
+        b"\x0b",
+        b"\x0c",
+        "\u{a0}".as_bytes(),
+        "\u{2003}".as_bytes(),
+        "\u{85}".as_bytes(),
+        "\u{e9}".as_bytes(),
+        b"\xff",
+        b"\xc3",
+        b"\xa9",
+        b"\"",
+        b",",
+        b",",
+        b",",
+        b"\n",
+        b"\r\n",
+        b"nan",
+        b"inf",
+        b"1e400",
+        b"x",
+        b".",
+        b"e",
+    ];
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn any_bytes_read_as_the_string_reader_reads_them(
+            header in prop::sample::select(vec!["a,b", " a ,b", "a,b,c", "a"]),
+            body in prop::collection::vec(prop::sample::select(PIECES), 0..40),
+        ) {
+            let mut input = header.as_bytes().to_vec();
+            input.push(b'\n');
+            for piece in body {
+                input.extend_from_slice(piece);
+            }
+            prop_assert_eq!(numeric_rows(&input), reference(&input));
+        }
     }
 }
