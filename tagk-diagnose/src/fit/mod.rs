@@ -256,6 +256,7 @@ fn fit(
         predicted,
         residual,
         solution: Some(mut sol),
+        names,
     }) = last
     else {
         return Err(DiagnoseError::Fit("no pass ran".into()));
@@ -266,7 +267,7 @@ fn fit(
         *se *= kappa.sqrt();
     }
     let (theta, theta_se) = rigid_parameters(model, &sol, rigid.len());
-    let effects = fitted_effects(model, s, &params, &sol, rigid.len());
+    let effects = fitted_effects(model, s, &params, &names, &sol, rigid.len());
     Ok(Fit {
         label: model.label(),
         theta,
@@ -391,6 +392,8 @@ struct Pass {
     predicted: Vec<[f64; 6]>,
     residual: Vec<[f64; 6]>,
     solution: Option<LsSolution>,
+    /// Per effect of the model, the name and unit of each fitted column's coefficient.
+    names: Vec<Vec<(String, String)>>,
 }
 
 /// Step 3 (each pass): the linear solve at the current parameters. Intermediate passes only
@@ -407,9 +410,11 @@ fn solve_pass(
 ) -> Result<Pass, DiagnoseError> {
     let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
+    let mut names = Vec::new();
     for (k, e) in model.effects().iter().enumerate() {
         let d = effect_design(e.as_ref(), s, params[k]);
         effect_cols.extend(d.cols);
+        names.push(d.names);
         if let Some(o) = d.offset {
             match &mut known {
                 None => known = Some(o),
@@ -467,6 +472,7 @@ fn solve_pass(
         predicted,
         residual,
         solution,
+        names,
     })
 }
 
@@ -488,22 +494,20 @@ fn rigid_parameters(
 }
 
 /// Step 5: each effect's coefficients (after the first `nr` rigid-body ones), named by its
-/// columns, with the effect's plausibility verdict.
+/// fitted columns (`names`, per effect, from the final pass's design), with the effect's
+/// plausibility verdict.
 fn fitted_effects(
     model: &Model,
     s: &Signals,
     params: &[Option<f64>],
+    names: &[Vec<(String, String)>],
     sol: &LsSolution,
     nr: usize,
 ) -> Vec<FittedEffect> {
     let mut effects = Vec::new();
     let mut j = nr;
     for (k, e) in model.effects().iter().enumerate() {
-        let ecols: Vec<_> = crate::effects::effect_columns(e.as_ref(), s, params[k])
-            .into_iter()
-            .filter(|c| c.fixed.is_none())
-            .collect();
-        let q = ecols.len();
+        let q = names[k].len();
         let coef: Vec<f64> = sol.beta[j..j + q].to_vec();
         let se: Vec<f64> = sol.se[j..j + q]
             .iter()
@@ -516,10 +520,10 @@ fn fitted_effects(
             scanned: e
                 .scan()
                 .and_then(|sp| params[k].map(|v| (sp.name, e.applied(s, v), sp.unit))),
-            coefficients: ecols
+            coefficients: names[k]
                 .iter()
                 .enumerate()
-                .map(|(i, c)| Coefficient::new(&c.name, &c.unit, coef[i], sol.se[j + i]))
+                .map(|(i, (name, unit))| Coefficient::new(name, unit, coef[i], sol.se[j + i]))
                 .collect(),
             derived: e.derived(&coef, &se, params[k]),
             plausible: pl.plausible,
