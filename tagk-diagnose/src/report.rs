@@ -104,6 +104,9 @@ pub struct Report {
     pub noise_floor: NoiseFloor,
     /// Why the staircase stopped.
     pub stopped: String,
+    /// `true` when the final model is adequate: what remains of the measured wrench is the
+    /// sensors' noise on every channel.
+    pub adequate: bool,
     /// Ranking for the starting model.
     pub ranking: Vec<RankingEntry>,
     /// Channel fit of the starting model.
@@ -293,6 +296,7 @@ fn loop_from(
         steps: discovery.steps,
         noise_floor: discovery.noise_floor,
         stopped: discovery.stopped,
+        adequate: final_diagnosis.as_ref().unwrap_or(last).at_floor,
         ranking: last.ranking.iter().map(RankingEntry::from).collect(),
         channels: last.channels.clone(),
         with: with_names,

@@ -78,6 +78,8 @@ pub struct FittedEffect {
     pub description: String,
     /// Scanned nonlinear parameter `(name, value, unit)`, if any.
     pub scanned: Option<(String, f64, String)>,
+    /// 95 % confidence interval of the scanned parameter (its unit), when the data bound it.
+    pub scanned_interval: Option<[f64; 2]>,
     /// Coefficients.
     pub coefficients: Vec<Coefficient>,
     /// Quantities derived from the coefficients (e.g. the wind velocity), with standard
@@ -520,6 +522,7 @@ fn fitted_effects(
             scanned: e
                 .scan()
                 .and_then(|sp| params[k].map(|v| (sp.name, e.applied(s, v), sp.unit))),
+            scanned_interval: None,
             coefficients: names[k]
                 .iter()
                 .enumerate()
