@@ -296,7 +296,7 @@ fn loop_from(
         steps: discovery.steps,
         noise_floor: discovery.noise_floor,
         stopped: discovery.stopped,
-        adequate: final_diagnosis.as_ref().unwrap_or(last).at_floor,
+        adequate: discovery.adequate,
         ranking: last.ranking.iter().map(RankingEntry::from).collect(),
         channels: last.channels.clone(),
         with: with_names,
@@ -656,7 +656,7 @@ fn remains(d: &Diagnosis) -> String {
     for w in &d.warnings {
         s.push_str(&format!("WARNING: {w}\n"));
     }
-    if d.at_floor {
+    if d.adequate {
         s.push_str("the residual is at the noise floor on every channel: nothing left that a candidate explains\n");
     } else if !d.findings.is_empty() {
         s.push_str("where it still fails:\n");

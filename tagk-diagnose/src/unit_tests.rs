@@ -536,8 +536,8 @@ fn every_option_field_is_validated() {
     assert_eq!(invalid_field(with(&|o| o.alpha = 0.0)), "alpha");
     assert_eq!(invalid_field(with(&|o| o.alpha = 1.0)), "alpha");
     assert_eq!(
-        invalid_field(with(&|o| o.min_reduction = f64::INFINITY)),
-        "min_reduction"
+        invalid_field(with(&|o| o.com_vertical_limit = f64::INFINITY)),
+        "com_vertical_limit"
     );
     assert_eq!(
         invalid_field(with(&|o| o.airframe_radius = 0.0)),
@@ -619,7 +619,10 @@ fn models_with_a_bad_mass_or_a_repeated_effect_are_refused() {
 #[test]
 fn the_registry_is_keyed_by_the_shared_vocabulary() {
     let all = crate::builtin_effects();
-    assert_eq!(all.len(), EffectKind::ALL.len());
+    // The vocabulary's effects, then the sensor candidates.
+    assert_eq!(all.len(), EffectKind::ALL.len() + 1);
+    assert_eq!(all[EffectKind::ALL.len()].name(), crate::ACCEL_BIAS);
+    assert_eq!(crate::builtin_by_name("accelerometer_bias").unwrap().name(), crate::ACCEL_BIAS);
     for (kind, effect) in EffectKind::ALL.into_iter().zip(&all) {
         assert_eq!(effect.name(), kind.name());
         assert_eq!(builtin(kind).unwrap().name(), kind.name());

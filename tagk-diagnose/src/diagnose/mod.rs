@@ -1,16 +1,18 @@
 //! The diagnosis workflow: compare, where it fails, what is missing, step by step.
 //!
-//! [`diagnose`] runs four named steps: fit the model ([`crate::fit_model`]), rank the missing
-//! candidates against the noise floor ([`ranking`], [`floor`]) and the physical rules
-//! ([`sanity`]), find where the model fails ([`residual`]), judge the parameters
-//! ([`parameters`]); then it states a verdict. [`discover`] repeats it: rigid body → + the
-//! recommended effect → … until the model is at the noise floor or nothing qualifies.
+//! [`diagnose`] fits the model ([`crate::fit_model`]), measures the noise of every channel
+//! ([`noise`]), searches the candidate effects and sets of them on held-out data in units of
+//! that noise ([`select`]) against the physical rules ([`sanity`]), finds where the model fails
+//! ([`residual`]), judges the parameters ([`parameters`]) and says whether the model is
+//! adequate: what remains is the noise. [`discover`] repeats it: rigid body → + the chosen
+//! effects → … until no set is admissible.
 
-mod floor;
+mod noise;
 mod parameters;
 mod ranking;
 mod residual;
 mod sanity;
+mod select;
 mod stepwise;
 
 use std::sync::Arc;
@@ -21,16 +23,31 @@ use tagk_dynamics::SafetyGate;
 use crate::effects::{EffectRef, builtin_effects, scan_problem};
 use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model};
-use crate::signals::Signals;
+use crate::signals::{CHANNEL_NAMES, Signals};
+use crate::stats;
 
-pub use floor::{FLOOR_RESOLUTION, FloorSource, NoiseFloor};
+pub use noise::{FLOOR_RESOLUTION, FloorSource, NoiseFloor};
 pub use parameters::Parameter;
-pub use ranking::{
-    Candidate, CandidateStatus, FLOOR_MARGIN, MAX_CHANNEL_WORSENING, MIN_GAIN_OF_FLOOR, Unavailable,
-};
+pub use ranking::{Candidate, CandidateStatus, Unavailable};
 pub use residual::{FailureWindow, RegimeStat, Whiteness};
-pub use sanity::{MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE};
+pub use sanity::{
+    CONSISTENCY_TOLERANCE, MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE,
+    consistency_margin, consistent_within_tolerance,
+};
+pub use select::{MAX_INFLATION, MIN_GAIN};
 pub use stepwise::{Discovery, Step, StepChannel, discover, discover_from};
+
+pub(crate) use noise::noise_floor;
+pub(crate) use select::Context;
+
+/// A channel is adequate when its held-out residual RMS is within this factor of its noise
+/// (1.2) and its residual is white ([`ADEQUATE_AUTOCORRELATION`]).
+pub const ADEQUACY_FACTOR: f64 = 1.2;
+
+/// Largest residual autocorrelation (in magnitude, at lags 1 to 20) of an adequate channel
+/// beyond the 95 % band of white noise: 0.1, a model error of about a tenth of the noise
+/// variance that varies slowly with the flight. At most 2 of the 20 lags may exceed it.
+pub const ADEQUATE_AUTOCORRELATION: f64 = 0.1;
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone)]
@@ -40,18 +57,23 @@ pub struct DiagnoseOptions {
     /// Family-wise significance level of the candidate tests (Bonferroni over the
     /// candidates; default 0.01).
     pub alpha: f64,
-    /// Smallest held-out residual reduction (fraction of the channel-normalised held-out SSE)
-    /// worth recommending (default 0.02).
-    pub min_reduction: f64,
     /// Radius of the airframe \[m\]: a fitted centre of mass significantly farther from the
-    /// origin is flagged as evidence of an unmodelled force (default: the Crazyflie's
+    /// body's z axis is flagged as evidence of an unmodelled force (default: the Crazyflie's
     /// `L_arm` = 0.0325 m).
     pub airframe_radius: f64,
+    /// Largest distance of the centre of mass from the rotor plane \[m\] (default: half the
+    /// airframe radius, 0.016 m for the Crazyflie: its battery hangs just below the rotors).
+    pub com_vertical_limit: f64,
+    /// Height of the rotor plane above the body origin, body z \[m\] (default 0: the origin
+    /// in the rotor plane, as in the Crazyflie's vehicle file).
+    pub rotor_plane_height: f64,
+    /// The vehicle file's mass \[kg\], if given: the report says when the fitted mass is
+    /// more than [`MAX_MASS_FROM_VEHICLE`] off it.
+    pub vehicle_mass: Option<f64>,
     /// Candidate effects to rank (default: every built-in).
     pub candidates: Vec<EffectRef>,
     /// Measurement noise per channel (N, N m), e.g. from the sensors' specification: the
-    /// noise floor of the stepwise search. `None` (default): the floor comes from the data
-    /// ([`NoiseFloor`]).
+    /// yardstick of every decision. `None` (default): measured from the data ([`NoiseFloor`]).
     pub noise_floor: Option<[f64; 6]>,
     /// Most effects [`discover`] adds (default 5).
     pub max_steps: usize,
@@ -62,8 +84,10 @@ impl Default for DiagnoseOptions {
         Self {
             folds: 5,
             alpha: 0.01,
-            min_reduction: 0.02,
             airframe_radius: SafetyGate::crazyflie().max_com_offset,
+            com_vertical_limit: 0.5 * SafetyGate::crazyflie().max_com_offset,
+            rotor_plane_height: 0.0,
+            vehicle_mass: None,
             candidates: builtin_effects(),
             noise_floor: None,
             max_steps: 5,
@@ -72,8 +96,9 @@ impl Default for DiagnoseOptions {
 }
 
 impl DiagnoseOptions {
-    /// Checks every field: `folds ≥ 2`, `alpha` in `(0, 1)`, `min_reduction` finite and below
-    /// 1, `airframe_radius` positive and finite, and a non-empty list of candidates with
+    /// Checks every field: `folds ≥ 2`, `alpha` in `(0, 1)`, `airframe_radius` and
+    /// `com_vertical_limit` positive and finite, `rotor_plane_height` finite, a vehicle mass
+    /// positive and finite, and a non-empty list of candidates with
     /// unique names and usable scan grids. [`diagnose`] runs this first (and also needs
     /// `folds ≤ samples / 4`).
     ///
@@ -95,16 +120,30 @@ impl DiagnoseOptions {
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
             return bad("alpha", format!("{} is not in (0, 1)", self.alpha));
         }
-        if !(self.min_reduction.is_finite() && self.min_reduction < 1.0) {
-            return bad(
-                "min_reduction",
-                format!("{} is not a finite fraction below 1", self.min_reduction),
-            );
-        }
         if !(self.airframe_radius.is_finite() && self.airframe_radius > 0.0) {
             return bad(
                 "airframe_radius",
                 format!("{} m is not positive and finite", self.airframe_radius),
+            );
+        }
+        if !(self.com_vertical_limit.is_finite() && self.com_vertical_limit > 0.0) {
+            return bad(
+                "com_vertical_limit",
+                format!("{} m is not positive and finite", self.com_vertical_limit),
+            );
+        }
+        if !self.rotor_plane_height.is_finite() {
+            return bad(
+                "rotor_plane_height",
+                format!("{} m is not finite", self.rotor_plane_height),
+            );
+        }
+        if let Some(m) = self.vehicle_mass
+            && !(m.is_finite() && m > 0.0)
+        {
+            return bad(
+                "vehicle_mass",
+                format!("{m} kg is not positive and finite"),
             );
         }
         if self.candidates.is_empty() {
@@ -162,10 +201,13 @@ pub struct Diagnosis {
     pub channels: Vec<ChannelFit>,
     /// Held-out (blocked CV) residual RMS per channel (N, N m).
     pub held_out_rms: [f64; 6],
-    /// The noise floor the candidates were judged against.
+    /// The noise the candidates were judged against.
     pub noise_floor: NoiseFloor,
-    /// `true` when every channel's held-out RMS is within [`FLOOR_MARGIN`] of the floor.
-    pub at_floor: bool,
+    /// `true` when the model is adequate: every channel's held-out residual within
+    /// [`ADEQUACY_FACTOR`] of its noise and white ([`ChannelAdequacy`]).
+    pub adequate: bool,
+    /// Per channel: how far the held-out residual is from the noise, and whether it is white.
+    pub adequacy: Vec<ChannelAdequacy>,
     /// Rigid-body parameter estimates (order of `tagk_dynamics::InertialParams`) with
     /// standard errors.
     pub parameters: Vec<Parameter>,
@@ -191,8 +233,14 @@ pub struct Diagnosis {
     pub ranking: Vec<Candidate>,
     /// Candidates that could not be evaluated.
     pub unavailable: Vec<Unavailable>,
-    /// The recommended effect, or `None` when the model is adequate.
+    /// The first effect of the recommended set (`None`: no admissible set).
     pub recommended: Option<String>,
+    /// The set of effects the search adds next, in staircase order (empty: none admissible).
+    pub recommended_set: Vec<String>,
+    /// Effects the data cannot tell apart, with what to fly to separate them.
+    pub confounded: Vec<Confounding>,
+    /// Other sets of effects that explain the data as well as the recommended one.
+    pub alternatives: Vec<Vec<String>>,
     /// One-line verdict.
     pub verdict: String,
     /// The underlying fit (residual and prediction series, for plots). Shared: a clone of
@@ -265,8 +313,106 @@ fn partial_residuals(
         .collect()
 }
 
-/// Diagnoses `model` on a log: fit and compare, where it fails, and the ranking of the
-/// candidate effects not already in the model against the log's noise floor.
+/// One channel's distance from its noise: the adequacy test of [`Diagnosis::adequacy`].
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelAdequacy {
+    /// Channel (`fx` … `tz`).
+    pub channel: String,
+    /// Held-out residual RMS (N, N m).
+    pub held_out_rms: f64,
+    /// The channel's noise (N, N m).
+    pub noise: f64,
+    /// `held_out_rms / noise`.
+    pub ratio: f64,
+    /// Lags 1–20 of the residual's autocorrelation beyond the larger of the white band and
+    /// [`ADEQUATE_AUTOCORRELATION`].
+    pub lags_beyond: usize,
+    /// The channel passes: below its resolution, or within [`ADEQUACY_FACTOR`] of its noise
+    /// with at most 2 lags beyond.
+    pub adequate: bool,
+    /// The sensor quantity that limits the channel ([`NoiseFloor::limited_by`]).
+    pub limited_by: String,
+}
+
+/// Two effects the data cannot tell apart.
+#[derive(Debug, Clone, Serialize)]
+pub struct Confounding {
+    /// The two effects (or an effect and `rigid body`).
+    pub effects: [String; 2],
+    /// Variance inflation of the first's coefficients once the second is in the model.
+    pub inflation: f64,
+    /// What would separate them (`fly a yaw rotation`, …).
+    pub advice: String,
+}
+
+/// What would separate two confounded effects, in a sentence.
+pub(crate) fn separation_advice(a: &str, b: &str) -> String {
+    use tagk_dynamics::EffectKind;
+    let kinds: Vec<Option<EffectKind>> = [a, b].iter().map(|n| EffectKind::from_name(n)).collect();
+    let has = |k: EffectKind| kinds.contains(&Some(k));
+    let constant_force = [a, b].iter().any(|n| *n == crate::effects::ACCEL_BIAS)
+        || has(EffectKind::BodyBias);
+    if has(EffectKind::Wind) && constant_force {
+        "a constant body force and a steady wind look alike at constant heading: fly a yaw rotation".into()
+    } else if has(EffectKind::MotorLag) && has(EffectKind::TimeDelay) {
+        "a lag and a delay look alike for slow commands: fly faster thrust changes".into()
+    } else if has(EffectKind::GroundEffect) {
+        "fly at several heights, some within a few rotor radii of the ground".into()
+    } else if [a, b].contains(&"rigid body") {
+        "it trades with the rigid body's parameters on this flight: fly more varied motion, or give the mass (`--mass`)".into()
+    } else {
+        "fly a more varied trajectory (speeds, accelerations, heading)".into()
+    }
+}
+
+/// The adequacy test per channel (module docs): the held-out RMS `held_out` against the
+/// noise, and the whiteness of the model's whitened in-sample residual.
+fn adequacy(
+    whitened: &[[f64; 6]],
+    held_out: &[f64; 6],
+    floor: &NoiseFloor,
+) -> Vec<ChannelAdequacy> {
+    let n = whitened.len();
+    let max_lag = 20.min(n / 4).max(1);
+    let band = (1.96 / (n.max(1) as f64).sqrt()).max(ADEQUATE_AUTOCORRELATION);
+    (0..6)
+        .map(|c| {
+            let noise = floor.rms[c];
+            let ratio = if noise > 0.0 {
+                held_out[c] / noise
+            } else {
+                f64::INFINITY
+            };
+            let r: Vec<f64> = whitened.iter().map(|x| x[c]).collect();
+            let rho = stats::autocorrelation(&r, max_lag);
+            let lags_beyond = rho[1..].iter().filter(|x| x.abs() > band).count();
+            let below_resolution = held_out[c] <= ADEQUACY_FACTOR * floor.resolution[c];
+            ChannelAdequacy {
+                channel: CHANNEL_NAMES[c].into(),
+                held_out_rms: held_out[c],
+                noise,
+                ratio,
+                lags_beyond,
+                adequate: below_resolution || (ratio <= ADEQUACY_FACTOR && lags_beyond <= 2),
+                limited_by: floor.limited_by(c).into(),
+            }
+        })
+        .collect()
+}
+
+/// The physical limits of `opts` for `model`.
+pub(crate) fn limits_of(model: &Model, opts: &DiagnoseOptions) -> sanity::Limits {
+    sanity::Limits {
+        airframe_radius: opts.airframe_radius,
+        com_vertical: opts.com_vertical_limit,
+        rotor_plane: opts.rotor_plane_height,
+        known_mass: model.known_mass().is_some(),
+    }
+}
+
+/// Diagnoses `model` on a log: fit and compare, the noise of every channel, where it fails,
+/// and the candidate effects (and sets of them) not already in the model, judged against
+/// that noise.
 ///
 /// # Errors
 /// [`DiagnoseError::InvalidOption`] if `opts` does not validate
@@ -279,13 +425,11 @@ pub fn diagnose(
 ) -> Result<Diagnosis, DiagnoseError> {
     opts.validate_for(s.len())?;
     let fit = fit_model(model, s, None)?;
-    let scored = ranking::score_candidates(model, s, &fit, opts);
-    let floor = floor::noise_floor(model, s, opts, &fit, &scored.ranking, None)?;
-    let missing = ranking::judge_scored(scored, s, &floor, opts);
-    assemble(model, s, opts, &floor, Arc::new(fit), missing)
+    let floor = noise_floor(s, &fit, model, opts.noise_floor, opts.airframe_radius);
+    diagnose_with_fit(model, s, opts, &floor, Arc::new(fit), true)
 }
 
-/// [`diagnose`] against a given noise floor (options already validated).
+/// [`diagnose`] against a given noise (options already validated).
 pub(crate) fn diagnose_against(
     model: &Model,
     s: &Signals,
@@ -293,40 +437,85 @@ pub(crate) fn diagnose_against(
     floor: &NoiseFloor,
 ) -> Result<Diagnosis, DiagnoseError> {
     let fit = fit_model(model, s, None)?;
-    let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
-    assemble(model, s, opts, floor, Arc::new(fit), missing)
+    diagnose_with_fit(model, s, opts, floor, Arc::new(fit), true)
 }
 
-/// [`diagnose_against`] with the model's fit already at hand (a new floor, the same fit).
+/// [`diagnose_against`] with the model's fit at hand; `search`: run the search for the next
+/// step (the intermediate models of a step's set do without).
 pub(crate) fn diagnose_with_fit(
     model: &Model,
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
     fit: Arc<Fit>,
+    search: bool,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let missing = ranking::rank_candidates(model, s, &fit, opts, floor);
-    assemble(model, s, opts, floor, fit, missing)
+    let ctx = Context::new(s, model, &fit.params, floor, opts.folds);
+    let limits = limits_of(model, opts);
+    let found = if search {
+        Some(select::search(&ctx, opts, &limits, fit.theta))
+    } else {
+        None
+    };
+    let (base, whitened) = ctx.score_with_residual(&ctx.engine(), &[]);
+    let held_out_rms = ctx.held_out_rms(&base);
+    let adequacy = adequacy(&whitened, &held_out_rms, floor);
+    let adequate = adequacy.iter().all(|a| a.adequate);
+    let missing = match &found {
+        Some(f) => ranking::rank(&ctx, f, s, opts, adequate),
+        None => ranking::Ranking::default(),
+    };
+    let mut fit = fit;
+    let intervals = ranking::scanned_intervals(model, s, &fit, floor, opts.folds);
+    if intervals.iter().any(Option::is_some) {
+        let f = Arc::make_mut(&mut fit);
+        for (fe, iv) in f.effects.iter_mut().zip(&intervals) {
+            fe.scanned_interval = *iv;
+        }
+    }
+    assemble(
+        s,
+        opts,
+        floor,
+        fit,
+        missing,
+        Assessment {
+            held_out_rms,
+            adequacy,
+            adequate,
+            whitened,
+        },
+    )
 }
 
-/// The diagnosis from a model's fit and its judged ranking: where it fails, the parameters,
-/// the verdict.
+/// What [`diagnose_with_fit`] measured of the model itself: its held-out error, adequacy and
+/// whitened in-sample residual.
+struct Assessment {
+    held_out_rms: [f64; 6],
+    adequacy: Vec<ChannelAdequacy>,
+    adequate: bool,
+    whitened: Vec<[f64; 6]>,
+}
+
+/// The diagnosis from a model's fit, its held-out error and its ranking: where it fails, the
+/// parameters, the verdict.
 fn assemble(
-    _model: &Model,
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
     fit: Arc<Fit>,
     missing: ranking::Ranking,
+    assessed: Assessment,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let failures = residual::where_it_fails(s, &fit);
-    let params =
-        parameters::parameter_report(&fit, opts.airframe_radius, missing.recommended.as_deref());
-    let verdict = verdict(
-        &missing.ranking,
-        missing.recommended.as_deref(),
-        missing.at_floor,
-    );
+    let Assessment {
+        held_out_rms,
+        adequacy,
+        adequate,
+        whitened,
+    } = assessed;
+    let failures = residual::where_it_fails(s, &whitened);
+    let params = parameters::parameter_report(&fit, opts, missing.recommended.first().map(String::as_str));
+    let verdict = verdict(&missing, &adequacy, adequate);
     let n = s.len();
     let partial_residuals = partial_residuals(s, opts, &missing.ranking, &fit);
     Ok(Diagnosis {
@@ -335,9 +524,10 @@ fn assemble(
         duration: s.t[n - 1] - s.t[0],
         derived_accelerations: s.derived_accel,
         channels: fit.channels.clone(),
-        held_out_rms: missing.held_out_rms,
+        held_out_rms,
         noise_floor: floor.clone(),
-        at_floor: missing.at_floor,
+        adequate,
+        adequacy,
         parameters: params.parameters,
         com: params.com,
         physically_consistent: params.physically_consistent,
@@ -350,7 +540,10 @@ fn assemble(
         findings: failures.findings,
         ranking: missing.ranking,
         unavailable: missing.unavailable,
-        recommended: missing.recommended,
+        recommended: missing.recommended.first().cloned(),
+        recommended_set: missing.recommended,
+        confounded: missing.confounded,
+        alternatives: missing.alternatives,
         verdict,
         fit,
         t: Arc::new(s.t.clone()),
@@ -360,27 +553,68 @@ fn assemble(
     })
 }
 
-/// The one-line verdict: the missing effect and its held-out gain, or why nothing is
-/// missing (at the noise floor, or no candidate qualifies).
-fn verdict(ranking: &[Candidate], recommended: Option<&str>, at_floor: bool) -> String {
-    match recommended {
-        Some(r) => {
-            let c = ranking.iter().find(|c| c.effect == r);
-            format!(
-                "missing physics: `{r}` (held-out residual {:+.0} %)",
-                c.map_or(0.0, |c| -c.reduction * 100.0)
-            )
-        }
-        None if at_floor => {
-            "model adequate: the held-out residual is at the noise floor on every channel".into()
-        }
-        None => match ranking.first() {
-            Some(best) => format!(
-                "no candidate qualifies (best: `{}`, {}); what remains is not explained by a built-in effect",
-                best.effect,
-                best.explanation.rsplit("; ").next().unwrap_or("")
-            ),
-            None => "model adequate: no candidate left to try".into(),
-        },
+/// What remains of a model that is not adequate, per channel, in a phrase: `fx 5.3× its
+/// noise`.
+fn remains(adequacy: &[ChannelAdequacy]) -> String {
+    adequacy
+        .iter()
+        .filter(|a| !a.adequate)
+        .map(|a| {
+            if a.ratio > ADEQUACY_FACTOR {
+                format!("{} {:.1}× its noise", a.channel, a.ratio)
+            } else {
+                format!(
+                    "{} not white ({} of 20 lags correlated)",
+                    a.channel, a.lags_beyond
+                )
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The one-line verdict: the missing effects and their held-out gain, or whether the model
+/// is adequate, and what remains if not.
+fn verdict(missing: &ranking::Ranking, adequacy: &[ChannelAdequacy], adequate: bool) -> String {
+    if !missing.recommended.is_empty() {
+        let names: Vec<String> = missing
+            .recommended
+            .iter()
+            .map(|r| format!("`{r}`"))
+            .collect();
+        let sensor = missing
+            .recommended
+            .iter()
+            .all(|r| crate::effects::is_sensor_effect(r));
+        return format!(
+            "{}: {} (held-out error {:+.0} % in units of the noise)",
+            if sensor {
+                "a sensor error"
+            } else {
+                "missing physics"
+            },
+            names.join(" + "),
+            -100.0 * missing.set_reduction
+        );
     }
+    if adequate {
+        return format!(
+            "model adequate: every channel's held-out error is within {ADEQUACY_FACTOR}× its noise and white"
+        );
+    }
+    let best = missing
+        .ranking
+        .first()
+        .map(|b| {
+            format!(
+                " (best candidate `{}`: {})",
+                b.effect,
+                b.explanation.rsplit("; ").next().unwrap_or("")
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "not adequate: {}; not explained by any built-in effect{best}",
+        remains(adequacy)
+    )
 }

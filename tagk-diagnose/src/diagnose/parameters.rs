@@ -3,6 +3,10 @@
 
 use tagk_dynamics::SafetyGate;
 
+use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::sanity::{
+    Limits, MAX_MASS_FROM_VEHICLE, com_excess, consistency_margin, consistent_within_tolerance,
+};
 use crate::fit::{Coefficient, Fit, THETA_NAMES, THETA_UNITS};
 
 /// A rigid-body parameter estimate.
@@ -14,7 +18,8 @@ pub(crate) struct ParameterReport {
     pub parameters: Vec<Parameter>,
     /// Centre of mass \[m\] (zeros when the fitted mass is not positive).
     pub com: [f64; 3],
-    /// Pseudo-inertia positive definite.
+    /// Pseudo-inertia positive definite within the tolerance
+    /// ([`crate::CONSISTENCY_TOLERANCE`]).
     pub physically_consistent: bool,
     /// Safety gate verdict.
     pub safety_gate: String,
@@ -23,14 +28,16 @@ pub(crate) struct ParameterReport {
 }
 
 /// The parameters of `fit` and their plausibility (step 4 of [`crate::diagnose()`]): a
-/// non-positive mass, a centre of mass significantly outside `airframe_radius` \[m\] (evidence
-/// of an unmodelled force; the message names `recommended` when there is one), physical
-/// inconsistency, and effects fitted implausibly.
+/// non-positive mass, a mass far from the vehicle file's, a centre of mass significantly
+/// outside the airframe (horizontally beyond its radius, vertically too far from the rotor
+/// plane: evidence of an unmodelled force; the message names `recommended` when there is
+/// one), physical inconsistency beyond the tolerance, and effects fitted implausibly.
 pub(crate) fn parameter_report(
     fit: &Fit,
-    airframe_radius: f64,
+    opts: &DiagnoseOptions,
     recommended: Option<&str>,
 ) -> ParameterReport {
+    let airframe_radius = opts.airframe_radius;
     let theta = fit.theta;
     let parameters: Vec<Parameter> = (0..10)
         .map(|j| {
@@ -50,7 +57,7 @@ pub(crate) fn parameter_report(
         [f64::NAN; 3]
     };
     let mut warnings = Vec::new();
-    let physically_consistent = theta.is_physically_consistent();
+    let physically_consistent = consistent_within_tolerance(&theta);
     let safety_gate = match theta.safety_gate(&SafetyGate {
         max_com_offset: airframe_radius,
         ..SafetyGate::crazyflie()
@@ -64,32 +71,58 @@ pub(crate) fn parameter_report(
             "fitted mass {m:.4} kg is not positive: the model is missing a force, do not trust these parameters"
         ));
     } else {
+        let limits = Limits {
+            airframe_radius,
+            com_vertical: opts.com_vertical_limit,
+            rotor_plane: opts.rotor_plane_height,
+            known_mass: false,
+        };
+        let se: [f64; 10] = std::array::from_fn(|j| fit.theta_se[j].unwrap_or(f64::INFINITY));
+        let (horizontal, vertical) = com_excess(&limits, &theta, &se);
         let mut outside = Vec::new();
-        for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-            let se = fit.theta_se[1 + k].map_or(f64::INFINITY, |s| s / m);
-            if com[k].abs() - 2.0 * se > airframe_radius {
-                outside.push(format!(
-                    "c_{axis} = {:.1} cm (± {:.1})",
-                    com[k] * 100.0,
-                    se * 100.0
-                ));
-            }
+        if horizontal > 0.0 {
+            outside.push(format!(
+                "{:.1} cm from the body's z axis (airframe radius {:.1} cm)",
+                100.0 * (com[0].powi(2) + com[1].powi(2)).sqrt(),
+                100.0 * airframe_radius
+            ));
+        }
+        if vertical > 0.0 {
+            outside.push(format!(
+                "{:.1} cm {} the rotor plane (at most {:.1} cm)",
+                100.0 * (com[2] - opts.rotor_plane_height).abs(),
+                if com[2] < opts.rotor_plane_height {
+                    "below"
+                } else {
+                    "above"
+                },
+                100.0 * opts.com_vertical_limit
+            ));
         }
         if !outside.is_empty() {
             warnings.push(format!(
-                "fitted centre of mass outside the airframe ({} vs radius {:.1} cm): this is evidence of an unmodelled force or torque{}, not a real centre of mass",
-                outside.join(", "),
-                airframe_radius * 100.0,
+                "fitted centre of mass outside the airframe ({}): this is evidence of an unmodelled force or torque{}, not a real centre of mass",
+                outside.join("; "),
                 recommended
                     .map(|r| format!(" (the ranking points at `{r}`)"))
                     .unwrap_or_default()
             ));
         }
+        if let Some(mv) = opts.vehicle_mass
+            && ((m - mv) / mv).abs() > MAX_MASS_FROM_VEHICLE
+        {
+            warnings.push(format!(
+                "fitted mass {m:.4} kg is {:+.0} % off the vehicle file's {mv:.4} kg: a payload, a wrong thrust coefficient, or a wrong vehicle file",
+                100.0 * (m - mv) / mv
+            ));
+        }
     }
     if !physically_consistent && m > 0.0 {
-        warnings.push(
-            "the fitted parameters are not physically consistent (pseudo-inertia not positive definite)".into(),
-        );
+        warnings.push(format!(
+            "the fitted parameters are not physically consistent: the pseudo-inertia's consistency margin is {:.3}, beyond the tolerance −{}",
+            consistency_margin(&theta),
+            crate::diagnose::CONSISTENCY_TOLERANCE
+        ));
     }
     for fe in &fit.effects {
         if !fe.plausible {

@@ -3,7 +3,6 @@
 
 use serde::Serialize;
 
-use crate::fit::Fit;
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
 
@@ -65,14 +64,16 @@ pub(crate) struct FailureAnalysis {
     pub findings: Vec<String>,
 }
 
-/// Where the fitted model fails (step 3 of [`crate::diagnose()`]): whiteness, failure
-/// windows, regimes, and the findings — regime trends of the structured (clearly non-white)
-/// channels, the non-white channels, the failure windows.
-pub(crate) fn where_it_fails(s: &Signals, fit: &Fit) -> FailureAnalysis {
-    let rounding = at_rounding_level(s, fit);
-    let whiteness = whiteness(fit, &rounding);
-    let failure_windows = failure_windows(&s.t, fit, &rounding);
-    let regimes = regimes(s, fit);
+/// Where the fitted model fails (step 3 of [`crate::diagnose()`]), from its residual
+/// `residual` (whitened where the model filters the measured wrench: a lag's residual of the
+/// measured wrench carries the motion sensors' noise raised by the inverse lag): whiteness,
+/// failure windows, regimes, and the findings — regime trends of the structured (clearly
+/// non-white) channels, the non-white channels, the failure windows.
+pub(crate) fn where_it_fails(s: &Signals, residual: &[[f64; 6]]) -> FailureAnalysis {
+    let rounding = at_rounding_level(s, residual);
+    let whiteness = whiteness(residual, &rounding);
+    let failure_windows = failure_windows(&s.t, residual, &rounding);
+    let regimes = regimes(s, residual);
     let structured: Vec<bool> = whiteness
         .iter()
         .zip(rounding)
@@ -124,7 +125,7 @@ pub(crate) fn where_it_fails(s: &Signals, fit: &Fit) -> FailureAnalysis {
 pub(crate) const ROUNDING_LEVEL: f64 = 1e-9;
 
 /// Per channel: is the residual at the rounding level ([`ROUNDING_LEVEL`])?
-pub(crate) fn at_rounding_level(s: &Signals, fit: &Fit) -> [bool; 6] {
+pub(crate) fn at_rounding_level(s: &Signals, residual: &[[f64; 6]]) -> [bool; 6] {
     let rms = |v: &mut dyn Iterator<Item = f64>| {
         let (sum, n) = v.fold((0.0, 0usize), |(a, n), x| (a + x * x, n + 1));
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
@@ -137,20 +138,25 @@ pub(crate) fn at_rounding_level(s: &Signals, fit: &Fit) -> [bool; 6] {
             &measured[3..]
         };
         let scale = group.iter().fold(measured[c], |a, &b| a.max(b));
-        let residual = rms(&mut fit.residual.iter().map(|r| r[c]));
+        let residual = rms(&mut residual.iter().map(|r| r[c]));
         scale > 0.0 && residual <= ROUNDING_LEVEL * scale
     })
 }
 
 /// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band (a
 /// channel at the rounding level counts as white).
-fn whiteness(fit: &Fit, rounding: &[bool; 6]) -> Vec<Whiteness> {
-    let n = fit.residual.len();
+/// One channel of a residual, as a series.
+fn channel(residual: &[[f64; 6]], c: usize) -> Vec<f64> {
+    residual.iter().map(|r| r[c]).collect()
+}
+
+fn whiteness(residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<Whiteness> {
+    let n = residual.len();
     let max_lag = 20.min(n / 4).max(1);
     let band = 1.96 / (n as f64).sqrt();
     (0..6)
         .map(|c| {
-            let r = fit.residual_channel(c);
+            let r = channel(residual, c);
             let rho = stats::autocorrelation(&r, max_lag);
             let ac: Vec<f64> = rho[1..].to_vec();
             let outside = ac.iter().filter(|x| x.abs() > band).count();
@@ -170,7 +176,7 @@ fn whiteness(fit: &Fit, rounding: &[bool; 6]) -> Vec<Whiteness> {
 /// Sliding windows (about 1 s, half overlapping) whose residual mean square exceeds the
 /// channel's median window by a threshold corrected for autocorrelation; overlapping flagged
 /// windows are merged. Channels at the rounding level are skipped.
-fn failure_windows(t: &[f64], fit: &Fit, rounding: &[bool; 6]) -> Vec<FailureWindow> {
+fn failure_windows(t: &[f64], residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<FailureWindow> {
     let n = t.len();
     let dt = if n > 1 {
         (t[n - 1] - t[0]) / (n - 1) as f64
@@ -182,7 +188,7 @@ fn failure_windows(t: &[f64], fit: &Fit, rounding: &[bool; 6]) -> Vec<FailureWin
     // flags[i] = set of channels flagged for the window starting at i
     let mut intervals: Vec<(usize, usize, usize, f64)> = Vec::new(); // (start, end, channel, ratio)
     for c in (0..6).filter(|&c| !rounding[c]) {
-        let r = fit.residual_channel(c);
+        let r = channel(residual, c);
         let mut starts = Vec::new();
         let mut ms = Vec::new();
         let mut i = 0;
@@ -234,7 +240,7 @@ fn failure_windows(t: &[f64], fit: &Fit, rounding: &[bool; 6]) -> Vec<FailureWin
 
 /// Residual RMS per channel in the quartiles of body-frame speed, height, thrust and
 /// angular rate.
-fn regimes(s: &Signals, fit: &Fit) -> Vec<RegimeStat> {
+fn regimes(s: &Signals, residual: &[[f64; 6]]) -> Vec<RegimeStat> {
     let vars: [(&str, &str, Vec<f64>); 4] = [
         (
             "body-frame speed",
@@ -265,7 +271,7 @@ fn regimes(s: &Signals, fit: &Fit) -> Vec<RegimeStat> {
                 }
                 counts[b] += 1;
                 for c in 0..6 {
-                    sums[b][c] += fit.residual[i][c].powi(2);
+                    sums[b][c] += residual[i][c].powi(2);
                 }
             }
             let rms = sums

@@ -1,27 +1,26 @@
-//! Stepwise discovery: rigid body → + effect A → + effect B → …, each step the candidate with
-//! the largest held-out gain over the noise floor that passes every rule, until the model is at
-//! the floor or no candidate qualifies.
+//! Stepwise discovery: rigid body → + effect A → + effect B → …, each step the set of
+//! effects the search chose ([`crate::diagnose::select`]: candidates and sets of them scored
+//! jointly on held-out data in units of each channel's noise), until no set is admissible.
 //!
-//! A candidate qualifies ([`CandidateStatus::qualifies`](crate::CandidateStatus::qualifies))
-//! when it lowers the held-out (blocked CV) residual, passes the partial test (Bonferroni over
-//! the candidates), keeps the rigid body and its own coefficients physical
-//! ([`crate::MAX_MASS_CHANGE`] and the other rules), makes no channel's held-out RMS worse by
-//! more than [`crate::MAX_CHANNEL_WORSENING`], and lowers some channel's held-out RMS by at
-//! least [`crate::MIN_GAIN_OF_FLOOR`] of that channel's noise floor ([`crate::NoiseFloor`]).
-//! The search stops when every channel is within [`crate::FLOOR_MARGIN`] of its floor, when no
-//! candidate qualifies, or after [`crate::DiagnoseOptions::max_steps`] steps.
+//! Each effect of a chosen set is shown as a step of its own (rigid → + A → + A + B), but the
+//! decision is made on the whole set. When the search stops, every added effect is checked
+//! once more within the final model (the same rules as in the search); one that no longer
+//! earns its place is dropped and the staircase rebuilt. The noise is measured again on the
+//! final model's residual: if it is clearly lower on some channel (a missing effect's
+//! high-frequency part had inflated it), the search runs again against it (at most twice).
+
+use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::diagnose::floor::noise_floor;
+use crate::diagnose::select::{Judge, Member};
 use crate::diagnose::{
-    DiagnoseOptions, Diagnosis, FLOOR_MARGIN, FloorSource, MAX_CHANNEL_WORSENING, NoiseFloor,
-    diagnose_against,
+    Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_against,
+    diagnose_with_fit, limits_of, noise_floor,
 };
 use crate::error::DiagnoseError;
-use crate::fit::{Coefficient, Model};
+use crate::fit::{Coefficient, Model, fit_model};
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
-use tagk_dynamics::EffectKind;
 
 /// One channel of one step.
 #[derive(Debug, Clone, Serialize)]
@@ -32,7 +31,7 @@ pub struct StepChannel {
     pub unit: String,
     /// Held-out residual RMS of the step's model.
     pub held_out_rms: f64,
-    /// The channel's noise floor.
+    /// The channel's noise.
     pub floor: f64,
     /// `held_out_rms / floor`.
     pub ratio_to_floor: f64,
@@ -51,16 +50,19 @@ pub struct Step {
     pub model: String,
     /// Held-out residual RMS per channel (N, N m), in the order `fx … tz`.
     pub held_out_rms: [f64; 6],
-    /// Per channel: held-out RMS, floor, change.
+    /// Per channel: held-out RMS, noise, change.
     pub channels: Vec<StepChannel>,
-    /// The added effect's held-out gain in units of the noise floor (0 for the first step).
-    pub gain_over_floor: f64,
+    /// The step's held-out gain per sample in units of the noise variance
+    /// (`Σ_c (rms_before² − rms²) / σ_c²`; 0 for the first step).
+    pub gain: f64,
     /// The added effect's fitted coefficients in this step's model, with 95 % intervals.
     pub coefficients: Vec<Coefficient>,
     /// Quantities derived from the added effect's coefficients (e.g. the wind velocity).
     pub derived: Vec<Coefficient>,
     /// The added effect's scanned parameter `(name, value, unit)`, if any.
     pub scanned: Option<(String, f64, String)>,
+    /// Its 95 % interval, when the data bound it.
+    pub scanned_interval: Option<[f64; 2]>,
 }
 
 /// The outcome of [`discover`].
@@ -72,10 +74,12 @@ pub struct Discovery {
     pub added: Vec<String>,
     /// Label of the final model.
     pub final_model: String,
-    /// The noise floor of the log.
+    /// The noise of the log.
     pub noise_floor: NoiseFloor,
     /// Why the search stopped.
     pub stopped: String,
+    /// `true` when the final model is adequate ([`Diagnosis::adequate`]).
+    pub adequate: bool,
     /// The diagnosis of every step's model (the first is the starting model's, the last the
     /// final model's).
     #[serde(skip)]
@@ -107,7 +111,7 @@ pub fn discover(
     discover_from(start, first, s, opts)
 }
 
-/// [`discover`] from an existing diagnosis of `start` (its noise floor is reused).
+/// [`discover`] from an existing diagnosis of `start` (its noise is the starting one).
 ///
 /// # Errors
 /// As [`crate::diagnose()`].
@@ -118,128 +122,44 @@ pub fn discover_from(
     opts: &DiagnoseOptions,
 ) -> Result<Discovery, DiagnoseError> {
     let mut floor = first.noise_floor.clone();
-    let mut floor_updates = 0;
-    let mut steps = vec![step_of(None, &first, None, &floor)];
-    let mut diagnoses = vec![first];
-    let mut model = start.clone();
-    let mut added = Vec::new();
-    let stopped = 'search: loop {
-        let current = &diagnoses[diagnoses.len() - 1];
-        if current.recommended.is_none() {
-            // The floor was measured from the starting model: candidates implausible then
-            // (a drag whose vertical coefficient soaked up an unmodelled lag) may be plausible
-            // now. Measure it again from here; a lower floor reopens the search.
-            if floor.source == FloorSource::Data
-                && floor_updates < 2
-                && !added.is_empty()
-                && new_family_plausible(current, &floor)
-            {
-                floor_updates += 1;
-                let again = noise_floor(
-                    &model,
-                    s,
-                    opts,
-                    &current.fit,
-                    &current.ranking,
-                    Some(floor.noise_estimate),
-                )?;
-                if (0..6).any(|c| again.rms[c] < (1.0 - FLOOR_MARGIN) * floor.rms[c]) {
-                    for c in 0..6 {
-                        if again.rms[c] < floor.rms[c] {
-                            floor.rms[c] = again.rms[c];
-                            floor.reachable[c] = again.reachable[c];
-                            floor.noise_estimate[c] = again.noise_estimate[c];
-                        }
-                    }
-                    floor.saturated_model = again.saturated_model;
-                    let fit = current.fit.clone();
-                    let rejudged =
-                        crate::diagnose::diagnose_with_fit(&model, s, opts, &floor, fit)?;
-                    let last = diagnoses.len() - 1;
-                    diagnoses[last] = rejudged;
-                    continue;
-                }
-            }
-            // Second chance by refit: an effect of the saturated model that only helps once
-            // the scanned parameters move with it (its ranking held them fixed).
-            let current = &diagnoses[diagnoses.len() - 1];
-            if !current.at_floor
-                && let Some((name, next)) = best_by_refit(&model, current, s, opts, &floor)?
-            {
-                let gain = 0.0;
-                steps.push(step_of(Some(&name), &next, Some(current), &floor));
-                if let Some(last) = steps.last_mut() {
-                    last.gain_over_floor = gain;
-                }
-                model = model.clone().with_ref(
-                    opts.candidates
-                        .iter()
-                        .find(|c| c.name() == name)
-                        .cloned()
-                        .expect("a candidate of the options"),
-                );
-                added.push(name);
-                diagnoses.push(next);
-                continue;
-            }
-            break stop_reason(&diagnoses[diagnoses.len() - 1]);
+    let mut first = first;
+    let mut round = 0;
+    loop {
+        let run = staircase(start, first, s, opts, &floor)?;
+        round += 1;
+        if floor.source == FloorSource::Given || round >= 3 {
+            return Ok(finish(run, floor));
         }
-        // The qualifying candidates, best first: the first whose refit keeps every channel
-        // within MAX_CHANNEL_WORSENING of the current held-out RMS is the step (the full refit
-        // re-scans every effect, so it can differ from the candidate's own evaluation).
-        let qualifying: Vec<(String, f64)> = current
-            .ranking
-            .iter()
-            .filter(|c| c.status.qualifies())
-            .map(|c| (c.effect.clone(), c.gain_over_floor))
-            .collect();
-        let mut refused = Vec::new();
-        for (name, gain) in qualifying {
-            if added.len() >= opts.max_steps {
-                break 'search format!(
-                    "step limit: {} effects added (`max_steps`); `{name}` would be next",
-                    opts.max_steps
-                );
-            }
-            let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
-                continue;
-            };
-            let trial = model.clone().with_ref(effect.clone());
-            let next = diagnose_against(&trial, s, opts, &floor)?;
-            let worse: Vec<&str> = (0..6)
-                .filter(|&c| {
-                    crate::diagnose::ranking::worsens(
-                        next.held_out_rms[c],
-                        current.held_out_rms[c],
-                        floor.rms[c],
-                    )
-                })
-                .map(|c| CHANNEL_NAMES[c])
-                .collect();
-            if !worse.is_empty() {
-                refused.push(format!(
-                    "`{name}` (its refit worsens the held-out RMS of {} by more than {:.0} %, above the floor)",
-                    worse.join(", "),
-                    100.0 * MAX_CHANNEL_WORSENING
-                ));
-                continue;
-            }
-            steps.push(step_of(Some(&name), &next, Some(current), &floor));
-            if let Some(last) = steps.last_mut() {
-                last.gain_over_floor = gain;
-            }
-            model = trial;
-            added.push(name);
-            diagnoses.push(next);
-            continue 'search;
+        let last = run.diagnoses.last().expect("a staircase has its first step");
+        let again = noise_floor(s, &last.fit, &run.model, None, opts.airframe_radius);
+        if !(0..6).any(|c| again.rms[c] < 0.85 * floor.rms[c]) {
+            return Ok(finish(run, floor));
         }
-        break format!(
-            "no candidate qualifies after its refit: {}",
-            refused.join("; ")
-        );
-    };
-    // Every step against the final floor.
-    for (k, step) in steps.iter_mut().enumerate() {
+        for c in 0..6 {
+            if again.rms[c] < floor.rms[c] {
+                floor.rms[c] = again.rms[c];
+                floor.noise_estimate[c] = again.noise_estimate[c];
+                floor.from_wrench[c] = again.from_wrench[c];
+                floor.from_motion[c] = again.from_motion[c];
+            }
+        }
+        floor.model = again.model;
+        first = diagnose_against(start, s, opts, &floor)?;
+    }
+}
+
+/// A staircase before its steps are set against the final noise.
+struct Run {
+    steps: Vec<Step>,
+    diagnoses: Vec<Diagnosis>,
+    added: Vec<String>,
+    model: Model,
+    stopped: String,
+}
+
+/// Every step against the final noise; the discovery.
+fn finish(mut run: Run, floor: NoiseFloor) -> Discovery {
+    for step in &mut run.steps {
         for (c, ch) in step.channels.iter_mut().enumerate() {
             ch.floor = floor.rms[c];
             ch.ratio_to_floor = if floor.rms[c] > 0.0 {
@@ -248,92 +168,165 @@ pub fn discover_from(
                 f64::INFINITY
             };
         }
-        let _ = k;
     }
-    for d in &mut diagnoses {
+    for d in &mut run.diagnoses {
         d.noise_floor = floor.clone();
     }
-    Ok(Discovery {
-        steps,
-        added,
-        final_model: model.label(),
+    let adequate = run.diagnoses.last().is_some_and(|d| d.adequate);
+    Discovery {
+        steps: run.steps,
+        added: run.added,
+        final_model: run.model.label(),
         noise_floor: floor,
-        stopped,
-        diagnoses,
-    })
-}
-
-/// `true` when a candidate plausible now belongs to an effect family that the floor's
-/// saturated model lacks: only then can measuring the floor again lower it.
-fn new_family_plausible(current: &Diagnosis, floor: &NoiseFloor) -> bool {
-    let family = |name: &str| {
-        EffectKind::from_name(name).map_or_else(|| name.to_string(), |k| k.family().to_string())
-    };
-    let mut covered: Vec<String> = floor.saturated_model.iter().map(|n| family(n)).collect();
-    // A wind carries its drag.
-    if floor
-        .saturated_model
-        .iter()
-        .any(|n| EffectKind::from_name(n).is_some_and(EffectKind::includes_drag))
-    {
-        covered.push(EffectKind::LinearDrag.family().to_string());
+        stopped: run.stopped,
+        adequate,
+        diagnoses: run.diagnoses,
     }
-    current
-        .ranking
-        .iter()
-        .filter(|c| c.plausible)
-        .any(|c| !covered.contains(&family(&c.effect)))
 }
 
-/// Among the effects of the floor's saturated model not yet in `model`, the one whose full
-/// refit (every scan redone) qualifies and lowers the held-out residual most: plausible in the
-/// refit, the rigid body's mass within [`crate::MAX_MASS_CHANGE`], no channel worsened
-/// ([`crate::diagnose::ranking::worsens`]), and some channel lowered by at least
-/// [`crate::MIN_GAIN_OF_FLOOR`] of its floor.
-fn best_by_refit(
-    model: &Model,
-    current: &Diagnosis,
+/// The staircase from `start` (diagnosed as `first`) against the noise `floor`.
+fn staircase(
+    start: &Model,
+    first: Diagnosis,
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
-) -> Result<Option<(String, Diagnosis)>, DiagnoseError> {
-    let mut best: Option<(f64, String, Model)> = None;
-    for name in &floor.saturated_model {
-        if model.has(name) {
-            continue;
+) -> Result<Run, DiagnoseError> {
+    let mut steps = vec![step_of(None, &first, None, floor)];
+    let mut diagnoses = vec![first];
+    let mut model = start.clone();
+    let mut added: Vec<String> = Vec::new();
+    let stopped = loop {
+        let current = &diagnoses[diagnoses.len() - 1];
+        if current.recommended_set.is_empty() {
+            break stop_reason(current);
         }
-        let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
-            continue;
+        let set = current.recommended_set.clone();
+        if added.len() + set.len() > opts.max_steps {
+            break format!(
+                "step limit: {} effects added (`max_steps` {}); {} would be next",
+                added.len(),
+                opts.max_steps,
+                set.iter()
+                    .map(|n| format!("`{n}`"))
+                    .collect::<Vec<_>>()
+                    .join(" + ")
+            );
+        }
+        for (i, name) in set.iter().enumerate() {
+            let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
+                continue;
+            };
+            model = model.with_ref(effect.clone());
+            let last_of_set = i + 1 == set.len();
+            let fit = fit_model(&model, s, None)?;
+            let next = diagnose_with_fit(&model, s, opts, floor, Arc::new(fit), last_of_set)?;
+            let previous = &diagnoses[diagnoses.len() - 1];
+            steps.push(step_of(Some(name), &next, Some(previous), floor));
+            diagnoses.push(next);
+            added.push(name.clone());
+        }
+    };
+    let mut run = Run {
+        steps,
+        diagnoses,
+        added,
+        model,
+        stopped,
+    };
+    prune(start, &mut run, s, opts, floor)?;
+    Ok(run)
+}
+
+/// Checks every added effect within the final model and drops, one at a time, the one that
+/// no longer earns its place (module docs); the staircase is then rebuilt from `start`.
+fn prune(
+    start: &Model,
+    run: &mut Run,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+) -> Result<(), DiagnoseError> {
+    let mut dropped = Vec::new();
+    for _ in 0..run.added.len() {
+        let last = &run.diagnoses[run.diagnoses.len() - 1];
+        let fit = &last.fit;
+        let limits = limits_of(&run.model, opts);
+        let mut weakest: Option<(f64, String, String)> = None;
+        for name in &run.added {
+            let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
+                continue;
+            };
+            let rest = run.model.without(name);
+            let params: Vec<Option<f64>> = fit
+                .params
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, p)| *p)
+                .collect();
+            let ctx = Context::new(s, &rest, &params, floor, opts.folds);
+            let engine = ctx.engine();
+            let fit_engine = ctx.fit_engine();
+            let base = ctx.score(&engine, &[]);
+            let judge = Judge {
+                limits: &limits,
+                current: ctx.rigid_theta(&base),
+                mean_thrust: s.wrench().iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64,
+                tests: opts.candidates.len().max(1) as f64,
+                alpha: opts.alpha,
+            };
+            let member = Member {
+                effect: run.model.effects()[k].clone(),
+                param: fit.params[k],
+            };
+            let set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
+            if let Some(refusal) = &set.verdicts[0].refusal
+                && weakest.as_ref().is_none_or(|(g, _, _)| set.gain < *g)
+            {
+                weakest = Some((set.gain, name.clone(), refusal.describe()));
+            }
+        }
+        let Some((_, name, why)) = weakest else {
+            break;
         };
-        let trial = model.clone().with_ref(effect.clone());
-        // The fit and its held-out residual first; the whole diagnosis only for a step.
-        let fit = crate::fit::fit_model(&trial, s, None)?;
-        let ev = crate::diagnose::floor::held_out_evaluation(&trial, s, &fit, opts.folds);
-        let held_out = crate::diagnose::floor::held_out_rms(&ev, &fit.weights, s.len());
-        let plausible = fit.effects.iter().all(|f| f.plausible);
-        let (m0, m1) = (current.parameters[0].value, fit.theta.mass());
-        let mass_ok = crate::diagnose::sanity::mass_kept(m0, m1);
-        let worse = (0..6).any(|c| {
-            crate::diagnose::ranking::worsens(held_out[c], current.held_out_rms[c], floor.rms[c])
-        });
-        let material = (0..6).any(|c| {
-            current.held_out_rms[c] - held_out[c]
-                >= crate::diagnose::MIN_GAIN_OF_FLOOR * floor.rms[c]
-        });
-        if !(plausible && mass_ok && !worse && material) {
-            continue;
+        dropped.push(format!("`{name}` ({why})"));
+        let kept: Vec<String> = run.added.iter().filter(|n| **n != name).cloned().collect();
+        // Rebuild the staircase with the kept effects, in their order.
+        let first = run.diagnoses[0].clone();
+        let mut steps = vec![step_of(None, &first, None, floor)];
+        let mut diagnoses = vec![first];
+        let mut model = start.clone();
+        for (i, n) in kept.iter().enumerate() {
+            let Some(effect) = opts.candidates.iter().find(|c| c.name() == n) else {
+                continue;
+            };
+            model = model.with_ref(effect.clone());
+            let fit = fit_model(&model, s, None)?;
+            let next =
+                diagnose_with_fit(&model, s, opts, floor, Arc::new(fit), i + 1 == kept.len())?;
+            steps.push(step_of(Some(n), &next, diagnoses.last(), floor));
+            diagnoses.push(next);
         }
-        let gain: f64 = (0..6)
-            .map(|c| (current.held_out_rms[c].powi(2) - held_out[c].powi(2)) / floor.rms[c].powi(2))
-            .sum();
-        if best.as_ref().is_none_or(|(g, _, _)| gain > *g) {
-            best = Some((gain, name.clone(), trial));
+        if kept.is_empty() {
+            // The starting model again, with its search.
+            let d = diagnose_against(start, s, opts, floor)?;
+            steps = vec![step_of(None, &d, None, floor)];
+            diagnoses = vec![d];
         }
+        run.steps = steps;
+        run.diagnoses = diagnoses;
+        run.added = kept;
+        run.model = model;
     }
-    match best {
-        None => Ok(None),
-        Some((_, name, trial)) => Ok(Some((name, diagnose_against(&trial, s, opts, floor)?))),
+    if !dropped.is_empty() {
+        run.stopped = format!(
+            "{}; dropped once the others were in: {}",
+            run.stopped,
+            dropped.join(", ")
+        );
     }
+    Ok(())
 }
 
 /// The staircase entry of a step's diagnosis `d` (after adding `effect`; `previous` is the
@@ -366,30 +359,37 @@ fn step_of(
             }
         })
         .collect();
+    let gain = previous.map_or(0.0, |p| {
+        (0..6)
+            .filter(|&c| floor.rms[c] > 0.0)
+            .map(|c| (p.held_out_rms[c].powi(2) - d.held_out_rms[c].powi(2)) / floor.rms[c].powi(2))
+            .sum()
+    });
     let fitted = effect.and_then(|e| d.effects.iter().find(|f| f.effect == e));
     Step {
         effect: effect.map(str::to_string),
         model: d.model.clone(),
         held_out_rms: d.held_out_rms,
         channels,
-        gain_over_floor: 0.0,
+        gain,
         coefficients: fitted.map_or_else(Vec::new, |f| f.coefficients.clone()),
         derived: fitted.map_or_else(Vec::new, |f| f.derived.clone()),
         scanned: fitted.and_then(|f| f.scanned.clone()),
+        scanned_interval: fitted.and_then(|f| f.scanned_interval),
     }
 }
 
 /// Why the search stops at `d` (which recommends nothing).
 fn stop_reason(d: &Diagnosis) -> String {
-    if d.at_floor {
+    if d.adequate {
         return format!(
-            "at the noise floor: every channel's held-out RMS is within {:.0} % of its floor",
-            100.0 * FLOOR_MARGIN
+            "adequate: every channel's held-out error is within {}× its noise and white",
+            crate::diagnose::ADEQUACY_FACTOR
         );
     }
     match d.ranking.first() {
         Some(best) => format!(
-            "no candidate qualifies; the best remaining, {}",
+            "no set of candidates is admissible; the best remaining, {}",
             best.explanation
         ),
         None => "no candidate left to try".into(),

@@ -206,6 +206,38 @@ fn lagged_wrench_from_rotors(s: &Signals, tau: f64, stride: usize) -> Option<Vec
     )
 }
 
+/// The inverse of the first-order lag of [`first_order_lag`] (with `interval_mean`, of the
+/// interval mean of the lag's state instead of its value at the interval's middle), applied in
+/// place to `y` sampled at `t`: the command `u` whose lagged response is `y`. With `Y` the
+/// state at the end of interval `k` and `g` the factor of the sampled output
+/// (`y_k = u_k + g (Y_{k−1} − u_k)`: `g = e^{−Δt/2τ}` at the middle, `(1 − e^{−Δt/τ}) τ/Δt`
+/// for the interval mean), `u_k = (y_k − g Y_{k−1}) / (1 − g)` and
+/// `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`, from `u_0 = y_0`; stable (its pole
+/// `(e^{−Δt/τ} − g)/(1 − g)` lies in `(−1, 0]`).
+pub(crate) fn inverse_first_order_lag(t: &[f64], y: &mut [f64], tau: f64, interval_mean: bool) {
+    if y.is_empty() || tau <= 0.0 {
+        return;
+    }
+    let mut end = y[0];
+    let (mut last_dt, mut g, mut a) = (f64::NAN, 0.0, 0.0);
+    for k in 1..y.len().min(t.len()) {
+        let dt = t[k] - t[k - 1];
+        if !same_step(dt, last_dt) {
+            last_dt = dt;
+            let x = dt / tau;
+            a = (-x).exp();
+            g = if interval_mean {
+                (1.0 - a) / x
+            } else {
+                (-0.5 * x).exp()
+            };
+        }
+        let u = (y[k] - g * end) / (1.0 - g);
+        end = u + a * (end - u);
+        y[k] = u;
+    }
+}
+
 impl Effect for MotorLag {
     fn name(&self) -> &str {
         EffectKind::MotorLag.name()
@@ -272,6 +304,47 @@ impl Effect for MotorLag {
             ));
         }
         cols
+    }
+    fn unfilter(&self, s: &Signals, p: Option<f64>, channel: Channel, series: &mut [f64]) -> bool {
+        if !(2..6).contains(&channel) {
+            return false;
+        }
+        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        // With rotor speeds the torques are the interval means of the lagged rotors (what a
+        // differenced gyro sees), the thrust its value at the middle; without, every channel
+        // is lagged at the middle ([`MotorLag::sampled_columns`]).
+        let rotors = s.rotor_speeds().is_some() && s.rotor_mixer().is_some();
+        inverse_first_order_lag(&s.t, series, tau, rotors && channel > 2);
+        true
+    }
+    fn target_filter(
+        &self,
+        s: &Signals,
+        p: Option<f64>,
+        channel: Channel,
+    ) -> Option<crate::fit::TargetFilter> {
+        if !(2..6).contains(&channel) {
+            return None;
+        }
+        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        let dt = s.mean_dt();
+        if !(tau > 0.0 && dt > 0.0) {
+            return None;
+        }
+        let rotors = s.rotor_speeds().is_some() && s.rotor_mixer().is_some();
+        let x = dt / tau;
+        let a = (-x).exp();
+        // y_k = u_k + g (Y_{k−1} − u_k): L(z) = ((1 − g) + (g − a) z⁻¹) / (1 − a z⁻¹).
+        let g = if rotors && channel > 2 {
+            (1.0 - a) / x
+        } else {
+            (-0.5 * x).exp()
+        };
+        Some(crate::fit::TargetFilter {
+            g0: 1.0 - g,
+            g1: g - a,
+            a,
+        })
     }
     fn plausibility(&self, _coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
         // The lag's gain is fixed at 1 (the delivered wrench IS the lagged command); only the
@@ -469,5 +542,49 @@ impl Effect for ThrustGain {
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         ("thrust fz [N]".into(), s.channel(2))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The interval mean of the lag's state, written out independently: the exact mean of
+    /// `u + (Y − u) e^{−s/τ}` over `s ∈ [0, Δt]`.
+    fn interval_mean_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
+        let mut y = vec![u[0]];
+        let mut end = u[0];
+        for k in 1..u.len() {
+            let dt = t[k] - t[k - 1];
+            let x = dt / tau;
+            y.push(u[k] + (end - u[k]) * (1.0 - (-x).exp()) / x);
+            end = u[k] + (end - u[k]) * (-x).exp();
+        }
+        y
+    }
+
+    /// The inverse lag undoes the forward lag (at the middle and as an interval mean) to
+    /// rounding, on a jittery command and uneven steps, for time constants from a tenth of a
+    /// step to ten steps.
+    #[test]
+    fn the_inverse_lag_undoes_the_lag() {
+        let n = 400;
+        let mut t = vec![0.0];
+        for k in 1..n {
+            t.push(t[k - 1] + 0.02 * (1.0 + 0.3 * ((k * 7919) % 13) as f64 / 13.0));
+        }
+        let u: Vec<f64> = (0..n)
+            .map(|k| (0.3 * k as f64).sin() + 0.2 * (((k * 104_729) % 17) as f64 / 17.0 - 0.5))
+            .collect();
+        for tau in [0.002, 0.01, 0.02, 0.06, 0.2] {
+            let mut mid = first_order_lag(&t, &u, tau);
+            inverse_first_order_lag(&t, &mut mid, tau, false);
+            let mut mean = interval_mean_lag(&t, &u, tau);
+            inverse_first_order_lag(&t, &mut mean, tau, true);
+            for k in 0..n {
+                assert!((mid[k] - u[k]).abs() < 1e-9, "mid, tau {tau}, k {k}");
+                assert!((mean[k] - u[k]).abs() < 1e-9, "mean, tau {tau}, k {k}");
+            }
+        }
     }
 }

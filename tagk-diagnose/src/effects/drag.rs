@@ -85,6 +85,39 @@ impl Effect for QuadraticDrag {
     }
 }
 
+/// The force of a steady wind through the rotors' drag, per unit `k_h v_w,j` (world
+/// direction `j`, horizontal): each hub feels `+|ω_i| Rᵀ e_j` (the air moving past it) and
+/// its moment `r_i × (…)` about the origin, on all six channels. `None` without rotor speeds
+/// or a rotor mixer (hub positions).
+pub(crate) fn hub_wind_column(s: &Signals, j: usize) -> Option<[Option<Vec<f64>>; 6]> {
+    let w = s.rotor_speeds()?;
+    let hubs = s.rotor_mixer()?.hubs;
+    let n = s.len();
+    let mut data: [Option<Vec<f64>>; 6] = std::array::from_fn(|_| Some(vec![0.0; n]));
+    let mut e = nalgebra::Vector3::zeros();
+    e[j] = 1.0;
+    for (i, rot) in s.rotations().enumerate() {
+        let d = rot.transpose() * e;
+        for (r, hub) in hubs.iter().enumerate() {
+            let (x, y) = (hub[0], hub[1]);
+            let wr = w[i][r].abs();
+            let (hx, hy, hz) = (wr * d.x, wr * d.y, wr * d.z);
+            let mut add = |c: usize, v: f64| {
+                if let Some(col) = data[c].as_mut() {
+                    col[i] += v;
+                }
+            };
+            add(0, hx);
+            add(1, hy);
+            add(2, hz);
+            add(3, y * hz);
+            add(4, -x * hz);
+            add(5, x * hy - y * hx);
+        }
+    }
+    Some(data)
+}
+
 /// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with
 /// `K = diag(k_h, k_h, k_z)` (axisymmetric rotors: one horizontal coefficient) and
 /// `v_hub,i = v_b + Ω × r_i` the hub's body-frame velocity, and the moments `r_i × H_i` about
@@ -189,6 +222,7 @@ impl Effect for RotorDrag {
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         nonneg(&["k_h", "k_z"], coef, se, "rotor-drag coefficient")
     }
+
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         ("horizontal body speed [m/s]".into(), horiz_speed(s))
     }

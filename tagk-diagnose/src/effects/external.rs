@@ -9,23 +9,22 @@ use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
 use crate::fit::Coefficient;
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
-/// Constant body-frame force and torque bias (e.g. a miscalibrated motor, a cable, an
-/// accelerometer offset): `bias_fx`, `bias_fy`, `bias_tx`, `bias_ty`, `bias_tz`. No vertical
-/// force: in near-level flight a constant `fz` is the weight `m g` again, so it would trade
-/// against the fitted mass (a vertical bias is a mass error, or with a known mass a
-/// `thrust-gain`).
+/// Constant body-frame torque bias (an unbalanced propeller, a bent arm, a cable pulling off
+/// the centre): `bias_tx`, `bias_ty`, `bias_tz` \[N m\]. A constant body-frame *force* is not
+/// here: it is indistinguishable from an accelerometer offset, and that is by far its most
+/// common cause ([`AccelBias`]).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct BodyBias;
 
 /// The channels of [`BodyBias`].
-const BIAS_CHANNELS: [usize; 5] = [0, 1, 3, 4, 5];
+const BIAS_CHANNELS: [usize; 3] = [3, 4, 5];
 
 impl Effect for BodyBias {
     fn name(&self) -> &str {
         EffectKind::BodyBias.name()
     }
     fn description(&self) -> &str {
-        "constant horizontal force and torque in the body frame (miscalibrated motor, cable, sensor offset)"
+        "constant torque in the body frame (unbalanced propeller, bent arm, cable)"
     }
     fn channels(&self) -> Vec<Channel> {
         BIAS_CHANNELS.to_vec()
@@ -37,7 +36,7 @@ impl Effect for BodyBias {
             .map(|&c| {
                 EffectColumn::on(
                     &format!("bias_{}", CHANNEL_NAMES[c]),
-                    if c < 3 { "N" } else { "N m" },
+                    "N m",
                     c,
                     vec![1.0; n],
                 )
@@ -45,6 +44,49 @@ impl Effect for BodyBias {
             .collect()
     }
     fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
+        Plausibility::ok()
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        ("time [s]".into(), s.t.clone())
+    }
+}
+
+/// The name of the accelerometer-offset candidate ([`AccelBias`]): a sensor error, not
+/// physics, and not an effect the simulator's plant has (its sensing profiles have it).
+pub const ACCEL_BIAS: &str = "accel-bias";
+
+/// Largest plausible accelerometer offset, as a constant force per unit mass \[m/s²\] (1 m/s²:
+/// ten times the typical zero-g offset of a MEMS accelerometer, 20 mg).
+pub const MAX_ACCEL_BIAS: f64 = 1.0;
+
+/// Accelerometer offset: a constant body-frame bias `b_a` of the measured specific force. The
+/// regression multiplies the measured acceleration by the mass, so the logged wrench differs
+/// from the model by `m b_a`, a constant body-frame force: columns `f_x`, `f_y` \[N\] (the
+/// force `m b_a`; `b_a = f / m`). The vertical part is not here: in near-level flight `m b_z`
+/// is the weight again and scales the mass (the identifiable mass is `m (1 + b_z / g)`). A
+/// physical constant force (a cable) looks the same; it is reported as what it most often is,
+/// a sensor offset.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct AccelBias;
+
+impl Effect for AccelBias {
+    fn name(&self) -> &str {
+        ACCEL_BIAS
+    }
+    fn description(&self) -> &str {
+        "accelerometer offset: a constant body-frame force m b_a (or a physical constant force, which looks the same)"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![0, 1]
+    }
+    fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
+        let n = s.len();
+        (0..2)
+            .map(|c| EffectColumn::on(&format!("f_{}", ["x", "y"][c]), "N", c, vec![1.0; n]))
+            .collect()
+    }
+    fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
+        let _ = coef;
         Plausibility::ok()
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
@@ -93,9 +135,30 @@ impl Effect for Wind {
         "steady wind: linear drag on the air-relative velocity (drag and wind force fitted together)"
     }
     fn channels(&self) -> Vec<Channel> {
-        vec![0, 1, 2]
+        // With rotor speeds the hub moments act on the torques too.
+        (0..6).collect()
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
+        // With rotor speeds and hub positions the wind acts through the rotors' drag at each
+        // hub, moments included: the rotor drag's columns (`k_h`, `k_z`) and the wind's
+        // (`kv_wx`, `kv_wy`, per unit `k_h v_w`).
+        if s.rotor_mixer().is_some()
+            && let (Some(x), Some(y)) = (
+                crate::effects::drag::hub_wind_column(s, 0),
+                crate::effects::drag::hub_wind_column(s, 1),
+            )
+        {
+            let mut cols = crate::effects::drag::RotorDrag.columns(s, None);
+            for (name, data) in [("kv_wx", x), ("kv_wy", y)] {
+                cols.push(EffectColumn {
+                    name: name.into(),
+                    unit: "N s/rad".into(),
+                    data,
+                    fixed: None,
+                });
+            }
+            return cols;
+        }
         // With rotor speeds the drag is the rotor drag, scaled by Σ|ω_i|: both the drag and
         // the wind force columns carry the factor (the coefficients become K and K v_w).
         let scale: Vec<f64> = match s.rotor_speeds() {
@@ -141,12 +204,18 @@ impl Effect for Wind {
         cols
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
-        let drag = nonneg(&["d_x", "d_y", "d_z"], coef, se, "drag coefficient");
+        // The hub form (`k_h`, `k_z`, then the wind) or the body-origin form (three drags).
+        let (drags, first_wind): (&[&str], usize) = if coef.len() == 4 {
+            (&["k_h", "k_z"], 2)
+        } else {
+            (&["d_x", "d_y", "d_z"], 3)
+        };
+        let drag = nonneg(drags, coef, se, "drag coefficient");
         if !drag.plausible {
             return drag;
         }
         // A wind whose force is within its noise is a plain drag: leave it to the drag effects.
-        let horizontal = [3, 4];
+        let horizontal = [first_wind, first_wind + 1];
         if horizontal
             .iter()
             .all(|&j| coef[j].abs() <= 3.0 * se[j].max(f64::MIN_POSITIVE))
@@ -158,9 +227,15 @@ impl Effect for Wind {
         }
         // The implied wind speed needs the drag: when a drag effect of the model carries it,
         // the wind's own drag columns are duplicates and their share is not the drag.
-        let d = 0.5 * (coef[0] + coef[1]);
-        let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
-        let force = (coef[3] * coef[3] + coef[4] * coef[4]).sqrt();
+        let (d, d_se) = if coef.len() == 4 {
+            (coef[0], se[0])
+        } else {
+            (
+                0.5 * (coef[0] + coef[1]),
+                0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt(),
+            )
+        };
+        let force = coef[first_wind].hypot(coef[first_wind + 1]);
         if d > 3.0 * d_se && force / d > MAX_WIND_SPEED {
             return Plausibility::broken(
                 "wind-speed",
@@ -173,6 +248,23 @@ impl Effect for Wind {
         Plausibility::ok()
     }
     fn derived(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Vec<Coefficient> {
+        // The hub form (`k_h`, `k_z`, `kv_wx`, `kv_wy`) or the body-origin form (`d_x`, `d_y`,
+        // `d_z`, `F_wx`, `F_wy`, or their rotor-speed-scaled `k`, `kv`).
+        if coef.len() == 4 {
+            let (d, d_se) = (coef[0], se[0]);
+            if d.is_nan() || d <= 3.0 * d_se {
+                return Vec::new();
+            }
+            return ["v_wx", "v_wy"]
+                .iter()
+                .enumerate()
+                .map(|(j, name)| {
+                    let v = coef[2 + j] / d;
+                    let e = ((se[2 + j] / d).powi(2) + (v * d_se / d).powi(2)).sqrt();
+                    Coefficient::new(name, "m/s", v, e.is_finite().then_some(e))
+                })
+                .collect();
+        }
         let d = 0.5 * (coef[0] + coef[1]);
         let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
         if d.is_nan() || d <= 3.0 * d_se {

@@ -20,6 +20,13 @@ mod ground;
 #[cfg(test)]
 pub(crate) use actuator::{first_order_lag, shifted};
 pub use custom::CustomEffect;
+pub use external::{ACCEL_BIAS, MAX_ACCEL_BIAS};
+
+/// `true` for a built-in effect that is a sensor error, not physics (the accelerometer
+/// offset, [`ACCEL_BIAS`]).
+pub fn is_sensor_effect(name: &str) -> bool {
+    name == ACCEL_BIAS
+}
 
 use std::sync::Arc;
 
@@ -185,6 +192,35 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// A scalar signal the effect is driven by (for regime plots), with its name and unit.
     fn driver(&self, signals: &Signals) -> (String, Vec<f64>);
+    /// For an effect whose fixed columns filter the measured wrench (a motor lag: the
+    /// regression's target becomes the lagged command), the inverse of that filter, applied in
+    /// place to a residual `series` of channel `channel` on this log at parameter `param`:
+    /// it turns the residual of the filtered target into the error of predicting the measured
+    /// wrench itself, the quantity every model is judged on (a filter that smooths the target
+    /// also smooths its noise, which must not count as a better fit). Returns `false` (and
+    /// leaves `series` alone) when the effect does not filter that channel: the default.
+    fn unfilter(
+        &self,
+        _signals: &Signals,
+        _param: Option<f64>,
+        _channel: Channel,
+        _series: &mut [f64],
+    ) -> bool {
+        false
+    }
+    /// The filter [`Effect::unfilter`] inverts, as a first-order filter for the log's mean
+    /// sampling step ([`crate::TargetFilter`]): what the likelihood of the measured wrench
+    /// needs to weigh the wrench's noise, which the filter smooths, against the motion
+    /// sensors' noise, which it does not. `None` (the default) for an effect that does not
+    /// filter `channel`. An effect that filters must give both.
+    fn target_filter(
+        &self,
+        _signals: &Signals,
+        _param: Option<f64>,
+        _channel: Channel,
+    ) -> Option<crate::fit::TargetFilter> {
+        None
+    }
 }
 
 /// Shared handle on an effect.
@@ -338,20 +374,28 @@ pub fn builtin_with(
     Ok(effect)
 }
 
-/// Every built-in candidate with default tunables, in [`EffectKind::ALL`] order.
+/// Every built-in candidate with default tunables, in [`EffectKind::ALL`] order, then the
+/// sensor candidates (the accelerometer offset, [`ACCEL_BIAS`]).
 pub fn builtin_effects() -> Vec<EffectRef> {
-    EffectKind::ALL
+    let mut all: Vec<EffectRef> = EffectKind::ALL
         .into_iter()
         .filter_map(|kind| builtin(kind).ok())
-        .collect()
+        .collect();
+    all.push(Arc::new(external::AccelBias));
+    all
 }
 
-/// A built-in candidate by name: a canonical name of [`EffectKind`] or one of its aliases
-/// (ASCII case-insensitive, `_` read as `-`).
+/// A built-in candidate by name: a canonical name of [`EffectKind`] or one of its aliases, or
+/// a sensor candidate ([`ACCEL_BIAS`], alias `accelerometer-bias`) (ASCII case-insensitive,
+/// `_` read as `-`).
 ///
 /// # Errors
 /// [`DiagnoseError::UnknownEffect`] for a name outside the vocabulary.
 pub fn builtin_by_name(name: &str) -> Result<EffectRef, DiagnoseError> {
+    let wanted = name.trim().to_ascii_lowercase().replace('_', "-");
+    if wanted == ACCEL_BIAS || wanted == "accelerometer-bias" {
+        return Ok(Arc::new(external::AccelBias));
+    }
     let kind = EffectKind::from_name(name)
         .ok_or_else(|| DiagnoseError::UnknownEffect(name.trim().to_string()))?;
     builtin(kind)

@@ -19,6 +19,26 @@ pub(crate) struct Evaluation {
     pub beta: Vec<f64>,
     /// Diagonal of the (pseudo-)inverse weighted Gram matrix: `σ² κ ·` this is the variance.
     pub cov_diag: Vec<f64>,
+    /// Diagonal of the weighted Gram matrix of the columns (base then candidate): with
+    /// [`Evaluation::cov_diag`] it gives each coefficient's variance inflation factor,
+    /// `cov_diag_j · gram_diag_j` (1: orthogonal to the other columns).
+    pub gram_diag: Vec<f64>,
+    /// The same diagonal per channel: how much of each coefficient's information each channel
+    /// carries (for a variance that weighs each channel's own residual scale).
+    pub gram_diag_ch: Vec<[f64; 6]>,
+    /// Per cross-validation fold, the coefficients fitted without it (empty without folds):
+    /// what [`GramEngine::held_out_residual`] predicts each held-out block with.
+    pub fold_beta: Vec<Vec<f64>>,
+}
+
+impl Evaluation {
+    /// Variance inflation factor of coefficient `j` (base columns first): how much the other
+    /// columns inflate its variance (`1 / (1 − R²)` of the column on the others, uncentred);
+    /// infinite for a coefficient the data do not determine.
+    pub fn inflation(&self, j: usize) -> f64 {
+        let v = self.cov_diag[j] * self.gram_diag[j];
+        if v.is_finite() { v.max(1.0) } else { f64::INFINITY }
+    }
 }
 
 /// Gram-matrix engine: the weighted target `y` and the base columns are reduced once to
@@ -248,8 +268,19 @@ impl<'a> GramEngine<'a> {
         };
         let total = sum_pieces(&|_| true, None);
         let (beta, cov_diag) = solve_gram(&total, pp, None);
+        let gram_diag: Vec<f64> = (1..pp).map(|j| total[j * pp + j]).collect();
+        let mut gram_diag_ch = vec![[0.0; 6]; pp - 1];
+        for pi in 0..np {
+            for c in 0..6 {
+                let m = &g[(pi * 6 + c) * pp * pp..(pi * 6 + c + 1) * pp * pp];
+                for (j, d) in gram_diag_ch.iter_mut().enumerate() {
+                    d[c] += m[(j + 1) * pp + j + 1];
+                }
+            }
+        }
         let sse_full = sse_of(&total, pp, &beta);
         let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
+        let mut fold_beta = Vec::new();
         if self.folds > 1 {
             let k_of = |pi: usize| pi / 3;
             for k in 0..self.folds {
@@ -266,6 +297,7 @@ impl<'a> GramEngine<'a> {
                     sse_cv_ch[c] += e;
                     sse_cv += e;
                 }
+                fold_beta.push(bk);
             }
         } else {
             sse_cv = sse_full;
@@ -279,7 +311,98 @@ impl<'a> GramEngine<'a> {
             sse_cv_ch,
             beta,
             cov_diag,
+            gram_diag,
+            gram_diag_ch,
+            fold_beta,
         }
+    }
+
+    /// The sample range each cross-validation fold holds out (one range, the whole log,
+    /// without folds).
+    pub fn fold_ranges(&self) -> Vec<std::ops::Range<usize>> {
+        if self.folds <= 1 {
+            return vec![0..self.s.len()];
+        }
+        (0..self.folds)
+            .map(|k| self.pieces[3 * k].0..self.pieces[3 * k + 2].1)
+            .collect()
+    }
+
+    /// The held-out residual series of base + `cand` (with the known part `offset`), in the
+    /// target's units (unweighted): each sample predicted with the coefficients of the fold
+    /// that holds it out ([`Evaluation::fold_beta`] of `ev`, from
+    /// [`Self::evaluate_with`] of the same columns); without folds, the in-sample residual at
+    /// `ev.beta`. What a model's held-out error is judged on when it is not a sum of
+    /// squares of the target (a filter of the residual, its whiteness).
+    ///
+    /// Columns marked in `nuisance` (base then candidate; a shorter mask is padded with
+    /// `false`) keep their all-data coefficient: a start-of-log transient cannot be learnt
+    /// from the folds that do not hold the start, and it is not a prediction.
+    pub fn held_out_residual(
+        &self,
+        cand: &[ColData],
+        offset: Option<&ColData>,
+        ev: &Evaluation,
+        nuisance: &[bool],
+    ) -> Vec<[f64; 6]> {
+        let n = self.s.len();
+        let mut r: Vec<[f64; 6]> = self.target.to_vec();
+        if let Some(o) = offset {
+            for (c, d) in o.iter().enumerate() {
+                if let Some(v) = d {
+                    for (ri, x) in r.iter_mut().zip(v) {
+                        ri[c] -= x;
+                    }
+                }
+            }
+        }
+        let ranges = self.fold_ranges();
+        let betas: Vec<Vec<f64>> = if ev.fold_beta.len() == ranges.len() {
+            ev.fold_beta
+                .iter()
+                .map(|bk| {
+                    bk.iter()
+                        .enumerate()
+                        .map(|(j, b)| {
+                            if nuisance.get(j).copied().unwrap_or(false) {
+                                ev.beta[j]
+                            } else {
+                                *b
+                            }
+                        })
+                        .collect()
+                })
+                .collect()
+        } else {
+            vec![ev.beta.clone(); ranges.len()]
+        };
+        let nb = self.base.len();
+        let mut blocks = Blocks::new(self.s, None);
+        blocks.need(&self.base);
+        for (range, beta) in ranges.into_iter().zip(betas) {
+            for_each_block(&mut blocks, range.clone(), |blk, lo, hi| {
+                for (col, &b) in self.base.iter().zip(&beta) {
+                    for c in 0..6 {
+                        if let Some((v, _)) = blk.get(col, c) {
+                            for (ri, x) in r[lo..hi].iter_mut().zip(v) {
+                                ri[c] -= b * x;
+                            }
+                        }
+                    }
+                }
+            });
+            for (col, &b) in cand.iter().zip(&beta[nb.min(beta.len())..]) {
+                for (c, d) in col.iter().enumerate() {
+                    if let Some(v) = d {
+                        for i in range.clone() {
+                            r[i][c] -= b * v[i];
+                        }
+                    }
+                }
+            }
+        }
+        debug_assert_eq!(r.len(), n);
+        r
     }
 
     /// Weighted residual of base + `cand` (with the known part `offset`) at coefficients

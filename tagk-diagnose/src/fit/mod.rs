@@ -5,6 +5,7 @@
 mod columns;
 mod design;
 mod gram;
+mod likelihood;
 mod lsq;
 mod model;
 
@@ -17,15 +18,155 @@ use crate::signals::Signals;
 
 pub(crate) use columns::Column;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_columns,
+    ColData, add_offset, checked_effect_design, effect_design, rigid_columns,
     rigid_design, sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
+pub use likelihood::TargetFilter;
+pub(crate) use likelihood::{
+    NoiseModel, channel_filters, channel_score, estimate_noise, high_frequency_noise, part_ranges,
+    whitened,
+};
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
 
 use design::{add_known_mass, initial_weights, weights_from_residual};
 use lsq::{LsSolution, predict, residual_kappa};
+
+/// `true` when `effect` at `param` filters some channel of the measured wrench
+/// ([`crate::Effect::unfilter`]).
+pub(crate) fn filters(s: &Signals, effect: &dyn crate::Effect, param: Option<f64>) -> bool {
+    (0..6).any(|c| effect.unfilter(s, param, c, &mut []))
+}
+
+/// Maps a residual of filtered targets back to the measured wrench's domain, log by log
+/// (filters never run across a join of several logs): every filtering effect of `filt` in
+/// turn. A channel weight is a constant factor, so weighted and unweighted residuals alike.
+pub(crate) fn unfilter_residual(
+    s: &Signals,
+    filt: &[(crate::EffectRef, Option<f64>)],
+    r: &mut [[f64; 6]],
+) {
+    if filt.is_empty() {
+        return;
+    }
+    let parts = s.parts();
+    let mut ranges = Vec::new();
+    if parts.is_empty() {
+        ranges.push(0..s.len());
+    } else {
+        let mut lo = 0;
+        for p in parts {
+            ranges.push(lo..lo + p.len());
+            lo += p.len();
+        }
+    }
+    let mut col = Vec::new();
+    for (k, range) in ranges.iter().enumerate() {
+        let sig = if parts.is_empty() { s } else { &parts[k] };
+        for c in 0..6 {
+            col.clear();
+            col.extend(r[range.clone()].iter().map(|x| x[c]));
+            let mut any = false;
+            for (e, p) in filt {
+                any |= e.unfilter(sig, *p, c, &mut col);
+            }
+            if any {
+                for (x, v) in r[range.clone()].iter_mut().zip(&col) {
+                    x[c] = *v;
+                }
+            }
+        }
+    }
+}
+
+/// The likelihood score of a residual `r` of the (filtered) target, unweighted, under the
+/// noise model `noise`, per channel: the innovations' sum of squares and the
+/// log-determinant term, both in units of the channel's noise variance
+/// ([`likelihood::channel_score`]); `filt` are the filtering effects at their parameters.
+pub(crate) fn residual_score(
+    s: &Signals,
+    r: &[[f64; 6]],
+    filt: &[(crate::EffectRef, Option<f64>)],
+    noise: &NoiseModel,
+) -> ([f64; 6], [f64; 6]) {
+    let parts = s.parts();
+    let mut norm = [0.0; 6];
+    let mut logdet = [0.0; 6];
+    let mut series = Vec::new();
+    for (k, range) in part_ranges(s).into_iter().enumerate() {
+        let sig = if parts.is_empty() { s } else { &parts[k] };
+        let filters = channel_filters(filt, sig);
+        for c in 0..6 {
+            series.clear();
+            series.extend(r[range.clone()].iter().map(|x| x[c]));
+            let (n, l) = channel_score(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+            norm[c] += n;
+            logdet[c] += l;
+        }
+    }
+    (norm, logdet)
+}
+
+/// The whitened residual of a residual `r` of the (filtered) target, unweighted
+/// ([`likelihood::whitened`]: white with each channel's noise variance at the true model;
+/// `r` itself on channels without a filter).
+pub(crate) fn whitened_residual(
+    s: &Signals,
+    r: &[[f64; 6]],
+    filt: &[(crate::EffectRef, Option<f64>)],
+    noise: &NoiseModel,
+) -> Vec<[f64; 6]> {
+    if filt.is_empty() {
+        return r.to_vec();
+    }
+    let parts = s.parts();
+    let mut out = r.to_vec();
+    let mut series = Vec::new();
+    for (k, range) in part_ranges(s).into_iter().enumerate() {
+        let sig = if parts.is_empty() { s } else { &parts[k] };
+        let filters = channel_filters(filt, sig);
+        for c in 0..6 {
+            if filters[c].is_none() {
+                continue;
+            }
+            series.clear();
+            series.extend(r[range.clone()].iter().map(|x| x[c]));
+            let w = whitened(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+            for (x, v) in out[range.clone()].iter_mut().zip(w) {
+                x[c] = v;
+            }
+        }
+    }
+    out
+}
+
+/// The noise model of a model's forward residual `r` (unweighted): its filters undone, then
+/// [`likelihood::estimate_noise`], each channel at least `floor` in total.
+pub(crate) fn noise_of_residual(
+    s: &Signals,
+    r: &[[f64; 6]],
+    filt: &[(crate::EffectRef, Option<f64>)],
+    floor: &[f64; 6],
+) -> (NoiseModel, [f64; 6]) {
+    let mut e = r.to_vec();
+    unfilter_residual(s, filt, &mut e);
+    let filters = channel_filters(filt, s);
+    let (model, raw) = estimate_noise(s, &e, &filters);
+    let total: [f64; 6] = std::array::from_fn(|c| model.variance(c).sqrt().max(floor[c]));
+    (model.scaled_to(&total), raw)
+}
+
+/// The filtering effects of a model at its parameters.
+pub(crate) fn model_filters(model: &Model, s: &Signals, params: &[Option<f64>]) -> Vec<(crate::EffectRef, Option<f64>)> {
+    model
+        .effects()
+        .iter()
+        .zip(params)
+        .filter(|(e, p)| filters(s, e.as_ref(), **p))
+        .map(|(e, p)| (e.clone(), *p))
+        .collect()
+}
 
 /// Names of the ten rigid-body parameters, in the order of `tagk_dynamics::InertialParams`.
 pub(crate) const THETA_NAMES: [&str; 10] = [
@@ -263,11 +404,31 @@ fn fit(
     else {
         return Err(DiagnoseError::Fit("no pass ran".into()));
     };
-    // Standard errors inflated for the residual's autocorrelation (σ² → κ σ²).
+    // Standard errors inflated for the residual's autocorrelation (σ² → κ σ²): the residual
+    // of the regression actually solved (of the filtered target, with a lag).
     let kappa = residual_kappa(&residual, &w);
     for se in sol.se.iter_mut().flatten() {
         *se *= kappa.sqrt();
     }
+    // The residual and the prediction of the measured wrench itself: a filter of the target
+    // (a lag) is undone on the residual ([`crate::Effect::unfilter`]).
+    let filt = model_filters(model, s, &params);
+    let (predicted, residual) = if filt.is_empty() {
+        (predicted, residual)
+    } else {
+        let mut residual = residual;
+        unfilter_residual(s, &filt, &mut residual);
+        let predicted = if predicted.is_empty() {
+            predicted
+        } else {
+            s.target()
+                .iter()
+                .zip(&residual)
+                .map(|(b, e)| std::array::from_fn(|c| b[c] - e[c]))
+                .collect()
+        };
+        (predicted, residual)
+    };
     let (theta, theta_se) = rigid_parameters(model, &sol, rigid.len());
     let effects = fitted_effects(model, s, &params, &names, &sol, rigid.len());
     Ok(Fit {
@@ -344,15 +505,81 @@ fn scan_parameters(
             .copied()
             .chain(Column::stored(&others))
             .collect();
-        let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
-        let (best, _) = scan_min(&grid, |g| {
-            sampled_effect_design(e.as_ref(), s, Some(g), engine.stride())
-                .map_or(f64::INFINITY, |d| {
-                    engine.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
-                })
-        });
+        // The criterion is the error of predicting the measured wrench: with a filtering
+        // effect (a lag) in the model the residual is mapped back through its inverse, on
+        // every sample (a filter runs over all of them); otherwise a sum of squares on every
+        // `n / 10 000`-th sample.
+        let other_filters: Vec<(crate::EffectRef, Option<f64>)> = model
+            .effects()
+            .iter()
+            .enumerate()
+            .filter(|(j, f)| *j != k && filters(s, f.as_ref(), params[*j]))
+            .map(|(j, f)| (f.clone(), params[j]))
+            .collect();
+        let filtered = !other_filters.is_empty() || filters(s, e.as_ref(), grid.first().copied());
+        let best = if filtered {
+            let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
+            // The residual's forward form, unweighted, at parameter `g`.
+            let residual_at = |g: f64| -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
+                let d = effect_design(e.as_ref(), s, Some(g));
+                let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+                let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+                for x in r.iter_mut() {
+                    for c in 0..6 {
+                        x[c] /= w[c];
+                    }
+                }
+                let mut filt = other_filters.clone();
+                if filters(s, e.as_ref(), Some(g)) {
+                    filt.push((e.clone(), Some(g)));
+                }
+                (r, filt)
+            };
+            // The noise of the two sources, measured at the current value, then the
+            // likelihood over the grid ([`likelihood`]).
+            let now = params[k].unwrap_or(grid[grid.len() / 2]);
+            let (r0, f0) = residual_at(now);
+            let (noise, _) = noise_of_residual(s, &r0, &f0, &default_resolution(s));
+            scan_min(&grid, |g| {
+                let (r, filt) = residual_at(g);
+                let (norm, logdet) = residual_score(s, &r, &filt, &noise);
+                norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
+            })
+            .0
+        } else {
+            let engine = GramEngine::new_for_scan(s, w, &fixed, Some(&shifted_target));
+            scan_min(&grid, |g| {
+                sampled_effect_design(e.as_ref(), s, Some(g), engine.stride())
+                    .map_or(f64::INFINITY, |d| {
+                        engine.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+                    })
+            })
+            .0
+        };
         params[k] = Some(best);
     }
+}
+
+/// The resolution of the noise with the Crazyflie's airframe radius
+/// (`crate::FLOOR_RESOLUTION` of the RMS measured force; times the radius for torques): the
+/// smallest noise a fit's own likelihood assumes.
+pub(crate) fn default_resolution(s: &Signals) -> [f64; 6] {
+    let n = s.len().max(1) as f64;
+    let force = (s
+        .wrench()
+        .iter()
+        .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let radius = tagk_dynamics::SafetyGate::crazyflie().max_com_offset;
+    std::array::from_fn(|c| {
+        if c < 3 {
+            crate::FLOOR_RESOLUTION * force
+        } else {
+            crate::FLOOR_RESOLUTION * force * radius
+        }
+    })
 }
 
 /// The grid values within two places of `p` in the sorted grid, and `p` itself.

@@ -54,6 +54,19 @@ impl Model {
         self
     }
 
+    /// The same model without the effect named `name` (the known mass kept).
+    pub fn without(&self, name: &str) -> Model {
+        Model {
+            effects: self
+                .effects
+                .iter()
+                .filter(|e| e.name() != name)
+                .cloned()
+                .collect(),
+            known_mass: self.known_mass,
+        }
+    }
+
     /// The effects, in the order added.
     pub fn effects(&self) -> &[EffectRef] {
         &self.effects

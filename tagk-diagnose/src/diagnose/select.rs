@@ -1,0 +1,1083 @@
+//! Selection on the measured noise: candidate effects, and *sets* of them, scored jointly on
+//! held-out data with every channel weighted by its own noise.
+//!
+//! **The score.** A model is scored by its held-out (blocked cross-validation) error of
+//! predicting the **measured wrench**, channel by channel in units of that channel's noise
+//! ([`crate::NoiseFloor`]): `S = Σ_c Σ_i e_{c,i}² / σ_c²`. A channel far above its noise counts
+//! by how much it is above it; no channel dominates by its units, and none can veto what the
+//! others show. An effect that filters the measured wrench (a motor lag) is judged on the same
+//! quantity: its residual is mapped back by the inverse filter ([`crate::Effect::unfilter`]),
+//! so that smoothing the wrench's own noise is not mistaken for a better fit.
+//!
+//! **A member of a set is kept** when, within the set, (1) it is significant: dropping it
+//! raises the in-sample score by more than the χ² quantile of its degrees of freedom at the
+//! family-wise level (Bonferroni over the candidates), the score scaled by the residual's
+//! variance and its autocorrelation factor; (2) it gains on held-out data at least
+//! [`MIN_GAIN`] of one channel's noise variance per sample; (3) its coefficients and the
+//! rigid body stay physical; (4) its scanned parameter, if any, lies inside its range;
+//! (5) the data can tell it apart from the other members (variance inflation).
+//!
+//! **The search.** Every candidate alone; every pair and triple of the most promising ones;
+//! a set is admissible when every member is kept; the admissible set with the largest
+//! held-out gain is the next step of the staircase.
+
+use std::collections::BTreeSet;
+
+use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
+use crate::effects::{EffectRef, Plausibility};
+use crate::diagnose::NoiseFloor;
+use crate::fit::{
+    ColData, Column, Evaluation, GramEngine, Model, NoiseModel, effect_design, filters,
+    residual_score, rigid_design, sampled_effect_design, whitened_residual,
+};
+use crate::signals::Signals;
+use crate::stats;
+use tagk_dynamics::InertialParams;
+
+/// Smallest held-out gain a member must add to its set, as a fraction of one channel's noise
+/// variance per sample (5 %): below it an effect changes no prediction a flight-dynamics
+/// model cares about, however significant it is on a long log.
+pub const MIN_GAIN: f64 = 0.05;
+
+/// Variance inflation beyond which two members of a set are not told apart (100: the
+/// member's columns are 99.5 % explained by the other columns).
+pub const MAX_INFLATION: f64 = 100.0;
+
+/// How many of the best single candidates enter pairs, and how many enter triples.
+const PAIR_POOL: usize = 8;
+const TRIPLE_POOL: usize = 5;
+
+/// A member of a candidate set: an effect at a value of its scanned parameter.
+#[derive(Debug, Clone)]
+pub(crate) struct Member {
+    /// The effect.
+    pub effect: EffectRef,
+    /// Its scanned parameter (`None` without a scan).
+    pub param: Option<f64>,
+}
+
+impl Member {
+    fn name(&self) -> &str {
+        self.effect.name()
+    }
+}
+
+/// The design of a fitted model: rigid columns (computed where they are read), then each
+/// effect's fitted columns at its parameter.
+pub(crate) struct ModelDesign {
+    rigid: Vec<Column<'static>>,
+    effects: Vec<ColData>,
+    /// Per column (rigid first): a start-of-log nuisance column.
+    nuisance: Vec<bool>,
+}
+
+impl ModelDesign {
+    /// Every column, rigid body first.
+    pub fn columns(&self) -> Vec<Column<'_>> {
+        self.rigid
+            .iter()
+            .copied()
+            .chain(Column::stored(&self.effects))
+            .collect()
+    }
+}
+
+/// How one set scores in a context: the likelihood of the measured wrench in units of each
+/// channel's noise variance ([`crate::fit::residual_score`]): innovations' sums of squares
+/// plus, for a filtered target, the log-determinant term.
+#[derive(Debug, Clone)]
+pub(crate) struct Score {
+    /// Held-out score (`−2 ln p` of the held-out predictions, noise units).
+    pub cv: f64,
+    /// Held-out innovations' sum of squares per channel (noise units).
+    pub cv_ch: [f64; 6],
+    /// In-sample score (same units).
+    pub fit: f64,
+    /// In-sample innovations' sum of squares per channel.
+    pub fit_ch: [f64; 6],
+    /// Log-determinant term per channel (0 without a filter of the target).
+    pub logdet: [f64; 6],
+    /// Autocorrelation factor κ of the in-sample innovations (mean over the channels).
+    pub kappa: f64,
+    /// The same per channel.
+    pub kappa_ch: [f64; 6],
+    /// The coefficients: the model's columns, then the members' fitted columns.
+    pub ev: Evaluation,
+    /// Number of fitted columns of each member.
+    pub widths: Vec<usize>,
+    /// Name and unit of every member's fitted columns.
+    pub names: Vec<Vec<(String, String)>>,
+}
+
+impl Score {
+    /// Residual variance per row in noise units (innovations' in-sample sum of squares over
+    /// `rows − columns`), ≈ 1 for a model at its noise.
+    pub fn scale(&self, rows: f64) -> f64 {
+        let p = self.ev.beta.len() as f64;
+        (self.fit_ch.iter().sum::<f64>() / (rows - p).max(1.0)).max(f64::MIN_POSITIVE)
+    }
+
+    /// Each channel's residual variance per sample in noise units times its autocorrelation
+    /// factor: the scale of that channel's part of a coefficient's variance.
+    pub fn channel_scales(&self, n: f64) -> [f64; 6] {
+        std::array::from_fn(|c| {
+            (self.fit_ch[c] / n.max(1.0) * self.kappa_ch[c]).max(f64::MIN_POSITIVE)
+        })
+    }
+
+    /// The residual scale of the channels an effect acts on (mean of their
+    /// [`Self::channel_scales`]): what a scanned parameter's profile interval is measured in.
+    pub fn effect_scale(&self, effect: &dyn crate::Effect, n: f64) -> f64 {
+        let scales = self.channel_scales(n);
+        let ch: Vec<usize> = effect.channels().into_iter().filter(|c| *c < 6).collect();
+        if ch.is_empty() {
+            return scales.iter().sum::<f64>() / 6.0;
+        }
+        ch.iter().map(|&c| scales[c]).sum::<f64>() / ch.len() as f64
+    }
+
+    /// The standard error of coefficient `j`: its variance `cov_diag_j` scaled by the
+    /// residual variance of the channels that carry its information, each weighted by its
+    /// share (a channel far from its noise — an unmodelled effect there — does not widen the
+    /// interval of a coefficient it does not carry).
+    pub fn std_error(&self, j: usize, n: f64) -> f64 {
+        let scales = self.channel_scales(n);
+        let info = &self.ev.gram_diag_ch[j];
+        let total: f64 = info.iter().sum();
+        let scale = if total > 0.0 {
+            (0..6).map(|c| info[c] * scales[c]).sum::<f64>() / total
+        } else {
+            self.kappa * self.fit_ch.iter().sum::<f64>() / (6.0 * n.max(1.0))
+        };
+        (self.ev.cov_diag[j] * scale).sqrt()
+    }
+}
+
+/// A model with its parameters fixed, the noise, and the target its candidates are scored on.
+pub(crate) struct Context<'s> {
+    pub s: &'s Signals,
+    pub model: Model,
+    /// Measured wrench (minus the known mass's part) minus the model's fixed columns.
+    target: Vec<[f64; 6]>,
+    design: ModelDesign,
+    /// Channel weights `1 / σ_c`.
+    pub w: [f64; 6],
+    /// The two noise sources per channel, `σ_c` in total.
+    noise: NoiseModel,
+    pub folds: usize,
+    /// The model's own filtering effects.
+    filters: Vec<(EffectRef, Option<f64>)>,
+}
+
+impl<'s> Context<'s> {
+    /// The context of `model` at its scanned parameters `params` (one per effect) on `s`,
+    /// against the noise `floor`.
+    pub fn new(
+        s: &'s Signals,
+        model: &Model,
+        params: &[Option<f64>],
+        floor: &NoiseFloor,
+        folds: usize,
+    ) -> Self {
+        let (rigid, target) = rigid_design(model, s);
+        let mut target = target.into_owned();
+        let mut effects = Vec::new();
+        let mut filt = Vec::new();
+        let mut nuisance = vec![false; rigid.len()];
+        for (k, e) in model.effects().iter().enumerate() {
+            let p = params.get(k).copied().flatten();
+            let d = effect_design(e.as_ref(), s, p);
+            nuisance.extend(d.names.iter().map(|(n, _)| n.starts_with("start_")));
+            if let Some(o) = &d.offset {
+                sub(&mut target, o);
+            }
+            effects.extend(d.cols);
+            if filters(s, e.as_ref(), p) {
+                filt.push((e.clone(), p));
+            }
+        }
+        let sigma = floor.rms;
+        let w = std::array::from_fn(|c| {
+            if sigma[c] > 0.0 && sigma[c].is_finite() {
+                1.0 / sigma[c]
+            } else {
+                1.0
+            }
+        });
+        let noise = NoiseModel {
+            wrench: floor.from_wrench,
+            motion: floor.from_motion,
+        }
+        .scaled_to(&sigma);
+        Self {
+            s,
+            model: model.clone(),
+            target,
+            design: ModelDesign {
+                rigid,
+                effects,
+                nuisance,
+            },
+            w,
+            noise,
+            folds,
+            filters: filt,
+        }
+    }
+
+    /// Rows of the regression (`6 n`).
+    pub fn rows(&self) -> f64 {
+        (6 * self.s.len()) as f64
+    }
+
+    /// Rigid-body columns of the design (10, or 9 with a known mass).
+    pub fn rigid_columns(&self) -> usize {
+        self.design.rigid.len()
+    }
+
+    /// Columns of the model's design.
+    pub fn base_columns(&self) -> usize {
+        self.design.rigid.len() + self.design.effects.len()
+    }
+
+    /// The engine over the model's design with the cross-validation folds.
+    pub fn engine(&self) -> GramEngine<'_> {
+        GramEngine::new(
+            self.s,
+            &self.w,
+            &self.design.columns(),
+            Some(&self.target),
+            self.folds,
+        )
+    }
+
+    /// The engine over the model's design without folds (in-sample: the scans).
+    pub fn fit_engine(&self) -> GramEngine<'_> {
+        GramEngine::new(self.s, &self.w, &self.design.columns(), Some(&self.target), 1)
+    }
+
+    /// The filtering effects of the model and of `members`.
+    fn all_filters(&self, members: &[Member]) -> Vec<(EffectRef, Option<f64>)> {
+        let mut f = self.filters.clone();
+        for m in members {
+            if filters(self.s, m.effect.as_ref(), m.param) {
+                f.push((m.effect.clone(), m.param));
+            }
+        }
+        f
+    }
+
+    /// The members' fitted columns, their known part, their widths and names.
+    fn member_design(&self, members: &[Member]) -> MemberDesign {
+        let mut cols = Vec::new();
+        let mut offset: Option<ColData> = None;
+        let mut widths = Vec::new();
+        let mut names = Vec::new();
+        for m in members {
+            let d = effect_design(m.effect.as_ref(), self.s, m.param);
+            widths.push(d.cols.len());
+            names.push(d.names);
+            cols.extend(d.cols);
+            if let Some(o) = d.offset {
+                match &mut offset {
+                    None => offset = Some(o),
+                    Some(acc) => add_col(acc, o),
+                }
+            }
+        }
+        MemberDesign {
+            cols,
+            offset,
+            widths,
+            names,
+        }
+    }
+
+    /// Scores the model plus `members` (an empty set: the model itself) with `engine` (from
+    /// [`Self::engine`]).
+    pub fn score(&self, engine: &GramEngine<'_>, members: &[Member]) -> Score {
+        self.score_with_residual(engine, members).0
+    }
+
+    /// [`Self::score`] and the in-sample whitened residual (unweighted; the residual itself
+    /// without a filter of the target): white with each channel's noise at the true model.
+    pub fn score_with_residual(
+        &self,
+        engine: &GramEngine<'_>,
+        members: &[Member],
+    ) -> (Score, Vec<[f64; 6]>) {
+        let d = self.member_design(members);
+        let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+        let filt = self.all_filters(members);
+        let mut residual = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+        for x in residual.iter_mut() {
+            for c in 0..6 {
+                x[c] /= self.w[c];
+            }
+        }
+        let (fit_ch, logdet, cv_ch) = if filt.is_empty() {
+            let fit_ch: [f64; 6] = std::array::from_fn(|c| {
+                residual
+                    .iter()
+                    .map(|r| (r[c] * self.w[c]).powi(2))
+                    .sum::<f64>()
+            });
+            (fit_ch, [0.0; 6], ev.sse_cv_ch)
+        } else {
+            let (fit_ch, logdet) = residual_score(self.s, &residual, &filt, &self.noise);
+            let mut nuisance = self.design.nuisance.clone();
+            nuisance.extend(
+                d.names
+                    .iter()
+                    .flatten()
+                    .map(|(n, _)| n.starts_with("start_")),
+            );
+            let held = engine.held_out_residual(&d.cols, d.offset.as_ref(), &ev, &nuisance);
+            let (cv_ch, _) = residual_score(self.s, &held, &filt, &self.noise);
+            residual = whitened_residual(self.s, &residual, &filt, &self.noise);
+            (fit_ch, logdet, cv_ch)
+        };
+        let kappa_ch: [f64; 6] = std::array::from_fn(|c| {
+            let r: Vec<f64> = residual.iter().map(|x| x[c]).collect();
+            stats::batch_means_factor(&r)
+        });
+        let kappa = kappa_ch.iter().sum::<f64>() / 6.0;
+        let ld: f64 = logdet.iter().sum();
+        (
+            Score {
+                cv: cv_ch.iter().sum::<f64>() + ld,
+                cv_ch,
+                fit: fit_ch.iter().sum::<f64>() + ld,
+                fit_ch,
+                logdet,
+                kappa,
+                kappa_ch,
+                ev,
+                widths: d.widths,
+                names: d.names,
+            },
+            residual,
+        )
+    }
+
+    /// The in-sample score of the model plus `members` (`engine` from [`Self::fit_engine`]).
+    fn fit_score(&self, engine: &GramEngine<'_>, members: &[Member]) -> f64 {
+        let d = self.member_design(members);
+        let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+        let filt = self.all_filters(members);
+        if filt.is_empty() {
+            return ev.sse_full;
+        }
+        let mut residual = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+        for x in residual.iter_mut() {
+            for c in 0..6 {
+                x[c] /= self.w[c];
+            }
+        }
+        let (norm, logdet) = residual_score(self.s, &residual, &filt, &self.noise);
+        norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
+    }
+
+    /// The held-out RMS per channel (N, N m) of a score.
+    pub fn held_out_rms(&self, score: &Score) -> [f64; 6] {
+        let n = self.s.len().max(1) as f64;
+        std::array::from_fn(|c| (score.cv_ch[c] / n).sqrt() / self.w[c])
+    }
+
+    /// Scans member `k`'s parameter with the other members fixed: the in-sample score over
+    /// its grid (refined around the best value) and the profile for its interval.
+    pub fn scan(&self, engine: &GramEngine<'_>, members: &[Member], k: usize) -> ScanResult {
+        let Some(spec) = members[k].effect.scan() else {
+            return ScanResult::default();
+        };
+        let mut trial = members.to_vec();
+        // The fast path, a scan of one member without any filter: every `n / 10 000`-th
+        // sample; otherwise every sample (a filter runs over all of them).
+        let fast = members.len() == 1
+            && self.filters.is_empty()
+            && !filters(self.s, members[k].effect.as_ref(), spec.grid.first().copied());
+        let scan_engine = fast.then(|| engine.for_scan());
+        let mut profile: Vec<(f64, f64)> = Vec::new();
+        let mut eval = |g: f64, profile: &mut Vec<(f64, f64)>| -> f64 {
+            trial[k].param = Some(g);
+            let v = match &scan_engine {
+                Some(scan) => sampled_effect_design(
+                    members[k].effect.as_ref(),
+                    self.s,
+                    Some(g),
+                    scan.stride(),
+                )
+                .map_or(f64::INFINITY, |d| {
+                    scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+                        * scan.stride() as f64
+                }),
+                // A user's effect whose columns have the wrong length at this value is skipped.
+                None => match crate::effects::check_lengths(
+                    &crate::effects::effect_columns(members[k].effect.as_ref(), self.s, Some(g)),
+                    self.s.len(),
+                ) {
+                    Ok(()) => self.fit_score(engine, &trial),
+                    Err(_) => f64::INFINITY,
+                },
+            };
+            profile.push((g, v));
+            v
+        };
+        let (best, _) = crate::fit::scan_min(&spec.grid, |g| eval(g, &mut profile));
+        profile.sort_by(|a, b| a.0.total_cmp(&b.0));
+        profile.dedup_by(|a, b| a.0 == b.0);
+        let lo = spec.grid.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = spec.grid.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let at_end = best <= lo || best >= hi;
+        ScanResult {
+            best: Some(best),
+            profile,
+            range: (lo, hi),
+            at_end,
+        }
+    }
+}
+
+/// The members' fitted columns and known part.
+struct MemberDesign {
+    cols: Vec<ColData>,
+    offset: Option<ColData>,
+    widths: Vec<usize>,
+    names: Vec<Vec<(String, String)>>,
+}
+
+/// Subtracts a known part from per-sample values.
+fn sub(values: &mut [[f64; 6]], o: &ColData) {
+    for (c, d) in o.iter().enumerate() {
+        if let Some(v) = d {
+            for (x, y) in values.iter_mut().zip(v) {
+                x[c] -= y;
+            }
+        }
+    }
+}
+
+/// `acc += o`, channel by channel.
+fn add_col(acc: &mut ColData, o: ColData) {
+    for (a, b) in acc.iter_mut().zip(o) {
+        match (a.as_mut(), b) {
+            (Some(x), Some(y)) => x.iter_mut().zip(&y).for_each(|(p, q)| *p += q),
+            (None, Some(y)) => *a = Some(y),
+            _ => {}
+        }
+    }
+}
+
+/// The outcome of a scan ([`Context::scan`]).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ScanResult {
+    /// The best value (`None`: no scan).
+    pub best: Option<f64>,
+    /// In-sample score at every value tried, sorted by value.
+    pub profile: Vec<(f64, f64)>,
+    /// The grid's range.
+    pub range: (f64, f64),
+    /// `true` when the best value lies at an end of the range.
+    pub at_end: bool,
+}
+
+impl ScanResult {
+    /// The 95 % profile interval: the values whose in-sample score lies within
+    /// `χ²₁(0.95) · scale` of the best (`scale` = the residual variance times its
+    /// autocorrelation factor), by linear interpolation between the values tried; an end of
+    /// the range where the profile never rises that far is the interval's end.
+    pub fn interval(&self, scale: f64) -> Option<[f64; 2]> {
+        let best = self.best?;
+        let min = self
+            .profile
+            .iter()
+            .map(|p| p.1)
+            .fold(f64::INFINITY, f64::min);
+        if !min.is_finite() {
+            return None;
+        }
+        let limit = min + CHI2_1_95 * scale;
+        let at = self
+            .profile
+            .iter()
+            .position(|p| p.0 >= best)
+            .unwrap_or(self.profile.len().saturating_sub(1));
+        let cross = |i: usize, j: usize| -> f64 {
+            let (a, b) = (self.profile[i], self.profile[j]);
+            if (b.1 - a.1).abs() <= 0.0 {
+                return b.0;
+            }
+            a.0 + (limit - a.1) / (b.1 - a.1) * (b.0 - a.0)
+        };
+        let mut lo = self.profile.first().map_or(best, |p| p.0);
+        for i in (0..at).rev() {
+            if self.profile[i].1 > limit {
+                lo = cross(i + 1, i);
+                break;
+            }
+        }
+        let mut hi = self.profile.last().map_or(best, |p| p.0);
+        for i in at + 1..self.profile.len() {
+            if self.profile[i].1 > limit {
+                hi = cross(i - 1, i);
+                break;
+            }
+        }
+        Some([lo.min(best), hi.max(best)])
+    }
+}
+
+/// The 95 % quantile of χ²₁.
+pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
+
+/// The `1 − p` quantile of χ² with `k` degrees of freedom (bisection on the survival
+/// function).
+pub(crate) fn chi2_quantile(p: f64, k: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    while stats::chi2_survival(hi, k) > p {
+        hi *= 2.0;
+        if hi > 1e9 {
+            return hi;
+        }
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if stats::chi2_survival(mid, k) > p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Why a member is not kept in its set (the first reason that applies).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Refusal {
+    /// It raises the held-out error.
+    Worse,
+    /// Its refit breaks a physical rule.
+    Implausible(Violation),
+    /// Its scanned parameter's best value lies at an end of its range.
+    OutOfRange { value: f64, lo: f64, hi: f64 },
+    /// The data cannot tell it apart from `with` (variance inflation `inflation`).
+    Confounded { with: String, inflation: f64 },
+    /// It fails the significance test.
+    NotSignificant { p_value: f64 },
+    /// Its held-out gain is below [`MIN_GAIN`].
+    Small { gain: f64 },
+}
+
+impl Refusal {
+    /// The refusal in a phrase.
+    pub fn describe(&self) -> String {
+        match self {
+            Refusal::Worse => "it raises the held-out error".into(),
+            Refusal::Implausible(v) => format!("implausible ({}): {}", v.rule, v.note),
+            Refusal::OutOfRange { value, lo, hi } => format!(
+                "its best value {value:.3} lies at the end of its range {lo:.3}–{hi:.3}: outside the range the data support"
+            ),
+            Refusal::Confounded { with, inflation } => format!(
+                "cannot be told apart from {with} (variance inflation {inflation:.0})"
+            ),
+            Refusal::NotSignificant { p_value } => format!("not significant (p = {p_value:.2e})"),
+            Refusal::Small { gain } => format!(
+                "too small ({:.1} % of a channel's noise variance)",
+                100.0 * gain
+            ),
+        }
+    }
+}
+
+/// The verdict on one member of a set.
+#[derive(Debug, Clone)]
+pub(crate) struct MemberVerdict {
+    /// Held-out gain of the member within the set (noise units, whole log).
+    pub gain: f64,
+    /// Test statistic and its degrees of freedom.
+    pub statistic: f64,
+    pub dof: usize,
+    pub p_value: f64,
+    /// The member's coefficients and their standard errors (scaled).
+    pub coef: Vec<f64>,
+    pub se: Vec<f64>,
+    /// Smallest variance inflation of its coefficients within the set (start-of-log
+    /// nuisance columns left out): large when none of its directions is told apart.
+    pub inflation: f64,
+    /// `None`: kept.
+    pub refusal: Option<Refusal>,
+}
+
+/// A scored set.
+#[derive(Debug, Clone)]
+pub(crate) struct SetEval {
+    pub members: Vec<Member>,
+    pub score: Score,
+    /// Held-out gain over the model (noise units).
+    pub gain: f64,
+    /// One verdict per member.
+    pub verdicts: Vec<MemberVerdict>,
+    /// The scan of each member (default without a scan).
+    pub scans: Vec<ScanResult>,
+}
+
+impl SetEval {
+    /// Every member kept.
+    pub fn admissible(&self) -> bool {
+        self.gain > 0.0 && self.verdicts.iter().all(|v| v.refusal.is_none())
+    }
+
+    /// Names of the members.
+    pub fn names(&self) -> Vec<String> {
+        self.members.iter().map(|m| m.name().to_string()).collect()
+    }
+}
+
+/// What the search found for a model.
+pub(crate) struct Search {
+    /// The model's own score.
+    pub base: Score,
+    /// Every usable candidate alone, in the order of the candidates.
+    pub singles: Vec<SetEval>,
+    /// Candidates that could not be evaluated: name and reason.
+    pub unavailable: Vec<(String, String)>,
+    /// The chosen set (admissible, largest held-out gain), members ordered by their gain alone.
+    pub chosen: Option<SetEval>,
+    /// Pairs of candidates the data cannot tell apart: names and the inflation.
+    pub confounded: Vec<(String, String, f64)>,
+    /// Admissible sets that explain the data as well as the chosen one (within the noise of
+    /// the comparison) with other members.
+    pub alternatives: Vec<SetEval>,
+}
+
+/// The physical limits and the starting model's rigid body, which candidates are judged
+/// against.
+pub(crate) struct Judge<'a> {
+    pub limits: &'a Limits,
+    /// The model's fitted rigid body (refits are only blamed for what they break).
+    pub current: InertialParams,
+    /// Mean measured thrust \[N\].
+    pub mean_thrust: f64,
+    /// Bonferroni divisor.
+    pub tests: f64,
+    pub alpha: f64,
+}
+
+/// The usable candidates of `opts` for `model`, and the reasons of the others.
+pub(crate) fn usable_candidates(
+    model: &Model,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+) -> (Vec<EffectRef>, Vec<(String, String)>) {
+    let mut ok = Vec::new();
+    let mut not = Vec::new();
+    for e in opts.candidates.iter().filter(|c| !model.has(c.name())) {
+        // One effect per family: the drag laws (and a wind, which carries a drag) or a lag
+        // and a delay would split one physical effect between them.
+        let member = Member {
+            effect: e.clone(),
+            param: None,
+        };
+        if let Some(f) = model.effects().iter().find(|f| {
+            same_family(
+                &member,
+                &Member {
+                    effect: (*f).clone(),
+                    param: None,
+                },
+            )
+        }) {
+            not.push((
+                e.name().to_string(),
+                format!("the model has `{}`, of the same family", f.name()),
+            ));
+            continue;
+        }
+        if e.needs_known_mass() && model.known_mass().is_none() {
+            not.push((
+                e.name().to_string(),
+                "needs a known mass (`--mass KG`): a thrust-gain error and a mass error scale the regression alike".into(),
+            ));
+            continue;
+        }
+        if let Err(reason) = crate::effects::usable(e.as_ref(), s) {
+            not.push((e.name().to_string(), reason));
+            continue;
+        }
+        ok.push(e.clone());
+    }
+    (ok, not)
+}
+
+impl Context<'_> {
+    /// Scores and judges the set `members` (each scanned member's parameter re-scanned in the
+    /// set when `rescan`), with `base` the model's own score.
+    pub fn judge_set(
+        &self,
+        engine: &GramEngine<'_>,
+        fit_engine: &GramEngine<'_>,
+        mut members: Vec<Member>,
+        base: &Score,
+        judge: &Judge<'_>,
+        rescan: bool,
+    ) -> SetEval {
+        let mut scans = vec![ScanResult::default(); members.len()];
+        for k in 0..members.len() {
+            if members[k].effect.scan().is_some() && (rescan || members[k].param.is_none()) {
+                let r = self.scan(fit_engine, &members, k);
+                members[k].param = r.best;
+                scans[k] = r;
+            }
+        }
+        let score = self.score(engine, &members);
+        let n = self.s.len() as f64;
+        let scales = score.channel_scales(n);
+        let nb = self.base_columns();
+        let mut verdicts = Vec::with_capacity(members.len());
+        let mut offset = nb;
+        for (k, m) in members.iter().enumerate() {
+            let width = score.widths[k];
+            let coef: Vec<f64> = score.ev.beta[offset..offset + width].to_vec();
+            let se: Vec<f64> = (offset..offset + width)
+                .map(|j| score.std_error(j, n))
+                .collect();
+            // The effect is told apart when some direction of its columns is: the smallest
+            // inflation of its coefficients (one poorly determined coefficient, a vertical drag
+            // on a level flight, shows in its interval instead). Start-of-log nuisance
+            // columns are not the effect's physics: left out.
+            let inflation = (offset..offset + width)
+                .zip(&score.names[k])
+                .filter(|(_, (name, _))| !name.starts_with("start_"))
+                .map(|(j, _)| score.ev.inflation(j))
+                .fold(f64::INFINITY, f64::min);
+            let inflation = if inflation.is_finite() { inflation } else { 1.0 };
+            offset += width;
+            let rest: Vec<Member> = members
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, m)| m.clone())
+                .collect();
+            let without = if rest.is_empty() {
+                base.clone()
+            } else {
+                self.score(engine, &rest)
+            };
+            let gain = without.cv - score.cv;
+            // The likelihood ratio, each channel in units of its own residual variance and
+            // autocorrelation (a channel far from its noise does not drown the others).
+            let statistic: f64 = (0..6)
+                .map(|c| {
+                    let drop = (without.fit_ch[c] + without.logdet[c])
+                        - (score.fit_ch[c] + score.logdet[c]);
+                    drop.max(0.0) / scales[c]
+                })
+                .sum();
+            let dof = width + usize::from(m.effect.scan().is_some());
+            let p_value = stats::chi2_survival(statistic, dof as f64);
+            verdicts.push(MemberVerdict {
+                gain,
+                statistic,
+                dof,
+                p_value,
+                coef,
+                se,
+                inflation,
+                refusal: None,
+            });
+        }
+        // Refusals, in the order of [`Refusal`].
+        let theta = self.rigid_theta(&score);
+        let theta_se = self.rigid_se(&score);
+        let names: Vec<String> = members.iter().map(|m| m.name().to_string()).collect();
+        for k in 0..members.len() {
+            let v = &verdicts[k];
+            let m = &members[k];
+            let refusal = if v.gain <= 0.0 {
+                Some(Refusal::Worse)
+            } else if let Some(viol) = self.implausible(m, v, &score.names[k], &theta, &theta_se, judge)
+            {
+                Some(Refusal::Implausible(viol))
+            } else if scans[k].at_end || at_range_end(m) {
+                let (lo, hi) = scans[k].range;
+                let (lo, hi) = if lo.is_finite() { (lo, hi) } else { grid_range(m) };
+                Some(Refusal::OutOfRange {
+                    value: m.param.unwrap_or(f64::NAN),
+                    lo,
+                    hi,
+                })
+            } else if v.inflation > MAX_INFLATION {
+                let others: Vec<String> = names
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .map(|(_, n)| format!("`{n}`"))
+                    .collect();
+                Some(Refusal::Confounded {
+                    with: if others.is_empty() {
+                        "the rigid body (mass, centre of mass, inertia)".into()
+                    } else {
+                        others.join(", ")
+                    },
+                    inflation: v.inflation,
+                })
+            } else if v.statistic < chi2_quantile(judge.alpha / judge.tests, v.dof as f64) {
+                Some(Refusal::NotSignificant { p_value: v.p_value })
+            } else if v.gain < MIN_GAIN * n {
+                Some(Refusal::Small { gain: v.gain / n })
+            } else {
+                None
+            };
+            verdicts[k].refusal = refusal;
+        }
+        SetEval {
+            gain: base.cv - score.cv,
+            members,
+            score,
+            verdicts,
+            scans,
+        }
+    }
+
+    /// The rigid body of a score (the first coefficients; the known mass put back).
+    pub fn rigid_theta(&self, score: &Score) -> InertialParams {
+        let nr = self.rigid_columns();
+        let mut theta = [0.0; 10];
+        theta[10 - nr..].copy_from_slice(&score.ev.beta[..nr]);
+        if let Some(m) = self.model.known_mass() {
+            theta[0] = m;
+        }
+        InertialParams::from_array(theta)
+    }
+
+    /// Standard errors of the rigid body of a score ([`Score::std_error`]).
+    fn rigid_se(&self, score: &Score) -> [f64; 10] {
+        let nr = self.rigid_columns();
+        let n = self.s.len() as f64;
+        let mut se = [0.0; 10];
+        for j in 0..nr {
+            se[10 - nr + j] = score.std_error(j, n);
+        }
+        se
+    }
+
+    /// The first physical rule member `m`'s refit breaks: its own, then the rigid body's.
+    fn implausible(
+        &self,
+        m: &Member,
+        v: &MemberVerdict,
+        names: &[(String, String)],
+        theta: &InertialParams,
+        theta_se: &[f64; 10],
+        judge: &Judge<'_>,
+    ) -> Option<Violation> {
+        let own: Plausibility = m.effect.plausibility(&v.coef, &v.se, m.param);
+        if !own.plausible {
+            return Some(Violation {
+                rule: if own.rule.is_empty() {
+                    "effect".into()
+                } else {
+                    own.rule.clone()
+                },
+                note: own.note,
+            });
+        }
+        let coefficients: Vec<(String, String, f64)> = names
+            .iter()
+            .zip(&v.coef)
+            .map(|((n, u), c)| (n.clone(), u.clone(), *c))
+            .collect();
+        rigid_violation(
+            judge.limits,
+            &judge.current,
+            theta,
+            theta_se,
+            &coefficients,
+            judge.mean_thrust,
+        )
+    }
+}
+
+/// `true` when a member's parameter lies at an end of its scan grid.
+fn at_range_end(m: &Member) -> bool {
+    let (Some(p), Some(_)) = (m.param, m.effect.scan()) else {
+        return false;
+    };
+    let (lo, hi) = grid_range(m);
+    p <= lo || p >= hi
+}
+
+/// The range of a member's scan grid.
+fn grid_range(m: &Member) -> (f64, f64) {
+    m.effect.scan().map_or((f64::NAN, f64::NAN), |sp| {
+        (
+            sp.grid.iter().copied().fold(f64::INFINITY, f64::min),
+            sp.grid.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        )
+    })
+}
+
+/// Runs the search for the next step from the context's model (module docs).
+pub(crate) fn search(
+    ctx: &Context<'_>,
+    opts: &DiagnoseOptions,
+    limits: &Limits,
+    current: InertialParams,
+) -> Search {
+    let (candidates, unavailable) = usable_candidates(&ctx.model, ctx.s, opts);
+    let engine = ctx.engine();
+    let fit_engine = ctx.fit_engine();
+    let base = ctx.score(&engine, &[]);
+    let mean_thrust =
+        ctx.s.wrench().iter().map(|b| b[2]).sum::<f64>() / ctx.s.len().max(1) as f64;
+    let judge = Judge {
+        limits,
+        current,
+        mean_thrust,
+        tests: candidates.len().max(1) as f64,
+        alpha: opts.alpha,
+    };
+    let mut unavailable = unavailable;
+    let mut singles = Vec::new();
+    for e in &candidates {
+        // A candidate whose columns cannot enter the regression here is unavailable.
+        let param = e.scan().map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2]));
+        if let Err(reason) = crate::fit::checked_effect_design(e.as_ref(), ctx.s, param) {
+            unavailable.push((e.name().to_string(), reason));
+            continue;
+        }
+        // The scan's best value must give usable columns too (a user's effect may not).
+        let mut member = Member {
+            effect: e.clone(),
+            param: None,
+        };
+        let mut scans = ScanResult::default();
+        if e.scan().is_some() {
+            scans = ctx.scan(&fit_engine, std::slice::from_ref(&member), 0);
+            member.param = scans.best;
+        }
+        if let Err(reason) = crate::fit::checked_effect_design(e.as_ref(), ctx.s, member.param) {
+            unavailable.push((e.name().to_string(), reason));
+            continue;
+        }
+        let mut set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
+        set.scans[0] = scans;
+        singles.push(set);
+    }
+    // The pool of pairs and triples: the best singles by held-out gain (at least not worse).
+    let mut order: Vec<usize> = (0..singles.len()).collect();
+    order.sort_by(|&a, &b| singles[b].gain.total_cmp(&singles[a].gain));
+    let pool: Vec<usize> = order
+        .iter()
+        .copied()
+        .filter(|&i| singles[i].gain > 0.0)
+        .take(PAIR_POOL)
+        .collect();
+    let mut sets: Vec<SetEval> = singles.clone();
+    let start_of = |i: usize| singles[i].members[0].clone();
+    for a in 0..pool.len() {
+        for b in a + 1..pool.len() {
+            if same_family(&start_of(pool[a]), &start_of(pool[b])) {
+                continue;
+            }
+            let members = vec![start_of(pool[a]), start_of(pool[b])];
+            sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, true));
+        }
+    }
+    let triple_pool: Vec<usize> = pool.iter().copied().take(TRIPLE_POOL).collect();
+    for a in 0..triple_pool.len() {
+        for b in a + 1..triple_pool.len() {
+            for c in b + 1..triple_pool.len() {
+                let members = vec![
+                    start_of(triple_pool[a]),
+                    start_of(triple_pool[b]),
+                    start_of(triple_pool[c]),
+                ];
+                if same_family(&members[0], &members[1])
+                    || same_family(&members[0], &members[2])
+                    || same_family(&members[1], &members[2])
+                {
+                    continue;
+                }
+                sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, true));
+            }
+        }
+    }
+    // Pairs the data cannot tell apart.
+    let mut confounded = Vec::new();
+    for set in sets.iter().filter(|s| s.members.len() == 2) {
+        for v in &set.verdicts {
+            if let Some(Refusal::Confounded { inflation, .. }) = &v.refusal {
+                confounded.push((set.names()[0].clone(), set.names()[1].clone(), *inflation));
+                break;
+            }
+        }
+    }
+    let best = sets
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.admissible())
+        .max_by(|a, b| a.1.gain.total_cmp(&b.1.gain))
+        .map(|(i, _)| i);
+    let chosen = best.map(|i| {
+        let mut set = sets[i].clone();
+        // Members in the order of their gain alone.
+        let gain_alone = |name: &str| {
+            singles
+                .iter()
+                .find(|s| s.members[0].name() == name)
+                .map_or(f64::NEG_INFINITY, |s| s.gain)
+        };
+        let mut idx: Vec<usize> = (0..set.members.len()).collect();
+        idx.sort_by(|&a, &b| {
+            gain_alone(set.members[b].name()).total_cmp(&gain_alone(set.members[a].name()))
+        });
+        set.members = idx.iter().map(|&k| set.members[k].clone()).collect();
+        set.verdicts = idx.iter().map(|&k| set.verdicts[k].clone()).collect();
+        set.scans = idx.iter().map(|&k| set.scans[k].clone()).collect();
+        set
+    });
+    // Alternatives: admissible sets with other members whose gain is within the comparison's
+    // noise of the chosen one (the held-out scores of two sets differ by chance by about
+    // twice the square root of their gains).
+    let alternatives = match &chosen {
+        None => Vec::new(),
+        Some(c) => {
+            let names: BTreeSet<String> = c.names().into_iter().collect();
+            sets.iter()
+                .filter(|s| s.admissible())
+                .filter(|s| s.names().into_iter().collect::<BTreeSet<_>>() != names)
+                .filter(|s| s.members.len() == c.members.len())
+                .filter(|s| c.gain - s.gain <= 2.0 * c.gain.max(1.0).sqrt())
+                .cloned()
+                .collect()
+        }
+    };
+    Search {
+        base,
+        singles,
+        unavailable,
+        chosen,
+        confounded,
+        alternatives,
+    }
+}
+
+/// `true` when two members belong to one effect family (the drag laws; a lag and a delay):
+/// such pairs are not tried together, they would split one physical effect between them.
+fn same_family(a: &Member, b: &Member) -> bool {
+    use tagk_dynamics::EffectKind;
+    let family = |m: &Member| EffectKind::from_name(m.name()).map(|k| k.family());
+    match (family(a), family(b)) {
+        (Some(x), Some(y)) => {
+            x == y
+                || (EffectKind::from_name(a.name()).is_some_and(EffectKind::includes_drag)
+                    && y == EffectKind::LinearDrag.family())
+                || (EffectKind::from_name(b.name()).is_some_and(EffectKind::includes_drag)
+                    && x == EffectKind::LinearDrag.family())
+        }
+        _ => false,
+    }
+}
+

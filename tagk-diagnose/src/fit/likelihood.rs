@@ -1,0 +1,317 @@
+//! The score every model is judged on: the Gaussian log-likelihood of the measured wrench,
+//! channel by channel, under a noise with two sources.
+//!
+//! **Two sources.** The residual of a channel carries the noise of the measured wrench `ε`
+//! (rotor speeds read back, or the logged command; σ_b) and the noise of the motion sensors
+//! through the model `η` (accelerometer, gyro; σ_m), both white. Without a filter of the
+//! target the residual is `ε − η`, of variance `σ² = σ_b² + σ_m²`, and the score is the sum
+//! of squares in units of σ².
+//!
+//! **With a filter of the target** (a motor lag: the regression's target is the lagged
+//! wrench `L b`, `L(z) = (g₀ + g₁ z⁻¹) / (1 − a z⁻¹)`), the residual `r = L ε − η` is
+//! coloured: its spectrum times `|1 − a z⁻¹|²` is `A + B (z + z⁻¹)` with
+//! `A = σ_b² (g₀² + g₁²) + σ_m² (1 + a²)` and `B = σ_b² g₀ g₁ − σ_m² a`, which factors as
+//! `K |1 + c z⁻¹|²` (`K (1 + c²) = A`, `K c = B`, `|c| < 1`). The monic filter
+//! `W(z) = (1 − a z⁻¹) / (1 + c z⁻¹)` whitens it to innovations of variance `K`, and the
+//! likelihood of the *measured* wrench is that of `r` plus the Jacobian of `b → L b`
+//! (`n ln g₀`): in units of σ², `−2 ln p = Σ (W r)² / K + n ln(K / σ²) − 2 n ln g₀`
+//! (+ the same constant for every model). With `σ_m = 0` this is the sum of squares of
+//! `L⁻¹ r`, the error of predicting `b` itself; with `σ_b = 0` that of `r` plus the cost of
+//! predicting `b` through the inverse of the lag. Neither limit drifts: a longer lag
+//! smooths the wrench's noise but pays for it in `K` and `g₀`.
+
+use crate::signals::Signals;
+
+/// A first-order filter of the measured wrench on one channel, for the log's mean step:
+/// `y_k = g₀ b_k + g₁ b_{k−1} + a y_{k−1}`, i.e. `L(z) = (g₀ + g₁ z⁻¹) / (1 − a z⁻¹)`
+/// (a motor lag's response sampled at the interval's middle or as its mean).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetFilter {
+    /// Direct gain `g₀` (`0 < g₀ ≤ 1`).
+    pub g0: f64,
+    /// Gain of the previous sample `g₁`.
+    pub g1: f64,
+    /// Pole `a` (`0 ≤ a < 1`).
+    pub a: f64,
+}
+
+/// The two noise sources per channel (module docs): the measured wrench's σ_b and the
+/// motion sensors' σ_m (N, N m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NoiseModel {
+    pub wrench: [f64; 6],
+    pub motion: [f64; 6],
+}
+
+impl NoiseModel {
+    /// Total variance of channel `c`, `σ_b² + σ_m²`.
+    pub fn variance(&self, c: usize) -> f64 {
+        self.wrench[c].powi(2) + self.motion[c].powi(2)
+    }
+
+    /// The same total σ per channel as `sigma`, split in the proportions of this model (half
+    /// and half where it has none).
+    pub fn scaled_to(&self, sigma: &[f64; 6]) -> NoiseModel {
+        let mut out = *self;
+        for c in 0..6 {
+            let v = self.variance(c);
+            let share = if v > 0.0 && v.is_finite() {
+                self.wrench[c].powi(2) / v
+            } else {
+                0.5
+            };
+            out.wrench[c] = sigma[c] * share.sqrt();
+            out.motion[c] = sigma[c] * (1.0 - share).sqrt();
+        }
+        out
+    }
+}
+
+/// The whitening of a residual of a filtered target (module docs): `(c, K)` for a filter
+/// and the two variances `sb2`, `sm2`.
+fn whitening(f: &TargetFilter, sb2: f64, sm2: f64) -> (f64, f64) {
+    let a_ = sb2 * (f.g0 * f.g0 + f.g1 * f.g1) + sm2 * (1.0 + f.a * f.a);
+    let b_ = sb2 * f.g0 * f.g1 - sm2 * f.a;
+    if !(a_ > 0.0) {
+        return (0.0, f64::MIN_POSITIVE);
+    }
+    if b_.abs() <= 1e-15 * a_ {
+        return (0.0, a_);
+    }
+    let disc = (a_ * a_ - 4.0 * b_ * b_).max(0.0).sqrt();
+    let c = (a_ - disc) / (2.0 * b_);
+    (c, b_ / c)
+}
+
+/// One channel's score over one stretch of residual `r` (module docs): the innovations'
+/// sum of squares in units of K, and the log-determinant term, both in units of the
+/// channel's total variance `σ_b² + σ_m²`.
+pub(crate) fn channel_score(r: &[f64], filter: Option<&TargetFilter>, sb: f64, sm: f64) -> (f64, f64) {
+    let (sb2, sm2) = (sb * sb, sm * sm);
+    let total = (sb2 + sm2).max(f64::MIN_POSITIVE);
+    let Some(f) = filter else {
+        return (r.iter().map(|x| x * x).sum::<f64>() / total, 0.0);
+    };
+    let (c, k) = whitening(f, sb2, sm2);
+    let k = k.max(f64::MIN_POSITIVE);
+    let mut sum = 0.0;
+    let (mut prev_r, mut prev_v) = (0.0, 0.0);
+    for (i, &x) in r.iter().enumerate() {
+        let v = if i == 0 { x } else { x - f.a * prev_r - c * prev_v };
+        sum += v * v;
+        prev_r = x;
+        prev_v = v;
+    }
+    let n = r.len() as f64;
+    let logdet = n * (k / total).ln() - 2.0 * n * f.g0.abs().max(f64::MIN_POSITIVE).ln();
+    (sum / k, logdet)
+}
+
+/// The whitened residual of one stretch, in the channel's units (`W r · σ / √K`): white
+/// with the channel's variance at the true model. Without a filter, `r` itself.
+pub(crate) fn whitened(r: &[f64], filter: Option<&TargetFilter>, sb: f64, sm: f64) -> Vec<f64> {
+    let Some(f) = filter else {
+        return r.to_vec();
+    };
+    let (sb2, sm2) = (sb * sb, sm * sm);
+    let (c, k) = whitening(f, sb2, sm2);
+    let scale = ((sb2 + sm2) / k.max(f64::MIN_POSITIVE)).sqrt();
+    let mut out = Vec::with_capacity(r.len());
+    let (mut prev_r, mut prev_v) = (0.0, 0.0);
+    for (i, &x) in r.iter().enumerate() {
+        let v = if i == 0 { x } else { x - f.a * prev_r - c * prev_v };
+        out.push(v * scale);
+        prev_r = x;
+        prev_v = v;
+    }
+    out
+}
+
+/// The ratio by which a filter's inverse raises the second-difference (high-frequency)
+/// power of white noise: what the noise estimate of a residual mapped back through the
+/// inverse filter sees of the motion sensors' noise (a numerical integral over frequency).
+pub(crate) fn inverse_gain(f: &TargetFilter) -> f64 {
+    const POINTS: usize = 512;
+    let (mut num, mut den) = (0.0, 0.0);
+    for k in 0..POINTS {
+        let w = std::f64::consts::PI * (k as f64 + 0.5) / POINTS as f64;
+        let (cw, sw) = (w.cos(), w.sin());
+        // |1 − z⁻¹|⁴ = (2 − 2 cos ω)².
+        let d2 = (2.0 - 2.0 * cw).powi(2);
+        // |L|² = |g0 + g1 e^{−iω}|² / |1 − a e^{−iω}|².
+        let n2 = (f.g0 + f.g1 * cw).powi(2) + (f.g1 * sw).powi(2);
+        let p2 = (1.0 - f.a * cw).powi(2) + (f.a * sw).powi(2);
+        num += d2 * p2 / n2.max(f64::MIN_POSITIVE);
+        den += d2;
+    }
+    num / den
+}
+
+/// The sample ranges of the logs joined in `s` (the whole log for a single one).
+pub(crate) fn part_ranges(s: &Signals) -> Vec<std::ops::Range<usize>> {
+    let parts = s.parts();
+    if parts.is_empty() {
+        return vec![0..s.len()];
+    }
+    let mut out = Vec::with_capacity(parts.len());
+    let mut lo = 0;
+    for p in parts {
+        out.push(lo..lo + p.len());
+        lo += p.len();
+    }
+    out
+}
+
+/// The median of a χ²₁ variable: the robust scale of squared Gaussian values.
+const CHI2_1_MEDIAN: f64 = 0.454_936_423_119_572_8;
+
+/// The robust high-frequency noise estimate of each channel of `series`: the median of the
+/// squared second differences over `6 × 0.4549` (for white noise `Δ²e` has variance `6 σ²`;
+/// a residual that varies slowly with the flight has almost none). Second differences never
+/// cross a join of several logs. 0 where no part has three samples.
+pub(crate) fn high_frequency_noise(s: &Signals, series: &[[f64; 6]]) -> [f64; 6] {
+    let ranges = part_ranges(s);
+    std::array::from_fn(|c| {
+        let mut d2: Vec<f64> = Vec::with_capacity(series.len());
+        for r in &ranges {
+            for w in series[r.clone()].windows(3) {
+                let d = w[2][c] - 2.0 * w[1][c] + w[0][c];
+                if d.is_finite() {
+                    d2.push(d * d);
+                }
+            }
+        }
+        if d2.is_empty() {
+            return 0.0;
+        }
+        let mid = d2.len() / 2;
+        let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+        (*m / (6.0 * CHI2_1_MEDIAN)).sqrt()
+    })
+}
+
+/// The filter of each channel by the filtering effects of `effects` (at their parameters) on
+/// `s` (the first effect that filters a channel; `None` where none does).
+pub(crate) fn channel_filters(
+    effects: &[(crate::EffectRef, Option<f64>)],
+    s: &Signals,
+) -> [Option<TargetFilter>; 6] {
+    std::array::from_fn(|c| {
+        effects
+            .iter()
+            .find_map(|(e, p)| e.target_filter(s, *p, c))
+    })
+}
+
+/// The two noise sources of each channel from a model's residual `e` of the measured wrench
+/// (its filters undone): with `b` the measured wrench and `p = b − e` the prediction, both
+/// share the flight's own high-frequency motion `J`, so `HF(b)² = J² + σ_b²`,
+/// `HF(p)² = J² + G σ_m²` and `HF(e)² = σ_b² + G σ_m²` (`G` the inverse filter's gain of
+/// the channel, [`inverse_gain`]; 1 without a filter): `σ_b² = (HF(b)² − HF(p)² + HF(e)²)/2`
+/// and `σ_m² = (HF(e)² − σ_b²) / G`. Returns the model and the raw estimate `HF(e)`.
+pub(crate) fn estimate_noise(
+    s: &Signals,
+    e: &[[f64; 6]],
+    filters: &[Option<TargetFilter>; 6],
+) -> (NoiseModel, [f64; 6]) {
+    let hf_e = high_frequency_noise(s, e);
+    let hf_b = high_frequency_noise(s, s.target());
+    let predicted: Vec<[f64; 6]> = s
+        .target()
+        .iter()
+        .zip(e)
+        .map(|(b, r)| std::array::from_fn(|c| b[c] - r[c]))
+        .collect();
+    let hf_p = high_frequency_noise(s, &predicted);
+    let mut model = NoiseModel {
+        wrench: [0.0; 6],
+        motion: [0.0; 6],
+    };
+    for c in 0..6 {
+        let e2 = hf_e[c] * hf_e[c];
+        let b2 = (0.5 * (hf_b[c].powi(2) - hf_p[c].powi(2) + e2)).clamp(0.0, e2);
+        let g = filters[c].as_ref().map_or(1.0, inverse_gain).max(1.0);
+        model.wrench[c] = b2.sqrt();
+        model.motion[c] = ((e2 - b2).max(0.0) / g).sqrt();
+    }
+    (model, hf_e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A filtered white noise plus a white noise: the whitening gives innovations of the
+    /// stated variance, uncorrelated at lag 1, and the score's limits are those of the docs.
+    #[test]
+    fn the_whitening_whitens_and_its_limits_hold() {
+        let f = TargetFilter {
+            g0: 0.4,
+            g1: 0.2,
+            a: 0.4,
+        };
+        // A deterministic pseudo-random pair of white sequences.
+        let mut state = 12345u64;
+        let mut gauss = || {
+            let mut u = || {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (u1, u2) = (u(), u());
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let n = 200_000;
+        let (sb, sm) = (1.0, 0.7);
+        let eps: Vec<f64> = (0..n).map(|_| sb * gauss()).collect();
+        let eta: Vec<f64> = (0..n).map(|_| sm * gauss()).collect();
+        let mut r = vec![0.0; n];
+        let mut y = 0.0;
+        for k in 0..n {
+            let prev = if k > 0 { eps[k - 1] } else { 0.0 };
+            y = f.g0 * eps[k] + f.g1 * prev + f.a * y;
+            r[k] = y - eta[k];
+        }
+        let w = whitened(&r, Some(&f), sb, sm);
+        let total = sb * sb + sm * sm;
+        let var = w.iter().map(|x| x * x).sum::<f64>() / n as f64;
+        assert!((var / total - 1.0).abs() < 0.02, "whitened variance {var}");
+        let lag1 = w.windows(2).map(|p| p[0] * p[1]).sum::<f64>() / n as f64 / var;
+        assert!(lag1.abs() < 0.01, "lag-1 correlation {lag1}");
+        // σ_m = 0: the score is the sum of squares of L⁻¹ r in units of σ_b².
+        let (norm, logdet) = channel_score(&r[..10], Some(&f), 1.0, 0.0);
+        let mut inv = Vec::new();
+        let (mut prev_y, mut prev_u) = (0.0, 0.0);
+        for (k, &x) in r[..10].iter().enumerate() {
+            let u = if k == 0 {
+                x / f.g0
+            } else {
+                (x - f.a * prev_y - f.g1 * prev_u) / f.g0
+            };
+            inv.push(u);
+            prev_y = x;
+            prev_u = u;
+        }
+        let direct: f64 = inv.iter().map(|u| u * u).sum();
+        assert!((norm - direct).abs() <= 1e-9 * direct, "{norm} vs {direct}");
+        assert!(logdet.abs() < 1e-9);
+    }
+
+    /// Without a filter the inverse gain is 1; a lag's inverse raises the high frequencies.
+    #[test]
+    fn the_inverse_gain_of_a_lag_exceeds_one() {
+        let none = TargetFilter {
+            g0: 1.0,
+            g1: 0.0,
+            a: 0.0,
+        };
+        assert!((inverse_gain(&none) - 1.0).abs() < 1e-12);
+        let a: f64 = (-1.0f64).exp();
+        let g = a.sqrt();
+        let lag = TargetFilter {
+            g0: 1.0 - g,
+            g1: g - a,
+            a,
+        };
+        assert!(inverse_gain(&lag) > 2.0);
+    }
+}
