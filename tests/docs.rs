@@ -336,8 +336,9 @@ fn the_document_states_the_code_s_constants_and_columns() {
     states(6, "quaternion norm tolerance", QUATERNION_NORM_TOLERANCE);
     {
         use tagk::diagnose::{
-            DiagnoseOptions, FLOOR_MARGIN, FLOOR_RESOLUTION, MAX_CHANNEL_WORSENING,
-            MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MIN_GAIN_OF_FLOOR,
+            ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, DiagnoseOptions,
+            FLOOR_RESOLUTION, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE,
+            MIN_GAIN,
         };
         let defaults = DiagnoseOptions::default();
         states(7, "mass change [%]", 100.0 * MAX_MASS_CHANGE);
@@ -346,9 +347,11 @@ fn the_document_states_the_code_s_constants_and_columns() {
             "constant force of the thrust [%]",
             100.0 * MAX_CONSTANT_FORCE_OF_THRUST,
         );
-        states(7, "channel worsening [%]", 100.0 * MAX_CHANNEL_WORSENING);
-        states(7, "gain of the floor [%]", 100.0 * MIN_GAIN_OF_FLOOR);
-        states(7, "floor margin [%]", 100.0 * FLOOR_MARGIN);
+        states(7, "held-out gain [%]", 100.0 * MIN_GAIN);
+        states(7, "variance inflation", MAX_INFLATION);
+        states(7, "adequacy factor", ADEQUACY_FACTOR);
+        states(7, "adequate autocorrelation", ADEQUATE_AUTOCORRELATION);
+        states(7, "consistency tolerance", CONSISTENCY_TOLERANCE);
         states(7, "floor resolution", FLOOR_RESOLUTION);
         states(7, "alpha", defaults.alpha);
         states(7, "folds", defaults.folds as f64);

@@ -560,7 +560,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     html.push_str("</div>");
     // Residual over time with the failure windows and the noise floor.
     html.push_str(
-        "<h3>Residual over time</h3><p class=\"note\">Dashed: ± the channel's noise floor (held-out RMS a model can reach). \
+        "<h3>Residual over time</h3><p class=\"note\">Dashed: ± the channel's noise (what no model can predict). \
          A residual outside it throughout is missing physics; red: windows where the residual is \
          significantly larger than in the rest of the flight; grey: the start transient.</p><div class=\"grid\">",
     );
@@ -580,7 +580,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
         let ratio = d.held_out_rms[c] / floor;
         html.push_str(&line_plot(
             &format!(
-                "residual {} [{}], held-out RMS {:.1}× floor",
+                "residual {} [{}], held-out RMS {:.1}× noise",
                 CHANNEL_NAMES[c], CHANNEL_UNITS[c], ratio
             ),
             "time [s]",
@@ -592,7 +592,7 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
                 y: &r,
             }],
             &spans,
-            &[(floor, "± noise floor"), (-floor, "")],
+            &[(floor, "± noise"), (-floor, "")],
         ));
     }
     html.push_str("</div>");
@@ -750,7 +750,7 @@ const CHANNEL_DASHES: [&str; 6] = ["", "6 3", "2 2", "8 3 2 3", "1 3", "12 4"];
 /// why it stopped, the command that reproduces the final model, each log's own verdict, and a
 /// plot of each channel's held-out RMS over the floor step by step.
 fn section_staircase(html: &mut String, report: &Report) {
-    html.push_str("<h2 id=\"staircase\">Stepwise: held-out residual RMS per channel (blocked CV), down to the noise floor</h2>");
+    html.push_str("<h2 id=\"staircase\">Stepwise: held-out residual RMS per channel (blocked CV), against each channel's noise</h2>");
     html.push_str("<table id=\"steps\"><tr><th>step</th>");
     for c in 0..6 {
         let _ = write!(html, "<th>{} [{}]</th>", CHANNEL_NAMES[c], CHANNEL_UNITS[c]);
@@ -776,12 +776,16 @@ fn section_staircase(html: &mut String, report: &Report) {
         }
         html.push_str("</tr>");
     }
-    html.push_str("<tr><td>noise floor</td>");
+    html.push_str("<tr><td>noise</td>");
     for f in report.noise_floor.rms {
         let _ = write!(html, "<td>{f:.3e}</td>");
     }
-    html.push_str("</tr><tr><td>HF noise estimate</td>");
-    for f in report.noise_floor.noise_estimate {
+    html.push_str("</tr><tr><td>of it: measured wrench</td>");
+    for f in report.noise_floor.from_wrench {
+        let _ = write!(html, "<td>{f:.3e}</td>");
+    }
+    html.push_str("</tr><tr><td>of it: motion sensors</td>");
+    for f in report.noise_floor.from_motion {
         let _ = write!(html, "<td>{f:.3e}</td>");
     }
     html.push_str("</tr></table>");
@@ -819,7 +823,7 @@ fn section_staircase(html: &mut String, report: &Report) {
             })
             .collect();
         html.push_str(&line_plot(
-            "log10(held-out RMS / noise floor) per step (0 = at the floor)",
+            "log10(held-out RMS / noise) per step (0 = at the noise)",
             "step",
             &series,
             &[],
@@ -852,15 +856,24 @@ pub fn render(report: &Report) -> String {
     let mut html = String::from(
         "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
     );
+    // The staircase's first step, and — separately — whether the final model is adequate: a
+    // model with nothing left to add need not be at its noise.
+    let first_step = match report.steps.get(1).and_then(|s| s.effect.as_deref()) {
+        Some(_) => report.final_model.added.join(" + "),
+        None => "nothing (no admissible set of effects)".to_string(),
+    };
     let _ = write!(
         html,
-        "<p id=\"summary\">recommended: <b>{}</b></p>",
-        escape(
-            report
-                .recommended
-                .as_deref()
-                .unwrap_or("none — model adequate")
-        )
+        "<p id=\"summary\">found: <b>{}</b>; final model {}</p>",
+        escape(&first_step),
+        if report.adequate {
+            "<b>adequate</b> (what remains is the noise)".to_string()
+        } else {
+            format!(
+                "<b class=\"warn\">not adequate</b>: {}",
+                escape(&report.final_diagnosis().verdict)
+            )
+        }
     );
     if !report.streams.is_empty() {
         // The terminal's lines: one wording for both (docs/CONVENTIONS.md §7.2).

@@ -454,6 +454,9 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
         }
         if let Some((n, v, u)) = &e.scanned {
             s.push_str(&format!(", {n} = {v:.3} {u}"));
+            if let Some([lo, hi]) = e.scanned_interval {
+                s.push_str(&format!(" [{lo:.3}, {hi:.3}]"));
+            }
         }
         s.push_str(if e.plausible {
             "\n"
@@ -470,12 +473,36 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
             s.push_str(&format!("  - {f}\n"));
         }
     }
-    s.push_str("what is missing (held-out residual reduction, blocked CV):\n");
+    s.push_str(
+        "what is missing (each candidate alone: held-out error in units of each channel's noise, blocked CV):\n",
+    );
     for (k, c) in d.ranking.iter().enumerate() {
         s.push_str(&format!("  {:>2}. {}\n", k + 1, c.explanation));
     }
     for u in &d.unavailable {
         s.push_str(&format!("   -  {}: skipped, {}\n", u.effect, u.reason));
+    }
+    for c in &d.confounded {
+        s.push_str(&format!(
+            "cannot be told apart: `{}` and {} (variance inflation {:.0}): {}\n",
+            c.effects[0],
+            if c.effects[1] == "rigid body" {
+                "the rigid body".to_string()
+            } else {
+                format!("`{}`", c.effects[1])
+            },
+            c.inflation,
+            c.advice
+        ));
+    }
+    for a in &d.alternatives {
+        s.push_str(&format!(
+            "explains the data as well: {}\n",
+            a.iter()
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(" + ")
+        ));
     }
     s.push_str(&format!("verdict: {}\n", d.verdict));
     s
@@ -485,7 +512,7 @@ pub fn diagnosis_table(d: &Diagnosis) -> String {
 /// then the floor, why the search stopped and the final model.
 pub fn staircase_table(r: &Report) -> String {
     let mut s = format!(
-        "=== stepwise: held-out residual RMS per channel (blocked CV), down to the noise floor ===\n{:<26}",
+        "=== stepwise: held-out residual RMS per channel (blocked CV), against each channel's noise ===\n{:<26}",
         "step"
     );
     for c in CHANNEL_NAMES {
@@ -509,15 +536,19 @@ pub fn staircase_table(r: &Report) -> String {
         s.push('\n');
     }
     let source = match r.noise_floor.source {
-        FloorSource::Data => "noise floor (data)",
-        FloorSource::Given => "noise floor (given)",
+        FloorSource::Data => "noise (data)",
+        FloorSource::Given => "noise (given)",
     };
     s.push_str(&format!("{source:<26}"));
     for f in r.noise_floor.rms {
         s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
     }
-    s.push_str(&format!("\n{:<26}", "HF noise estimate"));
-    for f in r.noise_floor.noise_estimate {
+    s.push_str(&format!("\n{:<26}", "  of it: measured wrench"));
+    for f in r.noise_floor.from_wrench {
+        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
+    }
+    s.push_str(&format!("\n{:<26}", "  of it: motion sensors"));
+    for f in r.noise_floor.from_motion {
         s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
     }
     s.push_str(&format!("\nstopped: {}\n", r.stopped));
@@ -538,15 +569,14 @@ pub fn staircase_table(r: &Report) -> String {
                     None => format!("{} = {:.3e} {}", c.name, c.value, c.unit),
                 })
                 .collect();
-            let scan = step
-                .scanned
-                .as_ref()
-                .map(|(n, v, u)| format!("; {n} = {v:.3} {u}"))
-                .unwrap_or_default();
-            s.push_str(&format!(
-                "  {e}: {}{scan} (95 % intervals)\n",
-                coefs.join(", ")
-            ));
+            let mut all = coefs;
+            if let Some((n, v, u)) = &step.scanned {
+                all.push(match step.scanned_interval {
+                    Some([lo, hi]) => format!("{n} = {v:.3} [{lo:.3}, {hi:.3}] {u}"),
+                    None => format!("{n} = {v:.3} {u}"),
+                });
+            }
+            s.push_str(&format!("  {e}: {} (95 % intervals)\n", all.join(", ")));
         }
     }
     s.push_str(&format!("final model: {}\n", r.final_model.label));
@@ -639,25 +669,33 @@ pub fn report_table(r: &Report) -> String {
     s
 }
 
-/// The final model in a few lines: its channels against the floor, its parameters' warnings
-/// and where it still fails.
+/// The final model in a few lines: its channels against their noise (and which sensor limits
+/// each), its parameters' warnings, and whether it is adequate or where it still fails.
 fn remains(d: &Diagnosis) -> String {
-    let mut s = String::from("channel   fit %   err %   held-out RMS   / floor\n");
+    let mut s = String::from(
+        "channel   fit %   err %   held-out RMS  / noise  white  limited by\n",
+    );
     for (c, ch) in d.channels.iter().enumerate() {
+        let a = &d.adequacy[c];
         s.push_str(&format!(
-            "{:<8} {} {}   {:>12.4e}   {:>6.2}\n",
+            "{:<8} {} {}   {:>12.4e}   {:>6.2}  {:>5}  {}\n",
             ch.name,
             fmt_fit(ch.fit_percent),
             percent_cell(ch.error_percent, 7),
             d.held_out_rms[c],
-            d.held_out_rms[c] / d.noise_floor.rms[c]
+            a.ratio,
+            if a.lags_beyond <= 2 { "yes" } else { "no" },
+            a.limited_by
         ));
     }
     for w in &d.warnings {
         s.push_str(&format!("WARNING: {w}\n"));
     }
     if d.adequate {
-        s.push_str("the residual is at the noise floor on every channel: nothing left that a candidate explains\n");
+        s.push_str(&format!(
+            "adequate: every channel's held-out error is within {}× its noise (or below its resolution) and white\n",
+            crate::ADEQUACY_FACTOR
+        ));
     } else if !d.findings.is_empty() {
         s.push_str("where it still fails:\n");
         for f in &d.findings {
