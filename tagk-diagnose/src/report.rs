@@ -576,7 +576,18 @@ pub fn staircase_table(r: &Report) -> String {
                     None => format!("{n} = {v:.3} {u}"),
                 });
             }
-            s.push_str(&format!("  {e}: {} (95 % intervals)\n", all.join(", ")));
+            let limited = r
+                .final_diagnosis()
+                .effects
+                .iter()
+                .find(|f| &f.effect == e)
+                .filter(|f| !f.limited_by.is_empty())
+                .map(|f| format!("; limited by {}", f.limited_by))
+                .unwrap_or_default();
+            s.push_str(&format!(
+                "  {e}: {} (95 % intervals{limited})\n",
+                all.join(", ")
+            ));
         }
     }
     s.push_str(&format!("final model: {}\n", r.final_model.label));

@@ -25,6 +25,11 @@ pub const MIN_SEGMENT_ROWS: usize = 2 * VELOCITY_SMOOTHING_HALF_WIDTH + 1;
 /// Half-width of the Savitzky–Golay smoothing of the velocity used by the drag effects.
 pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 
+/// Logs up to this many samples keep the rigid-body regressor in memory once computed
+/// (39 values a sample: 78 MB at the limit); longer logs compute it block by block wherever
+/// it is read.
+pub(crate) const RIGID_CACHE_SAMPLES: usize = 250_000;
+
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
 pub struct Signals {
@@ -54,6 +59,10 @@ pub struct Signals {
     log: FlightLog,
     /// The rotor mixer identified from the log, computed on first use.
     rotor_mixer: std::sync::OnceLock<Option<RotorMixer>>,
+    /// The rigid-body regressor's entries at every sample (`[10 c + j][i]`; the entries the
+    /// regressor leaves zero are empty), computed on first use for logs of at most
+    /// [`RIGID_CACHE_SAMPLES`] samples: a diagnosis reads them hundreds of times.
+    rigid_cache: std::sync::OnceLock<Option<std::sync::Arc<Vec<Vec<f64>>>>>,
     /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
     /// log). Effects with a time history (lags, delays, start transients) are computed per
     /// log and never across the joins.
@@ -164,6 +173,7 @@ impl Signals {
             derived_omega_dot,
             log: FlightLog::new(),
             rotor_mixer: std::sync::OnceLock::new(),
+            rigid_cache: std::sync::OnceLock::new(),
             parts: Vec::new(),
         };
         let vs: Vec<Vec<f64>> = (0..3)
@@ -388,6 +398,7 @@ impl Signals {
             derived_omega_dot: parts.iter().any(|p| p.derived_omega_dot),
             log,
             rotor_mixer: std::sync::OnceLock::new(),
+            rigid_cache: std::sync::OnceLock::new(),
             parts,
         })
     }
@@ -470,6 +481,44 @@ impl Signals {
             return 0.0;
         }
         (self.t[n - 1] - self.t[0]) / (n - 1) as f64
+    }
+
+    /// The rigid-body regressor's entries `[10 c + j][i]` at every sample (channel `c`,
+    /// column `j`; zero entries empty), for a log of at most [`RIGID_CACHE_SAMPLES`] samples
+    /// (computed once); `None` for a longer log.
+    pub(crate) fn rigid_cache(&self) -> Option<&[Vec<f64>]> {
+        self.rigid_cache
+            .get_or_init(|| {
+                let n = self.len();
+                if n > RIGID_CACHE_SAMPLES {
+                    return None;
+                }
+                let used: Vec<bool> = (0..60)
+                    .map(|q| crate::fit::rigid_channels(q % 10).contains(&(q / 10)))
+                    .collect();
+                let mut rows: Vec<Vec<f64>> = used
+                    .iter()
+                    .map(|&u| if u { vec![0.0; n] } else { Vec::new() })
+                    .collect();
+                let mut y = [0.0; 60];
+                for i in 0..n {
+                    // Infallible: the buffer has 60 entries.
+                    let _ = tagk_dynamics::write_rigid_body_regressor(
+                        &self.accel_proper[i],
+                        &self.omega(i),
+                        &self.omega_dot(i),
+                        &mut y,
+                    );
+                    for (q, row) in rows.iter_mut().enumerate() {
+                        if used[q] {
+                            row[i] = y[q];
+                        }
+                    }
+                }
+                Some(std::sync::Arc::new(rows))
+            })
+            .as_ref()
+            .map(|rows| rows.as_slice())
     }
 
     /// The rotor mixer identified from the log (`None` without rotor speeds, or when the

@@ -168,6 +168,21 @@ impl DiagnoseOptions {
         Ok(())
     }
 
+    /// These options with a vehicle's airframe: its airframe radius, the height of its rotor
+    /// plane (the mean height of its hubs), a vertical limit of the centre of mass of half the
+    /// airframe radius, and its mass prior (reported against the fit).
+    pub fn with_vehicle(self, vehicle: &tagk_dynamics::vehicle::Vehicle) -> Self {
+        let plane = vehicle.rotors.iter().map(|r| r.position.z).sum::<f64>()
+            / vehicle.rotors.len().max(1) as f64;
+        Self {
+            airframe_radius: vehicle.airframe_radius,
+            com_vertical_limit: 0.5 * vehicle.airframe_radius,
+            rotor_plane_height: plane,
+            vehicle_mass: vehicle.mass,
+            ..self
+        }
+    }
+
     /// [`Self::validate`] plus the checks that need the log's length: every one of the
     /// `folds` blocks must hold at least 4 samples.
     fn validate_for(&self, samples: usize) -> Result<(), DiagnoseError> {
@@ -467,10 +482,11 @@ pub(crate) fn diagnose_with_fit(
     };
     let mut fit = fit;
     let intervals = ranking::scanned_intervals(model, s, &fit, floor, opts.folds);
-    if intervals.iter().any(Option::is_some) {
+    if !fit.effects.is_empty() {
         let f = Arc::make_mut(&mut fit);
-        for (fe, iv) in f.effects.iter_mut().zip(&intervals) {
+        for ((fe, iv), e) in f.effects.iter_mut().zip(&intervals).zip(model.effects()) {
             fe.scanned_interval = *iv;
+            fe.limited_by = floor.limits(&e.channels()).to_string();
         }
     }
     assemble(

@@ -65,6 +65,25 @@ pub struct NoiseFloor {
 }
 
 impl NoiseFloor {
+    /// The sensor quantity whose noise limits the coefficients of an effect acting on
+    /// `channels`: the larger of the two sources summed over them, each channel in units of its
+    /// total noise (the measured wrench's side or the motion sensors').
+    pub fn limits(&self, channels: &[usize]) -> &'static str {
+        let share = |v: &[f64; 6]| -> f64 {
+            channels
+                .iter()
+                .filter(|&&c| c < 6 && self.rms[c] > 0.0)
+                .map(|&c| (v[c] / self.rms[c]).powi(2))
+                .sum()
+        };
+        let forces = channels.iter().all(|&c| c < 3);
+        match (share(&self.from_wrench) >= share(&self.from_motion), forces) {
+            (true, _) => "the measured wrench (rotor speeds or logged command)",
+            (false, true) => "the accelerometer",
+            (false, false) => "the motion sensors (accelerometer, gyro)",
+        }
+    }
+
     /// The sensor quantity that limits channel `c`: the measured wrench's or the motion
     /// sensors' side of its noise, whichever is larger.
     pub fn limited_by(&self, c: usize) -> &'static str {

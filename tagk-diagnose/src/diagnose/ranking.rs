@@ -400,7 +400,9 @@ pub(crate) fn scanned_intervals(
                 param: fit.params[k],
             }];
             let scan = ctx.scan(&engine, &members, 0);
-            let score = ctx.score(&engine, &members);
+            // The scale per sample of the whole log, the profile over the scan's samples
+            // (a long log's window: its interval is that of the window's evidence).
+            let score = ctx.score(&ctx.engine(), &members);
             let scale = score.effect_scale(e.as_ref(), s.len() as f64);
             // The fit chose its value under its own channel weights: the interval includes it.
             scan.interval(scale).map(|[lo, hi]| {

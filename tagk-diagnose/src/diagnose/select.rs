@@ -21,15 +21,18 @@
 //! a set is admissible when every member is kept; the admissible set with the largest
 //! held-out gain is the next step of the staircase.
 
-use std::collections::BTreeSet;
+use std::cell::RefCell;
+use std::collections::{BTreeSet, HashMap};
+use std::sync::Arc;
 
 use crate::diagnose::DiagnoseOptions;
 use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::diagnose::NoiseFloor;
 use crate::fit::{
-    ColData, Column, Evaluation, GramEngine, Model, NoiseModel, effect_design, filters,
-    residual_score, rigid_design, sampled_effect_design, whitened_residual,
+    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel, effect_design, filters,
+    residual_score, residual_score_span, rigid_design, sampled_effect_design, scan_window,
+    whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -168,7 +171,12 @@ pub(crate) struct Context<'s> {
     pub folds: usize,
     /// The model's own filtering effects.
     filters: Vec<(EffectRef, Option<f64>)>,
+    /// Effect designs computed so far, by effect name and parameter.
+    designs: RefCell<DesignCache>,
 }
+
+/// Effect designs by effect name and the bits of its parameter.
+type DesignCache = HashMap<(String, Option<u64>), Arc<EffectDesign>>;
 
 impl<'s> Context<'s> {
     /// The context of `model` at its scanned parameters `params` (one per effect) on `s`,
@@ -223,6 +231,7 @@ impl<'s> Context<'s> {
             noise,
             folds,
             filters: filt,
+            designs: RefCell::new(HashMap::new()),
         }
     }
 
@@ -252,9 +261,19 @@ impl<'s> Context<'s> {
         )
     }
 
-    /// The engine over the model's design without folds (in-sample: the scans).
+    /// The engine over the model's design without folds (in-sample: the scans), over the
+    /// scan window of a long log ([`crate::fit::scan_window`]).
     pub fn fit_engine(&self) -> GramEngine<'_> {
-        GramEngine::new(self.s, &self.w, &self.design.columns(), Some(&self.target), 1)
+        match scan_window(self.s) {
+            Some(range) => GramEngine::new_window(
+                self.s,
+                &self.w,
+                &self.design.columns(),
+                Some(&self.target),
+                range,
+            ),
+            None => GramEngine::new(self.s, &self.w, &self.design.columns(), Some(&self.target), 1),
+        }
     }
 
     /// The filtering effects of the model and of `members`.
@@ -268,29 +287,41 @@ impl<'s> Context<'s> {
         f
     }
 
+    /// An effect's design at a parameter, computed once per context (a search scores one
+    /// effect in many sets).
+    fn design_of(&self, m: &Member) -> Arc<EffectDesign> {
+        let key = (m.name().to_string(), m.param.map(f64::to_bits));
+        if let Some(d) = self.designs.borrow().get(&key) {
+            return d.clone();
+        }
+        let d = Arc::new(effect_design(m.effect.as_ref(), self.s, m.param));
+        self.designs.borrow_mut().insert(key, d.clone());
+        d
+    }
+
     /// The members' fitted columns, their known part, their widths and names.
     fn member_design(&self, members: &[Member]) -> MemberDesign {
-        let mut cols = Vec::new();
-        let mut offset: Option<ColData> = None;
-        let mut widths = Vec::new();
-        let mut names = Vec::new();
-        for m in members {
-            let d = effect_design(m.effect.as_ref(), self.s, m.param);
-            widths.push(d.cols.len());
-            names.push(d.names);
-            cols.extend(d.cols);
-            if let Some(o) = d.offset {
-                match &mut offset {
-                    None => offset = Some(o),
-                    Some(acc) => add_col(acc, o),
+        let designs: Vec<Arc<EffectDesign>> = members.iter().map(|m| self.design_of(m)).collect();
+        let with_offset: Vec<&EffectDesign> = designs
+            .iter()
+            .map(Arc::as_ref)
+            .filter(|d| d.offset.is_some())
+            .collect();
+        // One known part is borrowed; several are summed.
+        let summed = (with_offset.len() > 1).then(|| {
+            let mut acc: ColData = Default::default();
+            for d in &with_offset {
+                if let Some(o) = &d.offset {
+                    add_col(&mut acc, o.clone());
                 }
             }
-        }
+            acc
+        });
         MemberDesign {
-            cols,
-            offset,
-            widths,
-            names,
+            widths: designs.iter().map(|d| d.cols.len()).collect(),
+            names: designs.iter().map(|d| d.names.clone()).collect(),
+            designs,
+            summed,
         }
     }
 
@@ -308,9 +339,10 @@ impl<'s> Context<'s> {
         members: &[Member],
     ) -> (Score, Vec<[f64; 6]>) {
         let d = self.member_design(members);
-        let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+        let cols = d.cols();
+        let ev = engine.evaluate_with(&cols, d.offset());
         let filt = self.all_filters(members);
-        let mut residual = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+        let mut residual = engine.residual(&cols, d.offset(), &ev.beta);
         for x in residual.iter_mut() {
             for c in 0..6 {
                 x[c] /= self.w[c];
@@ -333,7 +365,7 @@ impl<'s> Context<'s> {
                     .flatten()
                     .map(|(n, _)| n.starts_with("start_")),
             );
-            let held = engine.held_out_residual(&d.cols, d.offset.as_ref(), &ev, &nuisance);
+            let held = engine.held_out_residual(&cols, d.offset(), &ev, &nuisance);
             let (cv_ch, _) = residual_score(self.s, &held, &filt, &self.noise);
             residual = whitened_residual(self.s, &residual, &filt, &self.noise);
             (fit_ch, logdet, cv_ch)
@@ -361,21 +393,46 @@ impl<'s> Context<'s> {
         )
     }
 
+    /// [`Self::score`] without the residual pass where the Gram matrices suffice (no filter of
+    /// the target): the autocorrelation factors are then 1 (unknown). For the comparisons
+    /// that need only the sums of squares (a set without one member).
+    pub fn score_light(&self, engine: &GramEngine<'_>, members: &[Member]) -> Score {
+        if !self.all_filters(members).is_empty() {
+            return self.score(engine, members);
+        }
+        let d = self.member_design(members);
+        let ev = engine.evaluate_with(&d.cols(), d.offset());
+        Score {
+            cv: ev.sse_cv_ch.iter().sum(),
+            cv_ch: ev.sse_cv_ch,
+            fit: ev.sse_full_ch.iter().sum(),
+            fit_ch: ev.sse_full_ch,
+            logdet: [0.0; 6],
+            kappa: 1.0,
+            kappa_ch: [1.0; 6],
+            ev,
+            widths: d.widths,
+            names: d.names,
+        }
+    }
+
     /// The in-sample score of the model plus `members` (`engine` from [`Self::fit_engine`]).
     fn fit_score(&self, engine: &GramEngine<'_>, members: &[Member]) -> f64 {
         let d = self.member_design(members);
-        let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+        let cols = d.cols();
+        let ev = engine.evaluate_with(&cols, d.offset());
         let filt = self.all_filters(members);
         if filt.is_empty() {
             return ev.sse_full;
         }
-        let mut residual = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+        let mut residual = engine.residual(&cols, d.offset(), &ev.beta);
         for x in residual.iter_mut() {
             for c in 0..6 {
                 x[c] /= self.w[c];
             }
         }
-        let (norm, logdet) = residual_score(self.s, &residual, &filt, &self.noise);
+        let (norm, logdet) =
+            residual_score_span(self.s, &residual, engine.span(), &filt, &self.noise);
         norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
     }
 
@@ -441,10 +498,25 @@ impl<'s> Context<'s> {
 
 /// The members' fitted columns and known part.
 struct MemberDesign {
-    cols: Vec<ColData>,
-    offset: Option<ColData>,
+    designs: Vec<Arc<EffectDesign>>,
+    /// The sum of several members' known parts (`None`: at most one).
+    summed: Option<ColData>,
     widths: Vec<usize>,
     names: Vec<Vec<(String, String)>>,
+}
+
+impl MemberDesign {
+    /// Every fitted column, borrowed.
+    fn cols(&self) -> Vec<&ColData> {
+        self.designs.iter().flat_map(|d| d.cols.iter()).collect()
+    }
+
+    /// The members' known part.
+    fn offset(&self) -> Option<&ColData> {
+        self.summed
+            .as_ref()
+            .or_else(|| self.designs.iter().find_map(|d| d.offset.as_ref()))
+    }
 }
 
 /// Subtracts a known part from per-sample values.
@@ -762,7 +834,7 @@ impl Context<'_> {
             let without = if rest.is_empty() {
                 base.clone()
             } else {
-                self.score(engine, &rest)
+                self.score_light(engine, &rest)
             };
             let gain = without.cv - score.cv;
             // The likelihood ratio, each channel in units of its own residual variance and
@@ -982,7 +1054,7 @@ pub(crate) fn search(
                 continue;
             }
             let members = vec![start_of(pool[a]), start_of(pool[b])];
-            sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, true));
+            sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, false));
         }
     }
     let triple_pool: Vec<usize> = pool.iter().copied().take(TRIPLE_POOL).collect();
@@ -1000,7 +1072,7 @@ pub(crate) fn search(
                 {
                     continue;
                 }
-                sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, true));
+                sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, false));
             }
         }
     }
@@ -1014,12 +1086,30 @@ pub(crate) fn search(
             }
         }
     }
-    let best = sets
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| s.admissible())
-        .max_by(|a, b| a.1.gain.total_cmp(&b.1.gain))
-        .map(|(i, _)| i);
+    // The admissible sets by gain; a set of several members with a scanned one is judged
+    // again with its parameters scanned within the set (they may move once the others are in).
+    let mut order: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].admissible()).collect();
+    order.sort_by(|&a, &b| sets[b].gain.total_cmp(&sets[a].gain));
+    let mut best = None;
+    for i in order {
+        let scanned = sets[i].members.iter().any(|m| m.effect.scan().is_some());
+        if sets[i].members.len() > 1 && scanned {
+            let again = ctx.judge_set(
+                &engine,
+                &fit_engine,
+                sets[i].members.clone(),
+                &base,
+                &judge,
+                true,
+            );
+            if !again.admissible() {
+                continue;
+            }
+            sets[i] = again;
+        }
+        best = Some(i);
+        break;
+    }
     let chosen = best.map(|i| {
         let mut set = sets[i].clone();
         // Members in the order of their gain alone.

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::diagnose::select::{Judge, Member};
 use crate::diagnose::{
-    Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_against,
+    Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor,
     diagnose_with_fit, limits_of, noise_floor,
 };
 use crate::error::DiagnoseError;
@@ -122,10 +122,19 @@ pub fn discover_from(
     opts: &DiagnoseOptions,
 ) -> Result<Discovery, DiagnoseError> {
     let mut floor = first.noise_floor.clone();
-    let mut first = first;
+    let mut fits = Fits::default();
+    fits.keep(start, first.fit.clone());
+    let mut run = Run {
+        steps: vec![step_of(None, &first, None, &floor)],
+        diagnoses: vec![first],
+        added: Vec::new(),
+        model: start.clone(),
+        stopped: String::new(),
+    };
     let mut round = 0;
     loop {
-        let run = staircase(start, first, s, opts, &floor)?;
+        climb(&mut run, s, opts, &floor, &mut fits)?;
+        prune(start, &mut run, s, opts, &floor, &mut fits)?;
         round += 1;
         if floor.source == FloorSource::Given || round >= 3 {
             return Ok(finish(run, floor));
@@ -144,7 +153,36 @@ pub fn discover_from(
             }
         }
         floor.model = again.model;
-        first = diagnose_against(start, s, opts, &floor)?;
+        // The search goes on from the model reached, against the lower noise (the fits do
+        // not depend on the noise); the effects added stay unless the pruning drops them.
+        let d = diagnose_with_fit(&run.model, s, opts, &floor, fits.get(&run.model, s)?, true)?;
+        let k = run.diagnoses.len() - 1;
+        let previous = (k > 0).then(|| &run.diagnoses[k - 1]);
+        let effect = run.steps[k].effect.clone();
+        run.steps[k] = step_of(effect.as_deref(), &d, previous, &floor);
+        run.diagnoses[k] = d;
+    }
+}
+
+/// Fits of the models a discovery meets, by label: they do not depend on the noise, and the
+/// rounds and the pruning meet the same models again.
+#[derive(Default)]
+struct Fits(std::collections::HashMap<String, Arc<crate::fit::Fit>>);
+
+impl Fits {
+    /// Keeps a model's fit.
+    fn keep(&mut self, model: &Model, fit: Arc<crate::fit::Fit>) {
+        self.0.insert(model.label(), fit);
+    }
+
+    /// A model's fit, fitted once.
+    fn get(&mut self, model: &Model, s: &Signals) -> Result<Arc<crate::fit::Fit>, DiagnoseError> {
+        if let Some(f) = self.0.get(&model.label()) {
+            return Ok(f.clone());
+        }
+        let f = Arc::new(fit_model(model, s, None)?);
+        self.keep(model, f.clone());
+        Ok(f)
     }
 }
 
@@ -184,28 +222,25 @@ fn finish(mut run: Run, floor: NoiseFloor) -> Discovery {
     }
 }
 
-/// The staircase from `start` (diagnosed as `first`) against the noise `floor`.
-fn staircase(
-    start: &Model,
-    first: Diagnosis,
+/// Climbs the staircase from its last step against the noise `floor`: each step the set the
+/// search of the last model chose, until none is admissible or the step limit.
+fn climb(
+    run: &mut Run,
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
-) -> Result<Run, DiagnoseError> {
-    let mut steps = vec![step_of(None, &first, None, floor)];
-    let mut diagnoses = vec![first];
-    let mut model = start.clone();
-    let mut added: Vec<String> = Vec::new();
-    let stopped = loop {
-        let current = &diagnoses[diagnoses.len() - 1];
+    fits: &mut Fits,
+) -> Result<(), DiagnoseError> {
+    run.stopped = loop {
+        let current = &run.diagnoses[run.diagnoses.len() - 1];
         if current.recommended_set.is_empty() {
             break stop_reason(current);
         }
         let set = current.recommended_set.clone();
-        if added.len() + set.len() > opts.max_steps {
+        if run.added.len() + set.len() > opts.max_steps {
             break format!(
                 "step limit: {} effects added (`max_steps` {}); {} would be next",
-                added.len(),
+                run.added.len(),
                 opts.max_steps,
                 set.iter()
                     .map(|n| format!("`{n}`"))
@@ -217,25 +252,18 @@ fn staircase(
             let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
                 continue;
             };
-            model = model.with_ref(effect.clone());
+            run.model = run.model.clone().with_ref(effect.clone());
             let last_of_set = i + 1 == set.len();
-            let fit = fit_model(&model, s, None)?;
-            let next = diagnose_with_fit(&model, s, opts, floor, Arc::new(fit), last_of_set)?;
-            let previous = &diagnoses[diagnoses.len() - 1];
-            steps.push(step_of(Some(name), &next, Some(previous), floor));
-            diagnoses.push(next);
-            added.push(name.clone());
+            let fit = fits.get(&run.model, s)?;
+            let next = diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set)?;
+            let previous = &run.diagnoses[run.diagnoses.len() - 1];
+            run.steps
+                .push(step_of(Some(name), &next, Some(previous), floor));
+            run.diagnoses.push(next);
+            run.added.push(name.clone());
         }
     };
-    let mut run = Run {
-        steps,
-        diagnoses,
-        added,
-        model,
-        stopped,
-    };
-    prune(start, &mut run, s, opts, floor)?;
-    Ok(run)
+    Ok(())
 }
 
 /// Checks every added effect within the final model and drops, one at a time, the one that
@@ -246,6 +274,7 @@ fn prune(
     s: &Signals,
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
+    fits: &mut Fits,
 ) -> Result<(), DiagnoseError> {
     let mut dropped = Vec::new();
     for _ in 0..run.added.len() {
@@ -302,15 +331,14 @@ fn prune(
                 continue;
             };
             model = model.with_ref(effect.clone());
-            let fit = fit_model(&model, s, None)?;
-            let next =
-                diagnose_with_fit(&model, s, opts, floor, Arc::new(fit), i + 1 == kept.len())?;
+            let fit = fits.get(&model, s)?;
+            let next = diagnose_with_fit(&model, s, opts, floor, fit, i + 1 == kept.len())?;
             steps.push(step_of(Some(n), &next, diagnoses.last(), floor));
             diagnoses.push(next);
         }
         if kept.is_empty() {
             // The starting model again, with its search.
-            let d = diagnose_against(start, s, opts, floor)?;
+            let d = diagnose_with_fit(start, s, opts, floor, fits.get(start, s)?, true)?;
             steps = vec![step_of(None, &d, None, floor)];
             diagnoses = vec![d];
         }

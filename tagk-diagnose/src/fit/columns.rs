@@ -165,6 +165,10 @@ impl<'s> Blocks<'s> {
         if !self.need_rigid {
             return;
         }
+        // A cached regressor is read in place at stride 1 ([`Blocks::get`]).
+        if stride == 1 && self.s.rigid_cache().is_some() {
+            return;
+        }
         if self.rigid.is_empty() {
             self.rigid = vec![0.0; 60 * ROW_STRIDE];
         }
@@ -214,6 +218,11 @@ impl<'s> Blocks<'s> {
             Column::Rigid(j) => {
                 if !rigid_channels(*j).contains(&c) {
                     return None;
+                }
+                if self.stride == 1
+                    && let Some(cache) = self.s.rigid_cache()
+                {
+                    return Some((&cache[10 * c + j][self.lo..self.hi], 1));
                 }
                 let count = (self.hi - self.lo).div_ceil(self.stride);
                 let row = (10 * c + j) * ROW_STRIDE;

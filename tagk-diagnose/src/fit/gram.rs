@@ -1,5 +1,7 @@
 //! The Gram-matrix engine behind the blocked cross-validation and the 1-D scans.
 
+use std::borrow::Borrow;
+
 use nalgebra::{DMatrix, DVector};
 
 use crate::fit::columns::{BLOCK_SAMPLES, Blocks, Column, for_each_block};
@@ -11,6 +13,8 @@ use crate::signals::Signals;
 pub(crate) struct Evaluation {
     /// Weighted in-sample SSE with the candidate.
     pub sse_full: f64,
+    /// Its part per channel.
+    pub sse_full_ch: [f64; 6],
     /// Held-out (blocked CV) weighted SSE.
     pub sse_cv: f64,
     /// Held-out SSE per channel.
@@ -93,6 +97,27 @@ impl<'a> GramEngine<'a> {
         Self::with_stride(s, w, base, target, 1, (s.len() / SCAN_SAMPLES).max(1))
     }
 
+    /// An engine over the contiguous samples `range` only (every sample, no folds): the
+    /// in-sample scan of a long log's filtered effect on a window of it.
+    pub fn new_window(
+        s: &'a Signals,
+        w: &[f64; 6],
+        base: &[Column<'a>],
+        target: Option<&'a [[f64; 6]]>,
+        range: std::ops::Range<usize>,
+    ) -> Self {
+        Self::with_pieces(s, w, base, target, 1, 1, Some(vec![(range.start, range.end)]))
+    }
+
+    /// The samples the engine's in-sample sums and residual run over: its one piece, or the
+    /// whole log.
+    pub fn span(&self) -> std::ops::Range<usize> {
+        match self.pieces.as_slice() {
+            [(lo, hi)] => *lo..*hi,
+            _ => 0..self.s.len(),
+        }
+    }
+
     fn with_stride(
         s: &'a Signals,
         w: &[f64; 6],
@@ -101,12 +126,26 @@ impl<'a> GramEngine<'a> {
         folds: usize,
         stride: usize,
     ) -> Self {
+        Self::with_pieces(s, w, base, target, folds, stride, None)
+    }
+
+    fn with_pieces(
+        s: &'a Signals,
+        w: &[f64; 6],
+        base: &[Column<'a>],
+        target: Option<&'a [[f64; 6]]>,
+        folds: usize,
+        stride: usize,
+        given: Option<Vec<(usize, usize)>>,
+    ) -> Self {
         let n = s.len();
         let target = target.unwrap_or(s.target());
         let base: Vec<Column<'a>> = base.to_vec();
         let folds = folds.max(1);
         let mut pieces = Vec::new();
-        if folds == 1 {
+        if let Some(g) = given {
+            pieces = g;
+        } else if folds == 1 {
             pieces.push((0, n));
         } else {
             let dt = s.mean_dt().max(1e-9);
@@ -173,8 +212,12 @@ impl<'a> GramEngine<'a> {
 
     /// Evaluates base + `cand` with the known part `offset` (unweighted; fixed columns times
     /// their values) moved to the target: the target becomes `y − offset`.
-    pub fn evaluate_with(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
-        let cand: Vec<Column<'_>> = Column::stored(cand).collect();
+    pub fn evaluate_with<C: Borrow<ColData>>(
+        &self,
+        cand: &[C],
+        offset: Option<&ColData>,
+    ) -> Evaluation {
+        let cand: Vec<Column<'_>> = cand.iter().map(|c| Column::Stored(c.borrow())).collect();
         self.evaluate_columns(&cand, offset.map(Column::Stored))
     }
 
@@ -279,6 +322,8 @@ impl<'a> GramEngine<'a> {
             }
         }
         let sse_full = sse_of(&total, pp, &beta);
+        let sse_full_ch: [f64; 6] =
+            std::array::from_fn(|c| sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta));
         let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
         let mut fold_beta = Vec::new();
         if self.folds > 1 {
@@ -307,6 +352,7 @@ impl<'a> GramEngine<'a> {
         }
         Evaluation {
             sse_full,
+            sse_full_ch,
             sse_cv,
             sse_cv_ch,
             beta,
@@ -338,9 +384,9 @@ impl<'a> GramEngine<'a> {
     /// Columns marked in `nuisance` (base then candidate; a shorter mask is padded with
     /// `false`) keep their all-data coefficient: a start-of-log transient cannot be learnt
     /// from the folds that do not hold the start, and it is not a prediction.
-    pub fn held_out_residual(
+    pub fn held_out_residual<C: Borrow<ColData>>(
         &self,
-        cand: &[ColData],
+        cand: &[C],
         offset: Option<&ColData>,
         ev: &Evaluation,
         nuisance: &[bool],
@@ -392,7 +438,7 @@ impl<'a> GramEngine<'a> {
                 }
             });
             for (col, &b) in cand.iter().zip(&beta[nb.min(beta.len())..]) {
-                for (c, d) in col.iter().enumerate() {
+                for (c, d) in col.borrow().iter().enumerate() {
                     if let Some(v) = d {
                         for i in range.clone() {
                             r[i][c] -= b * v[i];
@@ -407,21 +453,23 @@ impl<'a> GramEngine<'a> {
 
     /// Weighted residual of base + `cand` (with the known part `offset`) at coefficients
     /// `beta` (from [`Self::evaluate_with`]).
-    pub fn residual(
+    pub fn residual<C: Borrow<ColData>>(
         &self,
-        cand: &[ColData],
+        cand: &[C],
         offset: Option<&ColData>,
         beta: &[f64],
     ) -> Vec<[f64; 6]> {
-        let n = self.s.len();
-        let mut r: Vec<[f64; 6]> = (0..n)
-            .map(|i| std::array::from_fn(|c| self.target[i][c] * self.w[c]))
+        let span = self.span();
+        let (lo0, hi0) = (span.start, span.end);
+        let mut r: Vec<[f64; 6]> = self.target[lo0..hi0]
+            .iter()
+            .map(|t| std::array::from_fn(|c| t[c] * self.w[c]))
             .collect();
         if let Some(o) = offset {
             for (c, d) in o.iter().enumerate() {
                 if let Some(v) = d {
-                    for i in 0..n {
-                        r[i][c] -= v[i] * self.w[c];
+                    for (ri, x) in r.iter_mut().zip(&v[lo0..hi0]) {
+                        ri[c] -= x * self.w[c];
                     }
                 }
             }
@@ -430,11 +478,11 @@ impl<'a> GramEngine<'a> {
         // column order per sample as over whole columns.
         let mut blocks = Blocks::new(self.s, None);
         blocks.need(&self.base);
-        for_each_block(&mut blocks, 0..n, |blk, lo, hi| {
+        for_each_block(&mut blocks, span.clone(), |blk, lo, hi| {
             for (col, &b) in self.base.iter().zip(beta) {
                 for c in 0..6 {
                     if let Some((v, _)) = blk.get(col, c) {
-                        for (ri, x) in r[lo..hi].iter_mut().zip(v) {
+                        for (ri, x) in r[lo - lo0..hi - lo0].iter_mut().zip(v) {
                             ri[c] -= b * (x * self.w[c]);
                         }
                     }
@@ -442,10 +490,10 @@ impl<'a> GramEngine<'a> {
             }
         });
         for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
-            for (c, d) in col.iter().enumerate() {
+            for (c, d) in col.borrow().iter().enumerate() {
                 if let Some(v) = d {
-                    for i in 0..n {
-                        r[i][c] -= b * (v[i] * self.w[c]);
+                    for (ri, x) in r.iter_mut().zip(&v[lo0..hi0]) {
+                        ri[c] -= b * (x * self.w[c]);
                     }
                 }
             }

@@ -16,16 +16,15 @@ use crate::effects::{Plausibility, usable};
 use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
-pub(crate) use columns::Column;
+pub(crate) use columns::{Column, rigid_channels};
 pub(crate) use design::{
-    ColData, add_offset, checked_effect_design, effect_design, rigid_columns,
+    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_columns,
     rigid_design, sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
 pub(crate) use likelihood::{
-    NoiseModel, channel_filters, channel_score, estimate_noise, high_frequency_noise, part_ranges,
-    whitened,
+    NoiseModel, channel_filters, channel_score, estimate_noise, part_ranges, whitened,
 };
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
@@ -104,6 +103,46 @@ pub(crate) fn residual_score(
             norm[c] += n;
             logdet[c] += l;
         }
+    }
+    (norm, logdet)
+}
+
+/// Samples a scan of a filtered effect reads on a long log (a contiguous window: a filter
+/// needs every sample of it).
+pub(crate) const SCAN_WINDOW: usize = 12_000;
+
+/// The contiguous window a scan of a filtered effect reads: the middle [`SCAN_WINDOW`]
+/// samples of a single log more than twice that long; `None` (the whole log) otherwise, and
+/// for joined logs.
+pub(crate) fn scan_window(s: &Signals) -> Option<std::ops::Range<usize>> {
+    let n = s.len();
+    if !s.parts().is_empty() || n <= 2 * SCAN_WINDOW {
+        return None;
+    }
+    let lo = (n - SCAN_WINDOW) / 2;
+    Some(lo..lo + SCAN_WINDOW)
+}
+
+/// [`residual_score`] of a residual `r` over the samples `span` of a single log (a scan
+/// window), or of the whole log.
+pub(crate) fn residual_score_span(
+    s: &Signals,
+    r: &[[f64; 6]],
+    span: std::ops::Range<usize>,
+    filt: &[(crate::EffectRef, Option<f64>)],
+    noise: &NoiseModel,
+) -> ([f64; 6], [f64; 6]) {
+    if span == (0..s.len()) {
+        return residual_score(s, r, filt, noise);
+    }
+    let filters = channel_filters(filt, s);
+    let mut norm = [0.0; 6];
+    let mut logdet = [0.0; 6];
+    for c in 0..6 {
+        let series: Vec<f64> = r.iter().map(|x| x[c]).collect();
+        let (n, l) = channel_score(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+        norm[c] = n;
+        logdet[c] = l;
     }
     (norm, logdet)
 }
@@ -230,6 +269,9 @@ pub struct FittedEffect {
     pub plausible: bool,
     /// Plausibility note.
     pub plausibility_note: String,
+    /// The sensor quantity whose noise limits these coefficients (the larger noise source of
+    /// the channels the effect acts on; filled in by the diagnosis, empty from a plain fit).
+    pub limited_by: String,
 }
 
 /// Per-channel agreement between measurement and model.
@@ -518,9 +560,14 @@ fn scan_parameters(
             .collect();
         let filtered = !other_filters.is_empty() || filters(s, e.as_ref(), grid.first().copied());
         let best = if filtered {
-            let engine = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
-            // The residual's forward form, unweighted, at parameter `g`.
-            let residual_at = |g: f64| -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
+            let full = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
+            let window = scan_window(s)
+                .map(|r| GramEngine::new_window(s, w, &fixed, Some(&shifted_target), r));
+            // The residual's forward form, unweighted, at parameter `g`, over the engine's
+            // samples.
+            let residual_at = |engine: &GramEngine<'_>,
+                               g: f64|
+             -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
                 let d = effect_design(e.as_ref(), s, Some(g));
                 let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
                 let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
@@ -538,11 +585,12 @@ fn scan_parameters(
             // The noise of the two sources, measured at the current value, then the
             // likelihood over the grid ([`likelihood`]).
             let now = params[k].unwrap_or(grid[grid.len() / 2]);
-            let (r0, f0) = residual_at(now);
+            let (r0, f0) = residual_at(&full, now);
             let (noise, _) = noise_of_residual(s, &r0, &f0, &default_resolution(s));
+            let engine = window.as_ref().unwrap_or(&full);
             scan_min(&grid, |g| {
-                let (r, filt) = residual_at(g);
-                let (norm, logdet) = residual_score(s, &r, &filt, &noise);
+                let (r, filt) = residual_at(engine, g);
+                let (norm, logdet) = residual_score_span(s, &r, engine.span(), &filt, &noise);
                 norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
             })
             .0
@@ -758,6 +806,7 @@ fn fitted_effects(
             derived: e.derived(&coef, &se, params[k]),
             plausible: pl.plausible,
             plausibility_note: pl.note,
+            limited_by: String::new(),
         });
         j += q;
     }
