@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod cli;
+pub mod diagnosis_benchmark;
 
 pub use tagk_baselines as baselines;
 pub use tagk_control as control;

@@ -21,9 +21,9 @@ pub use monte_carlo::{
 pub use plant::{Plant, PlantState};
 pub use plant_effects::PlantEffects;
 pub use sim::{
-    Adaptation, Controller, ExperimentProfile, FlightStack, LogRate, MEMORY_BUDGET_BYTES,
-    NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing, SensingProfile, SimConfig,
-    SimOutput, TrialMetrics, simulate,
+    Adaptation, Controller, ExperimentProfile, FlightStack, FlightTruth, LogRate,
+    MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing,
+    SensingProfile, SimConfig, SimOutput, TrialMetrics, TruthSample, simulate,
 };
 /// The flight-log type the simulator records (re-exported from `tagk-dynamics`).
 pub use tagk_dynamics::log::{FlightLog, LogError, LogSample};
@@ -44,5 +44,6 @@ mod tests {
         send_sync::<crate::ErrorCurves>();
         send_sync::<crate::Traces>();
         send_sync::<crate::SimError>();
+        send_sync::<crate::FlightTruth>();
     }
 }

@@ -169,6 +169,12 @@ impl Plant {
         wrench
     }
 
+    /// The rotor speeds that act at state `s` under the command `speeds` \[rad/s\] (clamped):
+    /// the state's lagging speeds with a motor lag, else the clamped command.
+    pub(crate) fn acting_rotor_speeds(&self, s: &PlantState, speeds: &[f64; 4]) -> [f64; 4] {
+        self.actual_rotor(s, &self.clamp_speeds(speeds))
+    }
+
     fn actual_rotor(&self, s: &PlantState, cmd: &[f64; 4]) -> [f64; 4] {
         if self.effects.motor_lag.is_some() {
             s.rotor_speeds

@@ -488,6 +488,11 @@ pub struct SimConfig {
     pub log_rate: LogRate,
     /// Keep a [`TraceSample`](crate::sim::TraceSample) per control step.
     pub record_trace: bool,
+    /// Keep the noise-free truth of every log sample ([`SimOutput::truth`](crate::SimOutput::truth):
+    /// true motion and inertial parameters, each plant effect's own wrench, the sensor biases),
+    /// to judge a diagnosis of the log. Needs [`SimConfig::record_log`]. Reads the flight
+    /// only: the flight and its log are the same bits with or without it. Default `false`.
+    pub record_truth: bool,
     /// Actuator layout and nominal parameters of the vehicle.
     pub vehicle: QuadrotorModel,
     /// LQR cost weights.
@@ -518,6 +523,7 @@ impl Default for SimConfig {
             record_log: false,
             log_rate: LogRate::Control,
             record_trace: false,
+            record_truth: false,
             vehicle: QuadrotorModel::crazyflie_2_1(),
             weights: tracking_weights(),
             flight_stack: FlightStack::paper(),
@@ -576,12 +582,35 @@ impl SimConfig {
                 LogRate::Physics => (self.control_dt / self.physics_dt).round().max(1.0) as u64,
             };
             per_step = per_step.saturating_add(samples.saturating_mul(LOG_SAMPLE_BYTES));
+            if self.record_truth {
+                let effects = crate::sim::truth::acting_effects(&self.effects).len() as u64;
+                let truth = std::mem::size_of::<crate::sim::TruthSample>() as u64 + 96 * effects;
+                per_step = per_step.saturating_add(samples.saturating_mul(truth));
+            }
         }
         if self.record_trace {
             per_step =
                 per_step.saturating_add(std::mem::size_of::<crate::sim::TraceSample>() as u64);
         }
         steps.saturating_mul(per_step)
+    }
+
+    /// The reference path this configuration flies (shape from [`SimConfig::trajectory`]; size,
+    /// centre, phase and the helix's climb drawn from [`SimConfig::seed`] exactly as
+    /// [`simulate`](crate::simulate) draws them, so it equals
+    /// [`SimOutput::trajectory`](crate::SimOutput::trajectory)), without flying: e.g. to choose
+    /// the altitude of a low flight from the climb of its helix (the altitude draws nothing).
+    ///
+    /// # Errors
+    /// As [`Trajectory::random`](crate::Trajectory::random): a duration that is not positive
+    /// and finite, a non-finite altitude.
+    pub fn reference_trajectory(&self) -> Result<crate::Trajectory, SimError> {
+        crate::Trajectory::random(
+            self.trajectory,
+            self.duration,
+            self.altitude,
+            &mut crate::sim::sub_rng(self.seed, 1),
+        )
     }
 
     /// Checks the configuration without flying: durations and steps, sensing, altitude, the

@@ -11,6 +11,7 @@ mod controller;
 mod output;
 mod sensing;
 mod sensors;
+mod truth;
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -22,7 +23,7 @@ use tagk_control::hover_trim;
 use tagk_core::{FrontEnd, OnlineEstimator};
 use tagk_dynamics::log::{FlightLog, LogSample};
 use tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
-use tagk_dynamics::{GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
+use tagk_dynamics::{EffectKind, GRAVITY_WORLD, InertialParams, WindowBuilder, Wrench};
 
 pub use config::{
     Adaptation, FlightStack, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule,
@@ -39,6 +40,7 @@ pub use sensing::{
     REALISTIC_MOTOR_LAG, REALISTIC_THRUST_GAIN_ERROR, Sensing, SensingProfile, WARM_UP_KELVIN,
 };
 pub(crate) use sensors::sub_rng;
+pub use truth::{FlightTruth, TruthSample};
 
 use crate::EstimatorKind;
 use crate::SimError;
@@ -52,6 +54,14 @@ use crate::metrics::{
 use crate::plant::{Accelerations, Plant, PlantState};
 use crate::trajectory::Trajectory;
 use sensors::{Frame, Sensors};
+use truth::{TruthInputs, TruthParts, acting_effects, truth_parts};
+
+/// A control interval's plant states for its truth: the state (and accelerations) before the
+/// first physics step, and after each.
+type IntervalStates<'a> = (
+    &'a (PlantState, Accelerations),
+    &'a [(PlantState, Accelerations)],
+);
 
 /// A scheduled change of the true parameters.
 #[derive(Debug, Clone, Copy)]
@@ -102,6 +112,10 @@ struct Flight<'a> {
     /// Rotor speeds and wrench commanded at every control step so far (kept only for a log
     /// with a `time-delay` effect, whose wrench stream lags the motion).
     commands: Vec<([f64; 4], [f64; 6])>,
+    /// With [`SimConfig::record_truth`]: the truth of every logged sample so far, the effects
+    /// that act, and the noise-free read-back actuator wrench of every control interval so far
+    /// (the delayed one a `time-delay` log holds is one of them).
+    truth: Option<TruthRecord>,
     trace: Vec<TraceSample>,
     tracking: Vec<f64>,
     /// Per event: the first estimate after it, the truth, and whether its window mixed
@@ -114,6 +128,14 @@ struct Flight<'a> {
     planned_steps: usize,
     /// `∫ (p̂ − p_ref) dt` of the flight stack's integral action \[m s\] (world frame).
     position_integral: Vector3<f64>,
+}
+
+/// What [`SimConfig::record_truth`] keeps during a flight.
+struct TruthRecord {
+    effects: Vec<EffectKind>,
+    samples: Vec<TruthSample>,
+    /// Noise-free read-back actuator wrench of each control interval so far.
+    read_back: Vec<Wrench>,
 }
 
 /// Flies one trial (see the crate docs for the loop, the measurement model and the timing).
@@ -320,6 +342,11 @@ impl<'a> Flight<'a> {
             updates: Vec::new(),
             log: FlightLog::new(),
             commands: Vec::new(),
+            truth: (config.record_truth && config.record_log).then(|| TruthRecord {
+                effects: acting_effects(&config.effects),
+                samples: Vec::new(),
+                read_back: Vec::with_capacity(steps),
+            }),
             trace: Vec::new(),
             tracking: Vec::with_capacity(steps + 1),
             first_after_event: Vec::new(),
@@ -361,8 +388,15 @@ impl<'a> Flight<'a> {
             .plant
             .clamp_speeds(&self.controller.rotor_speeds(&measured, &reference));
         let physics_log = self.config.record_log && self.config.log_rate == LogRate::Physics;
+        // The truth of a control-rate sample averages over the interval's physics steps (the
+        // state before the first one, and after each): collected without changing anything.
+        let start = self
+            .truth
+            .is_some()
+            .then(|| (*self.plant.state(), self.plant.accelerations(&cmd)));
         let mut steps = Vec::new();
-        let (mid_state, mid_acc) = self.fly_interval(&cmd, physics_log.then_some(&mut steps));
+        let (mid_state, mid_acc) =
+            self.fly_interval(&cmd, (physics_log || start.is_some()).then_some(&mut steps));
         // What the vehicle measures of its actuators: the rotor speeds read back (+ noise) and,
         // through the nominal mixer, the wrench they make: the commanded speeds, or with
         // `FlightStack::motor_telemetry` and a motor lag the lagging speeds at the interval's
@@ -374,6 +408,11 @@ impl<'a> Flight<'a> {
         } else {
             cmd
         };
+        if let Some(truth) = self.truth.as_mut() {
+            truth
+                .read_back
+                .push(self.config.vehicle.wrench_from_rotor_speeds(&read_back));
+        }
         let measured_speeds = self.sensors.measured_rotor_speeds(&read_back);
         let wrench_measured: Wrench = self
             .config
@@ -391,8 +430,19 @@ impl<'a> Flight<'a> {
         );
         if physics_log {
             self.log_physics_samples(k, &mid_state, &steps, &wrench_measured, measured_speeds);
+            for (i, (s, acc)) in steps.iter().enumerate() {
+                let stamp = k as f64 + (i + 1) as f64 / steps.len() as f64;
+                let t_s = k as f64 * dt + (i + 1) as f64 * self.substep;
+                self.record_truth(k, stamp, t_s, (s, acc), None, &cmd);
+            }
         } else if self.config.record_log {
             self.log_sample(k, &mid_state, &frame, &wrench_measured, measured_speeds);
+            let t_s = k as f64 * dt + 0.5 * dt;
+            if let Some(start) = &start {
+                let interval = (start, steps.as_slice());
+                let mid = (&mid_state, &mid_acc);
+                self.record_truth(k, k as f64 + 0.5, t_s, mid, Some(interval), &cmd);
+            }
         }
         self.update_estimator(k, t, &frame, &wrench_measured)?;
         Ok(ControlFlow::Continue(()))
@@ -493,20 +543,90 @@ impl<'a> Flight<'a> {
     ) -> ([f64; 4], [f64; 6]) {
         match self.config.effects.time_delay {
             None => (rotor_speeds, wrench.to_array()),
-            Some(d) => {
+            Some(_) => {
                 if self.commands.len() == k {
                     self.commands.push((rotor_speeds, wrench.to_array()));
                 }
-                let x = stamp - d.delay / self.config.control_dt;
-                let x = if (x - x.round()).abs() < 1e-9 {
-                    x.round()
-                } else {
-                    x
-                };
-                let j = (x.ceil() - 1.0).max(0.0) as usize;
-                self.commands[j.min(k)]
+                self.commands[self.logged_interval(k, stamp)]
             }
         }
+    }
+
+    /// The control interval (`≤ k`) whose actuator sample a log sample of interval `k` stamped
+    /// at `stamp` control periods holds: `k` itself, or with a `time-delay` effect the interval
+    /// the time `stamp − delay/dt` falls in ([`Flight::logged_actuators`]).
+    fn logged_interval(&self, k: usize, stamp: f64) -> usize {
+        let Some(d) = self.config.effects.time_delay else {
+            return k;
+        };
+        let x = stamp - d.delay / self.config.control_dt;
+        let x = if (x - x.round()).abs() < 1e-9 {
+            x.round()
+        } else {
+            x
+        };
+        let j = (x.ceil() - 1.0).max(0.0) as usize;
+        j.min(k)
+    }
+
+    /// With [`SimConfig::record_truth`], appends the truth of a log sample of control interval
+    /// `k` stamped at `stamp` control periods (time `t` \[s\]): the plant state `sample.0` with
+    /// its accelerations `sample.1` under the clamped command `cmd`; for a control-rate sample
+    /// also the interval's states (before its first physics step, and after each), whose
+    /// torques the logged `ω̇` averages. Reads the states only: draws nothing, changes nothing
+    /// of the flight.
+    fn record_truth(
+        &mut self,
+        k: usize,
+        stamp: f64,
+        t: f64,
+        sample: (&PlantState, &Accelerations),
+        interval: Option<IntervalStates<'_>>,
+        cmd: &[f64; 4],
+    ) {
+        let j = self.logged_interval(k, stamp);
+        let Some(truth) = self.truth.as_mut() else {
+            return;
+        };
+        let (now, logged) = (truth.read_back[k], truth.read_back[j]);
+        let parts = |(state, acc): (&PlantState, &Accelerations)| {
+            let inputs = TruthInputs {
+                state,
+                acc,
+                motor_speeds: self.plant.acting_rotor_speeds(state, cmd),
+                now,
+                logged,
+            };
+            truth_parts(
+                &self.config.vehicle,
+                &self.config.effects,
+                &truth.effects,
+                &inputs,
+            )
+        };
+        let at_sample = parts(sample);
+        let over_interval = interval.map(|((s0, a0), steps)| {
+            let points: Vec<TruthParts> = std::iter::once(parts((s0, a0)))
+                .chain(steps.iter().map(|(s, a)| parts((s, a))))
+                .collect();
+            let rate_change = steps
+                .last()
+                .map_or_else(Vector3::zeros, |(s, _)| s.body_rate - s0.body_rate);
+            (
+                TruthParts::mean(&points),
+                rate_change / self.config.control_dt,
+            )
+        });
+        let sample = TruthSample::new(
+            t,
+            *self.plant.params(),
+            sample,
+            self.plant.acting_rotor_speeds(sample.0, cmd),
+            logged,
+            at_sample,
+            over_interval,
+        );
+        truth.samples.push(sample);
     }
 
     /// Appends the log sample of control interval `k` (stamped at its midpoint) with the
@@ -692,8 +812,16 @@ impl<'a> Flight<'a> {
             aborted,
             steps: tracking.len(),
         };
+        let (gyro_bias, accel_bias) = self.sensors.biases();
+        let truth = self.truth.map(|t| FlightTruth {
+            effects: t.effects,
+            accel_bias: accel_bias.into(),
+            gyro_bias: gyro_bias.into(),
+            samples: t.samples,
+        });
         SimOutput {
             trajectory: self.trajectory,
+            truth,
             metrics,
             events: self.events,
             updates: self.updates,

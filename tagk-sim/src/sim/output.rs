@@ -111,4 +111,9 @@ pub struct SimOutput {
     pub trace: Vec<TraceSample>,
     /// Tracking error per control step \[m\].
     pub tracking_errors: Vec<f64>,
+    /// The noise-free truth behind the log, one [`TruthSample`](crate::sim::TruthSample) per
+    /// log sample: true motion, true inertial parameters, each plant effect's wrench, the
+    /// sensor biases (`Some` with [`SimConfig::record_truth`](crate::SimConfig::record_truth)
+    /// and [`SimConfig::record_log`](crate::SimConfig::record_log), else `None`).
+    pub truth: Option<crate::sim::FlightTruth>,
 }

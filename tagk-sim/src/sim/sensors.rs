@@ -126,7 +126,6 @@ impl Sensors {
     }
 
     /// The flight's constant gyro bias \[rad/s\] and accelerometer bias `[m/s²]`, body frame.
-    #[cfg(test)]
     pub(crate) fn biases(&self) -> (Vector3<f64>, Vector3<f64>) {
         (self.gyro_bias, self.accel_bias)
     }

@@ -1,0 +1,432 @@
+//! The score of one diagnosis against its flight's ground truth.
+
+use serde::{Deserialize, Serialize};
+use tagk_diagnose::{BuiltinOptions, Coefficient, EffectKind, FittedEffect, Report};
+use tagk_dynamics::nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use tagk_sim::SensingProfile;
+
+use super::ground_truth::{ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth};
+
+/// The final-model effects that stand for a true effect other than by its own name: `(truth,
+/// final-model effect)`. Edit here when the diagnosis gains a candidate for a sensor error.
+///
+/// - An uncalibrated accelerometer's bias is a constant body force (and the torque of the
+///   first moment): today's `body-bias` fits it; the sensor candidate `accel-bias` will; with
+///   the mass known, its vertical part scales the thrust and `thrust-gain` fits that.
+pub const STAND_INS: &[(&str, &str)] = &[
+    (ACCEL_BIAS, ACCEL_BIAS),
+    (ACCEL_BIAS, "body-bias"),
+    (ACCEL_BIAS, "thrust-gain"),
+];
+
+/// Largest relative mass error counted as "within" (the 2 %).
+pub const MASS_TOLERANCE: f64 = 0.02;
+
+/// A fitted pseudo-inertia is "clearly" not positive definite when the smallest eigenvalue
+/// `λ` of the second moment of the mass about the fitted centre of mass,
+/// `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] (positive definite together with `m > 0` iff the
+/// pseudo-inertia is), lies more than `IMPLAUSIBLE_PSEUDO_INERTIA` standard errors below zero,
+/// the standard error from the fitted parameters' own (first-order propagation through `λ`,
+/// the parameters taken as independent): the rule a drag coefficient meets, on the body's
+/// mass distribution. A thin body's smallest second moment is small (the Crazyflie's is about
+/// 11 % of its largest), so an inertia barely excited by the flight can come out slightly
+/// negative within its noise; that is not counted.
+pub const IMPLAUSIBLE_PSEUDO_INERTIA: f64 = 3.0;
+
+/// What the scorer reads of a diagnosis report: the final model, its fitted coefficients and
+/// rigid-body parameters, and the adequacy verdict.
+#[derive(Debug, Clone)]
+pub struct DiagnosisOutcome {
+    /// The final model's effects (`Report::final_model.effects`).
+    pub final_effects: Vec<String>,
+    /// The final model's fitted effects (`Report::final_diagnosis().effects`).
+    pub fitted: Vec<FittedEffect>,
+    /// The final model's rigid-body parameters in `InertialParams` order, with standard
+    /// errors and intervals (`Report::final_diagnosis().parameters`).
+    pub parameters: Vec<Coefficient>,
+    /// `Report::adequate`.
+    pub adequate: bool,
+    /// `Report::stopped`: why the staircase stopped.
+    pub stopped: String,
+}
+
+impl DiagnosisOutcome {
+    /// The outcome of a report.
+    pub fn from_report(report: &Report) -> Self {
+        let last = report.final_diagnosis();
+        Self {
+            final_effects: report.final_model.effects.clone(),
+            fitted: last.effects.clone(),
+            parameters: last.parameters.clone(),
+            adequate: report.adequate,
+            stopped: report.stopped.clone(),
+        }
+    }
+}
+
+/// How one true effect fared.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EffectScore {
+    /// Its name (the vocabulary's, or a sensor truth such as [`ACCEL_BIAS`]).
+    pub name: String,
+    /// Its family.
+    pub family: String,
+    /// Its largest channel strength over the noise ([`super::TrueEffect::max_strength`]).
+    pub strength: f64,
+    /// Its strength per channel `fx..tz` ([`super::TrueEffect::strength`]).
+    pub channel_strength: [f64; 6],
+    /// Detectable (strength ≥ `D`).
+    pub detectable: bool,
+    /// Found: its own name, or a stand-in ([`STAND_INS`]), is in the final model.
+    pub found: bool,
+    /// Found in its family: an effect of the same `EffectKind::family()` is in the final model
+    /// (a drag law also by a `wind`, which includes a drag; a sensor truth by a stand-in).
+    pub found_in_family: bool,
+    /// The final-model effect that stands for it (its own name first), if any.
+    pub reported_as: Option<String>,
+}
+
+/// One reported coefficient against its true value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoefficientScore {
+    /// The diagnosis effect.
+    pub effect: String,
+    /// The coefficient's name.
+    pub name: String,
+    /// Coefficient, scanned parameter or derived quantity.
+    pub kind: CoefficientKind,
+    /// True value (SI).
+    pub truth: f64,
+    /// Reported value (`None`: the effect does not report it).
+    pub estimate: Option<f64>,
+    /// `|estimate − truth| / scale`, the scale being the norm of the true values of its group
+    /// ([`ExpectedCoefficient::scale`]).
+    pub relative_error: Option<f64>,
+    /// The reported 95 % interval (`None`: no interval reported).
+    pub interval: Option<[f64; 2]>,
+    /// Whether the truth lies in the interval (`None` without an interval).
+    pub covered: Option<bool>,
+}
+
+/// The score of one flight.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FlightScore {
+    /// The flight's sensing profile.
+    pub sensing: SensingProfile,
+    /// `true`: diagnosed with the known mass.
+    pub known_mass: bool,
+    /// Noise σ per channel `fx..tz` \[N, N m\] ([`GroundTruth::noise`]).
+    pub noise: [f64; 6],
+    /// Every true effect (plant effects, then sensor truths).
+    pub effects: Vec<EffectScore>,
+    /// The final model's effects.
+    pub final_effects: Vec<String>,
+    /// Final-model effects that are neither a true effect nor a stand-in for one.
+    pub false_effects: Vec<String>,
+    /// Final-model effects whose family is not a true effect's family (a drag law counts as
+    /// covered by a true `wind`).
+    pub false_families: Vec<String>,
+    /// Every coefficient compared (the final model's effects that have a truth and whose
+    /// comparison is not ambiguous).
+    pub coefficients: Vec<CoefficientScore>,
+    /// Coefficient comparisons skipped as ambiguous (a drag law and a wind in one final model).
+    pub ambiguous_coefficients: usize,
+    /// True mass of the flying body \[kg\].
+    pub mass_true: f64,
+    /// The mass the data identify \[kg\] ([`GroundTruth::identifiable_mass`]).
+    pub mass_identifiable: f64,
+    /// The final model's mass \[kg\] (the known mass when it was given).
+    pub mass_estimate: f64,
+    /// `|m̂ − m| / m` against the true mass.
+    pub mass_error: f64,
+    /// `|m̂ − m'| / m'` against the identifiable mass.
+    pub mass_error_identifiable: f64,
+    /// `|Î_ii − I_ii| / I_ii` for `xx, yy, zz` (about the body origin).
+    pub inertia_error: [f64; 3],
+    /// `Report::adequate`.
+    pub adequate_reported: bool,
+    /// Every detectable true effect is in the final model, by family ([`EffectScore::found_in_family`]):
+    /// what `adequate` should say (the drag laws and the lag and delay cannot always be told
+    /// apart in a log, and a model with the other one of the family is at the noise floor too).
+    pub adequate_expected: bool,
+    /// The same by name ([`EffectScore::found`]).
+    pub adequate_expected_by_name: bool,
+    /// `adequate_reported == adequate_expected`.
+    pub adequate_right: bool,
+    /// This benchmark's own implausibility findings on the final model (empty: plausible).
+    pub implausible: Vec<String>,
+    /// Effects of the final model the diagnosis itself marks implausible
+    /// (`FittedEffect::plausible == false`).
+    pub diagnosis_implausible: Vec<String>,
+    /// Why the staircase stopped (`Report::stopped`).
+    pub stopped: String,
+}
+
+impl FlightScore {
+    /// `true` when the flight has no true effect at all (neither a plant effect nor a sensor
+    /// truth).
+    pub fn is_clean(&self) -> bool {
+        self.effects.is_empty()
+    }
+}
+
+/// Whether a final-model effect `reported` is in the family of the true effect `truth`.
+fn in_family(truth: &str, reported: &str) -> bool {
+    if truth == reported || STAND_INS.contains(&(truth, reported)) {
+        return true;
+    }
+    match (
+        EffectKind::from_name(truth),
+        EffectKind::from_name(reported),
+    ) {
+        (Some(t), Some(r)) => {
+            t.family() == r.family()
+                || (t.family() == EffectKind::LinearDrag.family() && r.includes_drag())
+        }
+        _ => false,
+    }
+}
+
+/// The coefficient `name` of `kind` in a fitted effect, with its interval.
+fn reported(
+    fitted: &FittedEffect,
+    kind: CoefficientKind,
+    name: &str,
+) -> Option<(f64, Option<[f64; 2]>)> {
+    match kind {
+        CoefficientKind::Coefficient => fitted
+            .coefficients
+            .iter()
+            .find(|c| c.name == name)
+            .map(|c| (c.value, c.confidence_interval)),
+        CoefficientKind::Derived => fitted
+            .derived
+            .iter()
+            .find(|c| c.name == name)
+            .map(|c| (c.value, c.confidence_interval)),
+        CoefficientKind::Scanned => fitted
+            .scanned
+            .as_ref()
+            .filter(|(n, _, _)| n == name)
+            .map(|(_, v, _)| (*v, fitted.scanned_interval)),
+    }
+}
+
+/// This benchmark's implausibility checks of a final model (independent of the diagnosis'
+/// own): a drag coefficient (of a drag law, of a wind's drag, the ground-effect gain)
+/// significantly negative (below −3 standard errors; below 0 without one); a motor lag at the
+/// upper end of its scan range or a delay at either end (the default grids of
+/// `tagk_diagnose::BuiltinOptions`); a mass that is not positive; a pseudo-inertia clearly
+/// not positive definite ([`IMPLAUSIBLE_PSEUDO_INERTIA`]).
+fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
+    let mut out = Vec::new();
+    let grids = BuiltinOptions::default();
+    let lag_max = grids
+        .motor_lag_time_constants
+        .iter()
+        .copied()
+        .fold(0.0, f64::max);
+    let delay_max = grids.time_delays.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    for fe in &outcome.fitted {
+        let kind = EffectKind::from_name(&fe.effect);
+        let signed: &[Coefficient] = match kind {
+            Some(k) if k.family() == EffectKind::LinearDrag.family() => &fe.coefficients,
+            Some(EffectKind::Wind) => &fe.coefficients[..fe.coefficients.len().min(3)],
+            Some(EffectKind::GroundEffect) => &fe.coefficients,
+            _ => &[],
+        };
+        for c in signed {
+            let negative = match c.std_error {
+                Some(se) => c.value < -3.0 * se,
+                None => c.value < 0.0,
+            };
+            if negative {
+                out.push(format!(
+                    "{}: {} = {:.3e} significantly negative",
+                    fe.effect, c.name, c.value
+                ));
+            }
+        }
+        if let Some((name, value, _)) = &fe.scanned {
+            let at_end = match kind {
+                Some(EffectKind::MotorLag) => *value >= lag_max * (1.0 - 1e-9),
+                Some(EffectKind::TimeDelay) => value.abs() >= delay_max * (1.0 - 1e-9),
+                _ => false,
+            };
+            if at_end {
+                out.push(format!(
+                    "{}: {name} = {value:.3} at the end of its scan range",
+                    fe.effect
+                ));
+            }
+        }
+    }
+    let theta: Vec<f64> = outcome.parameters.iter().map(|p| p.value).collect();
+    let se: Vec<f64> = outcome
+        .parameters
+        .iter()
+        .map(|p| p.std_error.unwrap_or(0.0))
+        .collect();
+    if theta.len() == 10 {
+        let m = theta[0];
+        if m.is_nan() || m <= 0.0 {
+            out.push(format!("mass {m:.4e} kg not positive"));
+        } else if let Some((lambda, lambda_se)) = second_moment_eigen(&theta, &se)
+            && lambda < -IMPLAUSIBLE_PSEUDO_INERTIA * lambda_se
+        {
+            out.push(format!(
+                "pseudo-inertia not positive definite: the second moment about the centre of mass has the eigenvalue {lambda:.2e} ± {lambda_se:.1e} kg m²"
+            ));
+        }
+    } else {
+        out.push(format!(
+            "{} rigid-body parameters, 10 expected",
+            theta.len()
+        ));
+    }
+    out
+}
+
+/// The smallest eigenvalue `λ` of `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] for the parameters
+/// `theta` (order of `InertialParams`, `m > 0`) and its standard error from the parameters'
+/// standard errors `se` (independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
+fn second_moment_eigen(theta: &[f64], se: &[f64]) -> Option<(f64, f64)> {
+    let m = theta[0];
+    let h = Vector3::new(theta[1], theta[2], theta[3]);
+    let i = Matrix3::new(
+        theta[4], theta[5], theta[7], theta[5], theta[6], theta[8], theta[7], theta[8], theta[9],
+    );
+    let sigma = Matrix3::identity() * (0.5 * i.trace()) - i - h * h.transpose() / m;
+    let eig = SymmetricEigen::new(sigma);
+    let k = eig.eigenvalues.imin();
+    let lambda = eig.eigenvalues[k];
+    let v = eig.eigenvectors.column(k).into_owned();
+    let vh = v.dot(&h);
+    let gradient = [
+        vh * vh / (m * m),
+        -2.0 * vh * v.x / m,
+        -2.0 * vh * v.y / m,
+        -2.0 * vh * v.z / m,
+        0.5 - v.x * v.x,
+        -2.0 * v.x * v.y,
+        0.5 - v.y * v.y,
+        -2.0 * v.x * v.z,
+        -2.0 * v.y * v.z,
+        0.5 - v.z * v.z,
+    ];
+    let var: f64 = gradient.iter().zip(se).map(|(g, s)| (g * s).powi(2)).sum();
+    lambda.is_finite().then_some((lambda, var.sqrt()))
+}
+
+/// The score of a diagnosis `outcome` against its flight's `truth` (see [`FlightScore`]'s
+/// fields for every rule).
+pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightScore {
+    let finals = &outcome.final_effects;
+    let effects: Vec<EffectScore> = truth
+        .effects
+        .iter()
+        .map(|t| {
+            let exact = finals
+                .iter()
+                .find(|f| **f == t.name)
+                .or_else(|| {
+                    finals
+                        .iter()
+                        .find(|f| STAND_INS.contains(&(t.name.as_str(), f.as_str())))
+                })
+                .cloned();
+            let family = finals.iter().find(|f| in_family(&t.name, f)).cloned();
+            EffectScore {
+                name: t.name.clone(),
+                family: t.family.clone(),
+                strength: t.max_strength,
+                channel_strength: t.strength,
+                detectable: t.detectable,
+                found: exact.is_some(),
+                found_in_family: family.is_some(),
+                reported_as: exact.or(family),
+            }
+        })
+        .collect();
+    let false_effects: Vec<String> = finals
+        .iter()
+        .filter(|f| {
+            !truth
+                .effects
+                .iter()
+                .any(|t| t.name == **f || STAND_INS.contains(&(t.name.as_str(), f.as_str())))
+        })
+        .cloned()
+        .collect();
+    let false_families: Vec<String> = finals
+        .iter()
+        .filter(|f| !truth.effects.iter().any(|t| in_family(&t.name, f)))
+        .cloned()
+        .collect();
+    let mut coefficients = Vec::new();
+    let mut ambiguous = 0;
+    for fe in &outcome.fitted {
+        for exp in truth.expected.iter().filter(|e| e.effect == fe.effect) {
+            if exp.unless_with.iter().any(|u| finals.contains(u)) {
+                ambiguous += 1;
+                continue;
+            }
+            coefficients.push(coefficient_score(exp, fe));
+        }
+    }
+    let estimate = |j: usize| outcome.parameters.get(j).map_or(f64::NAN, |p| p.value);
+    let mass_estimate = estimate(0);
+    let inertia_error = [(4, 4), (6, 6), (9, 9)].map(|(j, t)| {
+        let truth_ii = truth.params[t];
+        (estimate(j) - truth_ii).abs() / truth_ii.abs()
+    });
+    let adequate_expected = effects.iter().all(|e| !e.detectable || e.found_in_family);
+    let adequate_expected_by_name = effects.iter().all(|e| !e.detectable || e.found);
+    FlightScore {
+        sensing: truth.sensing,
+        known_mass: truth.known_mass,
+        noise: truth.noise,
+        effects,
+        final_effects: finals.clone(),
+        false_effects,
+        false_families,
+        coefficients,
+        ambiguous_coefficients: ambiguous,
+        mass_true: truth.mass,
+        mass_identifiable: truth.identifiable_mass,
+        mass_estimate,
+        mass_error: (mass_estimate - truth.mass).abs() / truth.mass,
+        mass_error_identifiable: (mass_estimate - truth.identifiable_mass).abs()
+            / truth.identifiable_mass,
+        inertia_error,
+        adequate_reported: outcome.adequate,
+        adequate_expected,
+        adequate_expected_by_name,
+        adequate_right: outcome.adequate == adequate_expected,
+        implausible: implausibilities(outcome),
+        diagnosis_implausible: outcome
+            .fitted
+            .iter()
+            .filter(|f| !f.plausible)
+            .map(|f| format!("{}: {}", f.effect, f.plausibility_note))
+            .collect(),
+        stopped: outcome.stopped.clone(),
+    }
+}
+
+/// One expected coefficient against the fitted effect that reports it.
+fn coefficient_score(exp: &ExpectedCoefficient, fitted: &FittedEffect) -> CoefficientScore {
+    let got = reported(fitted, exp.kind, &exp.name);
+    let estimate = got.map(|(v, _)| v);
+    let interval = got.and_then(|(_, i)| i);
+    CoefficientScore {
+        effect: exp.effect.clone(),
+        name: exp.name.clone(),
+        kind: exp.kind,
+        truth: exp.value,
+        estimate,
+        relative_error: estimate.map(|v| (v - exp.value).abs() / exp.scale.max(f64::MIN_POSITIVE)),
+        interval,
+        covered: interval.map(|[lo, hi]| lo <= exp.value && exp.value <= hi),
+    }
+}
