@@ -100,6 +100,9 @@ pub struct GroundTruth {
     pub params: [f64; 10],
     /// The detectability threshold `D` used.
     pub detectable_threshold: f64,
+    /// `true` for a flight at a constant heading (no yaw rate): a force fixed in the world and
+    /// one fixed in the body are then the same in the data.
+    pub constant_heading: bool,
 }
 
 /// The least-squares projection onto the rigid-body regressor's columns of stacked,
@@ -338,6 +341,7 @@ impl GroundTruth {
             identifiable_mass,
             params: theta0.to_array(),
             detectable_threshold: detectable,
+            constant_heading: spec.yaw_rate == 0.0,
         })
     }
 }

@@ -17,6 +17,20 @@ pub const STAND_INS: &[(&str, &str)] = &[
     (ACCEL_BIAS, ACCEL_BIAS),
     (ACCEL_BIAS, "body-bias"),
     (ACCEL_BIAS, "thrust-gain"),
+    // The plant's body bias is a constant force and torque: its force is the accelerometer
+    // offset's signature, which the diagnosis names (its torque about x and y trades with the
+    // centre of mass in level flight).
+    ("body-bias", ACCEL_BIAS),
+];
+
+/// Stand-ins that hold only at a constant heading (a flight without a yaw rate): a force fixed
+/// in the world and one fixed in the body are then the same in the data, so a wind (a drag and
+/// a world force) and a constant body force with a drag explain a log alike. `(truth, stands
+/// for it)`; a wind's stand-in also needs a drag law in the final model.
+pub const CONSTANT_HEADING_STAND_INS: &[(&str, &str)] = &[
+    ("wind", ACCEL_BIAS),
+    (ACCEL_BIAS, "wind"),
+    ("body-bias", "wind"),
 ];
 
 /// Largest relative mass error counted as "within" (the 2 %).
@@ -168,6 +182,18 @@ impl FlightScore {
     pub fn is_clean(&self) -> bool {
         self.effects.is_empty()
     }
+}
+
+/// Whether `reported` in the final model `finals` stands for the true effect `name` at a
+/// constant heading ([`CONSTANT_HEADING_STAND_INS`]).
+fn constant_heading_stand_in(truth: &GroundTruth, finals: &[String], name: &str, reported: &str) -> bool {
+    if !truth.constant_heading || !CONSTANT_HEADING_STAND_INS.contains(&(name, reported)) {
+        return false;
+    }
+    name != "wind"
+        || finals.iter().any(|f| {
+            EffectKind::from_name(f).is_some_and(|k| k.family() == EffectKind::LinearDrag.family())
+        })
 }
 
 /// Whether a final-model effect `reported` is in the family of the true effect `truth`.
@@ -334,6 +360,11 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                         .iter()
                         .find(|f| STAND_INS.contains(&(t.name.as_str(), f.as_str())))
                 })
+                .or_else(|| {
+                    finals
+                        .iter()
+                        .find(|f| constant_heading_stand_in(truth, finals, &t.name, f))
+                })
                 .cloned();
             let family = finals.iter().find(|f| in_family(&t.name, f)).cloned();
             EffectScore {
@@ -351,10 +382,18 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
     let false_effects: Vec<String> = finals
         .iter()
         .filter(|f| {
-            !truth
-                .effects
-                .iter()
-                .any(|t| t.name == **f || STAND_INS.contains(&(t.name.as_str(), f.as_str())))
+            !truth.effects.iter().any(|t| {
+                t.name == **f
+                    || STAND_INS.contains(&(t.name.as_str(), f.as_str()))
+                    || constant_heading_stand_in(truth, finals, &t.name, f)
+                    // A wind's drag law at a constant heading.
+                    || (t.name == "wind"
+                        && truth.constant_heading
+                        && finals.iter().any(|g| g == ACCEL_BIAS)
+                        && EffectKind::from_name(f).is_some_and(|k| {
+                            k.family() == EffectKind::LinearDrag.family()
+                        }))
+            })
         })
         .cloned()
         .collect();

@@ -62,6 +62,7 @@ fn truth() -> GroundTruth {
         identifiable_mass: p[0],
         params: p,
         detectable_threshold: 1.0,
+        constant_heading: false,
     }
 }
 

@@ -43,8 +43,9 @@ use tagk_dynamics::InertialParams;
 /// model cares about, however significant it is on a long log.
 pub const MIN_GAIN: f64 = 0.05;
 
-/// Variance inflation beyond which two members of a set are not told apart (100: the
-/// member's columns are 99.5 % explained by the other columns).
+/// Variance inflation beyond which a member that fails the significance test is reported as
+/// not told apart from the others (100: its columns are 99.5 % explained by the other
+/// columns), rather than as merely not significant.
 pub const MAX_INFLATION: f64 = 100.0;
 
 /// How many of the best single candidates enter pairs, and how many enter triples.
@@ -872,14 +873,18 @@ impl Context<'_> {
             {
                 Some(Refusal::Implausible(viol))
             } else if scans[k].at_end || at_range_end(m) {
-                let (lo, hi) = scans[k].range;
-                let (lo, hi) = if lo.is_finite() { (lo, hi) } else { grid_range(m) };
+                let (lo, hi) = grid_range(m);
                 Some(Refusal::OutOfRange {
                     value: m.param.unwrap_or(f64::NAN),
                     lo,
                     hi,
                 })
-            } else if v.inflation > MAX_INFLATION {
+            } else if v.statistic < chi2_quantile(judge.alpha / judge.tests, v.dof as f64)
+                && v.inflation > MAX_INFLATION
+            {
+                // Not significant because the other columns explain what it would: the data
+                // cannot tell it apart from them (a clear effect of large inflation is kept:
+                // its interval carries the inflation).
                 let others: Vec<String> = names
                     .iter()
                     .enumerate()
@@ -1037,13 +1042,16 @@ pub(crate) fn search(
         set.scans[0] = scans;
         singles.push(set);
     }
-    // The pool of pairs and triples: the best singles by held-out gain (at least not worse).
+    // The pool of pairs and triples: the best singles by in-sample gain (an effect whose
+    // signal lies in one part of the flight, or that needs a partner to be physical, can be
+    // worse alone on held-out data).
     let mut order: Vec<usize> = (0..singles.len()).collect();
-    order.sort_by(|&a, &b| singles[b].gain.total_cmp(&singles[a].gain));
+    let fit_gain = |i: usize| base.fit - singles[i].score.fit;
+    order.sort_by(|&a, &b| fit_gain(b).total_cmp(&fit_gain(a)));
     let pool: Vec<usize> = order
         .iter()
         .copied()
-        .filter(|&i| singles[i].gain > 0.0)
+        .filter(|&i| fit_gain(i) > 0.0)
         .take(PAIR_POOL)
         .collect();
     let mut sets: Vec<SetEval> = singles.clone();
@@ -1086,10 +1094,28 @@ pub(crate) fn search(
             }
         }
     }
-    // The admissible sets by gain; a set of several members with a scanned one is judged
-    // again with its parameters scanned within the set (they may move once the others are in).
+    // The admissible sets by gain; among those the data cannot tell from the best (a gain
+    // within the comparison's noise, [`comparison_margin`]) the one of least prior cost
+    // ([`prior_cost`]: a sensor offset before a wind, which is a drag and a force). A set of
+    // several members with a scanned one is judged again with its parameters scanned within
+    // the set (they may move once the others are in).
     let mut order: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].admissible()).collect();
     order.sort_by(|&a, &b| sets[b].gain.total_cmp(&sets[a].gain));
+    if let Some(&top) = order.first() {
+        let margin = comparison_margin(sets[top].gain);
+        let cost = |i: usize| sets[i].members.iter().map(prior_cost).sum::<f64>();
+        order.sort_by(|&a, &b| {
+            let near = |i: usize| sets[top].gain - sets[i].gain <= margin;
+            near(b)
+                .cmp(&near(a))
+                .then(if near(a) && near(b) {
+                    cost(a).total_cmp(&cost(b))
+                } else {
+                    std::cmp::Ordering::Equal
+                })
+                .then(sets[b].gain.total_cmp(&sets[a].gain))
+        });
+    }
     let mut best = None;
     for i in order {
         let scanned = sets[i].members.iter().any(|m| m.effect.scan().is_some());
@@ -1138,8 +1164,12 @@ pub(crate) fn search(
             sets.iter()
                 .filter(|s| s.admissible())
                 .filter(|s| s.names().into_iter().collect::<BTreeSet<_>>() != names)
-                .filter(|s| s.members.len() == c.members.len())
-                .filter(|s| c.gain - s.gain <= 2.0 * c.gain.max(1.0).sqrt())
+                .filter(|s| {
+                    // Another explanation, not a part of this one or this one and more.
+                    let other: BTreeSet<String> = s.names().into_iter().collect();
+                    !other.is_subset(&names) && !names.is_subset(&other)
+                })
+                .filter(|s| (s.gain - c.gain).abs() <= comparison_margin(c.gain.max(s.gain)))
                 .cloned()
                 .collect()
         }
@@ -1154,20 +1184,35 @@ pub(crate) fn search(
     }
 }
 
-/// `true` when two members belong to one effect family (the drag laws; a lag and a delay):
-/// such pairs are not tried together, they would split one physical effect between them.
+/// How much two sets' held-out gains (noise units) may differ by chance: twice the square root
+/// of the larger gain (the score is a sum of squares in units of the noise), at least 1 % of
+/// it.
+pub(crate) fn comparison_margin(gain: f64) -> f64 {
+    let g = gain.max(1.0);
+    (2.0 * g.sqrt()).max(0.01 * g)
+}
+
+/// The prior cost of an effect when the data cannot choose between sets: a sensor offset is
+/// the commonest cause of what it explains (0.5), a wind is two effects — a drag and a
+/// world-fixed force (2), every other effect one (1).
+fn prior_cost(m: &Member) -> f64 {
+    use tagk_dynamics::EffectKind;
+    if crate::effects::is_sensor_effect(m.name()) {
+        0.5
+    } else if EffectKind::from_name(m.name()) == Some(EffectKind::Wind) {
+        2.0
+    } else {
+        1.0
+    }
+}
+
+/// `true` when two members are drag laws (a wind includes one): such pairs are not tried
+/// together, they would split one physical drag between them. A lag and a delay may go
+/// together: a lag filters, a delay shifts, and jittery commands tell them apart (the
+/// significance test decides).
 fn same_family(a: &Member, b: &Member) -> bool {
     use tagk_dynamics::EffectKind;
-    let family = |m: &Member| EffectKind::from_name(m.name()).map(|k| k.family());
-    match (family(a), family(b)) {
-        (Some(x), Some(y)) => {
-            x == y
-                || (EffectKind::from_name(a.name()).is_some_and(EffectKind::includes_drag)
-                    && y == EffectKind::LinearDrag.family())
-                || (EffectKind::from_name(b.name()).is_some_and(EffectKind::includes_drag)
-                    && x == EffectKind::LinearDrag.family())
-        }
-        _ => false,
-    }
+    let drag = |m: &Member| EffectKind::from_name(m.name()).is_some_and(EffectKind::includes_drag);
+    drag(a) && drag(b)
 }
 

@@ -69,6 +69,12 @@ pub(crate) struct GramEngine<'a> {
     stride: usize,
 }
 
+/// Shortest block of the blocked cross-validation \[s\] ([`GramEngine::new`]).
+const MIN_BLOCK_SECONDS: f64 = 3.0;
+
+/// Most blocks per fold of the blocked cross-validation.
+const MAX_BLOCK_ROUNDS: usize = 8;
+
 /// Samples a 1-D scan looks at, at most (about): a scan ranks the values of one parameter by
 /// their in-sample residual, for which every `n / SCAN_SAMPLES`-th sample of a long log
 /// suffices; the chosen value is then evaluated on every sample.
@@ -148,14 +154,22 @@ impl<'a> GramEngine<'a> {
         } else if folds == 1 {
             pieces.push((0, n));
         } else {
+            // Blocks of at least MIN_BLOCK_SECONDS, dealt to the folds in turn (fold of block b:
+            // b mod folds), so that every fold holds out several parts of a long flight and
+            // trains on the others: an effect present in one part of the flight only (near the
+            // ground, at speed) is still learnt from the folds that hold out another part.
             let dt = s.mean_dt().max(1e-9);
-            let buffer = ((1.0 / dt).round() as usize).min(n / (4 * folds)).max(1);
-            for k in 0..folds {
-                let a = k * n / folds;
-                let b = (k + 1) * n / folds;
-                pieces.push((a, a + buffer));
-                pieces.push((a + buffer, b - buffer));
-                pieces.push((b - buffer, b));
+            let duration = dt * n as f64;
+            let rounds = ((duration / (folds as f64 * MIN_BLOCK_SECONDS)).floor() as usize)
+                .clamp(1, MAX_BLOCK_ROUNDS);
+            let blocks = folds * rounds;
+            let buffer = ((1.0 / dt).round() as usize).min(n / (4 * blocks)).max(1);
+            for b in 0..blocks {
+                let lo = b * n / blocks;
+                let hi = (b + 1) * n / blocks;
+                pieces.push((lo, lo + buffer));
+                pieces.push((lo + buffer, hi - buffer));
+                pieces.push((hi - buffer, hi));
             }
         }
         let mut all: Vec<Column<'_>> = vec![Column::Target];
@@ -327,12 +341,16 @@ impl<'a> GramEngine<'a> {
         let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
         let mut fold_beta = Vec::new();
         if self.folds > 1 {
-            let k_of = |pi: usize| pi / 3;
+            let blocks = np / 3;
+            let folds = self.folds;
+            let k_of = |pi: usize| (pi / 3) % folds;
             for k in 0..self.folds {
+                // The fold's blocks, and the buffers of their neighbours on the near side.
                 let excluded = |pi: usize| {
+                    let (b, part) = (pi / 3, pi % 3);
                     k_of(pi) == k
-                        || (k > 0 && pi == 3 * (k - 1) + 2)
-                        || (k + 1 < self.folds && pi == 3 * (k + 1))
+                        || (part == 2 && b + 1 < blocks && (b + 1) % folds == k)
+                        || (part == 0 && b > 0 && (b - 1) % folds == k)
                 };
                 let train = sum_pieces(&|pi| !excluded(pi), None);
                 let (bk, _) = solve_gram(&train, pp, Some(&total));
@@ -363,14 +381,14 @@ impl<'a> GramEngine<'a> {
         }
     }
 
-    /// The sample range each cross-validation fold holds out (one range, the whole log,
-    /// without folds).
-    pub fn fold_ranges(&self) -> Vec<std::ops::Range<usize>> {
+    /// The sample ranges the cross-validation holds out, each with its fold (one range, the
+    /// whole log, in fold 0 without folds).
+    pub fn fold_ranges(&self) -> Vec<(std::ops::Range<usize>, usize)> {
         if self.folds <= 1 {
-            return vec![0..self.s.len()];
+            return vec![(0..self.s.len(), 0)];
         }
-        (0..self.folds)
-            .map(|k| self.pieces[3 * k].0..self.pieces[3 * k + 2].1)
+        (0..self.pieces.len() / 3)
+            .map(|b| (self.pieces[3 * b].0..self.pieces[3 * b + 2].1, b % self.folds))
             .collect()
     }
 
@@ -403,7 +421,7 @@ impl<'a> GramEngine<'a> {
             }
         }
         let ranges = self.fold_ranges();
-        let betas: Vec<Vec<f64>> = if ev.fold_beta.len() == ranges.len() {
+        let betas: Vec<Vec<f64>> = if ev.fold_beta.len() == self.folds && self.folds > 1 {
             ev.fold_beta
                 .iter()
                 .map(|bk| {
@@ -420,14 +438,15 @@ impl<'a> GramEngine<'a> {
                 })
                 .collect()
         } else {
-            vec![ev.beta.clone(); ranges.len()]
+            vec![ev.beta.clone(); self.folds.max(1)]
         };
         let nb = self.base.len();
         let mut blocks = Blocks::new(self.s, None);
         blocks.need(&self.base);
-        for (range, beta) in ranges.into_iter().zip(betas) {
+        for (range, fold) in ranges {
+            let beta = &betas[fold];
             for_each_block(&mut blocks, range.clone(), |blk, lo, hi| {
-                for (col, &b) in self.base.iter().zip(&beta) {
+                for (col, &b) in self.base.iter().zip(beta.iter()) {
                     for c in 0..6 {
                         if let Some((v, _)) = blk.get(col, c) {
                             for (ri, x) in r[lo..hi].iter_mut().zip(v) {
