@@ -33,6 +33,15 @@ pub const CONSTANT_HEADING_STAND_INS: &[(&str, &str)] = &[
     ("body-bias", "wind"),
 ];
 
+/// The strength of a missing effect (RMS over the noise) that raises a channel's residual to
+/// the diagnosis' adequacy factor: `√(F² − 1)` for `F = tagk_diagnose::ADEQUACY_FACTOR`
+/// (0.66 for 1.2). A missing effect between it and the detectability threshold may make the
+/// final model "not adequate" rightly.
+pub fn adequacy_gray_zone() -> f64 {
+    let f = crate::diagnose::ADEQUACY_FACTOR;
+    (f * f - 1.0).sqrt()
+}
+
 /// Largest relative mass error counted as "within" (the 2 %).
 pub const MASS_TOLERANCE: f64 = 0.02;
 
@@ -159,10 +168,14 @@ pub struct FlightScore {
     pub inertia_error: [f64; 3],
     /// `Report::adequate`.
     pub adequate_reported: bool,
-    /// Every detectable true effect is in the final model, by family ([`EffectScore::found_in_family`]):
-    /// what `adequate` should say (the drag laws and the lag and delay cannot always be told
-    /// apart in a log, and a model with the other one of the family is at the noise floor too).
+    /// Every detectable true effect is in the final model — by name or stand-in, a drag law
+    /// also by another drag law (the laws cannot always be told apart in a log, and a model
+    /// with another one is at the noise too): what `adequate` should say.
     pub adequate_expected: bool,
+    /// `adequate` may also say "not adequate" with every detectable effect found: a missing
+    /// effect below the detectability threshold but above [`adequacy_gray_zone`] of the noise
+    /// raises the residual beyond the adequacy factor (the gray zone of the two thresholds).
+    pub adequate_gray: bool,
     /// The same by name ([`EffectScore::found`]).
     pub adequate_expected_by_name: bool,
     /// `adequate_reported == adequate_expected`.
@@ -374,7 +387,7 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                 channel_strength: t.strength,
                 detectable: t.detectable,
                 found: exact.is_some(),
-                found_in_family: family.is_some(),
+                found_in_family: family.is_some() || exact.is_some(),
                 reported_as: exact.or(family),
             }
         })
@@ -419,7 +432,13 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         let truth_ii = truth.params[t];
         (estimate(j) - truth_ii).abs() / truth_ii.abs()
     });
-    let adequate_expected = effects.iter().all(|e| !e.detectable || e.found_in_family);
+    let drag = |e: &EffectScore| e.family == EffectKind::LinearDrag.family();
+    let adequate_expected = effects
+        .iter()
+        .all(|e| !e.detectable || e.found || (drag(e) && e.found_in_family));
+    let adequate_gray = effects.iter().any(|e| {
+        !e.found && !(drag(e) && e.found_in_family) && e.strength >= adequacy_gray_zone()
+    });
     let adequate_expected_by_name = effects.iter().all(|e| !e.detectable || e.found);
     FlightScore {
         sensing: truth.sensing,
@@ -441,7 +460,9 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         adequate_reported: outcome.adequate,
         adequate_expected,
         adequate_expected_by_name,
-        adequate_right: outcome.adequate == adequate_expected,
+        adequate_right: outcome.adequate == adequate_expected
+            || (adequate_expected && !outcome.adequate && adequate_gray),
+        adequate_gray,
         implausible: implausibilities(outcome),
         diagnosis_implausible: outcome
             .fitted

@@ -695,7 +695,11 @@ fn remains(d: &Diagnosis) -> String {
             percent_cell(ch.error_percent, 7),
             d.held_out_rms[c],
             a.ratio,
-            if a.lags_beyond <= 2 { "yes" } else { "no" },
+            if a.autocorrelation_sum <= a.autocorrelation_limit {
+                "yes"
+            } else {
+                "no"
+            },
             a.limited_by
         ));
     }

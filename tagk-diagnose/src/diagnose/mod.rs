@@ -44,10 +44,15 @@ pub(crate) use select::Context;
 /// (1.2) and its residual is white ([`ADEQUATE_AUTOCORRELATION`]).
 pub const ADEQUACY_FACTOR: f64 = 1.2;
 
-/// Largest residual autocorrelation (in magnitude, at lags 1 to 20) of an adequate channel
-/// beyond the 95 % band of white noise: 0.1, a model error of about a tenth of the noise
-/// variance that varies slowly with the flight. At most 2 of the 20 lags may exceed it.
-pub const ADEQUATE_AUTOCORRELATION: f64 = 0.1;
+/// Whiteness of an adequate channel's residual: the sum of its squared autocorrelations at lags
+/// 1 to 20, `Σ ρ_k²`, at most the larger of the Ljung–Box bound `χ²₂₀(0.999) / n` (white noise
+/// exceeds it once in a thousand logs) and this effect size (0.02: one lag correlated by 0.14,
+/// a model error of about a seventh of the noise variance; a long log's tiny correlations are
+/// not a missing effect).
+pub const ADEQUATE_AUTOCORRELATION: f64 = 0.02;
+
+/// The lags of the whiteness test.
+const WHITENESS_LAGS: usize = 20;
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone)]
@@ -339,11 +344,12 @@ pub struct ChannelAdequacy {
     pub noise: f64,
     /// `held_out_rms / noise`.
     pub ratio: f64,
-    /// Lags 1–20 of the residual's autocorrelation beyond the larger of the white band and
-    /// [`ADEQUATE_AUTOCORRELATION`].
-    pub lags_beyond: usize,
+    /// `Σ ρ_k²` of the residual's autocorrelation at lags 1–20.
+    pub autocorrelation_sum: f64,
+    /// The largest `Σ ρ_k²` of a white residual ([`ADEQUATE_AUTOCORRELATION`]).
+    pub autocorrelation_limit: f64,
     /// The channel passes: below its resolution, or within [`ADEQUACY_FACTOR`] of its noise
-    /// with at most 2 lags beyond.
+    /// and white.
     pub adequate: bool,
     /// The sensor quantity that limits the channel ([`NoiseFloor::limited_by`]).
     pub limited_by: String,
@@ -388,8 +394,9 @@ fn adequacy(
     floor: &NoiseFloor,
 ) -> Vec<ChannelAdequacy> {
     let n = whitened.len();
-    let max_lag = 20.min(n / 4).max(1);
-    let band = (1.96 / (n.max(1) as f64).sqrt()).max(ADEQUATE_AUTOCORRELATION);
+    let max_lag = WHITENESS_LAGS.min(n / 4).max(1);
+    let limit = (crate::diagnose::select::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
+        .max(ADEQUATE_AUTOCORRELATION);
     (0..6)
         .map(|c| {
             let noise = floor.rms[c];
@@ -400,15 +407,16 @@ fn adequacy(
             };
             let r: Vec<f64> = whitened.iter().map(|x| x[c]).collect();
             let rho = stats::autocorrelation(&r, max_lag);
-            let lags_beyond = rho[1..].iter().filter(|x| x.abs() > band).count();
+            let sum: f64 = rho[1..].iter().map(|x| x * x).sum();
             let below_resolution = held_out[c] <= ADEQUACY_FACTOR * floor.resolution[c];
             ChannelAdequacy {
                 channel: CHANNEL_NAMES[c].into(),
                 held_out_rms: held_out[c],
                 noise,
                 ratio,
-                lags_beyond,
-                adequate: below_resolution || (ratio <= ADEQUACY_FACTOR && lags_beyond <= 2),
+                autocorrelation_sum: sum,
+                autocorrelation_limit: limit,
+                adequate: below_resolution || (ratio <= ADEQUACY_FACTOR && sum <= limit),
                 limited_by: floor.limited_by(c).into(),
             }
         })
@@ -580,8 +588,8 @@ fn remains(adequacy: &[ChannelAdequacy]) -> String {
                 format!("{} {:.1}× its noise", a.channel, a.ratio)
             } else {
                 format!(
-                    "{} not white ({} of 20 lags correlated)",
-                    a.channel, a.lags_beyond
+                    "{} not white (Σρ² over lags 1–20 {:.3}, white below {:.3})",
+                    a.channel, a.autocorrelation_sum, a.autocorrelation_limit
                 )
             }
         })
