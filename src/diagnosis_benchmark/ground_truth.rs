@@ -375,11 +375,11 @@ fn expected_coefficients(
     let wind = vec![EffectKind::Wind.name().to_string()];
     let mut out = Vec::new();
     let mut group =
-        |effect: EffectKind, kind: CoefficientKind, values: &[(&str, f64)], unless: &[String]| {
+        |effect: &str, kind: CoefficientKind, values: &[(&str, f64)], unless: &[String]| {
             let scale = values.iter().map(|(_, v)| v * v).sum::<f64>().sqrt();
             for (name, value) in values {
                 out.push(ExpectedCoefficient {
-                    effect: effect.name().to_string(),
+                    effect: effect.to_string(),
                     name: (*name).to_string(),
                     kind,
                     value: *value,
@@ -392,7 +392,7 @@ fn expected_coefficients(
     if let Some(d) = e.linear_drag {
         let [x, y, z] = d.coefficients;
         group(
-            EffectKind::LinearDrag,
+            EffectKind::LinearDrag.name(),
             Coefficient,
             &[("d_x", x), ("d_y", y), ("d_z", z)],
             &wind,
@@ -401,7 +401,7 @@ fn expected_coefficients(
     if let Some(d) = e.quadratic_drag {
         let c = d.cd_area.map(|a| 0.5 * d.air_density * a);
         group(
-            EffectKind::QuadraticDrag,
+            EffectKind::QuadraticDrag.name(),
             Coefficient,
             &[("c_x", c[0]), ("c_y", c[1]), ("c_z", c[2])],
             &wind,
@@ -410,7 +410,7 @@ fn expected_coefficients(
     if let Some(d) = e.rotor_drag {
         let k = d.coefficients;
         group(
-            EffectKind::RotorDrag,
+            EffectKind::RotorDrag.name(),
             Coefficient,
             &[("k_h", k[0]), ("k_z", k[2])],
             &wind,
@@ -418,19 +418,19 @@ fn expected_coefficients(
     }
     if let Some(l) = e.motor_lag {
         group(
-            EffectKind::MotorLag,
+            EffectKind::MotorLag.name(),
             Scanned,
             &[("tau", l.time_constant)],
             &[],
         );
     }
     if let Some(d) = e.time_delay {
-        group(EffectKind::TimeDelay, Scanned, &[("delay", -d.delay)], &[]);
+        group(EffectKind::TimeDelay.name(), Scanned, &[("delay", -d.delay)], &[]);
     }
     let epsilon = e.thrust_gain.map_or(0.0, |g| g.relative_error);
     if e.ground_effect.is_some() {
         group(
-            EffectKind::GroundEffect,
+            EffectKind::GroundEffect.name(),
             Coefficient,
             &[("c_ge", 1.0 + epsilon)],
             &[],
@@ -441,14 +441,16 @@ fn expected_coefficients(
             .body_bias
             .map_or(([0.0; 3], [0.0; 3]), |b| (b.force, b.torque));
         let w = accel_bias_wrench(&theta, &b_a);
+        // The constant body force (the plant's and the accelerometer offset's `m b_a`) is
+        // the accelerometer offset's columns in the diagnosis.
         group(
-            EffectKind::BodyBias,
+            ACCEL_BIAS,
             Coefficient,
-            &[("bias_fx", f[0] + w[0]), ("bias_fy", f[1] + w[1])],
+            &[("f_x", f[0] + w[0]), ("f_y", f[1] + w[1])],
             &[],
         );
         group(
-            EffectKind::BodyBias,
+            EffectKind::BodyBias.name(),
             Coefficient,
             &[
                 ("bias_tx", t[0] + w[3]),
@@ -461,21 +463,23 @@ fn expected_coefficients(
     if let Some(w) = e.wind {
         let [vx, vy, _] = w.velocity;
         group(
-            EffectKind::Wind,
+            EffectKind::Wind.name(),
             Derived,
             &[("v_wx", vx), ("v_wy", vy)],
             &drag_laws,
         );
         if let Some(d) = e.rotor_drag {
             let k = d.coefficients;
+            // The diagnosis' wind through the rotors' hub drag: one horizontal coefficient
+            // `k_h` (the simulator's are equal in x and y), `k_z`, and `k_h v_w`.
             group(
-                EffectKind::Wind,
+                EffectKind::Wind.name(),
                 Coefficient,
-                &[("k_x", k[0]), ("k_y", k[1]), ("k_z", k[2])],
+                &[("k_h", k[0]), ("k_z", k[2])],
                 &drag_laws,
             );
             group(
-                EffectKind::Wind,
+                EffectKind::Wind.name(),
                 Coefficient,
                 &[("kv_wx", k[0] * vx), ("kv_wy", k[1] * vy)],
                 &drag_laws,
@@ -490,7 +494,7 @@ fn expected_coefficients(
             den += az * az;
         }
         group(
-            EffectKind::ThrustGain,
+            EffectKind::ThrustGain.name(),
             Coefficient,
             &[("kappa", (1.0 + epsilon) * num / den - 1.0)],
             &[],

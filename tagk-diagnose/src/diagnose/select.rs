@@ -122,12 +122,12 @@ impl Score {
         (self.fit_ch.iter().sum::<f64>() / (rows - p).max(1.0)).max(f64::MIN_POSITIVE)
     }
 
-    /// Each channel's residual variance per sample in noise units times its autocorrelation
-    /// factor: the scale of that channel's part of a coefficient's variance.
+    /// Each channel's residual variance per sample in noise units (at least 1) times its
+    /// autocorrelation factor: the scale of that channel's part of a coefficient's variance.
     pub fn channel_scales(&self, n: f64) -> [f64; 6] {
-        std::array::from_fn(|c| {
-            (self.fit_ch[c] / n.max(1.0) * self.kappa_ch[c]).max(f64::MIN_POSITIVE)
-        })
+        // At least the noise itself: a residual below it (a noise-free log below its
+        // resolution) does not make a coefficient known better than the noise allows.
+        std::array::from_fn(|c| (self.fit_ch[c] / n.max(1.0)).max(1.0) * self.kappa_ch[c])
     }
 
     /// The residual scale of the channels an effect acts on (mean of their

@@ -449,8 +449,25 @@ fn fit(
     // Standard errors inflated for the residual's autocorrelation (σ² → κ σ²): the residual
     // of the regression actually solved (of the filtered target, with a lag).
     let kappa = residual_kappa(&residual, &w);
+    // No coefficient is known better than the resolution of the data allows: a residual below
+    // the resolution (a noise-free log, fitted to its discretisation) counts as the resolution
+    // (`crate::FLOOR_RESOLUTION`).
+    let resolution = default_resolution(s);
+    let rows = (6 * residual.len()) as f64;
+    let p = sol.beta.len() as f64;
+    let variance = residual
+        .iter()
+        .map(|r| (0..6).map(|c| (r[c] * w[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (rows - p).max(1.0);
+    let floor = (0..6).map(|c| (resolution[c] * w[c]).powi(2)).sum::<f64>() / 6.0;
+    let lift = if variance > 0.0 && variance < floor {
+        (floor / variance).sqrt()
+    } else {
+        1.0
+    };
     for se in sol.se.iter_mut().flatten() {
-        *se *= kappa.sqrt();
+        *se *= kappa.sqrt() * lift;
     }
     // The residual and the prediction of the measured wrench itself: a filter of the target
     // (a lag) is undone on the residual ([`crate::Effect::unfilter`]).
