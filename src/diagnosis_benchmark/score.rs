@@ -378,6 +378,16 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                         .iter()
                         .find(|f| constant_heading_stand_in(truth, finals, &t.name, f))
                 })
+                .or_else(|| {
+                    // A true wind acts through the flight's drag law: the diagnosis' `wind`
+                    // is a drag and a wind fitted together, so it stands for that law too.
+                    let law = EffectKind::from_name(&t.name)
+                        .is_some_and(|k| k.family() == EffectKind::LinearDrag.family());
+                    let windy = truth.effects.iter().any(|u| u.name == "wind");
+                    (law && windy)
+                        .then(|| finals.iter().find(|f| f.as_str() == "wind"))
+                        .flatten()
+                })
                 .cloned();
             let family = finals.iter().find(|f| in_family(&t.name, f)).cloned();
             EffectScore {

@@ -449,7 +449,7 @@ pub fn diagnose(
     opts.validate_for(s.len())?;
     let fit = fit_model(model, s, None)?;
     let floor = noise_floor(s, &fit, model, opts.noise_floor, opts.airframe_radius);
-    diagnose_with_fit(model, s, opts, &floor, Arc::new(fit), true)
+    diagnose_with_fit(model, s, opts, &floor, Arc::new(fit), true, None)
 }
 
 /// [`diagnose`] against a given noise (options already validated).
@@ -460,11 +460,14 @@ pub(crate) fn diagnose_against(
     floor: &NoiseFloor,
 ) -> Result<Diagnosis, DiagnoseError> {
     let fit = fit_model(model, s, None)?;
-    diagnose_with_fit(model, s, opts, floor, Arc::new(fit), true)
+    diagnose_with_fit(model, s, opts, floor, Arc::new(fit), true, None)
 }
 
 /// [`diagnose_against`] with the model's fit at hand; `search`: run the search for the next
-/// step (the intermediate models of a step's set do without).
+/// step (the intermediate models of a step's set do without); `reference`: the rigid body the
+/// physical rules judge a refit against (the staircase's starting model's: a model missing an
+/// effect can have a mass far off, and a refit that puts it right is not to blame; `None`:
+/// the model's own).
 pub(crate) fn diagnose_with_fit(
     model: &Model,
     s: &Signals,
@@ -472,11 +475,17 @@ pub(crate) fn diagnose_with_fit(
     floor: &NoiseFloor,
     fit: Arc<Fit>,
     search: bool,
+    reference: Option<tagk_dynamics::InertialParams>,
 ) -> Result<Diagnosis, DiagnoseError> {
     let ctx = Context::new(s, model, &fit.params, floor, opts.folds);
     let limits = limits_of(model, opts);
     let found = if search {
-        Some(select::search(&ctx, opts, &limits, fit.theta))
+        Some(select::search(
+            &ctx,
+            opts,
+            &limits,
+            reference.unwrap_or(fit.theta),
+        ))
     } else {
         None
     };

@@ -155,7 +155,16 @@ pub fn discover_from(
         floor.model = again.model;
         // The search goes on from the model reached, against the lower noise (the fits do
         // not depend on the noise); the effects added stay unless the pruning drops them.
-        let d = diagnose_with_fit(&run.model, s, opts, &floor, fits.get(&run.model, s)?, true)?;
+        let reference = Some(run.diagnoses[0].fit.theta);
+        let d = diagnose_with_fit(
+            &run.model,
+            s,
+            opts,
+            &floor,
+            fits.get(&run.model, s)?,
+            true,
+            reference,
+        )?;
         let k = run.diagnoses.len() - 1;
         let previous = (k > 0).then(|| &run.diagnoses[k - 1]);
         let effect = run.steps[k].effect.clone();
@@ -255,7 +264,9 @@ fn climb(
             run.model = run.model.clone().with_ref(effect.clone());
             let last_of_set = i + 1 == set.len();
             let fit = fits.get(&run.model, s)?;
-            let next = diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set)?;
+            let reference = Some(run.diagnoses[0].fit.theta);
+            let next =
+                diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set, reference)?;
             let previous = &run.diagnoses[run.diagnoses.len() - 1];
             run.steps
                 .push(step_of(Some(name), &next, Some(previous), floor));
@@ -300,7 +311,7 @@ fn prune(
             let base = ctx.score(&engine, &[]);
             let judge = Judge {
                 limits: &limits,
-                current: ctx.rigid_theta(&base),
+                current: run.diagnoses[0].fit.theta,
                 mean_thrust: s.wrench().iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64,
                 tests: opts.candidates.len().max(1) as f64,
                 alpha: opts.alpha,
@@ -332,13 +343,15 @@ fn prune(
             };
             model = model.with_ref(effect.clone());
             let fit = fits.get(&model, s)?;
-            let next = diagnose_with_fit(&model, s, opts, floor, fit, i + 1 == kept.len())?;
+            let reference = Some(run.diagnoses[0].fit.theta);
+            let next =
+                diagnose_with_fit(&model, s, opts, floor, fit, i + 1 == kept.len(), reference)?;
             steps.push(step_of(Some(n), &next, diagnoses.last(), floor));
             diagnoses.push(next);
         }
         if kept.is_empty() {
             // The starting model again, with its search.
-            let d = diagnose_with_fit(start, s, opts, floor, fits.get(start, s)?, true)?;
+            let d = diagnose_with_fit(start, s, opts, floor, fits.get(start, s)?, true, None)?;
             steps = vec![step_of(None, &d, None, floor)];
             diagnoses = vec![d];
         }
