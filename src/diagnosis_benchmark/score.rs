@@ -270,7 +270,15 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
         let kind = EffectKind::from_name(&fe.effect);
         let signed: &[Coefficient] = match kind {
             Some(k) if k.family() == EffectKind::LinearDrag.family() => &fe.coefficients,
-            Some(EffectKind::Wind) => &fe.coefficients[..fe.coefficients.len().min(3)],
+            // The wind's drag coefficients only (its wind force, `kv_w*` or `F_w*`, is signed).
+            Some(EffectKind::Wind) => {
+                let drags = fe
+                    .coefficients
+                    .iter()
+                    .take_while(|c| !(c.name.starts_with("kv_") || c.name.starts_with("F_")))
+                    .count();
+                &fe.coefficients[..drags]
+            }
             Some(EffectKind::GroundEffect) => &fe.coefficients,
             _ => &[],
         };

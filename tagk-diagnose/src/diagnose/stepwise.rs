@@ -133,8 +133,16 @@ pub fn discover_from(
     };
     let mut round = 0;
     loop {
-        climb(&mut run, s, opts, &floor, &mut fits)?;
-        prune(start, &mut run, s, opts, &floor, &mut fits)?;
+        // Climb, prune, and climb again from what the pruning left (a dropped effect may
+        // leave room for another: a drag law where an implausible wind was), at most twice.
+        for _ in 0..2 {
+            let before = run.added.clone();
+            climb(&mut run, s, opts, &floor, &mut fits)?;
+            prune(start, &mut run, s, opts, &floor, &mut fits)?;
+            if run.added.len() >= before.len() || run.added.is_empty() {
+                break;
+            }
+        }
         round += 1;
         if floor.source == FloorSource::Given || round >= 3 {
             return Ok(finish(run, floor));
@@ -321,10 +329,22 @@ fn prune(
                 param: fit.params[k],
             };
             let set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
-            if let Some(refusal) = &set.verdicts[0].refusal
+            // The final fit's own verdict on the effect's coefficients counts too.
+            let own = fit
+                .effects
+                .iter()
+                .find(|f| &f.effect == name)
+                .filter(|f| !f.plausible)
+                .map(|f| format!("implausible in the final fit: {}", f.plausibility_note));
+            let why = set.verdicts[0]
+                .refusal
+                .as_ref()
+                .map(|r| r.describe())
+                .or(own);
+            if let Some(why) = why
                 && weakest.as_ref().is_none_or(|(g, _, _)| set.gain < *g)
             {
-                weakest = Some((set.gain, name.clone(), refusal.describe()));
+                weakest = Some((set.gain, name.clone(), why));
             }
         }
         let Some((_, name, why)) = weakest else {
