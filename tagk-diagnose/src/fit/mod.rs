@@ -16,15 +16,18 @@ use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
 pub(crate) use columns::Column;
+#[cfg(test)]
+pub(crate) use design::rigid_columns;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_columns,
-    rigid_design, sampled_effect_design,
+    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_design,
+    sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
 
-use design::{add_known_mass, initial_weights, weights_from_residual};
+pub(crate) use design::weights_from_residual;
+use design::{add_known_mass, initial_weights};
 use lsq::{LsSolution, predict, residual_kappa};
 
 /// Names of the ten rigid-body parameters, in the order of `tagk_dynamics::InertialParams`.
