@@ -6,8 +6,9 @@ use std::path::PathBuf;
 
 use crate::diagnose::{
     AlignOptions, CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef,
-    FlightLog, Model, NextStep, Report, SamplingFindings, Signals, align_streams_owned,
-    builtin_by_name, builtin_effects, online_pass, parse_shift, report_table, run_logs, run_loop,
+    FlightLog, Model, NextStep, OnlineOptions, Report, SamplingFindings, Signals,
+    align_streams_owned, builtin_by_name, builtin_effects, online_pass_with, parse_shift,
+    report_table, run_logs, run_loop,
 };
 use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use crate::dynamics::vehicle::Vehicle;
@@ -42,7 +43,12 @@ pub struct DiagnoseArgs {
     /// Write a self-contained HTML report with SVG plots into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
-    /// Also run TAG-K online over the log and compare with the batch fit.
+    /// Also run TAG-K online over the log, as the simulator's tuned TAG-K flies, and compare
+    /// it with the batch fit of the model. It sees the fz and torque rows only. The model's
+    /// fitted effects are removed from the measured wrench first. Rows are scaled by the
+    /// fit's residual noise, columns by the batch estimate. TAG-K starts from the batch
+    /// estimate; each window stops at the noise. It reports the online mass against the
+    /// batch mass.
     #[arg(long)]
     pub online: bool,
     /// Custom candidate effect from log signals: NAME=COL[*COL...]@CH[,CH...]
@@ -448,7 +454,7 @@ pub fn plan_with_vehicle(
 /// differentiated, lagged or shifted across a gap).
 ///
 /// # Errors
-/// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass`].
+/// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass_with`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
     diagnose_cow_log(Cow::Borrowed(log), args)
 }
@@ -484,7 +490,11 @@ fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Repo
     report.streams = streams;
     report.sampling = vec![sampling];
     if args.online {
-        report.online = Some(online_pass(&s, &report.last().fit, 5)?);
+        let online = OnlineOptions {
+            arm_length: plan.options.airframe_radius,
+            ..OnlineOptions::default()
+        };
+        report.online = Some(online_pass_with(&s, &report.last().fit, &online)?);
     }
     report.final_model.command = Some(args.command_for(&report.final_model.effects));
     report.next = Some(args.next_step(&report));

@@ -542,6 +542,31 @@ mod tests {
     }
 
     #[test]
+    fn a_rejected_window_keeps_the_previous_estimate() {
+        // A huge first scale: a finite window overflows once scaled, and the wrapped estimator
+        // rejects it.
+        let mut fe = FrontEnd::new(tagk(), &[1e300, 1.0], FrontEndConfig::default()).unwrap();
+        let rows = [[1e-300, 0.5], [2e-300, -1.0], [1e-300, 0.3]];
+        let (a, b) = window(&[1e300, 2.0], &rows);
+        fe.update(&a, &b).unwrap();
+        let before = fe.estimate().to_vec();
+        let mut overflow = a.clone();
+        overflow[0] = 1e10;
+        assert!(matches!(
+            fe.update(&overflow, &b),
+            Err(EstimatorError::NonFiniteRegressor { .. })
+        ));
+        assert_eq!(fe.estimate(), &before[..]);
+        let mut nan = b.clone();
+        nan[1] = f64::NAN;
+        assert_eq!(
+            fe.update(&a, &nan),
+            Err(EstimatorError::NonFiniteMeasurement { row: 1 })
+        );
+        assert_eq!(fe.estimate(), &before[..]);
+    }
+
+    #[test]
     fn bad_weights_are_typed_errors_and_change_nothing() {
         let mut fe = FrontEnd::new(tagk(), &[2.0, 0.5], FrontEndConfig::default()).unwrap();
         fe.reset(&[1.0, 1.0]).unwrap();

@@ -73,9 +73,17 @@ pub enum DiagnoseError {
         /// The OS or serialisation error.
         message: String,
     },
-    /// The online TAG-K pass failed.
+    /// The online TAG-K pass failed: the estimator could not be built or rejected a window.
     #[error("online TAG-K pass failed: {0}")]
     Online(String),
+    /// The log is shorter than one window of the online TAG-K pass.
+    #[error("online TAG-K pass: the log has {samples} samples, fewer than one window of {needed}")]
+    OnlineTooShort {
+        /// Samples in the log.
+        samples: usize,
+        /// Samples of one window.
+        needed: usize,
+    },
 }
 
 /// The built-in effect names, comma separated (for error messages).

@@ -983,8 +983,13 @@ pub fn render(report: &Report) -> String {
         let t: Vec<f64> = (0..o.mass_history.len()).map(|k| k as f64).collect();
         let _ = write!(
             html,
-            "<h2>Online TAG-K pass</h2><p>{} updates; tail-average distance to the batch estimate {:.3e} (relative)</p>",
-            o.updates, o.distance_to_batch
+            "<h2>Online TAG-K pass</h2><p>{} updates on the {} rows; mass {:.4} kg (tail average) against the batch {:.4} kg ({:+.1} %); tail-average distance to the batch estimate {:.3e} (relative)</p>",
+            o.updates,
+            escape(&o.rows.join(", ")),
+            o.tail_average[0],
+            o.batch_estimate[0],
+            100.0 * o.mass_error_to_batch,
+            o.distance_to_batch
         );
         html.push_str(&line_plot(
             "TAG-K mass estimate [kg]",

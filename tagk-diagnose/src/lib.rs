@@ -11,7 +11,7 @@ mod fit;
 pub mod format;
 pub mod html;
 pub mod log;
-mod online;
+pub mod online;
 pub mod report;
 pub mod sampling;
 mod signals;
@@ -33,7 +33,7 @@ pub use effects::{
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
-pub use online::{OnlineSummary, online_pass};
+pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,

@@ -670,8 +670,14 @@ pub fn report_table(r: &Report) -> String {
     }
     if let Some(o) = &r.online {
         s.push_str(&format!(
-            "\nonline TAG-K pass: {} updates, final mass {:.4} kg (batch {:.4} kg), parameter distance to batch {:.3e}\n",
-            o.updates, o.final_estimate[0], o.batch_estimate[0], o.distance_to_batch
+            "\nonline TAG-K pass ({} rows, {} updates): mass {:.4} kg (tail average; last {:.4} kg), batch {:.4} kg ({:+.1} %); parameter distance to batch {:.3e}\n",
+            o.rows.join("+"),
+            o.updates,
+            o.tail_average[0],
+            o.final_estimate[0],
+            o.batch_estimate[0],
+            100.0 * o.mass_error_to_batch,
+            o.distance_to_batch
         ));
     }
     if let Some(next) = r.next_step() {

@@ -558,6 +558,84 @@ fn every_option_field_is_validated() {
 }
 
 #[test]
+fn online_pass_bad_input_is_a_typed_error_never_a_panic() {
+    use crate::{OnlineOptions, OnlineStart, online_pass_with};
+    let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 3, &none)).unwrap();
+    let fit = Model::rigid_body().fit(&s).unwrap();
+    let with = |o: OnlineOptions| online_pass_with(&s, &fit, &o);
+    // A log shorter than one window (the signals' time stamps cut to 3 samples).
+    let mut short = s.clone();
+    short.t.truncate(3);
+    assert_eq!(
+        crate::online_pass(&short, &fit, 5).unwrap_err(),
+        DiagnoseError::OnlineTooShort {
+            samples: 3,
+            needed: 5
+        }
+    );
+    // Signals whose series no longer agree in length.
+    let mut cut = s.clone();
+    cut.t.truncate(100);
+    assert!(matches!(
+        crate::online_pass(&cut, &fit, 5),
+        Err(DiagnoseError::InvalidOption {
+            field: "signals",
+            ..
+        })
+    ));
+    // A fit made on other signals.
+    let other = Signals::from_log(&synthetic_log(&crazyflie(), 250, 0.0, 4, &none)).unwrap();
+    let other_fit = Model::rigid_body().fit(&other).unwrap();
+    assert!(matches!(
+        crate::online_pass(&s, &other_fit, 5),
+        Err(DiagnoseError::InvalidOption { field: "fit", .. })
+    ));
+    for arm_length in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(matches!(
+            with(OnlineOptions {
+                arm_length,
+                ..OnlineOptions::default()
+            }),
+            Err(DiagnoseError::InvalidOption {
+                field: "arm_length",
+                ..
+            })
+        ));
+    }
+    let mut no_mass = crazyflie().to_array();
+    no_mass[0] = 0.0;
+    let mut nan_inertia = crazyflie().to_array();
+    nan_inertia[6] = f64::NAN;
+    for p in [no_mass, nan_inertia, [0.0; 10]] {
+        assert!(matches!(
+            with(OnlineOptions {
+                prior: Some(tagk_dynamics::InertialParams::from_array(p)),
+                ..OnlineOptions::default()
+            }),
+            Err(DiagnoseError::InvalidOption { field: "prior", .. })
+        ));
+    }
+    // A prior so large that the scaled window overflows: the estimator rejects the first
+    // window (a typed error) and the pass stops there.
+    let mut huge = crazyflie().to_array();
+    huge[0] = f64::MAX;
+    let err = with(OnlineOptions {
+        prior: Some(tagk_dynamics::InertialParams::from_array(huge)),
+        start: OnlineStart::Zero,
+        ..OnlineOptions::default()
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&err, DiagnoseError::Online(m) if m.starts_with("window 1 ")),
+        "{err}"
+    );
+    // A stride larger than the log: one window, whose estimate is also the tail average.
+    let one = crate::online_pass(&s, &fit, 10_000).unwrap();
+    assert_eq!(one.updates, 1);
+    assert_eq!(one.tail_average, one.final_estimate);
+}
+
+#[test]
 fn diagnose_refuses_bad_options_instead_of_clamping() {
     let s = Signals::from_log(&synthetic_log(&crazyflie(), 300, 0.0, 3, &none)).unwrap();
     let zero = DiagnoseOptions {

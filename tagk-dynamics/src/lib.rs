@@ -4,6 +4,7 @@ pub mod alignment;
 pub mod deriv;
 pub mod effect;
 mod error;
+pub mod front_end;
 mod inertial;
 pub mod log;
 pub mod log_input;

@@ -75,16 +75,19 @@ pub(crate) const FORCE_BIAS_PARAMS: usize = 3;
 const ROWS_PER_FRAME: usize = 6;
 
 /// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal` (the order
-/// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\]: typical magnitudes of each parameter,
-/// so that every column of `A D` has the units of the measurement (the first moment's prior is
-/// zero, so its scale is the largest the safety gate admits, `m₀ L`); all ones unless the spec
-/// is scaled; then the nuisance force's scales, `m₀ · 1 m/s²` (1 unscaled), with
+/// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\]:
+/// [`tagk_dynamics::front_end::column_scales`], typical magnitudes of each parameter, so that
+/// every column of `A D` has the units of the measurement (the first moment's prior is zero, so
+/// its scale is the largest the safety gate admits, `m₀ L`); all ones unless the spec is
+/// scaled; then the nuisance force's scales, `m₀ · 1 m/s²` (1 unscaled), with
 /// [`EstimatorSpec::force_bias`].
 pub(crate) fn spec_scales(spec: &EstimatorSpec, nominal: &[f64; 10], arm: f64) -> Vec<f64> {
     let mut scales = if spec.scaled {
-        let m = nominal[0];
-        let i = (nominal[4] + nominal[6] + nominal[9]) / 3.0;
-        vec![m, m * arm, m * arm, m * arm, i, i, i, i, i, i]
+        tagk_dynamics::front_end::column_scales(
+            &tagk_dynamics::InertialParams::from_array(*nominal),
+            arm,
+        )
+        .to_vec()
     } else {
         vec![1.0; N_PARAMS]
     };
@@ -130,10 +133,10 @@ pub(crate) fn row_weights(spec: &EstimatorSpec, m_max: usize) -> Option<Vec<f64>
     (spec.lateral_weight != 1.0).then(|| {
         (0..m_max)
             .map(|r| {
-                if r % ROWS_PER_FRAME < 2 {
-                    spec.lateral_weight
-                } else {
+                if tagk_dynamics::front_end::is_actuated(r % ROWS_PER_FRAME) {
                     1.0
+                } else {
+                    spec.lateral_weight
                 }
             })
             .collect()
@@ -182,7 +185,9 @@ impl EstimatorSpec {
         self
     }
 
-    /// Feeds only the actuated rows: lateral row weight 0 ([`EstimatorSpec::lateral_weight`]).
+    /// Feeds only the actuated rows (`f_z`, `τ`:
+    /// [`ACTUATED_CHANNELS`](tagk_dynamics::front_end::ACTUATED_CHANNELS)): lateral row weight
+    /// 0 ([`EstimatorSpec::lateral_weight`]).
     pub fn with_actuated_rows_only(mut self) -> Self {
         self.lateral_weight = 0.0;
         self
@@ -317,7 +322,10 @@ pub(crate) fn build_kind(
 }
 
 /// The TAG-K variant this crate recommends: column-equilibrated windows, noise-aware
-/// stopping at 3σ and only the actuated rows (see the README's study).
+/// stopping at 3σ and only the actuated rows (see the README's study). Its settings are
+/// tagk-dynamics' [`front_end`](tagk_dynamics::front_end) (shared with the diagnosis' online
+/// pass): the column scales, [`STOP_MULTIPLE`](tagk_dynamics::front_end::STOP_MULTIPLE) and the
+/// [`ACTUATED_CHANNELS`](tagk_dynamics::front_end::ACTUATED_CHANNELS).
 pub fn tagk_tuned() -> EstimatorSpec {
     tuned(EstimatorKind::TagK)
 }
@@ -326,7 +334,7 @@ pub fn tagk_tuned() -> EstimatorSpec {
 pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
     EstimatorSpec::new(kind)
         .with_scaling()
-        .with_noise_tolerance(3.0)
+        .with_noise_tolerance(tagk_dynamics::front_end::STOP_MULTIPLE)
         .with_actuated_rows_only()
 }
 

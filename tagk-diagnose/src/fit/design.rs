@@ -15,8 +15,9 @@ use crate::stats;
 pub(crate) type ColData = [Option<Vec<f64>>; 6];
 
 /// The ten rigid-body columns on a log, stored (`39 n` values: the fit itself reads them
-/// block by block instead, [`Column::Rigid`]; this is for the online pass and as the
+/// block by block instead, [`Column::Rigid`], and the online pass per window; this is the
 /// reference of the unit tests).
+#[cfg(test)]
 pub(crate) fn rigid_columns(s: &Signals) -> Vec<ColData> {
     let n = s.len();
     let mut cols: Vec<ColData> = (0..10)

@@ -17,9 +17,11 @@ use crate::error::DiagnoseError;
 use crate::signals::Signals;
 
 pub(crate) use columns::{Column, rigid_channels};
+#[cfg(test)]
+pub(crate) use design::rigid_columns;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_columns,
-    rigid_design, sampled_effect_design,
+    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_design,
+    sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
@@ -29,7 +31,8 @@ pub(crate) use likelihood::{
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
 
-use design::{add_known_mass, initial_weights, weights_from_residual};
+pub(crate) use design::weights_from_residual;
+use design::{add_known_mass, initial_weights};
 use lsq::{LsSolution, predict, residual_kappa};
 
 /// `true` when `effect` at `param` filters some channel of the measured wrench

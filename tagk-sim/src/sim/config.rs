@@ -517,7 +517,7 @@ impl Default for SimConfig {
             physics_dt: 0.002,
             control_dt: 0.02,
             estimator_period: 20,
-            window_frames: 5,
+            window_frames: tagk_dynamics::front_end::WINDOW_FRAMES,
             gate: SafetyGate::crazyflie(),
             stop_on_abort: true,
             record_log: false,
