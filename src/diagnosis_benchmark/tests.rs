@@ -80,6 +80,7 @@ fn fitted(
         derived: Vec::new(),
         plausible: true,
         plausibility_note: String::new(),
+        limited_by: String::new(),
     }
 }
 
