@@ -12,6 +12,7 @@ pub mod format;
 pub mod html;
 pub mod log;
 mod online;
+mod plan;
 pub mod report;
 pub mod sampling;
 mod signals;
@@ -33,6 +34,10 @@ pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineSummary, online_pass};
+pub use plan::{
+    CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KnownMass,
+    ResolvedPlan,
+};
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
