@@ -13,9 +13,12 @@
 //! stamps shifted by 10 ms (values linearly interpolated from the log: what a camera system
 //! on its own clock would record, up to the interpolation error).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use common::tagk_in;
 use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log, read_log};
 use tagk::diagnose::FlightLog;
 use tagk::dynamics::log_input::{BodyFrame, WorldFrame};
@@ -665,21 +668,6 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
         implausible (negative-coefficient)",
     derived_final_model: "final model: rigid body\n",
 };
-
-/// Runs the `tagk` binary in `dir` and returns its standard output.
-fn tagk_in(dir: &Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "tagk {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
 
 /// The README's step 2 in `dir` with the vehicle file `quad`.
 fn readme_diagnose(dir: &Path, quad: &str, extra: &[&str]) -> String {

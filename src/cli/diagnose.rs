@@ -1,16 +1,14 @@
 //! `tagk diagnose`: compare the rigid-body model with a flight log, find the missing effect,
 //! add effects with `--with` and print the before/after comparison.
 
-use std::borrow::Cow;
 use std::path::PathBuf;
 
+pub use crate::diagnose::KnownMass;
 use crate::diagnose::{
-    AlignOptions, CustomEffect, DiagnoseError, DiagnoseOptions, Effect, EffectKind, EffectRef,
-    FlightLog, Model, NextStep, OnlineOptions, Report, SamplingFindings, Signals,
-    align_streams_owned, builtin_by_name, builtin_effects, online_pass_with, parse_shift,
-    report_table, run_logs, run_loop,
+    AlignOptions, DEFAULT_ONLINE_STRIDE, DiagnoseError, DiagnosisPlan, EffectKind, FlightLog,
+    NextStep, Report, ResolvedPlan, parse_shift, report_table,
 };
-use crate::dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
+use crate::dynamics::log_input::{ColumnMapping, InputError, MergeReport};
 use crate::dynamics::vehicle::Vehicle;
 
 /// Arguments of tagk diagnose.
@@ -96,33 +94,6 @@ pub struct DiagnoseArgs {
     /// Do not print the terminal summary.
     #[arg(long)]
     pub quiet: bool,
-}
-
-/// The value of `--mass`: a mass in kg, or the vehicle's mass prior.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum KnownMass {
-    /// A mass \[kg\].
-    Kg(f64),
-    /// The `mass` of the `--vehicle` description.
-    Vehicle,
-}
-
-impl std::str::FromStr for KnownMass {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s.trim() {
-            "vehicle" => Ok(KnownMass::Vehicle),
-            t => t.parse::<f64>().map(KnownMass::Kg).map_err(|_| {
-                format!("`{s}` is neither a mass in kg nor `vehicle` (the --vehicle mass prior)")
-            }),
-        }
-    }
-}
-
-impl From<f64> for KnownMass {
-    fn from(kg: f64) -> Self {
-        KnownMass::Kg(kg)
-    }
 }
 
 /// The built-in effects with their aliases and one-line summaries, for `--help`.
@@ -286,18 +257,68 @@ impl DiagnoseArgs {
             }
         }
     }
-}
 
-/// What the arguments ask for on a given log: the starting model, the effects to add and the
-/// diagnosis options (built-in candidates plus the custom ones).
-#[derive(Debug, Clone)]
-pub struct Plan {
-    /// The starting model (rigid body, with the known mass if given).
-    pub base: Model,
-    /// The effects to add (`--with`).
-    pub with: Vec<EffectRef>,
-    /// The diagnosis options.
-    pub options: DiagnoseOptions,
+    /// The plan these arguments ask for, without its inputs: the effects (`--with`,
+    /// `--custom`), the vehicle, the mass and the options.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::InvalidOption`] (field `shift`) for a malformed `--shift`.
+    pub fn settings(&self, vehicle: Option<Vehicle>) -> Result<DiagnosisPlan, DiagnoseError> {
+        let mut plan = DiagnosisPlan::new()
+            .with_effects(&self.with)
+            .align(self.align_options()?)
+            .max_steps(self.max_steps);
+        for spec in &self.custom {
+            plan = plan.custom(spec);
+        }
+        if let Some(v) = vehicle {
+            plan = plan.vehicle(v);
+        }
+        if let Some(m) = self.mass {
+            plan = plan.known_mass(m);
+        }
+        if let Some(r) = self.airframe_radius {
+            plan = plan.airframe_radius(r);
+        }
+        if let Some(noise) = &self.noise_floor {
+            plan = plan.noise_floor(noise);
+        }
+        if let Some(dt) = self.resample {
+            plan = plan.resample(dt);
+        }
+        if self.online {
+            plan = plan.online(DEFAULT_ONLINE_STRIDE);
+        }
+        Ok(plan)
+    }
+
+    /// `plan` with the flights: each of `logs` (or the `--stream` files as one flight),
+    /// through the `--columns` mapping if given.
+    fn with_inputs(
+        &self,
+        mut plan: DiagnosisPlan,
+        logs: &[PathBuf],
+    ) -> Result<DiagnosisPlan, DiagnoseError> {
+        if let Some(path) = &self.columns {
+            plan = plan.columns(ColumnMapping::from_path(path)?);
+        }
+        if self.stream.is_empty() {
+            for log in logs {
+                plan = plan.file(log);
+            }
+        } else {
+            plan = plan.streams(&self.stream);
+        }
+        Ok(plan)
+    }
+
+    /// The report with what only the command line knows: the command that reproduces the
+    /// final model and the next step.
+    fn finish(&self, mut report: Report) -> Report {
+        report.final_model.command = Some(self.command_for(&report.final_model.effects));
+        report.next = Some(self.next_step(&report));
+        report
+    }
 }
 
 /// The vehicle of `--vehicle` (a preset or a file), if given.
@@ -313,309 +334,64 @@ pub fn load_vehicle(args: &DiagnoseArgs) -> Result<Option<Vehicle>, DiagnoseErro
         .transpose()?)
 }
 
-/// The log ready to fit: a log without the wrench gets it from its rotor speeds with the
-/// vehicle (a logged wrench is kept as it is).
-///
-/// # Errors
-/// [`DiagnoseError::Log`] with [`LogError::MissingWrench`](crate::diagnose::LogError) if the
-/// log has no wrench and no vehicle or no rotor speeds to compute it; a rotor speed out of
-/// range (line and column).
-pub fn log_with_wrench(
-    log: FlightLog,
-    vehicle: Option<&Vehicle>,
-) -> Result<FlightLog, DiagnoseError> {
-    let mut log = log;
-    if !log.has_wrench() && !log.is_empty() {
-        match vehicle {
-            Some(v) => log.compute_wrench_from_rotor_speeds(v)?,
-            None => {
-                return Err(crate::diagnose::LogError::MissingWrench {
-                    has_rotor_speeds: log.rotor_speeds.is_some(),
-                }
-                .into());
-            }
-        }
-    }
-    Ok(log)
-}
-
-/// Builds the [`Plan`] from the arguments, checked against the log (loads `--vehicle`).
+/// What the arguments ask for on a given log ([`DiagnosisPlan::resolve`]; loads `--vehicle`).
 ///
 /// # Errors
 /// A malformed custom specification or one naming a column the log lacks, an unknown effect
 /// name, a mass that is not positive and finite, `--mass vehicle` without a vehicle mass, an
 /// invalid vehicle, invalid options.
-pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<Plan, DiagnoseError> {
-    plan_with_vehicle(args, log, load_vehicle(args)?.as_ref())
+pub fn plan(args: &DiagnoseArgs, log: &FlightLog) -> Result<ResolvedPlan, DiagnoseError> {
+    args.settings(load_vehicle(args)?)?.resolve(log)
 }
 
-/// [`plan`] with the vehicle already loaded.
+/// Runs the whole loop on a log in memory ([`DiagnosisPlan::run`] with the arguments'
+/// settings), with the command and the next step filled in.
 ///
 /// # Errors
-/// As [`plan`].
-pub fn plan_with_vehicle(
-    args: &DiagnoseArgs,
-    log: &FlightLog,
-    vehicle: Option<&Vehicle>,
-) -> Result<Plan, DiagnoseError> {
-    let mut customs: Vec<EffectRef> = Vec::new();
-    for spec in &args.custom {
-        let custom = CustomEffect::parse(spec)?;
-        if let Some(kind) = crate::dynamics::EffectKind::from_name(custom.name()) {
-            return Err(DiagnoseError::BadCustomSpec {
-                spec: spec.clone(),
-                reason: format!(
-                    "`{}` already names the built-in effect `{}`; give the custom effect another name",
-                    custom.name(),
-                    kind.name()
-                ),
-            });
-        }
-        custom.require_columns(log)?;
-        customs.push(std::sync::Arc::new(custom));
-    }
-    let mut with = Vec::new();
-    for name in args.with.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
-        match customs.iter().find(|c| c.name() == name) {
-            Some(c) => with.push(c.clone()),
-            None => with.push(builtin_by_name(name)?),
-        }
-    }
-    let mut base = Model::rigid_body();
-    let mass = match args.mass {
-        None => None,
-        Some(KnownMass::Kg(m)) => Some(m),
-        Some(KnownMass::Vehicle) => match vehicle {
-            Some(v) => Some(v.mass.ok_or_else(|| DiagnoseError::InvalidOption {
-                field: "mass",
-                reason: format!(
-                    "`--mass vehicle`: vehicle `{}` has no `mass` prior; give the mass in kg",
-                    v.name
-                ),
-            })?),
-            None => {
-                return Err(DiagnoseError::InvalidOption {
-                    field: "mass",
-                    reason: "`--mass vehicle` needs `--vehicle NAME|FILE`".into(),
-                });
-            }
-        },
-    };
-    if let Some(m) = mass
-        && !(m > 0.0 && m.is_finite())
-    {
-        return Err(DiagnoseError::InvalidModel(match args.mass {
-            Some(KnownMass::Vehicle) => format!(
-                "`--mass vehicle`: the vehicle's mass prior {m} kg is not positive and finite"
-            ),
-            _ => format!("`--mass {m}`: the known mass must be a positive, finite number of kg"),
-        }));
-    }
-    if let Some(m) = mass {
-        base = base.with_known_mass(m);
-    }
-    base.validate()?;
-    let mut candidates = builtin_effects();
-    candidates.extend(customs);
-    let defaults = DiagnoseOptions::default();
-    let airframe_radius = args
-        .airframe_radius
-        .or(vehicle.map(|v| v.airframe_radius))
-        .unwrap_or(defaults.airframe_radius);
-    let noise_floor =
-        match &args.noise_floor {
-            None => None,
-            Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
-                DiagnoseError::InvalidOption {
-                    field: "noise_floor",
-                    reason: format!("{} values given, six needed (fx,fy,fz,tx,ty,tz)", v.len()),
-                }
-            })?),
-        };
-    let options = DiagnoseOptions {
-        airframe_radius,
-        candidates,
-        noise_floor,
-        max_steps: args.max_steps,
-        ..defaults
-    };
-    options.validate()?;
-    Ok(Plan {
-        base,
-        with,
-        options,
-    })
-}
-
-/// Runs the whole loop on a log in memory (what [`run_diagnose`] does after reading the file):
-/// a log without the wrench gets it from `--vehicle` ([`log_with_wrench`]); `--resample`
-/// resamples it ([`FlightLog::resample_linear`]); a log with gaps in its time stamps is split
-/// at them and its segments are fitted jointly ([`Signals::from_log_split`]: nothing is
-/// differentiated, lagged or shifted across a gap).
-///
-/// # Errors
-/// As [`log_with_wrench`], [`plan`], [`run_loop`] and [`online_pass_with`].
+/// As [`DiagnosisPlan::run`].
 pub fn diagnose_log(log: &FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
-    diagnose_cow_log(Cow::Borrowed(log), args)
+    diagnose_owned_log(log.clone(), args)
 }
 
-/// [`diagnose_log`] of a log it may consume: each intermediate log (with the wrench,
-/// resampled, aligned) replaces the one before it and the last becomes the signals' own
-/// ([`Signals::from_owned_log_split`]), so that a long log is held about once instead of
-/// three times.
+/// [`diagnose_log`] of a log it consumes (no copy of a long log).
 ///
 /// # Errors
 /// As [`diagnose_log`].
 pub fn diagnose_owned_log(log: FlightLog, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
-    diagnose_cow_log(Cow::Owned(log), args)
+    let report = args.settings(load_vehicle(args)?)?.log(log).run()?;
+    Ok(args.finish(report))
 }
 
-/// [`diagnose_log`] of a borrowed or owned log.
-fn diagnose_cow_log(log: Cow<'_, FlightLog>, args: &DiagnoseArgs) -> Result<Report, DiagnoseError> {
-    let vehicle = load_vehicle(args)?;
-    let plan = plan_with_vehicle(args, &log, vehicle.as_ref())?;
-    let log = if log.has_wrench() {
-        log
-    } else {
-        Cow::Owned(log_with_wrench(log.into_owned(), vehicle.as_ref())?)
-    };
-    let sampling = SamplingFindings::of("", &log, args.resample);
-    let log = match args.resample {
-        Some(dt) => Cow::Owned(log.resample_linear(dt)?),
-        None => log,
-    };
-    let (aligned, streams) = align_streams_owned(log.into_owned(), &args.align_options()?)?;
-    let (s, _) = Signals::from_owned_log_split(aligned)?;
-    let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
-    report.streams = streams;
-    report.sampling = vec![sampling];
-    if args.online {
-        let online = OnlineOptions {
-            arm_length: plan.options.airframe_radius,
-            ..OnlineOptions::default()
-        };
-        report.online = Some(online_pass_with(&s, &report.last().fit, &online)?);
-    }
-    report.final_model.command = Some(args.command_for(&report.final_model.effects));
-    report.next = Some(args.next_step(&report));
-    Ok(report)
-}
-
-/// Runs the joint loop on several logs of one vehicle ([`run_logs`]): each gets its wrench
-/// from `--vehicle` when it has none; the report compares each log's own staircase with the
-/// joint one. A log with gaps is split at them and each segment of at least
-/// [`MIN_ROWS`](crate::dynamics::log::MIN_ROWS) samples joins as a log of its own.
+/// Runs the joint loop on several named logs of one vehicle ([`DiagnosisPlan::run`]): the
+/// report compares each log's own staircase with the joint one.
 ///
 /// # Errors
-/// As [`diagnose_log`], for any of the logs (naming its file).
+/// As [`DiagnosisPlan::run`], for any of the logs (naming it).
 pub fn diagnose_logs(
     logs: Vec<(String, FlightLog)>,
     args: &DiagnoseArgs,
 ) -> Result<Report, DiagnoseError> {
-    let vehicle = load_vehicle(args)?;
-    let Some((_, first)) = logs.first() else {
-        return Err(DiagnoseError::InvalidOption {
-            field: "logs",
-            reason: "no flight log given".into(),
-        });
-    };
-    let plan = plan_with_vehicle(args, first, vehicle.as_ref())?;
-    let align = args.align_options()?;
-    let mut parts = Vec::new();
-    let mut streams = Vec::new();
-    let mut sampling = Vec::new();
-    for (name, log) in logs {
-        let in_file = |e: DiagnoseError| match e {
-            DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
-                path: name.clone(),
-                source: Box::new(source),
-            }),
-            other => other,
-        };
-        let log = log_with_wrench(log, vehicle.as_ref()).map_err(in_file)?;
-        sampling.push(SamplingFindings::of(name.clone(), &log, args.resample));
-        let log = match args.resample {
-            Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
-            None => log,
-        };
-        let (log, timing) = align_streams_owned(log, &align).map_err(in_file)?;
-        streams.extend(timing.into_iter().map(|mut t| {
-            t.log = name.clone();
-            t
-        }));
-        let segments = log.sampling().segments();
-        if segments.len() == 1 {
-            let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
-            parts.push((name, s));
-            continue;
-        }
-        // A log with gaps: each segment long enough to be fitted is a log of its own.
-        log.validate().map_err(|e| in_file(e.into()))?;
-        let count = segments.len();
-        let min_rows = crate::dynamics::log::MIN_ROWS;
-        if segments.iter().all(|r| r.len() < min_rows) {
-            return Err(DiagnoseError::InvalidOption {
-                field: "logs",
-                reason: format!(
-                    "{name}: its gaps leave no segment of at least {min_rows} samples to fit \
-                     with the other logs (diagnose it alone: its segments are then fitted jointly)"
-                ),
-            });
-        }
-        for (k, r) in segments.into_iter().enumerate() {
-            if r.len() < min_rows {
-                continue;
-            }
-            let segment = log.slice(r.clone());
-            let label = format!(
-                "{name} (segment {} of {count}, t = {:.3}..{:.3} s)",
-                k + 1,
-                log.t[r.start],
-                log.t[r.end - 1]
-            );
-            let s = Signals::from_log(&segment).map_err(|e| in_file(e.into()))?;
-            parts.push((label, s));
-        }
-    }
-    let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
-    report.streams = streams;
-    report.sampling = sampling;
-    report.final_model.command = Some(args.command_for(&report.final_model.effects));
-    report.next = Some(args.next_step(&report));
-    Ok(report)
+    let report = args.settings(load_vehicle(args)?)?.named_logs(logs).run()?;
+    Ok(args.finish(report))
 }
 
-/// Reads the flight: `LOG` as it is (the project's format), or with `--columns` and/or
-/// `--stream` through the column mapping and the merge of the streams
-/// ([`read_streams`]), whose report is returned.
+/// Reads the flight ([`DiagnosisPlan::read`]): the first `LOG` as it is (the project's
+/// format), or with `--columns` and/or `--stream` through the column mapping and the merge of
+/// the streams, whose report is returned.
 ///
 /// # Errors
 /// The log's or the mapping's errors (file, line, column; a missing quantity with the columns
 /// that could provide it); no file at all.
 pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>), DiagnoseError> {
-    if args.columns.is_none()
-        && args.stream.is_empty()
-        && let Some(path) = args.logs.first()
-    {
-        return Ok((FlightLog::from_csv_path(path)?, None));
+    let mut plan = DiagnosisPlan::new();
+    if let Some(v) = load_vehicle(args)? {
+        plan = plan.vehicle(v);
     }
-    let mapping = match &args.columns {
-        Some(path) => ColumnMapping::from_path(path)?,
-        None => ColumnMapping::default(),
-    };
-    let files: Vec<PathBuf> = if !args.stream.is_empty() {
-        args.stream.clone()
-    } else if let Some(log) = args.logs.first() {
-        vec![log.clone()]
-    } else {
-        mapping.files.clone()
-    };
-    let vehicle = load_vehicle(args)?;
-    let options = ReadOptions {
-        vehicle: vehicle.as_ref(),
-    };
-    let (log, merge) = read_streams(&files, &mapping, &options)?;
-    Ok((log, Some(merge)))
+    let plan = args.with_inputs(plan, &args.logs[..args.logs.len().min(1)])?;
+    match plan.read()?.flights().next() {
+        Some(flight) => Ok((flight.log.clone(), flight.merge.clone())),
+        None => Err(InputError::NoStream.into()),
+    }
 }
 
 /// The merge report in a few lines (primary stream, sources, derived quantities, gaps,
@@ -647,54 +423,34 @@ pub fn merge_summary(m: &MergeReport) -> String {
 }
 
 /// `tagk diagnose LOG [--vehicle NAME|FILE] [--with ...] [--json FILE] [--report DIR]
-/// [--online] [--custom SPEC]`: reads the log (computing its wrench from the rotor speeds
-/// with the vehicle if it has none), runs the loop, prints the summary and writes the requested files.
+/// [--online] [--custom SPEC]`: fills the [`DiagnosisPlan`] from the arguments, reads the
+/// flights (for one flight, prints how its streams were merged and whether its wrench comes
+/// from the rotor speeds), runs it, prints the summary and writes the requested files.
 ///
 /// # Errors
 /// Log validation errors (naming line and column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
-    if args.logs.len() > 1 {
-        let mut logs = Vec::new();
-        for path in &args.logs {
-            let one = DiagnoseArgs {
-                logs: vec![path.clone()],
-                ..args.clone()
-            };
-            let (log, _) = read_log(&one)?;
-            logs.push((path.display().to_string(), log));
-        }
-        let report = diagnose_logs(logs, args)?;
-        return write_outputs(&report, args);
-    }
     let vehicle = load_vehicle(args)?;
-    let (log, merge) = read_log(args)?;
-    // Argument errors first, then the wrench (its errors name the file).
-    plan_with_vehicle(args, &log, vehicle.as_ref())?;
-    if !args.quiet
-        && let Some(merge) = &merge
-    {
-        println!("{}", merge_summary(merge));
+    let plan = args.with_inputs(args.settings(vehicle.clone())?, &args.logs)?;
+    plan.validate()?;
+    let plan = plan.read()?;
+    let flights: Vec<_> = plan.flights().collect();
+    if let [flight] = flights[..] {
+        // Argument errors first, then what was read; the wrench's errors name the file.
+        plan.resolve(&flight.log)?;
+        if !args.quiet {
+            if let Some(merge) = &flight.merge {
+                println!("{}", merge_summary(merge));
+            }
+            if let Some(v) = vehicle.as_ref().filter(|_| !flight.log.has_wrench()) {
+                println!(
+                    "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
+                    v.name
+                );
+            }
+        }
     }
-    if let Some(v) = vehicle
-        .as_ref()
-        .filter(|_| !log.has_wrench() && !args.quiet)
-    {
-        println!(
-            "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
-            v.name
-        );
-    }
-    let log = log_with_wrench(log, vehicle.as_ref()).map_err(|e| match e {
-        DiagnoseError::Log(source) => DiagnoseError::Log(crate::diagnose::LogError::InFile {
-            path: args
-                .logs
-                .first()
-                .map_or_else(|| "<streams>".to_string(), |p| p.display().to_string()),
-            source: Box::new(source),
-        }),
-        other => other,
-    })?;
-    let report = diagnose_owned_log(log, args)?;
+    let report = args.finish(plan.run()?);
     write_outputs(&report, args)
 }
 

@@ -12,6 +12,7 @@ pub mod format;
 pub mod html;
 pub mod log;
 pub mod online;
+mod plan;
 pub mod report;
 pub mod sampling;
 mod signals;
@@ -34,6 +35,10 @@ pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
+pub use plan::{
+    CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KnownMass,
+    ResolvedPlan,
+};
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,

@@ -39,12 +39,6 @@ pub const CONSISTENCY_TOLERANCE: f64 = 0.05;
 /// so (25 %): a payload, or a wrong thrust coefficient.
 pub const MAX_MASS_FROM_VEHICLE: f64 = 0.25;
 
-/// `true` when a refit's mass `m1` \[kg\] keeps the rigid body: positive, and within
-/// [`MAX_MASS_CHANGE`] of the current fit's `m0` (any `m1 > 0` when `m0` is not positive).
-pub(crate) fn mass_kept(m0: f64, m1: f64) -> bool {
-    m1 > 0.0 && (m0 <= 0.0 || ((m1 - m0) / m0).abs() <= MAX_MASS_CHANGE)
-}
-
 /// The airframe and vehicle limits a fit is judged against.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Limits {

@@ -115,13 +115,6 @@ pub(crate) struct Score {
 }
 
 impl Score {
-    /// Residual variance per row in noise units (innovations' in-sample sum of squares over
-    /// `rows − columns`), ≈ 1 for a model at its noise.
-    pub fn scale(&self, rows: f64) -> f64 {
-        let p = self.ev.beta.len() as f64;
-        (self.fit_ch.iter().sum::<f64>() / (rows - p).max(1.0)).max(f64::MIN_POSITIVE)
-    }
-
     /// Each channel's residual variance per sample in noise units (at least 1) times its
     /// autocorrelation factor: the scale of that channel's part of a coefficient's variance.
     pub fn channel_scales(&self, n: f64) -> [f64; 6] {
@@ -234,11 +227,6 @@ impl<'s> Context<'s> {
             filters: filt,
             designs: RefCell::new(HashMap::new()),
         }
-    }
-
-    /// Rows of the regression (`6 n`).
-    pub fn rows(&self) -> f64 {
-        (6 * self.s.len()) as f64
     }
 
     /// Rigid-body columns of the design (10, or 9 with a known mass).
@@ -491,7 +479,6 @@ impl<'s> Context<'s> {
         ScanResult {
             best: Some(best),
             profile,
-            range: (lo, hi),
             at_end,
         }
     }
@@ -549,8 +536,6 @@ pub(crate) struct ScanResult {
     pub best: Option<f64>,
     /// In-sample score at every value tried, sorted by value.
     pub profile: Vec<(f64, f64)>,
-    /// The grid's range.
-    pub range: (f64, f64),
     /// `true` when the best value lies at an end of the range.
     pub at_end: bool,
 }

@@ -15,8 +15,6 @@ pub(crate) struct Evaluation {
     pub sse_full: f64,
     /// Its part per channel.
     pub sse_full_ch: [f64; 6],
-    /// Held-out (blocked CV) weighted SSE.
-    pub sse_cv: f64,
     /// Held-out SSE per channel.
     pub sse_cv_ch: [f64; 6],
     /// Full-data coefficients (base deltas then candidate).
@@ -338,7 +336,7 @@ impl<'a> GramEngine<'a> {
         let sse_full = sse_of(&total, pp, &beta);
         let sse_full_ch: [f64; 6] =
             std::array::from_fn(|c| sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta));
-        let (mut sse_cv, mut sse_cv_ch) = (0.0, [0.0; 6]);
+        let mut sse_cv_ch = [0.0; 6];
         let mut fold_beta = Vec::new();
         if self.folds > 1 {
             let blocks = np / 3;
@@ -358,12 +356,10 @@ impl<'a> GramEngine<'a> {
                     let test = sum_pieces(&|pi| k_of(pi) == k, Some(c));
                     let e = sse_of(&test, pp, &bk);
                     sse_cv_ch[c] += e;
-                    sse_cv += e;
                 }
                 fold_beta.push(bk);
             }
         } else {
-            sse_cv = sse_full;
             for (c, o) in sse_cv_ch.iter_mut().enumerate() {
                 *o = sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta);
             }
@@ -371,7 +367,6 @@ impl<'a> GramEngine<'a> {
         Evaluation {
             sse_full,
             sse_full_ch,
-            sse_cv,
             sse_cv_ch,
             beta,
             cov_diag,

@@ -347,20 +347,6 @@ pub fn fit_model(
     fit(model, s, weights, true)
 }
 
-/// [`fit_model`] without the prediction ([`Fit::predicted`] left empty): for the fits the
-/// diagnosis reads only the residual, weights and coefficients of (`6 n` values less, at the
-/// moment memory peaks on a long log).
-///
-/// # Errors
-/// As [`fit_model`].
-pub(crate) fn fit_residual_only(
-    model: &Model,
-    s: &Signals,
-    weights: Option<[f64; 6]>,
-) -> Result<Fit, DiagnoseError> {
-    fit(model, s, weights, false)
-}
-
 /// [`fit_model`], keeping the prediction or not.
 fn fit(
     model: &Model,

@@ -1,0 +1,802 @@
+//! From flight logs or files to a [`Report`] in one call: [`DiagnosisPlan`].
+//!
+//! The plan holds everything between "I have logs" and "I have a report": the inputs, the
+//! vehicle, the effects to add, the known mass and the options. It checks them before any
+//! work and then does what `tagk diagnose` does. The command line only fills it from its
+//! arguments, prints the report and writes the files.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use tagk_dynamics::EffectKind;
+use tagk_dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
+use tagk_dynamics::vehicle::Vehicle;
+
+use crate::diagnose::DiagnoseOptions;
+use crate::effects::{CustomEffect, Effect, EffectRef, builtin, builtin_by_name, builtin_effects};
+use crate::error::{DiagnoseError, LogError};
+use crate::fit::Model;
+use crate::log::{FlightLog, MIN_ROWS};
+use crate::online::{OnlineOptions, online_pass_with};
+use crate::report::{Report, run_logs, run_loop};
+use crate::sampling::SamplingFindings;
+use crate::signals::{CHANNEL_NAMES, Signals};
+use crate::streams::{AlignOptions, align_streams_owned};
+
+/// Samples between two windows of the online TAG-K pass of `tagk diagnose --online`.
+pub const DEFAULT_ONLINE_STRIDE: usize = 5;
+
+/// A known vehicle mass: a value, or the vehicle's mass prior.
+///
+/// It parses from `0.035` or `vehicle` (the command line's `--mass`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KnownMass {
+    /// A mass \[kg\].
+    Kg(f64),
+    /// The `mass` prior of the plan's vehicle.
+    Vehicle,
+}
+
+impl std::str::FromStr for KnownMass {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "vehicle" => Ok(KnownMass::Vehicle),
+            t => t.parse::<f64>().map(KnownMass::Kg).map_err(|_| {
+                format!("`{s}` is neither a mass in kg nor `vehicle` (the --vehicle mass prior)")
+            }),
+        }
+    }
+}
+
+impl From<f64> for KnownMass {
+    fn from(kg: f64) -> Self {
+        KnownMass::Kg(kg)
+    }
+}
+
+/// An effect to add to the rigid body: a name, a kind of the vocabulary, or an effect.
+///
+/// A name is a built-in name or alias (`linear-drag`, `delay`), the name of a custom effect
+/// of the plan, or the name of one of its extra candidates.
+#[derive(Debug, Clone)]
+pub enum EffectChoice {
+    /// By name.
+    Name(String),
+    /// A built-in effect.
+    Kind(EffectKind),
+    /// An effect as it is.
+    Effect(EffectRef),
+}
+
+/// `From` a name or a specification (`&str`, `String`, `&String`) for an enum variant that
+/// holds a `String`.
+macro_rules! from_text {
+    ($ty:ident :: $variant:ident) => {
+        impl From<&str> for $ty {
+            fn from(text: &str) -> Self {
+                $ty::$variant(text.to_string())
+            }
+        }
+
+        impl From<String> for $ty {
+            fn from(text: String) -> Self {
+                $ty::$variant(text)
+            }
+        }
+
+        impl From<&String> for $ty {
+            fn from(text: &String) -> Self {
+                $ty::$variant(text.clone())
+            }
+        }
+    };
+}
+
+from_text!(EffectChoice::Name);
+
+impl From<EffectKind> for EffectChoice {
+    fn from(kind: EffectKind) -> Self {
+        EffectChoice::Kind(kind)
+    }
+}
+
+impl From<EffectRef> for EffectChoice {
+    fn from(effect: EffectRef) -> Self {
+        EffectChoice::Effect(effect)
+    }
+}
+
+/// A custom candidate effect: a specification `NAME=COL[*COL...]@CH[,CH...]` or a
+/// [`CustomEffect`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum CustomChoice {
+    /// A specification, parsed by [`CustomEffect::parse`].
+    Spec(String),
+    /// An effect already built.
+    Effect(CustomEffect),
+}
+
+from_text!(CustomChoice::Spec);
+
+impl From<CustomEffect> for CustomChoice {
+    fn from(effect: CustomEffect) -> Self {
+        CustomChoice::Effect(effect)
+    }
+}
+
+impl CustomChoice {
+    /// The effect and its specification (for error messages).
+    fn build(&self) -> Result<(CustomEffect, String), DiagnoseError> {
+        match self {
+            CustomChoice::Spec(spec) => Ok((CustomEffect::parse(spec)?, spec.clone())),
+            CustomChoice::Effect(e) => {
+                let channels: Vec<&str> = e.channels().iter().map(|c| CHANNEL_NAMES[*c]).collect();
+                let spec = format!(
+                    "{}={}@{}",
+                    e.name(),
+                    e.factors().join("*"),
+                    channels.join(",")
+                );
+                Ok((e.clone(), spec))
+            }
+        }
+    }
+}
+
+/// One flight in memory: its name, its log and, when read through a column mapping, how its
+/// streams were merged.
+#[derive(Debug, Clone)]
+pub struct Flight {
+    /// The flight's name: its file, or the name given with the log. Errors about the log
+    /// name it; several flights are reported under it.
+    pub name: String,
+    /// The log.
+    pub log: FlightLog,
+    /// How the streams were merged, when read through a mapping
+    /// ([`tagk_dynamics::log_input::read_streams`]).
+    pub merge: Option<MergeReport>,
+}
+
+/// One input of a plan: a flight in memory, or the files of one.
+#[derive(Debug, Clone)]
+enum Input {
+    /// In memory.
+    Flight(Box<Flight>),
+    /// One file: the project's format, or through the mapping if the plan has one.
+    File(PathBuf),
+    /// The stream files of one flight, merged through the mapping (the identity without one).
+    Streams(Vec<PathBuf>),
+}
+
+/// What a plan asks for on a given log: the starting model, the effects to add and the
+/// diagnosis options ([`DiagnosisPlan::resolve`]).
+#[derive(Debug, Clone)]
+pub struct ResolvedPlan {
+    /// The starting model: the rigid body, with the known mass if given.
+    pub base: Model,
+    /// The effects to add, in order.
+    pub with: Vec<EffectRef>,
+    /// The diagnosis options: every built-in candidate, the custom ones, the extra ones.
+    pub options: DiagnoseOptions,
+}
+
+/// Everything between "I have flight logs (or files)" and "I have a [`Report`]": what
+/// `tagk diagnose` does, as a library call.
+///
+/// Build it step by step, then [`run`](DiagnosisPlan::run) it:
+///
+/// - inputs: logs in memory ([`log`](Self::log), [`named_log`](Self::named_log)), files
+///   ([`file`](Self::file)), or the stream files of one flight ([`streams`](Self::streams)),
+///   optionally through a column mapping ([`columns`](Self::columns));
+/// - the vehicle ([`vehicle`](Self::vehicle)): a log without the wrench gets it from its rotor
+///   speeds, and its airframe radius is the default;
+/// - the effects to add ([`with_effects`](Self::with_effects)), custom candidates
+///   ([`custom`](Self::custom)) and your own [`Effect`]s ([`candidate`](Self::candidate));
+/// - the known mass ([`known_mass`](Self::known_mass)), the airframe radius, the noise per
+///   channel, resampling, stream alignment, the online pass and the number of steps.
+///
+/// One flight is diagnosed alone: a log with gaps is split at them and its segments are
+/// fitted jointly. Several flights are fitted jointly ([`run_logs`]): a flight with gaps joins
+/// as one log per segment of at least [`MIN_ROWS`] samples.
+///
+/// The report's `final_model.command` and `next` stay empty: they name command-line flags.
+///
+/// ```
+/// use tagk_diagnose::{DiagnosisPlan, EffectKind, FlightLog, LogSample};
+/// use tagk_dynamics::nalgebra::{UnitQuaternion, Vector3};
+/// use tagk_dynamics::{GRAVITY_WORLD, InertialParams, newton_euler};
+///
+/// // A 20 s log at 100 Hz of a 35 g body whose actuators also fight a linear drag.
+/// let theta = InertialParams::from_array([0.035, 0.0, 0.0, 0.0, 1.7e-5, 0.0, 1.7e-5, 0.0, 0.0, 2.9e-5]);
+/// let mut log = FlightLog::new();
+/// for k in 0..2000 {
+///     let t = k as f64 * 0.01;
+///     let v = Vector3::new(0.5 * (0.8 * t).cos(), 0.4 * (1.1 * t).cos(), 0.1 * (0.5 * t).cos());
+///     let acc = Vector3::new(-0.4 * (0.8 * t).sin(), -0.44 * (1.1 * t).sin(), -0.05 * (0.5 * t).sin());
+///     let q = UnitQuaternion::from_euler_angles(0.2 * (1.3 * t).sin(), 0.15 * (0.9 * t).sin(), 0.3 * t);
+///     let w = Vector3::new(0.26 * (1.3 * t).cos(), 0.135 * (0.9 * t).cos(), 0.3);
+///     let wd = Vector3::new(-0.338 * (1.3 * t).sin(), -0.1215 * (0.9 * t).sin(), 0.0);
+///     let a_body = q.inverse_transform_vector(&(acc - GRAVITY_WORLD));
+///     let mut wrench = newton_euler(&theta, &a_body, &w, &wd).to_array();
+///     let v_body = q.inverse_transform_vector(&v);
+///     for c in 0..3 {
+///         wrench[c] += 0.01 * v_body[c];
+///     }
+///     log.push(&LogSample {
+///         t,
+///         position: [0.0, 0.0, 1.0],
+///         velocity: v.into(),
+///         attitude: [q.w, q.i, q.j, q.k],
+///         omega: w.into(),
+///         wrench,
+///         accel: Some(acc.into()),
+///         omega_dot: Some(wd.into()),
+///         rotor_speeds: None,
+///     });
+/// }
+///
+/// // The staircase finds the drag.
+/// let report = DiagnosisPlan::new().log(log.clone()).max_steps(1).run()?;
+/// assert_eq!(report.final_model.added, [EffectKind::LinearDrag.name()]);
+///
+/// // Add it: the residual falls.
+/// let with_drag = DiagnosisPlan::new()
+///     .log(log)
+///     .with_effects(["linear-drag"])
+///     .known_mass(0.035)
+///     .max_steps(0)
+///     .run()?;
+/// let after = with_drag.after.as_ref().expect("an effect was added");
+/// assert!(after.channels[0].rms < 0.01 * with_drag.before.channels[0].rms);
+///
+/// // Mistakes are caught before any work.
+/// let err = DiagnosisPlan::new().with_effects(["anti-gravity"]).validate();
+/// assert!(matches!(err, Err(tagk_diagnose::DiagnoseError::UnknownEffect(_))));
+/// # Ok::<(), tagk_diagnose::DiagnoseError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct DiagnosisPlan {
+    inputs: Vec<Input>,
+    columns: Option<ColumnMapping>,
+    vehicle: Option<Vehicle>,
+    with: Vec<EffectChoice>,
+    custom: Vec<CustomChoice>,
+    candidates: Vec<EffectRef>,
+    known_mass: Option<KnownMass>,
+    airframe_radius: Option<f64>,
+    noise_floor: Option<Vec<f64>>,
+    resample: Option<f64>,
+    align: AlignOptions,
+    online: Option<usize>,
+    max_steps: usize,
+}
+
+impl Default for DiagnosisPlan {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl DiagnosisPlan {
+    /// A plan with no input, the rigid body and every option at its default (the defaults of
+    /// `tagk diagnose`).
+    pub fn new() -> Self {
+        Self {
+            inputs: Vec::new(),
+            columns: None,
+            vehicle: None,
+            with: Vec::new(),
+            custom: Vec::new(),
+            candidates: Vec::new(),
+            known_mass: None,
+            airframe_radius: None,
+            noise_floor: None,
+            resample: None,
+            align: AlignOptions::default(),
+            online: None,
+            max_steps: DiagnoseOptions::default().max_steps,
+        }
+    }
+
+    /// Adds a flight in memory, without a name.
+    pub fn log(self, log: FlightLog) -> Self {
+        self.named_log("", log)
+    }
+
+    /// Adds a flight in memory. Errors about it name it; with several flights the report
+    /// lists it under this name.
+    pub fn named_log(mut self, name: impl Into<String>, log: FlightLog) -> Self {
+        self.inputs.push(Input::Flight(Box::new(Flight {
+            name: name.into(),
+            log,
+            merge: None,
+        })));
+        self
+    }
+
+    /// Adds several named flights in memory.
+    pub fn named_logs(mut self, logs: impl IntoIterator<Item = (String, FlightLog)>) -> Self {
+        for (name, log) in logs {
+            self = self.named_log(name, log);
+        }
+        self
+    }
+
+    /// Adds a flight in one file: the project's CSV format (`docs/CONVENTIONS.md` §6), or
+    /// read through the column mapping if the plan has one.
+    pub fn file(mut self, path: impl Into<PathBuf>) -> Self {
+        self.inputs.push(Input::File(path.into()));
+        self
+    }
+
+    /// Adds one flight logged as several files, one per stream, merged onto the first one's
+    /// time stamps (or the mapping's primary) through the column mapping (the identity
+    /// without one).
+    pub fn streams<P: Into<PathBuf>>(mut self, paths: impl IntoIterator<Item = P>) -> Self {
+        self.inputs
+            .push(Input::Streams(paths.into_iter().map(Into::into).collect()));
+        self
+    }
+
+    /// Reads the files through this column mapping (`docs/COLUMN_MAPPING.md`). Without any
+    /// other input, the plan reads the mapping's own stream files as one flight.
+    pub fn columns(mut self, mapping: ColumnMapping) -> Self {
+        self.columns = Some(mapping);
+        self
+    }
+
+    /// The vehicle: a log without the wrench gets it from its rotor speeds; its airframe
+    /// radius is the default; [`KnownMass::Vehicle`] takes its mass prior.
+    pub fn vehicle(mut self, vehicle: Vehicle) -> Self {
+        self.vehicle = Some(vehicle);
+        self
+    }
+
+    /// Adds one effect to the rigid body.
+    pub fn with_effect(mut self, effect: impl Into<EffectChoice>) -> Self {
+        self.with.push(effect.into());
+        self
+    }
+
+    /// Adds effects to the rigid body, in order. Names are trimmed; empty names are skipped.
+    pub fn with_effects<E: Into<EffectChoice>>(
+        mut self,
+        effects: impl IntoIterator<Item = E>,
+    ) -> Self {
+        self.with.extend(effects.into_iter().map(Into::into));
+        self
+    }
+
+    /// Adds a custom candidate: a product of log columns on some channels. Its name may not
+    /// be a built-in effect's, and the log must have its columns.
+    pub fn custom(mut self, effect: impl Into<CustomChoice>) -> Self {
+        self.custom.push(effect.into());
+        self
+    }
+
+    /// Adds an extra candidate: your own [`Effect`], ranked with the built-in ones.
+    pub fn candidate(mut self, effect: EffectRef) -> Self {
+        self.candidates.push(effect);
+        self
+    }
+
+    /// Fixes the mass: a value in kg, or [`KnownMass::Vehicle`]. Without it the mass is fitted.
+    pub fn known_mass(mut self, mass: impl Into<KnownMass>) -> Self {
+        self.known_mass = Some(mass.into());
+        self
+    }
+
+    /// The airframe radius \[m\] beyond which a fitted centre of mass is flagged. Default: the
+    /// vehicle's, else [`DiagnoseOptions`]'s.
+    pub fn airframe_radius(mut self, radius: f64) -> Self {
+        self.airframe_radius = Some(radius);
+        self
+    }
+
+    /// The measurement noise per channel `fx, fy, fz, tx, ty, tz` (N, N m): the noise floor
+    /// of the stepwise search. Six values are needed. Default: from the data.
+    pub fn noise_floor(mut self, noise: impl AsRef<[f64]>) -> Self {
+        self.noise_floor = Some(noise.as_ref().to_vec());
+        self
+    }
+
+    /// Resamples each flight onto a uniform grid of this step \[s\] before the fit, within
+    /// each segment between gaps ([`FlightLog::resample_linear`]).
+    pub fn resample(mut self, step: f64) -> Self {
+        self.resample = Some(step);
+        self
+    }
+
+    /// How the sensor streams are timed and aligned before the fit. Default: measured, and
+    /// the IMU is the clock ([`AlignOptions::default`]).
+    pub fn align(mut self, options: AlignOptions) -> Self {
+        self.align = options;
+        self
+    }
+
+    /// Runs TAG-K online over a single flight after the fit, one window every `stride`
+    /// samples ([`online_pass_with`]; from the vehicle's mass and inertia priors when the
+    /// vehicle has them, else from the batch estimate; `tagk diagnose --online` uses
+    /// [`DEFAULT_ONLINE_STRIDE`]).
+    /// Several flights get no online pass.
+    pub fn online(mut self, stride: usize) -> Self {
+        self.online = Some(stride);
+        self
+    }
+
+    /// The most effects the stepwise search adds (default 5).
+    pub fn max_steps(mut self, steps: usize) -> Self {
+        self.max_steps = steps;
+        self
+    }
+
+    /// Checks every setting that needs no log: custom specifications, effect names, the
+    /// known mass, the options.
+    ///
+    /// # Errors
+    /// As [`DiagnosisPlan::resolve`], except the check of the log's columns.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
+        self.resolve_on(None).map(|_| ())
+    }
+
+    /// What the plan asks for on `log`: the starting model, the effects to add, the options.
+    /// Every setting is checked, and the custom effects against the log's columns.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::BadCustomSpec`]: a malformed custom specification, or one that takes
+    /// a built-in effect's name; [`DiagnoseError::UnknownColumn`]: a custom effect naming a
+    /// column the log lacks; [`DiagnoseError::UnknownEffect`]: an unknown effect name;
+    /// [`DiagnoseError::InvalidOption`] (field `mass`): [`KnownMass::Vehicle`] without a
+    /// vehicle or a mass prior; [`DiagnoseError::InvalidModel`]: a mass that is not positive
+    /// and finite, an effect twice; [`DiagnoseError::InvalidOption`]: invalid options (e.g.
+    /// `airframe_radius`, `noise_floor`).
+    pub fn resolve(&self, log: &FlightLog) -> Result<ResolvedPlan, DiagnoseError> {
+        self.resolve_on(Some(log))
+    }
+
+    /// [`DiagnosisPlan::resolve`], checking the custom effects' columns when given a log.
+    fn resolve_on(&self, log: Option<&FlightLog>) -> Result<ResolvedPlan, DiagnoseError> {
+        let mut customs: Vec<EffectRef> = Vec::new();
+        for choice in &self.custom {
+            let (custom, spec) = choice.build()?;
+            if let Some(kind) = EffectKind::from_name(custom.name()) {
+                return Err(DiagnoseError::BadCustomSpec {
+                    spec,
+                    reason: format!(
+                        "`{}` already names the built-in effect `{}`; give the custom effect another name",
+                        custom.name(),
+                        kind.name()
+                    ),
+                });
+            }
+            if let Some(log) = log {
+                custom.require_columns(log)?;
+            }
+            customs.push(Arc::new(custom));
+        }
+        let mut with = Vec::new();
+        for choice in &self.with {
+            with.push(match choice {
+                EffectChoice::Name(name) => {
+                    let name = name.trim();
+                    if name.is_empty() {
+                        continue;
+                    }
+                    match customs
+                        .iter()
+                        .chain(&self.candidates)
+                        .find(|c| c.name() == name)
+                    {
+                        Some(c) => c.clone(),
+                        None => builtin_by_name(name)?,
+                    }
+                }
+                EffectChoice::Kind(kind) => builtin(*kind)?,
+                EffectChoice::Effect(effect) => effect.clone(),
+            });
+        }
+        let mut base = Model::rigid_body();
+        if let Some(m) = self.mass()? {
+            base = base.with_known_mass(m);
+        }
+        base.validate()?;
+        let mut candidates = builtin_effects();
+        candidates.extend(customs);
+        candidates.extend(self.candidates.iter().cloned());
+        let defaults = DiagnoseOptions::default();
+        let airframe_radius = self
+            .airframe_radius
+            .or(self.vehicle.as_ref().map(|v| v.airframe_radius))
+            .unwrap_or(defaults.airframe_radius);
+        let noise_floor = match &self.noise_floor {
+            None => None,
+            Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
+                DiagnoseError::InvalidOption {
+                    field: "noise_floor",
+                    reason: format!("{} values given, six needed (fx,fy,fz,tx,ty,tz)", v.len()),
+                }
+            })?),
+        };
+        // The vehicle's airframe (rotor plane, vertical limit of the centre of mass) and mass
+        // prior, then the explicit airframe radius.
+        let defaults = match &self.vehicle {
+            Some(v) => defaults.with_vehicle(v),
+            None => defaults,
+        };
+        let options = DiagnoseOptions {
+            airframe_radius,
+            com_vertical_limit: if self.airframe_radius.is_some() {
+                0.5 * airframe_radius
+            } else {
+                defaults.com_vertical_limit
+            },
+            candidates,
+            noise_floor,
+            max_steps: self.max_steps,
+            ..defaults
+        };
+        options.validate()?;
+        Ok(ResolvedPlan {
+            base,
+            with,
+            options,
+        })
+    }
+
+    /// The known mass \[kg\], checked: positive and finite, the vehicle's prior if asked.
+    fn mass(&self) -> Result<Option<f64>, DiagnoseError> {
+        let mass = match self.known_mass {
+            None => return Ok(None),
+            Some(KnownMass::Kg(m)) => m,
+            Some(KnownMass::Vehicle) => match &self.vehicle {
+                Some(v) => v.mass.ok_or_else(|| DiagnoseError::InvalidOption {
+                    field: "mass",
+                    reason: format!(
+                        "`--mass vehicle`: vehicle `{}` has no `mass` prior; give the mass in kg",
+                        v.name
+                    ),
+                })?,
+                None => {
+                    return Err(DiagnoseError::InvalidOption {
+                        field: "mass",
+                        reason: "`--mass vehicle` needs `--vehicle NAME|FILE`".into(),
+                    });
+                }
+            },
+        };
+        if !(mass > 0.0 && mass.is_finite()) {
+            return Err(DiagnoseError::InvalidModel(match self.known_mass {
+                Some(KnownMass::Vehicle) => format!(
+                    "`--mass vehicle`: the vehicle's mass prior {mass} kg is not positive and finite"
+                ),
+                _ => format!(
+                    "`--mass {mass}`: the known mass must be a positive, finite number of kg"
+                ),
+            }));
+        }
+        Ok(Some(mass))
+    }
+
+    /// Reads every file of the plan into memory. A plan with a column mapping and no input
+    /// reads the mapping's stream files as one flight. [`DiagnosisPlan::flights`] then lists
+    /// every flight, with the merge report of those read through the mapping.
+    ///
+    /// # Errors
+    /// The file's or the mapping's errors (naming the file, line and column; a quantity no
+    /// stream provides, with the columns that could).
+    pub fn read(mut self) -> Result<Self, DiagnoseError> {
+        if self.inputs.is_empty()
+            && let Some(mapping) = &self.columns
+        {
+            self.inputs.push(Input::Streams(mapping.files.clone()));
+        }
+        let inputs = std::mem::take(&mut self.inputs);
+        for input in inputs {
+            let flight = match input {
+                Input::Flight(flight) => *flight,
+                Input::File(path) => match &self.columns {
+                    None => Flight {
+                        name: path.display().to_string(),
+                        log: FlightLog::from_csv_path(&path)?,
+                        merge: None,
+                    },
+                    Some(_) => self.read_streams(std::slice::from_ref(&path))?,
+                },
+                Input::Streams(paths) => self.read_streams(&paths)?,
+            };
+            self.inputs.push(Input::Flight(Box::new(flight)));
+        }
+        Ok(self)
+    }
+
+    /// One flight from its stream files, through the mapping (the identity without one).
+    fn read_streams(&self, paths: &[PathBuf]) -> Result<Flight, DiagnoseError> {
+        let identity = ColumnMapping::default();
+        let mapping = self.columns.as_ref().unwrap_or(&identity);
+        let options = ReadOptions {
+            vehicle: self.vehicle.as_ref(),
+        };
+        let (log, merge) = read_streams(paths, mapping, &options)?;
+        let name = paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        Ok(Flight {
+            name,
+            log,
+            merge: Some(merge),
+        })
+    }
+
+    /// The flights in memory, in the order given (every flight after
+    /// [`DiagnosisPlan::read`]).
+    pub fn flights(&self) -> impl Iterator<Item = &Flight> {
+        self.inputs.iter().filter_map(|input| match input {
+            Input::Flight(flight) => Some(&**flight),
+            _ => None,
+        })
+    }
+
+    /// Runs the plan: checks it, reads the files, diagnoses one flight alone or several
+    /// jointly, and returns the report.
+    ///
+    /// For each flight: the wrench from the rotor speeds if the log has none (with the
+    /// vehicle), the sampling findings, the resampling, the stream alignment. Then one flight
+    /// is split at its gaps and fitted ([`run_loop`]), with the online pass if asked; several
+    /// flights are fitted jointly ([`run_logs`]).
+    ///
+    /// # Errors
+    /// As [`DiagnosisPlan::resolve`] (against the first flight) and [`DiagnosisPlan::read`];
+    /// [`DiagnoseError::InvalidOption`] (field `logs`) for no flight, or for a flight among
+    /// several whose gaps leave no segment of [`MIN_ROWS`] samples; a log without the wrench
+    /// and no vehicle or no rotor speeds ([`LogError::MissingWrench`], in
+    /// [`LogError::InFile`] naming the flight); the log's, the alignment's, the fit's and the
+    /// online pass's errors.
+    pub fn run(self) -> Result<Report, DiagnoseError> {
+        self.validate()?;
+        let mut settings = self.read()?;
+        let mut flights: Vec<Flight> = Vec::new();
+        for input in std::mem::take(&mut settings.inputs) {
+            if let Input::Flight(flight) = input {
+                flights.push(*flight);
+            }
+        }
+        match flights.len() {
+            0 => Err(DiagnoseError::InvalidOption {
+                field: "logs",
+                reason: "no flight log given".into(),
+            }),
+            1 => settings.run_one(flights.pop().expect("one flight")),
+            _ => settings.run_joint(flights),
+        }
+    }
+
+    /// One flight alone: split at its gaps, its segments fitted jointly.
+    fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
+        let plan = self.resolve(&flight.log)?;
+        let vehicle = self.vehicle.as_ref();
+        let log = if flight.log.has_wrench() {
+            flight.log
+        } else {
+            // A flight without a name is a log in memory: its errors stay as they are.
+            log_with_wrench(flight.log, vehicle).map_err(|e| match flight.name.as_str() {
+                "" => e,
+                name => in_file(name, e),
+            })?
+        };
+        let sampling = SamplingFindings::of("", &log, self.resample);
+        let log = match self.resample {
+            Some(dt) => log.resample_linear(dt)?,
+            None => log,
+        };
+        let (aligned, streams) = align_streams_owned(log, &self.align)?;
+        let (s, _) = Signals::from_owned_log_split(aligned)?;
+        let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
+        report.streams = streams;
+        report.sampling = vec![sampling];
+        if let Some(stride) = self.online {
+            // From the vehicle's nominal parameters when it has them (a pass that converges,
+            // as in flight), otherwise from the batch estimate (a pass that stays).
+            let online = OnlineOptions {
+                stride,
+                prior: self.vehicle.as_ref().and_then(|v| v.inertial_prior()),
+                arm_length: plan.options.airframe_radius,
+                ..OnlineOptions::default()
+            };
+            report.online = Some(online_pass_with(&s, &report.last().fit, &online)?);
+        }
+        Ok(report)
+    }
+
+    /// Several flights jointly; a flight with gaps joins as one log per long enough segment.
+    fn run_joint(&self, flights: Vec<Flight>) -> Result<Report, DiagnoseError> {
+        let plan = self.resolve(&flights[0].log)?;
+        let vehicle = self.vehicle.as_ref();
+        let mut parts = Vec::new();
+        let mut streams = Vec::new();
+        let mut sampling = Vec::new();
+        for Flight { name, log, .. } in flights {
+            let in_file = |e: DiagnoseError| in_file(&name, e);
+            let log = log_with_wrench(log, vehicle).map_err(in_file)?;
+            sampling.push(SamplingFindings::of(name.clone(), &log, self.resample));
+            let log = match self.resample {
+                Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
+                None => log,
+            };
+            let (log, timing) = align_streams_owned(log, &self.align).map_err(in_file)?;
+            streams.extend(timing.into_iter().map(|mut t| {
+                t.log = name.clone();
+                t
+            }));
+            let segments = log.sampling().segments();
+            if segments.len() == 1 {
+                let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
+                parts.push((name, s));
+                continue;
+            }
+            // A log with gaps: each segment long enough to be fitted is a log of its own.
+            log.validate().map_err(|e| in_file(e.into()))?;
+            let count = segments.len();
+            if segments.iter().all(|r| r.len() < MIN_ROWS) {
+                return Err(DiagnoseError::InvalidOption {
+                    field: "logs",
+                    reason: format!(
+                        "{name}: its gaps leave no segment of at least {MIN_ROWS} samples to fit \
+                         with the other logs (diagnose it alone: its segments are then fitted jointly)"
+                    ),
+                });
+            }
+            for (k, r) in segments.into_iter().enumerate() {
+                if r.len() < MIN_ROWS {
+                    continue;
+                }
+                let segment = log.slice(r.clone());
+                let label = format!(
+                    "{name} (segment {} of {count}, t = {:.3}..{:.3} s)",
+                    k + 1,
+                    log.t[r.start],
+                    log.t[r.end - 1]
+                );
+                let s = Signals::from_log(&segment).map_err(|e| in_file(e.into()))?;
+                parts.push((label, s));
+            }
+        }
+        let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
+        report.streams = streams;
+        report.sampling = sampling;
+        Ok(report)
+    }
+}
+
+/// A log error of the flight `name`, wrapped to name it ([`LogError::InFile`]).
+fn in_file(name: &str, e: DiagnoseError) -> DiagnoseError {
+    match e {
+        DiagnoseError::Log(source) => DiagnoseError::Log(LogError::InFile {
+            path: name.to_string(),
+            source: Box::new(source),
+        }),
+        other => other,
+    }
+}
+
+/// The log ready to fit: a log without the wrench gets it from its rotor speeds with the
+/// vehicle (a logged wrench is kept as it is).
+fn log_with_wrench(
+    mut log: FlightLog,
+    vehicle: Option<&Vehicle>,
+) -> Result<FlightLog, DiagnoseError> {
+    if !log.has_wrench() && !log.is_empty() {
+        match vehicle {
+            Some(v) => log.compute_wrench_from_rotor_speeds(v)?,
+            None => {
+                return Err(LogError::MissingWrench {
+                    has_rotor_speeds: log.rotor_speeds.is_some(),
+                }
+                .into());
+            }
+        }
+    }
+    Ok(log)
+}
