@@ -172,7 +172,33 @@ fn a_missing_detectable_effect_is_missed_and_adequate_is_then_wrong() {
     assert!(!lag.found && lag.found_in_family);
     assert_eq!(s.false_effects, vec!["time-delay".to_string()]);
     assert!(s.false_families.is_empty());
-    assert!(s.adequate_right && !s.adequate_expected_by_name);
+    // A delay is other physics than a lag: "adequate" was wrong.
+    assert!(!s.adequate_expected && !s.adequate_right && !s.adequate_expected_by_name);
+    // A drag law in another's place keeps the model adequate (the laws cannot always be told
+    // apart, and another one is at the noise too).
+    let mut outcome = exact_outcome();
+    outcome.final_effects[0] = "rotor-drag".into();
+    outcome.fitted[0].effect = "rotor-drag".into();
+    let s = score_flight(&truth(), &outcome);
+    assert!(s.adequate_expected && s.adequate_right && !s.adequate_expected_by_name);
+}
+
+/// "Not adequate" is right too when a missing effect lies between the adequacy factor's
+/// strength and the detectability threshold.
+#[test]
+fn not_adequate_is_right_in_the_gray_zone() {
+    let mut outcome = exact_outcome();
+    outcome.final_effects.retain(|e| e != "motor-lag");
+    outcome.fitted.retain(|e| e.effect != "motor-lag");
+    outcome.adequate = false;
+    let mut t = truth();
+    t.effects[1].detectable = false;
+    t.effects[1].max_strength = 0.9;
+    let s = score_flight(&t, &outcome);
+    assert!(s.adequate_expected && s.adequate_gray && s.adequate_right);
+    t.effects[1].max_strength = 0.3;
+    let s = score_flight(&t, &outcome);
+    assert!(!s.adequate_gray && !s.adequate_right);
 }
 
 #[test]

@@ -547,7 +547,8 @@ fn assemble(
         whitened,
     } = assessed;
     let failures = residual::where_it_fails(s, &whitened);
-    let params = parameters::parameter_report(&fit, opts, missing.recommended.first().map(String::as_str));
+    let params =
+        parameters::parameter_report(&fit, s, opts, missing.recommended.first().map(String::as_str));
     let verdict = verdict(&missing, &adequacy, adequate);
     let n = s.len();
     let partial_residuals = partial_residuals(s, opts, &missing.ranking, &fit);

@@ -34,6 +34,7 @@ pub(crate) struct ParameterReport {
 /// one), physical inconsistency beyond the tolerance, and effects fitted implausibly.
 pub(crate) fn parameter_report(
     fit: &Fit,
+    s: &crate::signals::Signals,
     opts: &DiagnoseOptions,
     recommended: Option<&str>,
 ) -> ParameterReport {
@@ -124,6 +125,7 @@ pub(crate) fn parameter_report(
             crate::diagnose::CONSISTENCY_TOLERANCE
         ));
     }
+    warnings.extend(attenuation_warnings(s));
     for fe in &fit.effects {
         if !fe.plausible {
             warnings.push(format!(
@@ -140,3 +142,49 @@ pub(crate) fn parameter_report(
         warnings,
     }
 }
+
+/// An inertia whose axis' angular acceleration hardly rises above the noise of the
+/// differentiated gyro is biased towards zero (errors in variables: the noise of a regressor
+/// column attenuates its coefficient by `signal / (signal + noise)` in variance): a warning
+/// per such axis, with the attenuation, when it exceeds [`ATTENUATION_WARNING`].
+fn attenuation_warnings(s: &crate::signals::Signals) -> Vec<String> {
+    let n = s.len();
+    if n < 8 {
+        return Vec::new();
+    }
+    let series: Vec<[f64; 6]> = (0..n)
+        .map(|i| {
+            let w = s.omega_dot(i);
+            [w.x, w.y, w.z, 0.0, 0.0, 0.0]
+        })
+        .collect();
+    let noise = crate::fit::high_frequency_noise(s, &series);
+    let mut out = Vec::new();
+    for (k, axis) in ["xx", "yy", "zz"].iter().enumerate() {
+        let mean = series.iter().map(|x| x[k]).sum::<f64>() / n as f64;
+        let var = series.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>() / n as f64;
+        let noise2 = noise[k] * noise[k];
+        if var <= 0.0 {
+            continue;
+        }
+        let attenuation = (noise2 / var).min(1.0);
+        if attenuation > ATTENUATION_WARNING {
+            out.push(format!(
+                "I_{axis} is biased towards zero by about {:.0} %: the flight's angular acceleration about {} is only {:.1}× the noise of the differentiated gyro (errors in variables; fly sharper {} rotations)",
+                100.0 * attenuation,
+                &axis[..1],
+                ((var - noise2).max(0.0) / noise2.max(f64::MIN_POSITIVE)).sqrt(),
+                match k {
+                    0 => "roll",
+                    1 => "pitch",
+                    _ => "yaw",
+                }
+            ));
+        }
+    }
+    out
+}
+
+/// Attenuation of an inertia by the noise of its angular acceleration beyond which the report
+/// warns (10 %).
+pub(crate) const ATTENUATION_WARNING: f64 = 0.10;

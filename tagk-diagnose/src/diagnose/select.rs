@@ -284,7 +284,11 @@ impl<'s> Context<'s> {
             return d.clone();
         }
         let d = Arc::new(effect_design(m.effect.as_ref(), self.s, m.param));
-        self.designs.borrow_mut().insert(key, d.clone());
+        // A long log's designs are recomputed instead of kept: a search meets dozens of them
+        // (a wind's alone is 24 values a sample).
+        if self.s.len() <= crate::signals::RIGID_CACHE_SAMPLES {
+            self.designs.borrow_mut().insert(key, d.clone());
+        }
         d
     }
 

@@ -26,7 +26,8 @@ pub(crate) use design::{
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
 pub(crate) use likelihood::{
-    NoiseModel, channel_filters, channel_score, estimate_noise, part_ranges, whitened,
+    NoiseModel, channel_filters, channel_score, estimate_noise, high_frequency_noise, part_ranges,
+    whitened,
 };
 pub(crate) use lsq::{channel_stats, scan_min, weighted_qr_solve};
 pub use model::Model;
