@@ -647,24 +647,24 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
         "fx          n/a   0.610      2.0940e-3 N",
         "fy          n/a   0.371      1.2742e-3 N",
     ],
-    verdict: "verdict: missing physics: `rotor-drag` (held-out residual -45 %)",
+    verdict: "verdict: missing physics: `rotor-drag` (held-out error -100 % in units of the noise)",
     staircase: [
         "0. rigid body ",
         "1. + rotor-drag ",
         "final model: rigid body + rotor-drag\n",
     ],
-    rotor_drag: "rotor-drag: k_h = 9.202e-7 [9.02e-7, 9.38e-7] N s²/(m rad)",
+    rotor_drag: "rotor-drag: k_h = 9.202e-7 [9.02e-7, 9.39e-7] N s²/(m rad)",
     refit: [
         "fx                n/a          n/a         0.610      0.00704    2.0940e-3    2.4185e-5   -98.8 %",
         "fy                n/a          n/a         0.371      0.00659    1.2742e-3    2.2648e-5   -98.2 %",
     ],
     remains: [
-        "tx         28.1    52.2      1.4272e-5     1.10",
-        "ty         25.5    51.0      1.3090e-5     1.02",
+        "tx         28.1    52.2      1.4282e-5     1.11     no",
+        "ty         25.5    51.0      1.3115e-5     1.01     no",
     ],
-    derived_verdict: "verdict: missing physics: `motor-lag` (held-out residual -20 %)",
-    derived_rotor_drag: "rotor-drag: held-out residual -25.6 % (fx -87 %, fy -73 %); \
-        k_h = 9.349e-7 N s²/(m rad), k_z = -3.000e-6 N s²/(m rad); \
+    derived_verdict: "verdict: not adequate: fx 16.1× its noise, fy 12.0× its noise",
+    derived_rotor_drag: "rotor-drag: held-out error -80.2 % (fx -87 %, fy -73 %); \
+        k_h = 9.169e-7 N s²/(m rad), k_z = -2.654e-6 N s²/(m rad); \
         implausible (negative-coefficient)",
     derived_final_model: "final model: rigid body\n",
 };

@@ -78,7 +78,10 @@ fn the_readme_realistic_example_names_the_drag_the_lag_and_the_sensor_offset() {
             .as_array()
             .unwrap()
             .iter()
-            .any(|w| w.as_str().unwrap().starts_with("I_zz is biased towards zero")),
+            .any(|w| w
+                .as_str()
+                .unwrap()
+                .starts_with("I_zz is biased towards zero")),
         "{text}"
     );
     for (j, truth) in [(4, CRAZYFLIE_INERTIA[0]), (6, CRAZYFLIE_INERTIA[2])] {

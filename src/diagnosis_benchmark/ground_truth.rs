@@ -425,7 +425,12 @@ fn expected_coefficients(
         );
     }
     if let Some(d) = e.time_delay {
-        group(EffectKind::TimeDelay.name(), Scanned, &[("delay", -d.delay)], &[]);
+        group(
+            EffectKind::TimeDelay.name(),
+            Scanned,
+            &[("delay", -d.delay)],
+            &[],
+        );
     }
     let epsilon = e.thrust_gain.map_or(0.0, |g| g.relative_error);
     if e.ground_effect.is_some() {

@@ -199,7 +199,12 @@ impl FlightScore {
 
 /// Whether `reported` in the final model `finals` stands for the true effect `name` at a
 /// constant heading ([`CONSTANT_HEADING_STAND_INS`]).
-fn constant_heading_stand_in(truth: &GroundTruth, finals: &[String], name: &str, reported: &str) -> bool {
+fn constant_heading_stand_in(
+    truth: &GroundTruth,
+    finals: &[String],
+    name: &str,
+    reported: &str,
+) -> bool {
     if !truth.constant_heading || !CONSTANT_HEADING_STAND_INS.contains(&(name, reported)) {
         return false;
     }
@@ -454,9 +459,9 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
     let adequate_expected = effects
         .iter()
         .all(|e| !e.detectable || e.found || (drag(e) && e.found_in_family));
-    let adequate_gray = effects.iter().any(|e| {
-        !e.found && !(drag(e) && e.found_in_family) && e.strength >= adequacy_gray_zone()
-    });
+    let adequate_gray = effects
+        .iter()
+        .any(|e| !e.found && !(drag(e) && e.found_in_family) && e.strength >= adequacy_gray_zone());
     let adequate_expected_by_name = effects.iter().all(|e| !e.detectable || e.found);
     FlightScore {
         sensing: truth.sensing,

@@ -20,16 +20,17 @@ mod stats;
 pub mod streams;
 
 pub use diagnose::{
-    ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate,
-    CandidateStatus, ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery,
-    FLOOR_RESOLUTION, FailureWindow, FloorSource, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION,
-    MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter, PartialResidual,
-    RegimeStat, Step, StepChannel, Unavailable, Whiteness, consistency_margin,
-    consistent_within_tolerance, diagnose, discover, discover_from,
+    ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate, CandidateStatus,
+    ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, FLOOR_RESOLUTION,
+    FailureWindow, FloorSource, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE,
+    MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter, PartialResidual, RegimeStat, Step,
+    StepChannel, Unavailable, Whiteness, consistency_margin, consistent_within_tolerance, diagnose,
+    discover, discover_from,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, MAX_ACCEL_BIAS, is_sensor_effect, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility, ScanSpec, builtin,
-    builtin_by_name, builtin_effects, builtin_with, effect_columns, subsample,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, MAX_ACCEL_BIAS,
+    Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with,
+    effect_columns, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};

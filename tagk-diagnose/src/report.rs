@@ -689,9 +689,8 @@ pub fn report_table(r: &Report) -> String {
 /// The final model in a few lines: its channels against their noise (and which sensor limits
 /// each), its parameters' warnings, and whether it is adequate or where it still fails.
 fn remains(d: &Diagnosis) -> String {
-    let mut s = String::from(
-        "channel   fit %   err %   held-out RMS  / noise  white  limited by\n",
-    );
+    let mut s =
+        String::from("channel   fit %   err %   held-out RMS  / noise  white  limited by\n");
     for (c, ch) in d.channels.iter().enumerate() {
         let a = &d.adequacy[c];
         s.push_str(&format!(

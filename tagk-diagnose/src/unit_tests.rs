@@ -700,7 +700,10 @@ fn the_registry_is_keyed_by_the_shared_vocabulary() {
     // The vocabulary's effects, then the sensor candidates.
     assert_eq!(all.len(), EffectKind::ALL.len() + 1);
     assert_eq!(all[EffectKind::ALL.len()].name(), crate::ACCEL_BIAS);
-    assert_eq!(crate::builtin_by_name("accelerometer_bias").unwrap().name(), crate::ACCEL_BIAS);
+    assert_eq!(
+        crate::builtin_by_name("accelerometer_bias").unwrap().name(),
+        crate::ACCEL_BIAS
+    );
     for (kind, effect) in EffectKind::ALL.into_iter().zip(&all) {
         assert_eq!(effect.name(), kind.name());
         assert_eq!(builtin(kind).unwrap().name(), kind.name());
@@ -871,7 +874,10 @@ fn an_offset_equals_a_shifted_target() {
         direct.sse_full
     );
     assert!(
-        close(with.sse_cv_ch.iter().sum::<f64>(), direct.sse_cv_ch.iter().sum::<f64>()),
+        close(
+            with.sse_cv_ch.iter().sum::<f64>(),
+            direct.sse_cv_ch.iter().sum::<f64>()
+        ),
         "{} {}",
         with.sse_cv_ch.iter().sum::<f64>(),
         direct.sse_cv_ch.iter().sum::<f64>()
@@ -901,7 +907,10 @@ fn rigid_columns_by_block_equal_stored_columns_bit_for_bit() {
         let b = GramEngine::new(&s, &w, &by_block, None, folds);
         let (ea, eb) = (a.evaluate(&cand), b.evaluate(&cand));
         assert_eq!(ea.sse_full.to_bits(), eb.sse_full.to_bits());
-        assert_eq!(ea.sse_cv_ch.iter().sum::<f64>().to_bits(), eb.sse_cv_ch.iter().sum::<f64>().to_bits());
+        assert_eq!(
+            ea.sse_cv_ch.iter().sum::<f64>().to_bits(),
+            eb.sse_cv_ch.iter().sum::<f64>().to_bits()
+        );
         assert_eq!(bits(&ea.sse_cv_ch), bits(&eb.sse_cv_ch));
         assert_eq!(bits(&ea.beta), bits(&eb.beta));
         assert_eq!(bits(&ea.cov_diag), bits(&eb.cov_diag));

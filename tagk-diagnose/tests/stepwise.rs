@@ -387,11 +387,7 @@ fn a_noise_free_log_stops_after_its_effect() {
         "{:?}",
         found.added
     );
-    assert!(
-        found.stopped.starts_with("adequate"),
-        "{}",
-        found.stopped
-    );
+    assert!(found.stopped.starts_with("adequate"), "{}", found.stopped);
 }
 
 /// Several logs of one vehicle with different trajectories: the joint verdict is the truth,

@@ -146,10 +146,7 @@ impl DiagnoseOptions {
         if let Some(m) = self.vehicle_mass
             && !(m.is_finite() && m > 0.0)
         {
-            return bad(
-                "vehicle_mass",
-                format!("{m} kg is not positive and finite"),
-            );
+            return bad("vehicle_mass", format!("{m} kg is not positive and finite"));
         }
         if self.candidates.is_empty() {
             return bad("candidates", "no candidate effect to rank".into());
@@ -371,10 +368,11 @@ pub(crate) fn separation_advice(a: &str, b: &str) -> String {
     use tagk_dynamics::EffectKind;
     let kinds: Vec<Option<EffectKind>> = [a, b].iter().map(|n| EffectKind::from_name(n)).collect();
     let has = |k: EffectKind| kinds.contains(&Some(k));
-    let constant_force = [a, b].iter().any(|n| *n == crate::effects::ACCEL_BIAS)
-        || has(EffectKind::BodyBias);
+    let constant_force =
+        [a, b].iter().any(|n| *n == crate::effects::ACCEL_BIAS) || has(EffectKind::BodyBias);
     if has(EffectKind::Wind) && constant_force {
-        "a constant body force and a steady wind look alike at constant heading: fly a yaw rotation".into()
+        "a constant body force and a steady wind look alike at constant heading: fly a yaw rotation"
+            .into()
     } else if has(EffectKind::MotorLag) && has(EffectKind::TimeDelay) {
         "a lag and a delay look alike for slow commands: fly faster thrust changes".into()
     } else if has(EffectKind::GroundEffect) {
@@ -547,8 +545,12 @@ fn assemble(
         whitened,
     } = assessed;
     let failures = residual::where_it_fails(s, &whitened);
-    let params =
-        parameters::parameter_report(&fit, s, opts, missing.recommended.first().map(String::as_str));
+    let params = parameters::parameter_report(
+        &fit,
+        s,
+        opts,
+        missing.recommended.first().map(String::as_str),
+    );
     let verdict = verdict(&missing, &adequacy, adequate);
     let n = s.len();
     let partial_residuals = partial_residuals(s, opts, &missing.ranking, &fit);

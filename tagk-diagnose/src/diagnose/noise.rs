@@ -9,7 +9,7 @@
 //! χ²₁ variable) makes it robust against a few glitches. Second differences never cross a
 //! join of several logs or a gap.
 //!
-//! **Floor.** No channel's noise is taken below its **resolution**: 3·10⁻⁴ of the RMS of the
+//! **Floor.** No channel's noise is taken below its **resolution**: 10⁻⁴ of the RMS of the
 //! measured force magnitude for the forces, times the airframe radius for the torques — below
 //! that no effect matters to a flight-dynamics model, and a noise-free simulator log would
 //! otherwise chase rounding.
@@ -27,9 +27,8 @@ use serde::Serialize;
 use crate::fit::{Fit, Model, channel_filters, estimate_noise, model_filters};
 use crate::signals::Signals;
 
-/// Resolution of the noise, relative to the RMS measured force magnitude (3·10⁻⁴: a
-/// simulator's own discretisation leaves about 10⁻⁴).
-pub const FLOOR_RESOLUTION: f64 = 3e-4;
+/// Resolution of the noise, relative to the RMS measured force magnitude (10⁻⁴).
+pub const FLOOR_RESOLUTION: f64 = 1e-4;
 
 /// Where the noise per channel came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

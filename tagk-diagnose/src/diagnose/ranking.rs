@@ -266,7 +266,9 @@ fn candidate(
         Some(Refusal::Confounded { with, inflation }) => (
             true,
             None,
-            format!("cannot be told apart from {with} on this log (variance inflation {inflation:.0})"),
+            format!(
+                "cannot be told apart from {with} on this log (variance inflation {inflation:.0})"
+            ),
         ),
         _ => (true, None, String::new()),
     };
@@ -283,8 +285,8 @@ fn candidate(
         .filter(|&c| reduction_per_channel[c] >= 0.3)
         .map(|c| CHANNEL_NAMES[c].to_string())
         .collect();
-    let significant = !matches!(v.refusal, Some(Refusal::NotSignificant { .. }))
-        && v.p_value.is_finite();
+    let significant =
+        !matches!(v.refusal, Some(Refusal::NotSignificant { .. })) && v.p_value.is_finite();
     Candidate {
         effect: e.name().to_string(),
         reduction,
@@ -341,7 +343,9 @@ fn explain(c: &Candidate) -> String {
         .unwrap_or_default();
     let status = match c.status {
         CandidateStatus::Recommended => "RECOMMENDED".to_string(),
-        CandidateStatus::Qualifies => "qualifies alone; the recommended set explains more".to_string(),
+        CandidateStatus::Qualifies => {
+            "qualifies alone; the recommended set explains more".to_string()
+        }
         CandidateStatus::Worse => "worse: it raises the held-out error".to_string(),
         CandidateStatus::Implausible => format!(
             "implausible ({}): {}",

@@ -90,7 +90,11 @@ pub fn consistent_within_tolerance(theta: &InertialParams) -> bool {
 /// How far the centre of mass of θ lies outside the airframe, in standard errors beyond the
 /// limits (`theta_se`: standard errors of θ's entries): `(horizontal, vertical)` excess \[m\]
 /// after subtracting 2 standard errors (≤ 0 inside).
-pub(crate) fn com_excess(limits: &Limits, theta: &InertialParams, theta_se: &[f64; 10]) -> (f64, f64) {
+pub(crate) fn com_excess(
+    limits: &Limits,
+    theta: &InertialParams,
+    theta_se: &[f64; 10],
+) -> (f64, f64) {
     let m = theta.mass();
     if m <= 0.0 {
         return (0.0, 0.0);
@@ -182,7 +186,8 @@ mod tests {
     /// The margin is positive for a solid box, about zero for a thin plate, negative beyond.
     #[test]
     fn the_margin_tells_boxes_from_plates() {
-        let solid = InertialParams::solid_box(0.035, Vector3::zeros(), Vector3::new(0.09, 0.09, 0.03));
+        let solid =
+            InertialParams::solid_box(0.035, Vector3::zeros(), Vector3::new(0.09, 0.09, 0.03));
         assert!(consistency_margin(&solid) > 0.05);
         let plate =
             InertialParams::solid_box(0.035, Vector3::zeros(), Vector3::new(0.09, 0.09, 1e-6));
@@ -208,7 +213,9 @@ mod tests {
             rotor_plane: 0.0,
             known_mass: false,
         };
-        let low = InertialParams::from_array([0.035, 0.0, 0.0, 0.0, 1.7e-5, 0.0, 1.7e-5, 0.0, 0.0, 2.9e-5]);
+        let low = InertialParams::from_array([
+            0.035, 0.0, 0.0, 0.0, 1.7e-5, 0.0, 1.7e-5, 0.0, 0.0, 2.9e-5,
+        ]);
         let mut a = low.to_array();
         a[3] = -0.04 * a[0];
         let (_, v) = com_excess(&limits, &InertialParams::from_array(a), &[0.0; 10]);

@@ -26,12 +26,12 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
 
 use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::NoiseFloor;
 use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
-use crate::diagnose::NoiseFloor;
 use crate::fit::{
-    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel, effect_design, filters,
-    residual_score, residual_score_span, rigid_design, sampled_effect_design, scan_window,
+    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel, effect_design,
+    filters, residual_score, residual_score_span, rigid_design, sampled_effect_design, scan_window,
     whitened_residual,
 };
 use crate::signals::Signals;
@@ -261,7 +261,13 @@ impl<'s> Context<'s> {
                 Some(&self.target),
                 range,
             ),
-            None => GramEngine::new(self.s, &self.w, &self.design.columns(), Some(&self.target), 1),
+            None => GramEngine::new(
+                self.s,
+                &self.w,
+                &self.design.columns(),
+                Some(&self.target),
+                1,
+            ),
         }
     }
 
@@ -446,7 +452,11 @@ impl<'s> Context<'s> {
         // sample; otherwise every sample (a filter runs over all of them).
         let fast = members.len() == 1
             && self.filters.is_empty()
-            && !filters(self.s, members[k].effect.as_ref(), spec.grid.first().copied());
+            && !filters(
+                self.s,
+                members[k].effect.as_ref(),
+                spec.grid.first().copied(),
+            );
         let scan_engine = fast.then(|| engine.for_scan());
         let mut profile: Vec<(f64, f64)> = Vec::new();
         let mut eval = |g: f64, profile: &mut Vec<(f64, f64)>| -> f64 {
@@ -640,9 +650,9 @@ impl Refusal {
             Refusal::OutOfRange { value, lo, hi } => format!(
                 "its best value {value:.3} lies at the end of its range {lo:.3}–{hi:.3}: outside the range the data support"
             ),
-            Refusal::Confounded { with, inflation } => format!(
-                "cannot be told apart from {with} (variance inflation {inflation:.0})"
-            ),
+            Refusal::Confounded { with, inflation } => {
+                format!("cannot be told apart from {with} (variance inflation {inflation:.0})")
+            }
             Refusal::NotSignificant { p_value } => format!("not significant (p = {p_value:.2e})"),
             Refusal::Small { gain } => format!(
                 "too small ({:.1} % of a channel's noise variance)",
@@ -813,7 +823,11 @@ impl Context<'_> {
                 .filter(|(_, (name, _))| !name.starts_with("start_"))
                 .map(|(j, _)| score.ev.inflation(j))
                 .fold(f64::INFINITY, f64::min);
-            let inflation = if inflation.is_finite() { inflation } else { 1.0 };
+            let inflation = if inflation.is_finite() {
+                inflation
+            } else {
+                1.0
+            };
             offset += width;
             let rest: Vec<Member> = members
                 .iter()
@@ -858,7 +872,8 @@ impl Context<'_> {
             let m = &members[k];
             let refusal = if v.gain <= 0.0 {
                 Some(Refusal::Worse)
-            } else if let Some(viol) = self.implausible(m, v, &score.names[k], &theta, &theta_se, judge)
+            } else if let Some(viol) =
+                self.implausible(m, v, &score.names[k], &theta, &theta_se, judge)
             {
                 Some(Refusal::Implausible(viol))
             } else if scans[k].at_end || at_range_end(m) {
@@ -995,8 +1010,7 @@ pub(crate) fn search(
     let engine = ctx.engine();
     let fit_engine = ctx.fit_engine();
     let base = ctx.score(&engine, &[]);
-    let mean_thrust =
-        ctx.s.wrench().iter().map(|b| b[2]).sum::<f64>() / ctx.s.len().max(1) as f64;
+    let mean_thrust = ctx.s.wrench().iter().map(|b| b[2]).sum::<f64>() / ctx.s.len().max(1) as f64;
     let judge = Judge {
         limits,
         current,
@@ -1008,7 +1022,9 @@ pub(crate) fn search(
     let mut singles = Vec::new();
     for e in &candidates {
         // A candidate whose columns cannot enter the regression here is unavailable.
-        let param = e.scan().map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2]));
+        let param = e
+            .scan()
+            .map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2]));
         if let Err(reason) = crate::fit::checked_effect_design(e.as_ref(), ctx.s, param) {
             unavailable.push((e.name().to_string(), reason));
             continue;
@@ -1204,4 +1220,3 @@ fn same_family(a: &Member, b: &Member) -> bool {
     let drag = |m: &Member| EffectKind::from_name(m.name()).is_some_and(EffectKind::includes_drag);
     drag(a) && drag(b)
 }
-

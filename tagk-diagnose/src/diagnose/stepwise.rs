@@ -15,8 +15,8 @@ use serde::Serialize;
 
 use crate::diagnose::select::{Judge, Member};
 use crate::diagnose::{
-    Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor,
-    diagnose_with_fit, limits_of, noise_floor,
+    Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_with_fit, limits_of,
+    noise_floor,
 };
 use crate::error::DiagnoseError;
 use crate::fit::{Coefficient, Model, fit_model};
@@ -147,7 +147,10 @@ pub fn discover_from(
         if floor.source == FloorSource::Given || round >= 3 {
             return Ok(finish(run, floor));
         }
-        let last = run.diagnoses.last().expect("a staircase has its first step");
+        let last = run
+            .diagnoses
+            .last()
+            .expect("a staircase has its first step");
         let again = noise_floor(s, &last.fit, &run.model, None, opts.airframe_radius);
         if !(0..6).any(|c| again.rms[c] < 0.85 * floor.rms[c]) {
             return Ok(finish(run, floor));
@@ -273,8 +276,7 @@ fn climb(
             let last_of_set = i + 1 == set.len();
             let fit = fits.get(&run.model, s)?;
             let reference = Some(run.diagnoses[0].fit.theta);
-            let next =
-                diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set, reference)?;
+            let next = diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set, reference)?;
             let previous = &run.diagnoses[run.diagnoses.len() - 1];
             run.steps
                 .push(step_of(Some(name), &next, Some(previous), floor));
@@ -329,12 +331,14 @@ fn prune(
                 param: fit.params[k],
             };
             let set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
-            // The final fit's own verdict on the effect's coefficients counts too.
+            // The final fit's own verdict on the effect's coefficients counts too — but for a
+            // wind whose force is within its noise: its drag is still needed (the report
+            // carries the verdict).
             let own = fit
                 .effects
                 .iter()
                 .find(|f| &f.effect == name)
-                .filter(|f| !f.plausible)
+                .filter(|f| !f.plausible && !f.plausibility_note.contains("a drag without wind"))
                 .map(|f| format!("implausible in the final fit: {}", f.plausibility_note));
             let why = set.verdicts[0]
                 .refusal

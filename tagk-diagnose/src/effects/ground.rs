@@ -2,6 +2,10 @@
 
 use tagk_dynamics::EffectKind;
 
+/// Largest physical ground-effect gain (the Cheeseman-Bennett law's is 1; measured rotors near
+/// the ground gain up to a few times its prediction).
+pub const MAX_GROUND_GAIN: f64 = 4.0;
+
 use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
 use crate::signals::{Channel, Signals};
 
@@ -62,7 +66,24 @@ impl Effect for GroundEffect {
         }]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
-        nonneg(&["c_ge"], coef, se, "ground-effect gain")
+        let sign = nonneg(&["c_ge"], coef, se, "ground-effect gain");
+        if !sign.plausible {
+            return sign;
+        }
+        // The column is the measured wrench times the Cheeseman-Bennett shape: a gain far
+        // from 1 scales the whole measured wrench near the ground instead of adding a ground
+        // effect (whatever its standard error, a gain below -1 or significantly above
+        // MAX_GROUND_GAIN is not one).
+        let (c, e) = (coef[0], se[0]);
+        if c < -1.0 || c - 3.0 * e.max(0.0) > MAX_GROUND_GAIN {
+            return Plausibility::broken(
+                "ground-gain-range",
+                format!(
+                    "ground-effect gain c_ge = {c:.3e} is outside the physical range 0–{MAX_GROUND_GAIN} (Cheeseman-Bennett: 1)"
+                ),
+            );
+        }
+        Plausibility::ok()
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
         ("height [m]".into(), s.positions().map(|p| p.z).collect())

@@ -39,7 +39,11 @@ impl Evaluation {
     /// infinite for a coefficient the data do not determine.
     pub fn inflation(&self, j: usize) -> f64 {
         let v = self.cov_diag[j] * self.gram_diag[j];
-        if v.is_finite() { v.max(1.0) } else { f64::INFINITY }
+        if v.is_finite() {
+            v.max(1.0)
+        } else {
+            f64::INFINITY
+        }
     }
 }
 
@@ -110,7 +114,15 @@ impl<'a> GramEngine<'a> {
         target: Option<&'a [[f64; 6]]>,
         range: std::ops::Range<usize>,
     ) -> Self {
-        Self::with_pieces(s, w, base, target, 1, 1, Some(vec![(range.start, range.end)]))
+        Self::with_pieces(
+            s,
+            w,
+            base,
+            target,
+            1,
+            1,
+            Some(vec![(range.start, range.end)]),
+        )
     }
 
     /// The samples the engine's in-sample sums and residual run over: its one piece, or the
@@ -383,7 +395,12 @@ impl<'a> GramEngine<'a> {
             return vec![(0..self.s.len(), 0)];
         }
         (0..self.pieces.len() / 3)
-            .map(|b| (self.pieces[3 * b].0..self.pieces[3 * b + 2].1, b % self.folds))
+            .map(|b| {
+                (
+                    self.pieces[3 * b].0..self.pieces[3 * b + 2].1,
+                    b % self.folds,
+                )
+            })
             .collect()
     }
 

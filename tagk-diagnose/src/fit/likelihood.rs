@@ -86,7 +86,12 @@ fn whitening(f: &TargetFilter, sb2: f64, sm2: f64) -> (f64, f64) {
 /// One channel's score over one stretch of residual `r` (module docs): the innovations'
 /// sum of squares in units of K, and the log-determinant term, both in units of the
 /// channel's total variance `σ_b² + σ_m²`.
-pub(crate) fn channel_score(r: &[f64], filter: Option<&TargetFilter>, sb: f64, sm: f64) -> (f64, f64) {
+pub(crate) fn channel_score(
+    r: &[f64],
+    filter: Option<&TargetFilter>,
+    sb: f64,
+    sm: f64,
+) -> (f64, f64) {
     let (sb2, sm2) = (sb * sb, sm * sm);
     let total = (sb2 + sm2).max(f64::MIN_POSITIVE);
     let Some(f) = filter else {
@@ -97,7 +102,11 @@ pub(crate) fn channel_score(r: &[f64], filter: Option<&TargetFilter>, sb: f64, s
     let mut sum = 0.0;
     let (mut prev_r, mut prev_v) = (0.0, 0.0);
     for (i, &x) in r.iter().enumerate() {
-        let v = if i == 0 { x } else { x - f.a * prev_r - c * prev_v };
+        let v = if i == 0 {
+            x
+        } else {
+            x - f.a * prev_r - c * prev_v
+        };
         sum += v * v;
         prev_r = x;
         prev_v = v;
@@ -119,7 +128,11 @@ pub(crate) fn whitened(r: &[f64], filter: Option<&TargetFilter>, sb: f64, sm: f6
     let mut out = Vec::with_capacity(r.len());
     let (mut prev_r, mut prev_v) = (0.0, 0.0);
     for (i, &x) in r.iter().enumerate() {
-        let v = if i == 0 { x } else { x - f.a * prev_r - c * prev_v };
+        let v = if i == 0 {
+            x
+        } else {
+            x - f.a * prev_r - c * prev_v
+        };
         out.push(v * scale);
         prev_r = x;
         prev_v = v;
@@ -196,11 +209,7 @@ pub(crate) fn channel_filters(
     effects: &[(crate::EffectRef, Option<f64>)],
     s: &Signals,
 ) -> [Option<TargetFilter>; 6] {
-    std::array::from_fn(|c| {
-        effects
-            .iter()
-            .find_map(|(e, p)| e.target_filter(s, *p, c))
-    })
+    std::array::from_fn(|c| effects.iter().find_map(|(e, p)| e.target_filter(s, *p, c)))
 }
 
 /// The two noise sources of each channel from a model's residual `e` of the measured wrench
@@ -254,7 +263,9 @@ mod tests {
         let mut state = 12345u64;
         let mut gauss = || {
             let mut u = || {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
             };
             let (u1, u2) = (u(), u());

@@ -103,7 +103,12 @@ pub(crate) fn residual_score(
         for c in 0..6 {
             series.clear();
             series.extend(r[range.clone()].iter().map(|x| x[c]));
-            let (n, l) = channel_score(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+            let (n, l) = channel_score(
+                &series,
+                filters[c].as_ref(),
+                noise.wrench[c],
+                noise.motion[c],
+            );
             norm[c] += n;
             logdet[c] += l;
         }
@@ -144,7 +149,12 @@ pub(crate) fn residual_score_span(
     let mut logdet = [0.0; 6];
     for c in 0..6 {
         let series: Vec<f64> = r.iter().map(|x| x[c]).collect();
-        let (n, l) = channel_score(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+        let (n, l) = channel_score(
+            &series,
+            filters[c].as_ref(),
+            noise.wrench[c],
+            noise.motion[c],
+        );
         norm[c] = n;
         logdet[c] = l;
     }
@@ -175,7 +185,12 @@ pub(crate) fn whitened_residual(
             }
             series.clear();
             series.extend(r[range.clone()].iter().map(|x| x[c]));
-            let w = whitened(&series, filters[c].as_ref(), noise.wrench[c], noise.motion[c]);
+            let w = whitened(
+                &series,
+                filters[c].as_ref(),
+                noise.wrench[c],
+                noise.motion[c],
+            );
             for (x, v) in out[range.clone()].iter_mut().zip(w) {
                 x[c] = v;
             }
@@ -201,7 +216,11 @@ pub(crate) fn noise_of_residual(
 }
 
 /// The filtering effects of a model at its parameters.
-pub(crate) fn model_filters(model: &Model, s: &Signals, params: &[Option<f64>]) -> Vec<(crate::EffectRef, Option<f64>)> {
+pub(crate) fn model_filters(
+    model: &Model,
+    s: &Signals,
+    params: &[Option<f64>],
+) -> Vec<(crate::EffectRef, Option<f64>)> {
     model
         .effects()
         .iter()
@@ -572,23 +591,24 @@ fn scan_parameters(
                 .map(|r| GramEngine::new_window(s, w, &fixed, Some(&shifted_target), r));
             // The residual's forward form, unweighted, at parameter `g`, over the engine's
             // samples.
-            let residual_at = |engine: &GramEngine<'_>,
-                               g: f64|
-             -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
-                let d = effect_design(e.as_ref(), s, Some(g));
-                let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-                let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
-                for x in r.iter_mut() {
-                    for c in 0..6 {
-                        x[c] /= w[c];
+            let residual_at =
+                |engine: &GramEngine<'_>,
+                 g: f64|
+                 -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
+                    let d = effect_design(e.as_ref(), s, Some(g));
+                    let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+                    let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+                    for x in r.iter_mut() {
+                        for c in 0..6 {
+                            x[c] /= w[c];
+                        }
                     }
-                }
-                let mut filt = other_filters.clone();
-                if filters(s, e.as_ref(), Some(g)) {
-                    filt.push((e.clone(), Some(g)));
-                }
-                (r, filt)
-            };
+                    let mut filt = other_filters.clone();
+                    if filters(s, e.as_ref(), Some(g)) {
+                        filt.push((e.clone(), Some(g)));
+                    }
+                    (r, filt)
+                };
             // The noise of the two sources, measured at the current value, then the
             // likelihood over the grid ([`likelihood`]).
             let now = params[k].unwrap_or(grid[grid.len() / 2]);
