@@ -167,6 +167,8 @@ pub(crate) struct Context<'s> {
     filters: Vec<(EffectRef, Option<f64>)>,
     /// Effect designs computed so far, by effect name and parameter.
     designs: RefCell<DesignCache>,
+    /// The autocorrelation factors of the model's own residual, once computed (long logs).
+    kappa: RefCell<Option<[f64; 6]>>,
 }
 
 /// Effect designs by effect name and the bits of its parameter.
@@ -226,6 +228,7 @@ impl<'s> Context<'s> {
             folds,
             filters: filt,
             designs: RefCell::new(HashMap::new()),
+            kappa: RefCell::new(None),
         }
     }
 
@@ -327,7 +330,28 @@ impl<'s> Context<'s> {
     /// Scores the model plus `members` (an empty set: the model itself) with `engine` (from
     /// [`Self::engine`]).
     pub fn score(&self, engine: &GramEngine<'_>, members: &[Member]) -> Score {
+        // A long log's sets without a filter are scored from the Gram matrices alone, with
+        // the autocorrelation factors of the model's own residual (a residual pass per set
+        // over a million samples would dominate the search).
+        if self.s.len() > crate::signals::RIGID_CACHE_SAMPLES && self.all_filters(members).is_empty()
+        {
+            let mut score = self.score_light(engine, members);
+            let kappa = self.base_kappa(engine);
+            score.kappa_ch = kappa;
+            score.kappa = kappa.iter().sum::<f64>() / 6.0;
+            return score;
+        }
         self.score_with_residual(engine, members).0
+    }
+
+    /// The autocorrelation factors of the model's own in-sample residual, computed once.
+    fn base_kappa(&self, engine: &GramEngine<'_>) -> [f64; 6] {
+        if let Some(k) = *self.kappa.borrow() {
+            return k;
+        }
+        let k = self.score_with_residual(engine, &[]).0.kappa_ch;
+        *self.kappa.borrow_mut() = Some(k);
+        k
     }
 
     /// [`Self::score`] and the in-sample whitened residual (unweighted; the residual itself
