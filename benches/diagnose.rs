@@ -3,7 +3,7 @@
 //! whiteness/failure windows/regimes, and the blocked-CV ranking with the 1-D scans.
 //!
 //! - `10min_100Hz_all_builtins`: one diagnosis of the rigid-body model (with the noise floor:
-//!   the saturated fit).
+//!   each channel's noise measured from the model's residual).
 //! - `10min_100Hz_stepwise`: the full stepwise search ([`discover`]) on a log with two hidden
 //!   effects (target ≤ 3 s on one core).
 //!

@@ -11,11 +11,12 @@ use tagk_sim::{SensingProfile, SimOutput};
 
 use super::FlightSpec;
 
-/// Name of the sensor truth of an uncalibrated accelerometer: its constant bias `b_a` (body
-/// frame) makes the logged proper acceleration `a + b_a`, so that the data carry the constant
-/// body-frame wrench `[m b_a; h × b_a]` (`Y(b_a, 0, 0) θ`) that no plant effect made. The
-/// diagnosis may stand for it with the effects listed in [`super::STAND_INS`].
-pub const ACCEL_BIAS: &str = "accel-bias";
+/// Name of the sensor truth of an uncalibrated accelerometer, the diagnosis' own name for that
+/// candidate: its constant bias `b_a` (body frame) makes the logged proper acceleration
+/// `a + b_a`, so that the data carry the constant body-frame wrench `[m b_a; h × b_a]`
+/// (`Y(b_a, 0, 0) θ`) that no plant effect made. The diagnosis may stand for it with the
+/// effects listed in [`super::STAND_INS`].
+pub use tagk_diagnose::ACCEL_BIAS;
 
 /// One true effect of a flight (a hidden plant effect, or the [`ACCEL_BIAS`] sensor truth)
 /// and how strongly the log shows it.

@@ -112,8 +112,8 @@ pub use ground_truth::{
     strengths,
 };
 pub use score::{
-    CoefficientScore, DiagnosisOutcome, EffectScore, FlightScore, IMPLAUSIBLE_PSEUDO_INERTIA,
-    MASS_TOLERANCE, STAND_INS, score_flight,
+    CONSTANT_HEADING_STAND_INS, CoefficientScore, DiagnosisOutcome, EffectScore, FlightScore,
+    IMPLAUSIBLE_PSEUDO_INERTIA, MASS_TOLERANCE, STAND_INS, adequacy_gray_zone, score_flight,
 };
 pub use summary::{BinRow, EffectRow, ProfileRow, STRENGTH_BINS, Summary, TargetRow};
 

@@ -455,13 +455,14 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         let truth_ii = truth.params[t];
         (estimate(j) - truth_ii).abs() / truth_ii.abs()
     });
-    let drag = |e: &EffectScore| e.family == EffectKind::LinearDrag.family();
-    let adequate_expected = effects
-        .iter()
-        .all(|e| !e.detectable || e.found || (drag(e) && e.found_in_family));
+    // Found by name or stand-in, or a drag law found in its family.
+    let accounted = |e: &EffectScore| {
+        e.found || (e.family == EffectKind::LinearDrag.family() && e.found_in_family)
+    };
+    let adequate_expected = effects.iter().all(|e| !e.detectable || accounted(e));
     let adequate_gray = effects
         .iter()
-        .any(|e| !e.found && !(drag(e) && e.found_in_family) && e.strength >= adequacy_gray_zone());
+        .any(|e| !accounted(e) && e.strength >= adequacy_gray_zone());
     let adequate_expected_by_name = effects.iter().all(|e| !e.detectable || e.found);
     FlightScore {
         sensing: truth.sensing,

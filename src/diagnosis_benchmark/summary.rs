@@ -290,7 +290,7 @@ impl Summary {
                 None,
             ),
             row(
-                "compared coefficients without an interval (scanned ones: none reported yet)",
+                "compared coefficients without an interval",
                 (c.no_interval, c.no_interval + c.covered.1),
                 "—",
                 None,

@@ -14,6 +14,17 @@
 /// Default half-width `h` of the Savitzky–Golay window (11 samples).
 pub const DEFAULT_HALF_WIDTH: usize = 5;
 
+/// Noise gain of [`savitzky_golay_derivative`] with half-width `h` on uniform samples
+/// `Δt = 1`: white noise of deviation `σ` in `x` gives a derivative of deviation
+/// `σ · gain / Δt`, with `gain = √(3 / (h (h+1)(2h+1)))` (0.095 at `h = 5`). Zero for `h = 0`.
+pub fn derivative_noise_gain(h: usize) -> f64 {
+    if h == 0 {
+        return 0.0;
+    }
+    let h = h as f64;
+    (3.0 / (h * (h + 1.0) * (2.0 * h + 1.0))).sqrt()
+}
+
 /// Savitzky–Golay first derivative of `x(t)` with half-width `h` (see the module docs).
 ///
 /// `t` must be strictly increasing and have the same length as `x`; logs shorter than 3
@@ -155,6 +166,27 @@ pub fn savitzky_golay_derivative3(t: &[f64], x: &[[f64; 3]], h: usize) -> Vec<[f
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The noise gain is the norm of the filter's weights, read off as its response to unit
+    /// impulses at the centre of a uniform window.
+    #[test]
+    fn derivative_noise_gain_is_the_norm_of_the_weights() {
+        for h in 1..9 {
+            let n = 4 * h + 1;
+            let t: Vec<f64> = (0..n).map(|i| i as f64).collect();
+            let centre = n / 2;
+            let mut sum_sq = 0.0;
+            for k in 0..n {
+                let mut x = vec![0.0; n];
+                x[k] = 1.0;
+                let w = savitzky_golay_derivative(&t, &x, h)[centre];
+                sum_sq += w * w;
+            }
+            let gain = derivative_noise_gain(h);
+            assert!((sum_sq.sqrt() - gain).abs() <= 1e-12 * gain, "h {h}");
+        }
+        assert_eq!(derivative_noise_gain(0), 0.0);
+    }
 
     /// The fit of one signal as this module computed it before the signals shared their
     /// windows: the independent reference for the shared fit.

@@ -368,8 +368,7 @@ pub(crate) fn separation_advice(a: &str, b: &str) -> String {
     use tagk_dynamics::EffectKind;
     let kinds: Vec<Option<EffectKind>> = [a, b].iter().map(|n| EffectKind::from_name(n)).collect();
     let has = |k: EffectKind| kinds.contains(&Some(k));
-    let constant_force =
-        [a, b].iter().any(|n| *n == crate::effects::ACCEL_BIAS) || has(EffectKind::BodyBias);
+    let constant_force = [a, b].contains(&crate::effects::ACCEL_BIAS) || has(EffectKind::BodyBias);
     if has(EffectKind::Wind) && constant_force {
         "a constant body force and a steady wind look alike at constant heading: fly a yaw rotation"
             .into()

@@ -101,26 +101,6 @@ impl NoiseFloor {
     }
 }
 
-/// The resolution per channel (module docs): `FLOOR_RESOLUTION` × the RMS measured force
-/// magnitude, times `airframe_radius` \[m\] for the torques.
-pub(crate) fn resolution(s: &Signals, airframe_radius: f64) -> [f64; 6] {
-    let n = s.len().max(1) as f64;
-    let force_rms = (s
-        .wrench()
-        .iter()
-        .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
-        .sum::<f64>()
-        / n)
-        .sqrt();
-    std::array::from_fn(|c| {
-        if c < 3 {
-            FLOOR_RESOLUTION * force_rms
-        } else {
-            FLOOR_RESOLUTION * force_rms * airframe_radius
-        }
-    })
-}
-
 /// The noise of a log from the fit `fit` of `model` (its residual of the measured wrench),
 /// or the `given` noise per channel; never below the resolution.
 pub(crate) fn noise_floor(
@@ -133,7 +113,7 @@ pub(crate) fn noise_floor(
     let filt = model_filters(model, s, &fit.params);
     let filters = channel_filters(&filt, s);
     let (split, estimate) = estimate_noise(s, &fit.residual, &filters);
-    let resolution = resolution(s, airframe_radius);
+    let resolution = crate::fit::resolution(s, airframe_radius);
     let (rms, source) = match given {
         Some(g) => (g, FloorSource::Given),
         None => (

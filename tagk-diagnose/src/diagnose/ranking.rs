@@ -390,13 +390,7 @@ pub(crate) fn scanned_intervals(
         .map(|(k, e)| {
             e.scan()?;
             let rest = model.without(e.name());
-            let params: Vec<Option<f64>> = fit
-                .params
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != k)
-                .map(|(_, p)| *p)
-                .collect();
+            let params = fit.params_without(k);
             let ctx = Context::new(s, &rest, &params, floor, folds);
             let engine = ctx.fit_engine();
             let members = vec![Member {

@@ -333,7 +333,8 @@ impl<'s> Context<'s> {
         // A long log's sets without a filter are scored from the Gram matrices alone, with
         // the autocorrelation factors of the model's own residual (a residual pass per set
         // over a million samples would dominate the search).
-        if self.s.len() > crate::signals::RIGID_CACHE_SAMPLES && self.all_filters(members).is_empty()
+        if self.s.len() > crate::signals::RIGID_CACHE_SAMPLES
+            && self.all_filters(members).is_empty()
         {
             let mut score = self.score_light(engine, members);
             let kappa = self.base_kappa(engine);

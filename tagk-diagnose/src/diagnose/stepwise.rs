@@ -308,13 +308,7 @@ fn prune(
                 continue;
             };
             let rest = run.model.without(name);
-            let params: Vec<Option<f64>> = fit
-                .params
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != k)
-                .map(|(_, p)| *p)
-                .collect();
+            let params = fit.params_without(k);
             let ctx = Context::new(s, &rest, &params, floor, opts.folds);
             let engine = ctx.engine();
             let fit_engine = ctx.fit_engine();

@@ -51,7 +51,7 @@ impl Effect for BodyBias {
     }
 }
 
-/// The name of the accelerometer-offset candidate ([`AccelBias`]): a sensor error, not
+/// The name of the accelerometer-offset candidate (`AccelBias`, a built-in): a sensor error, not
 /// physics, and not an effect the simulator's plant has (its sensing profiles have it).
 pub const ACCEL_BIAS: &str = "accel-bias";
 

@@ -72,7 +72,7 @@ impl NoiseModel {
 fn whitening(f: &TargetFilter, sb2: f64, sm2: f64) -> (f64, f64) {
     let a_ = sb2 * (f.g0 * f.g0 + f.g1 * f.g1) + sm2 * (1.0 + f.a * f.a);
     let b_ = sb2 * f.g0 * f.g1 - sm2 * f.a;
-    if !(a_ > 0.0) {
+    if a_.is_nan() || a_ <= 0.0 {
         return (0.0, f64::MIN_POSITIVE);
     }
     if b_.abs() <= 1e-15 * a_ {
@@ -164,7 +164,8 @@ pub(crate) fn inverse_gain(f: &TargetFilter) -> f64 {
 pub(crate) fn part_ranges(s: &Signals) -> Vec<std::ops::Range<usize>> {
     let parts = s.parts();
     if parts.is_empty() {
-        return vec![0..s.len()];
+        let whole = 0..s.len();
+        return vec![whole];
     }
     let mut out = Vec::with_capacity(parts.len());
     let mut lo = 0;

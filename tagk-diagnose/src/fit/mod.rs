@@ -116,6 +116,9 @@ pub(crate) fn residual_score(
     (norm, logdet)
 }
 
+/// Effects with their parameters (the filtering effects of a model, in order).
+pub(crate) type EffectParams = Vec<(crate::EffectRef, Option<f64>)>;
+
 /// Samples a scan of a filtered effect reads on a long log (a contiguous window: a filter
 /// needs every sample of it).
 pub(crate) const SCAN_WINDOW: usize = 12_000;
@@ -343,6 +346,17 @@ pub struct Fit {
 }
 
 impl Fit {
+    /// The scanned parameters of every model effect but the `k`-th (the parameters of the
+    /// model without that effect).
+    pub(crate) fn params_without(&self, k: usize) -> Vec<Option<f64>> {
+        self.params
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != k)
+            .map(|(_, p)| *p)
+            .collect()
+    }
+
     /// Residual of one channel as a series.
     pub fn residual_channel(&self, c: usize) -> Vec<f64> {
         self.residual.iter().map(|r| r[c]).collect()
@@ -591,24 +605,21 @@ fn scan_parameters(
                 .map(|r| GramEngine::new_window(s, w, &fixed, Some(&shifted_target), r));
             // The residual's forward form, unweighted, at parameter `g`, over the engine's
             // samples.
-            let residual_at =
-                |engine: &GramEngine<'_>,
-                 g: f64|
-                 -> (Vec<[f64; 6]>, Vec<(crate::EffectRef, Option<f64>)>) {
-                    let d = effect_design(e.as_ref(), s, Some(g));
-                    let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-                    let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
-                    for x in r.iter_mut() {
-                        for c in 0..6 {
-                            x[c] /= w[c];
-                        }
+            let residual_at = |engine: &GramEngine<'_>, g: f64| -> (Vec<[f64; 6]>, EffectParams) {
+                let d = effect_design(e.as_ref(), s, Some(g));
+                let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+                let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
+                for x in r.iter_mut() {
+                    for c in 0..6 {
+                        x[c] /= w[c];
                     }
-                    let mut filt = other_filters.clone();
-                    if filters(s, e.as_ref(), Some(g)) {
-                        filt.push((e.clone(), Some(g)));
-                    }
-                    (r, filt)
-                };
+                }
+                let mut filt = other_filters.clone();
+                if filters(s, e.as_ref(), Some(g)) {
+                    filt.push((e.clone(), Some(g)));
+                }
+                (r, filt)
+            };
             // The noise of the two sources, measured at the current value, then the
             // likelihood over the grid ([`likelihood`]).
             let now = params[k].unwrap_or(grid[grid.len() / 2]);
@@ -635,24 +646,28 @@ fn scan_parameters(
     }
 }
 
-/// The resolution of the noise with the Crazyflie's airframe radius
-/// (`crate::FLOOR_RESOLUTION` of the RMS measured force; times the radius for torques): the
+/// The resolution of the noise with the Crazyflie's airframe radius ([`resolution`]): the
 /// smallest noise a fit's own likelihood assumes.
 pub(crate) fn default_resolution(s: &Signals) -> [f64; 6] {
+    resolution(s, tagk_dynamics::SafetyGate::crazyflie().max_com_offset)
+}
+
+/// The resolution per channel: `crate::FLOOR_RESOLUTION` × the RMS measured force magnitude,
+/// times `airframe_radius` \[m\] for the torques.
+pub(crate) fn resolution(s: &Signals, airframe_radius: f64) -> [f64; 6] {
     let n = s.len().max(1) as f64;
-    let force = (s
+    let force_rms = (s
         .wrench()
         .iter()
         .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
         .sum::<f64>()
         / n)
         .sqrt();
-    let radius = tagk_dynamics::SafetyGate::crazyflie().max_com_offset;
     std::array::from_fn(|c| {
         if c < 3 {
-            crate::FLOOR_RESOLUTION * force
+            crate::FLOOR_RESOLUTION * force_rms
         } else {
-            crate::FLOOR_RESOLUTION * force * radius
+            crate::FLOOR_RESOLUTION * force_rms * airframe_radius
         }
     })
 }
