@@ -1,7 +1,8 @@
 //! A slice of the diagnosis benchmark (issue #24) in CI: a few short flights end to end
 //! (draw, fly with the truth, diagnose as `tagk diagnose` does, score), run twice — on this
 //! thread and on a rayon pool — for the same bits, with every field of the scores filled.
-//! It checks the machinery, not the targets: the diagnosis is being rewritten.
+//! It checks the machinery and its determinism; the targets are measured by the example
+//! (`cargo run --release --example diagnosis_benchmark`, the README's generated table).
 
 use rayon::prelude::*;
 use tagk::diagnosis_benchmark::{
