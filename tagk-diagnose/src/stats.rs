@@ -141,6 +141,27 @@ pub fn chi2_survival(x: f64, k: f64) -> f64 {
     gamma_q(0.5 * k, 0.5 * x)
 }
 
+/// The `1 − p` quantile of χ² with `k` degrees of freedom (bisection on
+/// [`chi2_survival`]).
+pub fn chi2_quantile(p: f64, k: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    while chi2_survival(hi, k) > p {
+        hi *= 2.0;
+        if hi > 1e9 {
+            return hi;
+        }
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if chi2_survival(mid, k) > p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
 /// Median of a slice (NaN-free input); 0 for an empty slice.
 pub fn median(x: &[f64]) -> f64 {
     if x.is_empty() {

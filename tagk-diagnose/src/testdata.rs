@@ -70,7 +70,8 @@ fn omega(t: f64) -> Vector3<f64> {
     Vector3::new(s[(2, 1)], s[(0, 2)], s[(1, 0)])
 }
 
-fn gauss(rng: &mut ChaCha8Rng) -> f64 {
+/// A standard normal draw (Box–Muller).
+pub fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     let u1 = ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
     let u2 = ((rng.next_u64() >> 11) as f64) / (1u64 << 53) as f64;
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()

@@ -488,6 +488,16 @@ impl PlantEffects {
         k
     }
 
+    /// The rotor drag that acts: the `rotor_drag` effect, or the Crazyflie's rotor drag that
+    /// a `wind` without any drag effect pushes through; `None` otherwise.
+    pub fn acting_rotor_drag(&self) -> Option<RotorDrag> {
+        let no_drag = self.linear_drag.is_none() && self.quadratic_drag.is_none();
+        match (&self.rotor_drag, &self.wind) {
+            (Some(d), _) => Some(*d),
+            (None, Some(_)) if no_drag => Some(RotorDrag::crazyflie()),
+            _ => None,
+        }
+    }
     /// The wrench of the aerodynamic effects and the bias (body frame, about the origin:
     /// force \[N\], torque \[N m\]) at world velocity `velocity` \[m/s\], attitude `attitude`,
     /// body rate `body_rate` \[rad/s\], actual rotor speeds `rotor_speeds` \[rad/s\] of the
@@ -508,13 +518,7 @@ impl PlantEffects {
             .wind
             .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity));
         let v_air_b = attitude.inverse_transform_vector(&(velocity - wind));
-        let no_drag = self.linear_drag.is_none() && self.quadratic_drag.is_none();
-        let rotor = match (&self.rotor_drag, &self.wind) {
-            (Some(d), _) => Some(*d),
-            (None, Some(_)) if no_drag => Some(RotorDrag::crazyflie()),
-            _ => None,
-        };
-        if let Some(d) = rotor {
+        if let Some(d) = self.acting_rotor_drag() {
             let w = d.wrench(&v_air_b, body_rate, rotor_speeds, rotor_positions);
             f += w.force;
             torque += w.torque;

@@ -392,7 +392,7 @@ fn adequacy(
 ) -> Vec<ChannelAdequacy> {
     let n = whitened.len();
     let max_lag = WHITENESS_LAGS.min(n / 4).max(1);
-    let limit = (crate::diagnose::select::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
+    let limit = (crate::stats::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
         .max(ADEQUATE_AUTOCORRELATION);
     (0..6)
         .map(|c| {

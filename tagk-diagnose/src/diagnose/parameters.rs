@@ -249,10 +249,10 @@ mod tests {
     use super::*;
     use crate::fit::{Model, fit_model};
     use crate::signals::Signals;
-    use crate::testdata::{crazyflie, synthetic_log};
+    use crate::testdata::{crazyflie, gauss, synthetic_log};
     use nalgebra::Vector3;
     use rand_chacha::ChaCha8Rng;
-    use rand_core::{Rng, SeedableRng};
+    use rand_core::SeedableRng;
 
     /// A log whose gyro has white noise `sigma_g` and whose angular acceleration is the noisy
     /// gyro's first difference (as a flight controller logs it; the signal part is the exact
@@ -263,14 +263,9 @@ mod tests {
         let theta = crazyflie();
         let mut log = synthetic_log(&theta, 6000, 5e-4, 3, &|_, _| [0.0; 6]);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut gauss = || {
-            let u1 = ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-            let u2 = ((rng.next_u64() >> 11) as f64) / (1u64 << 53) as f64;
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        };
         let n = log.len();
         let noise: Vec<[f64; 3]> = (0..n)
-            .map(|_| [sigma_g * gauss(), sigma_g * gauss(), sigma_g * gauss()])
+            .map(|_| std::array::from_fn(|_| sigma_g * gauss(&mut rng)))
             .collect();
         let dt = log.t[1] - log.t[0];
         let true_omega = log.omega.clone();

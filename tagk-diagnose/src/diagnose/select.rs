@@ -30,9 +30,9 @@ use crate::diagnose::NoiseFloor;
 use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
-    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel, effect_design,
-    filters, residual_score, residual_score_span, rigid_design, sampled_effect_design, scan_window,
-    whitened_residual,
+    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel,
+    checked_effect_design, effect_design, filters, residual_score, residual_score_span,
+    rigid_design, sampled_effect_design, scan_window, whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -288,17 +288,41 @@ impl<'s> Context<'s> {
     /// An effect's design at a parameter, computed once per context (a search scores one
     /// effect in many sets).
     fn design_of(&self, m: &Member) -> Arc<EffectDesign> {
+        let computed = self.cached_design(m, || {
+            Ok::<_, std::convert::Infallible>(effect_design(m.effect.as_ref(), self.s, m.param))
+        });
+        match computed {
+            Ok(d) => d,
+            Err(never) => match never {},
+        }
+    }
+
+    /// Checks that member `m`'s columns can enter the regression
+    /// ([`crate::fit::checked_effect_design`]), keeping the design for the sets it enters.
+    fn check_design(&self, m: &Member) -> Result<(), String> {
+        self.cached_design(m, || {
+            checked_effect_design(m.effect.as_ref(), self.s, m.param)
+        })
+        .map(|_| ())
+    }
+
+    /// The design of `m` from the cache, or from `compute` (kept when the log is short).
+    fn cached_design<E>(
+        &self,
+        m: &Member,
+        compute: impl FnOnce() -> Result<EffectDesign, E>,
+    ) -> Result<Arc<EffectDesign>, E> {
         let key = (m.name().to_string(), m.param.map(f64::to_bits));
         if let Some(d) = self.designs.borrow().get(&key) {
-            return d.clone();
+            return Ok(d.clone());
         }
-        let d = Arc::new(effect_design(m.effect.as_ref(), self.s, m.param));
+        let d = Arc::new(compute()?);
         // A long log's designs are recomputed instead of kept: a search meets dozens of them
         // (a wind's alone is 24 values a sample).
         if self.s.len() <= crate::signals::RIGID_CACHE_SAMPLES {
             self.designs.borrow_mut().insert(key, d.clone());
         }
-        d
+        Ok(d)
     }
 
     /// The members' fitted columns, their known part, their widths and names.
@@ -366,12 +390,7 @@ impl<'s> Context<'s> {
         let cols = d.cols();
         let ev = engine.evaluate_with(&cols, d.offset());
         let filt = self.all_filters(members);
-        let mut residual = engine.residual(&cols, d.offset(), &ev.beta);
-        for x in residual.iter_mut() {
-            for c in 0..6 {
-                x[c] /= self.w[c];
-            }
-        }
+        let mut residual = self.unweighted_residual(engine, &d, &ev);
         let (fit_ch, logdet, cv_ch) = if filt.is_empty() {
             let fit_ch: [f64; 6] = std::array::from_fn(|c| {
                 residual
@@ -417,6 +436,23 @@ impl<'s> Context<'s> {
         )
     }
 
+    /// The in-sample residual of the model plus the members of `d` at the coefficients of
+    /// `ev`, in the target's units (the engine's residual is weighted by `w`).
+    fn unweighted_residual(
+        &self,
+        engine: &GramEngine<'_>,
+        d: &MemberDesign,
+        ev: &Evaluation,
+    ) -> Vec<[f64; 6]> {
+        let mut residual = engine.residual(&d.cols(), d.offset(), &ev.beta);
+        for x in residual.iter_mut() {
+            for c in 0..6 {
+                x[c] /= self.w[c];
+            }
+        }
+        residual
+    }
+
     /// [`Self::score`] without the residual pass where the Gram matrices suffice (no filter of
     /// the target): the autocorrelation factors are then 1 (unknown). For the comparisons
     /// that need only the sums of squares (a set without one member).
@@ -449,12 +485,7 @@ impl<'s> Context<'s> {
         if filt.is_empty() {
             return ev.sse_full;
         }
-        let mut residual = engine.residual(&cols, d.offset(), &ev.beta);
-        for x in residual.iter_mut() {
-            for c in 0..6 {
-                x[c] /= self.w[c];
-            }
-        }
+        let residual = self.unweighted_residual(engine, &d, &ev);
         let (norm, logdet) =
             residual_score_span(self.s, &residual, engine.span(), &filt, &self.noise);
         norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
@@ -512,8 +543,7 @@ impl<'s> Context<'s> {
         let (best, _) = crate::fit::scan_min(&spec.grid, |g| eval(g, &mut profile));
         profile.sort_by(|a, b| a.0.total_cmp(&b.0));
         profile.dedup_by(|a, b| a.0 == b.0);
-        let lo = spec.grid.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = spec.grid.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = grid_range(&spec.grid);
         let at_end = best <= lo || best >= hi;
         ScanResult {
             best: Some(best),
@@ -627,27 +657,6 @@ impl ScanResult {
 
 /// The 95 % quantile of χ²₁.
 pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
-
-/// The `1 − p` quantile of χ² with `k` degrees of freedom (bisection on the survival
-/// function).
-pub(crate) fn chi2_quantile(p: f64, k: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, 1.0);
-    while stats::chi2_survival(hi, k) > p {
-        hi *= 2.0;
-        if hi > 1e9 {
-            return hi;
-        }
-    }
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if stats::chi2_survival(mid, k) > p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    hi
-}
 
 /// Why a member is not kept in its set (the first reason that applies).
 #[derive(Debug, Clone, PartialEq)]
@@ -772,19 +781,11 @@ pub(crate) fn usable_candidates(
     for e in opts.candidates.iter().filter(|c| !model.has(c.name())) {
         // One effect per family: the drag laws (and a wind, which carries a drag) or a lag
         // and a delay would split one physical effect between them.
-        let member = Member {
-            effect: e.clone(),
-            param: None,
-        };
-        if let Some(f) = model.effects().iter().find(|f| {
-            same_family(
-                &member,
-                &Member {
-                    effect: (*f).clone(),
-                    param: None,
-                },
-            )
-        }) {
+        if let Some(f) = model
+            .effects()
+            .iter()
+            .find(|f| same_family(e.name(), f.name()))
+        {
             not.push((
                 e.name().to_string(),
                 format!("the model has `{}`, of the same family", f.name()),
@@ -895,6 +896,8 @@ impl Context<'_> {
         for k in 0..members.len() {
             let v = &verdicts[k];
             let m = &members[k];
+            let insignificant =
+                v.statistic < stats::chi2_quantile(judge.alpha / judge.tests, v.dof as f64);
             let refusal = if v.gain <= 0.0 {
                 Some(Refusal::Worse)
             } else if let Some(viol) =
@@ -902,15 +905,13 @@ impl Context<'_> {
             {
                 Some(Refusal::Implausible(viol))
             } else if scans[k].at_end || at_range_end(m) {
-                let (lo, hi) = grid_range(m);
+                let (lo, hi) = member_range(m);
                 Some(Refusal::OutOfRange {
                     value: m.param.unwrap_or(f64::NAN),
                     lo,
                     hi,
                 })
-            } else if v.statistic < chi2_quantile(judge.alpha / judge.tests, v.dof as f64)
-                && v.inflation > MAX_INFLATION
-            {
+            } else if insignificant && v.inflation > MAX_INFLATION {
                 // Not significant because the other columns explain what it would: the data
                 // cannot tell it apart from them (a clear effect of large inflation is kept:
                 // its interval carries the inflation).
@@ -928,7 +929,7 @@ impl Context<'_> {
                     },
                     inflation: v.inflation,
                 })
-            } else if v.statistic < chi2_quantile(judge.alpha / judge.tests, v.dof as f64) {
+            } else if insignificant {
                 Some(Refusal::NotSignificant { p_value: v.p_value })
             } else if v.gain < MIN_GAIN * n {
                 Some(Refusal::Small { gain: v.gain / n })
@@ -1010,18 +1011,23 @@ fn at_range_end(m: &Member) -> bool {
     let (Some(p), Some(_)) = (m.param, m.effect.scan()) else {
         return false;
     };
-    let (lo, hi) = grid_range(m);
+    let (lo, hi) = member_range(m);
     p <= lo || p >= hi
 }
 
-/// The range of a member's scan grid.
-fn grid_range(m: &Member) -> (f64, f64) {
-    m.effect.scan().map_or((f64::NAN, f64::NAN), |sp| {
-        (
-            sp.grid.iter().copied().fold(f64::INFINITY, f64::min),
-            sp.grid.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        )
-    })
+/// The range of a member's scan grid (NaN without a scan).
+fn member_range(m: &Member) -> (f64, f64) {
+    m.effect
+        .scan()
+        .map_or((f64::NAN, f64::NAN), |sp| grid_range(&sp.grid))
+}
+
+/// The smallest and largest value of a scan grid.
+fn grid_range(grid: &[f64]) -> (f64, f64) {
+    (
+        grid.iter().copied().fold(f64::INFINITY, f64::min),
+        grid.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    )
 }
 
 /// Runs the search for the next step from the context's model (module docs).
@@ -1047,10 +1053,13 @@ pub(crate) fn search(
     let mut singles = Vec::new();
     for e in &candidates {
         // A candidate whose columns cannot enter the regression here is unavailable.
-        let param = e
-            .scan()
-            .map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2]));
-        if let Err(reason) = crate::fit::checked_effect_design(e.as_ref(), ctx.s, param) {
+        let start = Member {
+            effect: e.clone(),
+            param: e
+                .scan()
+                .map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2])),
+        };
+        if let Err(reason) = ctx.check_design(&start) {
             unavailable.push((e.name().to_string(), reason));
             continue;
         }
@@ -1063,10 +1072,10 @@ pub(crate) fn search(
         if e.scan().is_some() {
             scans = ctx.scan(&fit_engine, std::slice::from_ref(&member), 0);
             member.param = scans.best;
-        }
-        if let Err(reason) = crate::fit::checked_effect_design(e.as_ref(), ctx.s, member.param) {
-            unavailable.push((e.name().to_string(), reason));
-            continue;
+            if let Err(reason) = ctx.check_design(&member) {
+                unavailable.push((e.name().to_string(), reason));
+                continue;
+            }
         }
         let mut set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
         set.scans[0] = scans;
@@ -1088,7 +1097,7 @@ pub(crate) fn search(
     let start_of = |i: usize| singles[i].members[0].clone();
     for a in 0..pool.len() {
         for b in a + 1..pool.len() {
-            if same_family(&start_of(pool[a]), &start_of(pool[b])) {
+            if same_family(start_of(pool[a]).name(), start_of(pool[b]).name()) {
                 continue;
             }
             let members = vec![start_of(pool[a]), start_of(pool[b])];
@@ -1104,10 +1113,8 @@ pub(crate) fn search(
                     start_of(triple_pool[b]),
                     start_of(triple_pool[c]),
                 ];
-                if same_family(&members[0], &members[1])
-                    || same_family(&members[0], &members[2])
-                    || same_family(&members[1], &members[2])
-                {
+                let family = |i: usize, j: usize| same_family(members[i].name(), members[j].name());
+                if family(0, 1) || family(0, 2) || family(1, 2) {
                     continue;
                 }
                 sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, false));
@@ -1236,12 +1243,12 @@ fn prior_cost(m: &Member) -> f64 {
     }
 }
 
-/// `true` when two members are drag laws (a wind includes one): such pairs are not tried
-/// together, they would split one physical drag between them. A lag and a delay may go
-/// together: a lag filters, a delay shifts, and jittery commands tell them apart (the
-/// significance test decides).
-fn same_family(a: &Member, b: &Member) -> bool {
+/// `true` when the effects named `a` and `b` are both drag laws (a wind includes one): such
+/// pairs are not tried together, they would split one physical drag between them. A lag and
+/// a delay may go together: a lag filters, a delay shifts, and jittery commands tell them
+/// apart (the significance test decides).
+fn same_family(a: &str, b: &str) -> bool {
     use tagk_dynamics::EffectKind;
-    let drag = |m: &Member| EffectKind::from_name(m.name()).is_some_and(EffectKind::includes_drag);
+    let drag = |name: &str| EffectKind::from_name(name).is_some_and(EffectKind::includes_drag);
     drag(a) && drag(b)
 }

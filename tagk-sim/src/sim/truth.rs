@@ -53,7 +53,7 @@ use nalgebra::Vector3;
 use tagk_dynamics::{EffectKind, InertialParams, QuadrotorModel, Wrench};
 
 use crate::plant::{Accelerations, PlantState};
-use crate::plant_effects::{PlantEffects, RotorDrag};
+use crate::plant_effects::PlantEffects;
 
 /// The noise-free truth of one logged sample (one per row of
 /// [`SimOutput::log`](crate::SimOutput::log), same order).
@@ -134,13 +134,12 @@ impl FlightTruth {
 /// The effects of `effects` that act, in [`EffectKind::ALL`] order, with the implicit rotor
 /// drag of a wind without drag effect.
 pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
-    let implicit_drag = implicit_rotor_drag(effects).is_some();
     EffectKind::ALL
         .into_iter()
         .filter(|k| match k {
             EffectKind::LinearDrag => effects.linear_drag.is_some(),
             EffectKind::QuadraticDrag => effects.quadratic_drag.is_some(),
-            EffectKind::RotorDrag => effects.rotor_drag.is_some() || implicit_drag,
+            EffectKind::RotorDrag => effects.acting_rotor_drag().is_some(),
             EffectKind::MotorLag => effects.motor_lag.is_some(),
             EffectKind::TimeDelay => effects.time_delay.is_some(),
             EffectKind::GroundEffect => effects.ground_effect.is_some(),
@@ -150,15 +149,6 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             _ => false,
         })
         .collect()
-}
-
-/// The rotor drag a wind without drag effect pushes through ([`PlantEffects::extra_wrench`]).
-fn implicit_rotor_drag(effects: &PlantEffects) -> Option<RotorDrag> {
-    (effects.wind.is_some()
-        && effects.rotor_drag.is_none()
-        && effects.linear_drag.is_none()
-        && effects.quadratic_drag.is_none())
-    .then(RotorDrag::crazyflie)
 }
 
 /// What the truth of one instant is made of: the state and its accelerations, the rotor
@@ -304,7 +294,7 @@ pub(crate) fn truth_parts(
     let drag_laws = PlantEffects {
         linear_drag: effects.linear_drag,
         quadratic_drag: effects.quadratic_drag,
-        rotor_drag: effects.rotor_drag.or(implicit_rotor_drag(effects)),
+        rotor_drag: effects.acting_rotor_drag(),
         ..none
     };
     let scaled = |w: &Wrench, k: f64| Wrench {
