@@ -162,6 +162,12 @@ pub fn chi2_quantile(p: f64, k: f64) -> f64 {
     hi
 }
 
+/// The 95 % quantile of χ²₁.
+pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
+
+/// The median of χ²₁: the robust scale of squared Gaussian values.
+pub const CHI2_1_MEDIAN: f64 = 0.454_936_423_119_572_8;
+
 /// Median of a slice (NaN-free input); 0 for an empty slice.
 pub fn median(x: &[f64]) -> f64 {
     if x.is_empty() {

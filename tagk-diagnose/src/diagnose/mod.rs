@@ -22,7 +22,7 @@ use tagk_dynamics::SafetyGate;
 
 use crate::effects::{EffectRef, builtin_effects, scan_problem};
 use crate::error::DiagnoseError;
-use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model};
+use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model, is_start_nuisance};
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
 
@@ -50,9 +50,6 @@ pub const ADEQUACY_FACTOR: f64 = 1.2;
 /// a model error of about a seventh of the noise variance; a long log's tiny correlations are
 /// not a missing effect).
 pub const ADEQUATE_AUTOCORRELATION: f64 = 0.02;
-
-/// The lags of the whiteness test.
-const WHITENESS_LAGS: usize = 20;
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone)]
@@ -261,7 +258,8 @@ pub struct Diagnosis {
     /// One-line verdict.
     pub verdict: String,
     /// The underlying fit (residual and prediction series, for plots). Shared: a clone of
-    /// a diagnosis (the report keeps several) does not copy a long log's series.
+    /// a diagnosis (the report keeps several) does not copy a long log's series. Its effects
+    /// are the plain fit's: [`Diagnosis::effects`] adds the intervals and what limits them.
     #[serde(skip)]
     pub fit: Arc<Fit>,
     /// Time stamps \[s\] (for plots; shared like [`Diagnosis::fit`]).
@@ -317,7 +315,7 @@ fn partial_residuals(
         .filter_map(|c| {
             let column = columns
                 .iter()
-                .find(|col| col.data[c].is_some() && !col.name.starts_with("start_"))?;
+                .find(|col| col.data[c].is_some() && !is_start_nuisance(&col.name))?;
             let x = column.data[c].as_ref()?;
             Some(PartialResidual {
                 effect: top.effect.clone(),
@@ -384,15 +382,16 @@ pub(crate) fn separation_advice(a: &str, b: &str) -> String {
 }
 
 /// The adequacy test per channel (module docs): the held-out RMS `held_out` against the
-/// noise, and the whiteness of the model's whitened in-sample residual.
+/// noise, and the whiteness of the model's whitened in-sample residual of `n` samples (its
+/// autocorrelation in `whiteness`, from [`residual::where_it_fails`]).
 fn adequacy(
-    whitened: &[[f64; 6]],
+    whiteness: &[Whiteness],
+    n: usize,
     held_out: &[f64; 6],
     floor: &NoiseFloor,
 ) -> Vec<ChannelAdequacy> {
-    let n = whitened.len();
-    let max_lag = WHITENESS_LAGS.min(n / 4).max(1);
-    let limit = (crate::stats::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
+    let max_lag = residual::whiteness_lags(n);
+    let limit = (stats::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
         .max(ADEQUATE_AUTOCORRELATION);
     (0..6)
         .map(|c| {
@@ -402,9 +401,7 @@ fn adequacy(
             } else {
                 f64::INFINITY
             };
-            let r: Vec<f64> = whitened.iter().map(|x| x[c]).collect();
-            let rho = stats::autocorrelation(&r, max_lag);
-            let sum: f64 = rho[1..].iter().map(|x| x * x).sum();
+            let sum: f64 = whiteness[c].autocorrelation.iter().map(|x| x * x).sum();
             let below_resolution = held_out[c] <= ADEQUACY_FACTOR * floor.resolution[c];
             ChannelAdequacy {
                 channel: CHANNEL_NAMES[c].into(),
@@ -475,37 +472,35 @@ pub(crate) fn diagnose_with_fit(
     reference: Option<tagk_dynamics::InertialParams>,
 ) -> Result<Diagnosis, DiagnoseError> {
     let ctx = Context::new(s, model, &fit.params, floor, opts.folds);
+    let engine = ctx.engine();
     let limits = limits_of(model, opts);
-    let found = if search {
-        Some(select::search(
-            &ctx,
-            opts,
-            &limits,
-            reference.unwrap_or(fit.theta),
-        ))
-    } else {
-        None
-    };
-    let (base, whitened) = ctx.score_with_residual(&ctx.engine(), &[]);
+    // The model itself first (the search reuses its score): its held-out error, where it
+    // fails and whether it is adequate.
+    let (base, whitened) = ctx.base_with_residual(&engine);
     let held_out_rms = ctx.held_out_rms(&base);
-    let adequacy = adequacy(&whitened, &held_out_rms, floor);
+    let failures = residual::where_it_fails(s, &whitened);
+    let adequacy = adequacy(&failures.whiteness, whitened.len(), &held_out_rms, floor);
+    // Not kept through the search (6 n values).
+    drop(whitened);
     let adequate = adequacy.iter().all(|a| a.adequate);
-    let missing = match &found {
-        Some(f) => ranking::rank(&ctx, f, s, opts, adequate),
-        None => ranking::Ranking::default(),
+    let missing = if search {
+        let found = select::search(&ctx, &engine, opts, &limits, reference.unwrap_or(fit.theta));
+        ranking::rank(&ctx, &found, opts)
+    } else {
+        ranking::Ranking::default()
     };
-    let mut fit = fit;
+    // The fit's effects with their intervals and what limits them (the fit itself is shared
+    // with the discovery's cache of fits: not copied).
     let intervals = ranking::scanned_intervals(model, s, &fit, floor, opts.folds);
-    if !fit.effects.is_empty() {
-        let f = Arc::make_mut(&mut fit);
-        for ((fe, iv), e) in f.effects.iter_mut().zip(&intervals).zip(model.effects()) {
-            fe.scanned_interval = *iv;
-            fe.limited_by = floor.limits(&e.channels()).to_string();
-        }
+    let mut effects = fit.effects.clone();
+    for ((fe, iv), e) in effects.iter_mut().zip(&intervals).zip(model.effects()) {
+        fe.scanned_interval = *iv;
+        fe.limited_by = floor.limits(&e.channels()).to_string();
     }
     assemble(
         s,
         opts,
+        &limits,
         floor,
         fit,
         missing,
@@ -513,25 +508,28 @@ pub(crate) fn diagnose_with_fit(
             held_out_rms,
             adequacy,
             adequate,
-            whitened,
+            failures,
+            effects,
         },
     )
 }
 
-/// What [`diagnose_with_fit`] measured of the model itself: its held-out error, adequacy and
-/// whitened in-sample residual.
+/// What [`diagnose_with_fit`] measured of the model itself: its held-out error, adequacy,
+/// where it fails, and its effects with their intervals.
 struct Assessment {
     held_out_rms: [f64; 6],
     adequacy: Vec<ChannelAdequacy>,
     adequate: bool,
-    whitened: Vec<[f64; 6]>,
+    failures: residual::FailureAnalysis,
+    effects: Vec<FittedEffect>,
 }
 
-/// The diagnosis from a model's fit, its held-out error and its ranking: where it fails, the
-/// parameters, the verdict.
+/// The diagnosis from a model's fit, its held-out error and its ranking: the parameters
+/// (judged against `limits`), the verdict.
 fn assemble(
     s: &Signals,
     opts: &DiagnoseOptions,
+    limits: &sanity::Limits,
     floor: &NoiseFloor,
     fit: Arc<Fit>,
     missing: ranking::Ranking,
@@ -541,13 +539,14 @@ fn assemble(
         held_out_rms,
         adequacy,
         adequate,
-        whitened,
+        failures,
+        effects,
     } = assessed;
-    let failures = residual::where_it_fails(s, &whitened);
     let params = parameters::parameter_report(
         &fit,
         s,
         opts,
+        limits,
         missing.recommended.first().map(String::as_str),
     );
     let verdict = verdict(&missing, &adequacy, adequate);
@@ -567,7 +566,7 @@ fn assemble(
         com: params.com,
         physically_consistent: params.physically_consistent,
         safety_gate: params.safety_gate,
-        effects: fit.effects.clone(),
+        effects,
         warnings: params.warnings,
         whiteness: failures.whiteness,
         failure_windows: failures.failure_windows,

@@ -32,13 +32,15 @@ pub(crate) struct ParameterReport {
 /// outside the airframe (horizontally beyond its radius, vertically too far from the rotor
 /// plane: evidence of an unmodelled force; the message names `recommended` when there is
 /// one), physical inconsistency beyond the tolerance, and effects fitted implausibly.
+/// `limits` are the airframe's ([`crate::diagnose::limits_of`] of `opts`).
 pub(crate) fn parameter_report(
     fit: &Fit,
     s: &crate::signals::Signals,
     opts: &DiagnoseOptions,
+    limits: &Limits,
     recommended: Option<&str>,
 ) -> ParameterReport {
-    let airframe_radius = opts.airframe_radius;
+    let airframe_radius = limits.airframe_radius;
     let theta = fit.theta;
     let parameters: Vec<Parameter> = (0..10)
         .map(|j| {
@@ -72,14 +74,8 @@ pub(crate) fn parameter_report(
             "fitted mass {m:.4} kg is not positive: the model is missing a force, do not trust these parameters"
         ));
     } else {
-        let limits = Limits {
-            airframe_radius,
-            com_vertical: opts.com_vertical_limit,
-            rotor_plane: opts.rotor_plane_height,
-            known_mass: false,
-        };
         let se: [f64; 10] = std::array::from_fn(|j| fit.theta_se[j].unwrap_or(f64::INFINITY));
-        let (horizontal, vertical) = com_excess(&limits, &theta, &se);
+        let (horizontal, vertical) = com_excess(limits, &theta, &se);
         let mut outside = Vec::new();
         if horizontal > 0.0 {
             outside.push(format!(
@@ -91,13 +87,13 @@ pub(crate) fn parameter_report(
         if vertical > 0.0 {
             outside.push(format!(
                 "{:.1} cm {} the rotor plane (at most {:.1} cm)",
-                100.0 * (com[2] - opts.rotor_plane_height).abs(),
-                if com[2] < opts.rotor_plane_height {
+                100.0 * (com[2] - limits.rotor_plane).abs(),
+                if com[2] < limits.rotor_plane {
                     "below"
                 } else {
                     "above"
                 },
-                100.0 * opts.com_vertical_limit
+                100.0 * limits.com_vertical
             ));
         }
         if !outside.is_empty() {

@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::diagnose::select::{Context, Member, Refusal, Search, SetEval};
 use crate::diagnose::{Confounding, DiagnoseOptions, separation_advice};
-use crate::fit::{Coefficient, Fit, Model};
+use crate::fit::{Coefficient, Fit, Model, is_start_nuisance};
 use crate::format::change_percent;
 use crate::signals::{CHANNEL_NAMES, Signals};
 
@@ -122,13 +122,8 @@ pub(crate) struct Ranking {
 
 /// The ranking of a search: each candidate alone with its status, best first (qualifying
 /// first, then by held-out reduction).
-pub(crate) fn rank(
-    ctx: &Context<'_>,
-    found: &Search,
-    s: &Signals,
-    opts: &DiagnoseOptions,
-    _adequate: bool,
-) -> Ranking {
+pub(crate) fn rank(ctx: &Context<'_>, found: &Search, opts: &DiagnoseOptions) -> Ranking {
+    let s = ctx.s;
     let recommended: Vec<String> = found
         .chosen
         .as_ref()
@@ -137,7 +132,7 @@ pub(crate) fn rank(
     let mut ranking: Vec<Candidate> = found
         .singles
         .iter()
-        .map(|set| candidate(ctx, found, set, &recommended, s))
+        .map(|set| candidate(ctx, found, set, &recommended))
         .collect();
     ranking.sort_by(|a, b| {
         let rank = |c: &Candidate| match c.status {
@@ -207,8 +202,8 @@ fn candidate(
     found: &Search,
     set: &SetEval,
     recommended: &[String],
-    s: &Signals,
 ) -> Candidate {
+    let s = ctx.s;
     let m: &Member = &set.members[0];
     let v = &set.verdicts[0];
     let e = &m.effect;
@@ -329,7 +324,7 @@ fn explain(c: &Candidate) -> String {
     let coefs: Vec<String> = c
         .coefficients
         .iter()
-        .filter(|k| !k.name.starts_with("start_"))
+        .filter(|k| !is_start_nuisance(&k.name))
         .take(3)
         .map(|k| format!("{} = {:.3e} {}", k.name, k.value, k.unit))
         .collect();
@@ -389,9 +384,7 @@ pub(crate) fn scanned_intervals(
         .enumerate()
         .map(|(k, e)| {
             e.scan()?;
-            let rest = model.without(e.name());
-            let params = fit.params_without(k);
-            let ctx = Context::new(s, &rest, &params, floor, folds);
+            let ctx = Context::without_effect(s, model, fit, k, floor, folds);
             let engine = ctx.fit_engine();
             let members = vec![Member {
                 effect: e.clone(),

@@ -143,16 +143,24 @@ pub(crate) fn at_rounding_level(s: &Signals, residual: &[[f64; 6]]) -> [bool; 6]
     })
 }
 
-/// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band (a
-/// channel at the rounding level counts as white).
 /// One channel of a residual, as a series.
 fn channel(residual: &[[f64; 6]], c: usize) -> Vec<f64> {
     residual.iter().map(|r| r[c]).collect()
 }
 
+/// The lags of the whiteness test, at most.
+const WHITENESS_LAGS: usize = 20;
+
+/// The lags of the whiteness test of `n` samples: `1..=min(20, n/4)` (at least lag 1).
+pub(crate) fn whiteness_lags(n: usize) -> usize {
+    WHITENESS_LAGS.min(n / 4).max(1)
+}
+
+/// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band (a
+/// channel at the rounding level counts as white).
 fn whiteness(residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<Whiteness> {
     let n = residual.len();
-    let max_lag = 20.min(n / 4).max(1);
+    let max_lag = whiteness_lags(n);
     let band = 1.96 / (n as f64).sqrt();
     (0..6)
         .map(|c| {

@@ -166,7 +166,7 @@ pub(crate) fn rigid_violation(
     let limit = MAX_CONSTANT_FORCE_OF_THRUST * mean_thrust.abs();
     if let Some((name, _, value)) = coefficients
         .iter()
-        .find(|(n, u, v)| u == "N" && !n.starts_with("start_") && v.abs() > limit)
+        .find(|(n, u, v)| u == "N" && !crate::fit::is_start_nuisance(n) && v.abs() > limit)
     {
         return Some(Violation {
             rule: "force-of-thrust-order".into(),

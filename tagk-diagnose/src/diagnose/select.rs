@@ -30,9 +30,9 @@ use crate::diagnose::NoiseFloor;
 use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
-    ColData, Column, EffectDesign, Evaluation, GramEngine, Model, NoiseModel,
-    checked_effect_design, effect_design, filters, residual_score, residual_score_span,
-    rigid_design, sampled_effect_design, scan_window, whitened_residual,
+    ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
+    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score,
+    residual_score_span, rigid_design, sampled_effect_design, scan_window, whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -167,8 +167,8 @@ pub(crate) struct Context<'s> {
     filters: Vec<(EffectRef, Option<f64>)>,
     /// Effect designs computed so far, by effect name and parameter.
     designs: RefCell<DesignCache>,
-    /// The autocorrelation factors of the model's own residual, once computed (long logs).
-    kappa: RefCell<Option<[f64; 6]>>,
+    /// The model's own score ([`Context::base_with_residual`]), once computed.
+    base: RefCell<Option<Score>>,
 }
 
 /// Effect designs by effect name and the bits of its parameter.
@@ -192,7 +192,7 @@ impl<'s> Context<'s> {
         for (k, e) in model.effects().iter().enumerate() {
             let p = params.get(k).copied().flatten();
             let d = effect_design(e.as_ref(), s, p);
-            nuisance.extend(d.names.iter().map(|(n, _)| n.starts_with("start_")));
+            nuisance.extend(d.names.iter().map(|(n, _)| is_start_nuisance(n)));
             if let Some(o) = &d.offset {
                 sub(&mut target, o);
             }
@@ -228,8 +228,22 @@ impl<'s> Context<'s> {
             folds,
             filters: filt,
             designs: RefCell::new(HashMap::new()),
-            kappa: RefCell::new(None),
+            base: RefCell::new(None),
         }
+    }
+
+    /// The context of `model` without its `k`-th effect, the other effects at the scanned
+    /// parameters of `fit` (the model's fit).
+    pub fn without_effect(
+        s: &'s Signals,
+        model: &Model,
+        fit: &Fit,
+        k: usize,
+        floor: &NoiseFloor,
+        folds: usize,
+    ) -> Self {
+        let rest = model.without(model.effects()[k].name());
+        Self::new(s, &rest, &fit.params_without(k), floor, folds)
     }
 
     /// Rigid-body columns of the design (10, or 9 with a known mass).
@@ -351,8 +365,8 @@ impl<'s> Context<'s> {
         }
     }
 
-    /// Scores the model plus `members` (an empty set: the model itself) with `engine` (from
-    /// [`Self::engine`]).
+    /// Scores the model plus `members` (an empty set: the model itself, scored once) with
+    /// `engine` (from [`Self::engine`]).
     pub fn score(&self, engine: &GramEngine<'_>, members: &[Member]) -> Score {
         // A long log's sets without a filter are scored from the Gram matrices alone, with
         // the autocorrelation factors of the model's own residual (a residual pass per set
@@ -366,17 +380,29 @@ impl<'s> Context<'s> {
             score.kappa = kappa.iter().sum::<f64>() / 6.0;
             return score;
         }
+        if members.is_empty() {
+            if let Some(base) = self.base.borrow().as_ref() {
+                return base.clone();
+            }
+            return self.base_with_residual(engine).0;
+        }
         self.score_with_residual(engine, members).0
     }
 
     /// The autocorrelation factors of the model's own in-sample residual, computed once.
     fn base_kappa(&self, engine: &GramEngine<'_>) -> [f64; 6] {
-        if let Some(k) = *self.kappa.borrow() {
-            return k;
+        if let Some(base) = self.base.borrow().as_ref() {
+            return base.kappa_ch;
         }
-        let k = self.score_with_residual(engine, &[]).0.kappa_ch;
-        *self.kappa.borrow_mut() = Some(k);
-        k
+        self.base_with_residual(engine).0.kappa_ch
+    }
+
+    /// The model's own score and whitened residual ([`Self::score_with_residual`] of the empty
+    /// set). The score is kept: later scores of the model reuse it. The residual is not.
+    pub fn base_with_residual(&self, engine: &GramEngine<'_>) -> (Score, Vec<[f64; 6]>) {
+        let (score, residual) = self.score_with_residual(engine, &[]);
+        *self.base.borrow_mut() = Some(score.clone());
+        (score, residual)
     }
 
     /// [`Self::score`] and the in-sample whitened residual (unweighted; the residual itself
@@ -390,7 +416,7 @@ impl<'s> Context<'s> {
         let cols = d.cols();
         let ev = engine.evaluate_with(&cols, d.offset());
         let filt = self.all_filters(members);
-        let mut residual = self.unweighted_residual(engine, &d, &ev);
+        let mut residual = engine.residual_unweighted(&cols, d.offset(), &ev.beta);
         let (fit_ch, logdet, cv_ch) = if filt.is_empty() {
             let fit_ch: [f64; 6] = std::array::from_fn(|c| {
                 residual
@@ -402,12 +428,7 @@ impl<'s> Context<'s> {
         } else {
             let (fit_ch, logdet) = residual_score(self.s, &residual, &filt, &self.noise);
             let mut nuisance = self.design.nuisance.clone();
-            nuisance.extend(
-                d.names
-                    .iter()
-                    .flatten()
-                    .map(|(n, _)| n.starts_with("start_")),
-            );
+            nuisance.extend(d.names.iter().flatten().map(|(n, _)| is_start_nuisance(n)));
             let held = engine.held_out_residual(&cols, d.offset(), &ev, &nuisance);
             let (cv_ch, _) = residual_score(self.s, &held, &filt, &self.noise);
             residual = whitened_residual(self.s, &residual, &filt, &self.noise);
@@ -436,23 +457,6 @@ impl<'s> Context<'s> {
         )
     }
 
-    /// The in-sample residual of the model plus the members of `d` at the coefficients of
-    /// `ev`, in the target's units (the engine's residual is weighted by `w`).
-    fn unweighted_residual(
-        &self,
-        engine: &GramEngine<'_>,
-        d: &MemberDesign,
-        ev: &Evaluation,
-    ) -> Vec<[f64; 6]> {
-        let mut residual = engine.residual(&d.cols(), d.offset(), &ev.beta);
-        for x in residual.iter_mut() {
-            for c in 0..6 {
-                x[c] /= self.w[c];
-            }
-        }
-        residual
-    }
-
     /// [`Self::score`] without the residual pass where the Gram matrices suffice (no filter of
     /// the target): the autocorrelation factors are then 1 (unknown). For the comparisons
     /// that need only the sums of squares (a set without one member).
@@ -463,7 +467,7 @@ impl<'s> Context<'s> {
         let d = self.member_design(members);
         let ev = engine.evaluate_with(&d.cols(), d.offset());
         Score {
-            cv: ev.sse_cv_ch.iter().sum(),
+            cv: ev.sse_cv(),
             cv_ch: ev.sse_cv_ch,
             fit: ev.sse_full_ch.iter().sum(),
             fit_ch: ev.sse_full_ch,
@@ -485,7 +489,7 @@ impl<'s> Context<'s> {
         if filt.is_empty() {
             return ev.sse_full;
         }
-        let residual = self.unweighted_residual(engine, &d, &ev);
+        let residual = engine.residual_unweighted(&cols, d.offset(), &ev.beta);
         let (norm, logdet) =
             residual_score_span(self.s, &residual, engine.span(), &filt, &self.noise);
         norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
@@ -624,7 +628,7 @@ impl ScanResult {
         if !min.is_finite() {
             return None;
         }
-        let limit = min + CHI2_1_95 * scale;
+        let limit = min + stats::CHI2_1_95 * scale;
         let at = self
             .profile
             .iter()
@@ -654,9 +658,6 @@ impl ScanResult {
         Some([lo.min(best), hi.max(best)])
     }
 }
-
-/// The 95 % quantile of χ²₁.
-pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
 
 /// Why a member is not kept in its set (the first reason that applies).
 #[derive(Debug, Clone, PartialEq)]
@@ -770,6 +771,11 @@ pub(crate) struct Judge<'a> {
     pub alpha: f64,
 }
 
+/// The mean measured thrust of a log \[N\].
+pub(crate) fn mean_thrust(s: &Signals) -> f64 {
+    s.wrench().iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64
+}
+
 /// The usable candidates of `opts` for `model`, and the reasons of the others.
 pub(crate) fn usable_candidates(
     model: &Model,
@@ -846,7 +852,7 @@ impl Context<'_> {
             // columns are not the effect's physics: left out.
             let inflation = (offset..offset + width)
                 .zip(&score.names[k])
-                .filter(|(_, (name, _))| !name.starts_with("start_"))
+                .filter(|(_, (name, _))| !is_start_nuisance(name))
                 .map(|(j, _)| score.ev.inflation(j))
                 .fold(f64::INFINITY, f64::min);
             let inflation = if inflation.is_finite() {
@@ -1030,22 +1036,22 @@ fn grid_range(grid: &[f64]) -> (f64, f64) {
     )
 }
 
-/// Runs the search for the next step from the context's model (module docs).
+/// Runs the search for the next step from the context's model (module docs); `engine` is
+/// the context's [`Context::engine`].
 pub(crate) fn search(
     ctx: &Context<'_>,
+    engine: &GramEngine<'_>,
     opts: &DiagnoseOptions,
     limits: &Limits,
     current: InertialParams,
 ) -> Search {
     let (candidates, unavailable) = usable_candidates(&ctx.model, ctx.s, opts);
-    let engine = ctx.engine();
     let fit_engine = ctx.fit_engine();
-    let base = ctx.score(&engine, &[]);
-    let mean_thrust = ctx.s.wrench().iter().map(|b| b[2]).sum::<f64>() / ctx.s.len().max(1) as f64;
+    let base = ctx.score(engine, &[]);
     let judge = Judge {
         limits,
         current,
-        mean_thrust,
+        mean_thrust: mean_thrust(ctx.s),
         tests: candidates.len().max(1) as f64,
         alpha: opts.alpha,
     };
@@ -1077,7 +1083,7 @@ pub(crate) fn search(
                 continue;
             }
         }
-        let mut set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
+        let mut set = ctx.judge_set(engine, &fit_engine, vec![member], &base, &judge, false);
         set.scans[0] = scans;
         singles.push(set);
     }
@@ -1101,7 +1107,7 @@ pub(crate) fn search(
                 continue;
             }
             let members = vec![start_of(pool[a]), start_of(pool[b])];
-            sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, false));
+            sets.push(ctx.judge_set(engine, &fit_engine, members, &base, &judge, false));
         }
     }
     let triple_pool: Vec<usize> = pool.iter().copied().take(TRIPLE_POOL).collect();
@@ -1117,7 +1123,7 @@ pub(crate) fn search(
                 if family(0, 1) || family(0, 2) || family(1, 2) {
                     continue;
                 }
-                sets.push(ctx.judge_set(&engine, &fit_engine, members, &base, &judge, false));
+                sets.push(ctx.judge_set(engine, &fit_engine, members, &base, &judge, false));
             }
         }
     }
@@ -1158,7 +1164,7 @@ pub(crate) fn search(
         let scanned = sets[i].members.iter().any(|m| m.effect.scan().is_some());
         if sets[i].members.len() > 1 && scanned {
             let again = ctx.judge_set(
-                &engine,
+                engine,
                 &fit_engine,
                 sets[i].members.clone(),
                 &base,

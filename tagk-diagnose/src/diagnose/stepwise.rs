@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::diagnose::select::{Judge, Member};
+use crate::diagnose::select::{Judge, Member, mean_thrust};
 use crate::diagnose::{
     Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_with_fit, limits_of,
     noise_floor,
@@ -166,7 +166,6 @@ pub fn discover_from(
         floor.model = again.model;
         // The search goes on from the model reached, against the lower noise (the fits do
         // not depend on the noise); the effects added stay unless the pruning drops them.
-        let reference = Some(run.diagnoses[0].fit.theta);
         let d = diagnose_with_fit(
             &run.model,
             s,
@@ -174,7 +173,7 @@ pub fn discover_from(
             &floor,
             fits.get(&run.model, s)?,
             true,
-            reference,
+            run.reference(),
         )?;
         let k = run.diagnoses.len() - 1;
         let previous = (k > 0).then(|| &run.diagnoses[k - 1]);
@@ -213,6 +212,38 @@ struct Run {
     added: Vec<String>,
     model: Model,
     stopped: String,
+}
+
+impl Run {
+    /// The rigid body the physical rules judge every refit against: the starting model's.
+    fn reference(&self) -> Option<tagk_dynamics::InertialParams> {
+        Some(self.diagnoses[0].fit.theta)
+    }
+
+    /// Adds the candidate `name` of `opts` to the model as a step of its own, diagnosed
+    /// against `floor` (with the search for the next step when `search`). A name that is
+    /// not a candidate adds nothing.
+    fn add(
+        &mut self,
+        name: &str,
+        search: bool,
+        s: &Signals,
+        opts: &DiagnoseOptions,
+        floor: &NoiseFloor,
+        fits: &mut Fits,
+    ) -> Result<(), DiagnoseError> {
+        let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
+            return Ok(());
+        };
+        self.model = self.model.clone().with_ref(effect.clone());
+        let fit = fits.get(&self.model, s)?;
+        let next = diagnose_with_fit(&self.model, s, opts, floor, fit, search, self.reference())?;
+        self.steps
+            .push(step_of(Some(name), &next, self.diagnoses.last(), floor));
+        self.diagnoses.push(next);
+        self.added.push(name.to_string());
+        Ok(())
+    }
 }
 
 /// Every step against the final noise; the discovery.
@@ -269,19 +300,7 @@ fn climb(
             );
         }
         for (i, name) in set.iter().enumerate() {
-            let Some(effect) = opts.candidates.iter().find(|c| c.name() == name) else {
-                continue;
-            };
-            run.model = run.model.clone().with_ref(effect.clone());
-            let last_of_set = i + 1 == set.len();
-            let fit = fits.get(&run.model, s)?;
-            let reference = Some(run.diagnoses[0].fit.theta);
-            let next = diagnose_with_fit(&run.model, s, opts, floor, fit, last_of_set, reference)?;
-            let previous = &run.diagnoses[run.diagnoses.len() - 1];
-            run.steps
-                .push(step_of(Some(name), &next, Some(previous), floor));
-            run.diagnoses.push(next);
-            run.added.push(name.clone());
+            run.add(name, i + 1 == set.len(), s, opts, floor, fits)?;
         }
     };
     Ok(())
@@ -298,28 +317,27 @@ fn prune(
     fits: &mut Fits,
 ) -> Result<(), DiagnoseError> {
     let mut dropped = Vec::new();
+    let thrust = mean_thrust(s);
     for _ in 0..run.added.len() {
         let last = &run.diagnoses[run.diagnoses.len() - 1];
         let fit = &last.fit;
         let limits = limits_of(&run.model, opts);
+        let judge = Judge {
+            limits: &limits,
+            current: run.diagnoses[0].fit.theta,
+            mean_thrust: thrust,
+            tests: opts.candidates.len().max(1) as f64,
+            alpha: opts.alpha,
+        };
         let mut weakest: Option<(f64, String, String)> = None;
         for name in &run.added {
             let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
                 continue;
             };
-            let rest = run.model.without(name);
-            let params = fit.params_without(k);
-            let ctx = Context::new(s, &rest, &params, floor, opts.folds);
+            let ctx = Context::without_effect(s, &run.model, fit, k, floor, opts.folds);
             let engine = ctx.engine();
             let fit_engine = ctx.fit_engine();
             let base = ctx.score(&engine, &[]);
-            let judge = Judge {
-                limits: &limits,
-                current: run.diagnoses[0].fit.theta,
-                mean_thrust: s.wrench().iter().map(|b| b[2]).sum::<f64>() / s.len().max(1) as f64,
-                tests: opts.candidates.len().max(1) as f64,
-                alpha: opts.alpha,
-            };
             let member = Member {
                 effect: run.model.effects()[k].clone(),
                 param: fit.params[k],
@@ -352,31 +370,23 @@ fn prune(
         let kept: Vec<String> = run.added.iter().filter(|n| **n != name).cloned().collect();
         // Rebuild the staircase with the kept effects, in their order.
         let first = run.diagnoses[0].clone();
-        let mut steps = vec![step_of(None, &first, None, floor)];
-        let mut diagnoses = vec![first];
-        let mut model = start.clone();
+        let mut rebuilt = Run {
+            steps: vec![step_of(None, &first, None, floor)],
+            diagnoses: vec![first],
+            added: Vec::new(),
+            model: start.clone(),
+            stopped: std::mem::take(&mut run.stopped),
+        };
         for (i, n) in kept.iter().enumerate() {
-            let Some(effect) = opts.candidates.iter().find(|c| c.name() == n) else {
-                continue;
-            };
-            model = model.with_ref(effect.clone());
-            let fit = fits.get(&model, s)?;
-            let reference = Some(run.diagnoses[0].fit.theta);
-            let next =
-                diagnose_with_fit(&model, s, opts, floor, fit, i + 1 == kept.len(), reference)?;
-            steps.push(step_of(Some(n), &next, diagnoses.last(), floor));
-            diagnoses.push(next);
+            rebuilt.add(n, i + 1 == kept.len(), s, opts, floor, fits)?;
         }
         if kept.is_empty() {
             // The starting model again, with its search.
             let d = diagnose_with_fit(start, s, opts, floor, fits.get(start, s)?, true, None)?;
-            steps = vec![step_of(None, &d, None, floor)];
-            diagnoses = vec![d];
+            rebuilt.steps = vec![step_of(None, &d, None, floor)];
+            rebuilt.diagnoses = vec![d];
         }
-        run.steps = steps;
-        run.diagnoses = diagnoses;
-        run.added = kept;
-        run.model = model;
+        *run = rebuilt;
     }
     if !dropped.is_empty() {
         run.stopped = format!(

@@ -89,6 +89,13 @@ pub(crate) fn add_known_mass(model: &Model, s: &Signals, pred: &mut [[f64; 6]]) 
     }
 }
 
+/// `true` for the name of a start-of-log nuisance column (`start_fz`, `start_fz@2` for the
+/// second of joined logs): the unknown initial state of a filter, decaying. It is per log,
+/// not the effect's physics.
+pub(crate) fn is_start_nuisance(name: &str) -> bool {
+    name.starts_with("start_")
+}
+
 /// An effect's part of the regression: the fitted columns and the known part (the fixed
 /// columns times their values), both sign-flipped (`b = Yθ − Φβ`).
 #[derive(Debug, Clone, Default)]

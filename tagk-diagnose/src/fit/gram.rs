@@ -34,6 +34,11 @@ pub(crate) struct Evaluation {
 }
 
 impl Evaluation {
+    /// Held-out SSE, summed over the channels.
+    pub fn sse_cv(&self) -> f64 {
+        self.sse_cv_ch.iter().sum()
+    }
+
     /// Variance inflation factor of coefficient `j` (base columns first): how much the other
     /// columns inflate its variance (`1 / (1 − R²)` of the column on the others, uncentred);
     /// infinite for a coefficient the data do not determine.
@@ -372,9 +377,8 @@ impl<'a> GramEngine<'a> {
                 fold_beta.push(bk);
             }
         } else {
-            for (c, o) in sse_cv_ch.iter_mut().enumerate() {
-                *o = sse_of(&sum_pieces(&|_| true, Some(c)), pp, &beta);
-            }
+            // Without folds the held-out error is the in-sample one.
+            sse_cv_ch = sse_full_ch;
         }
         Evaluation {
             sse_full,
@@ -479,6 +483,22 @@ impl<'a> GramEngine<'a> {
             }
         }
         debug_assert_eq!(r.len(), n);
+        r
+    }
+
+    /// [`Self::residual`] in the target's units: each channel divided by its weight.
+    pub fn residual_unweighted<C: Borrow<ColData>>(
+        &self,
+        cand: &[C],
+        offset: Option<&ColData>,
+        beta: &[f64],
+    ) -> Vec<[f64; 6]> {
+        let mut r = self.residual(cand, offset, beta);
+        for x in r.iter_mut() {
+            for c in 0..6 {
+                x[c] /= self.w[c];
+            }
+        }
         r
     }
 

@@ -100,17 +100,7 @@ pub(crate) fn channel_score(
     let (c, k) = whitening(f, sb2, sm2);
     let k = k.max(f64::MIN_POSITIVE);
     let mut sum = 0.0;
-    let (mut prev_r, mut prev_v) = (0.0, 0.0);
-    for (i, &x) in r.iter().enumerate() {
-        let v = if i == 0 {
-            x
-        } else {
-            x - f.a * prev_r - c * prev_v
-        };
-        sum += v * v;
-        prev_r = x;
-        prev_v = v;
-    }
+    innovations(r, f.a, c, |v| sum += v * v);
     let n = r.len() as f64;
     let logdet = n * (k / total).ln() - 2.0 * n * f.g0.abs().max(f64::MIN_POSITIVE).ln();
     (sum / k, logdet)
@@ -126,18 +116,24 @@ pub(crate) fn whitened(r: &[f64], filter: Option<&TargetFilter>, sb: f64, sm: f6
     let (c, k) = whitening(f, sb2, sm2);
     let scale = ((sb2 + sm2) / k.max(f64::MIN_POSITIVE)).sqrt();
     let mut out = Vec::with_capacity(r.len());
+    innovations(r, f.a, c, |v| out.push(v * scale));
+    out
+}
+
+/// The innovations of a stretch `r` under the whitening `W(z) = (1 − a z⁻¹) / (1 + c z⁻¹)`
+/// (module docs), in order: `v₀ = r₀`, `vᵢ = rᵢ − a rᵢ₋₁ − c vᵢ₋₁`.
+fn innovations(r: &[f64], a: f64, c: f64, mut each: impl FnMut(f64)) {
     let (mut prev_r, mut prev_v) = (0.0, 0.0);
     for (i, &x) in r.iter().enumerate() {
         let v = if i == 0 {
             x
         } else {
-            x - f.a * prev_r - c * prev_v
+            x - a * prev_r - c * prev_v
         };
-        out.push(v * scale);
+        each(v);
         prev_r = x;
         prev_v = v;
     }
-    out
 }
 
 /// The ratio by which a filter's inverse raises the second-difference (high-frequency)
@@ -176,17 +172,16 @@ pub(crate) fn part_ranges(s: &Signals) -> Vec<std::ops::Range<usize>> {
     out
 }
 
-/// The median of a χ²₁ variable: the robust scale of squared Gaussian values.
-const CHI2_1_MEDIAN: f64 = 0.454_936_423_119_572_8;
-
 /// The robust high-frequency noise estimate of each channel of `series`: the median of the
 /// squared second differences over `6 × 0.4549` (for white noise `Δ²e` has variance `6 σ²`;
 /// a residual that varies slowly with the flight has almost none). Second differences never
 /// cross a join of several logs. 0 where no part has three samples.
 pub(crate) fn high_frequency_noise(s: &Signals, series: &[[f64; 6]]) -> [f64; 6] {
     let ranges = part_ranges(s);
+    // One buffer for the six channels.
+    let mut d2: Vec<f64> = Vec::with_capacity(series.len());
     std::array::from_fn(|c| {
-        let mut d2: Vec<f64> = Vec::with_capacity(series.len());
+        d2.clear();
         for r in &ranges {
             for w in series[r.clone()].windows(3) {
                 let d = w[2][c] - 2.0 * w[1][c] + w[0][c];
@@ -200,7 +195,7 @@ pub(crate) fn high_frequency_noise(s: &Signals, series: &[[f64; 6]]) -> [f64; 6]
         }
         let mid = d2.len() / 2;
         let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
-        (*m / (6.0 * CHI2_1_MEDIAN)).sqrt()
+        (*m / (6.0 * crate::stats::CHI2_1_MEDIAN)).sqrt()
     })
 }
 

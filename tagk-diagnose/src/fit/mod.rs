@@ -20,8 +20,8 @@ pub(crate) use columns::{Column, rigid_channels};
 #[cfg(test)]
 pub(crate) use design::rigid_columns;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, rigid_design,
-    sampled_effect_design,
+    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, is_start_nuisance,
+    rigid_design, sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
@@ -54,18 +54,8 @@ pub(crate) fn unfilter_residual(
         return;
     }
     let parts = s.parts();
-    let mut ranges = Vec::new();
-    if parts.is_empty() {
-        ranges.push(0..s.len());
-    } else {
-        let mut lo = 0;
-        for p in parts {
-            ranges.push(lo..lo + p.len());
-            lo += p.len();
-        }
-    }
     let mut col = Vec::new();
-    for (k, range) in ranges.iter().enumerate() {
+    for (k, range) in part_ranges(s).into_iter().enumerate() {
         let sig = if parts.is_empty() { s } else { &parts[k] };
         for c in 0..6 {
             col.clear();
@@ -415,6 +405,8 @@ fn fit(
         (false, 0) => 2,
         (false, _) => 3,
     };
+    // The smallest noise the scans' likelihood and the standard errors assume.
+    let resolution = default_resolution(s);
     let mut params = initial_scan_parameters(model);
     let mut last: Option<Pass> = None;
     let mut settled = 0;
@@ -429,7 +421,16 @@ fn fit(
         // most three; one when fewer than two effects are scanned).
         for _ in 0..if scanned > 1 { 3 } else { 1 } {
             let round = params.clone();
-            scan_parameters(model, s, &rigid, target, &w, &mut params, pass > 0);
+            scan_parameters(
+                model,
+                s,
+                &rigid,
+                target,
+                &w,
+                &mut params,
+                pass > 0,
+                &resolution,
+            );
             if params == round {
                 break;
             }
@@ -475,7 +476,6 @@ fn fit(
     // No coefficient is known better than the resolution of the data allows: a residual below
     // the resolution (a noise-free log, fitted to its discretisation) counts as the resolution
     // (`crate::FLOOR_RESOLUTION`).
-    let resolution = default_resolution(s);
     let rows = (6 * residual.len()) as f64;
     let p = sol.beta.len() as f64;
     let variance = residual
@@ -554,6 +554,8 @@ fn initial_scan_parameters(model: &Model) -> Vec<Option<f64>> {
 
 /// Step 2 (each pass): the scanned parameters, one coordinate at a time, each minimising the
 /// weighted in-sample residual with the other effects at their current parameters.
+/// `resolution` is the log's [`default_resolution`]: the least noise of a filtered scan.
+#[allow(clippy::too_many_arguments)]
 fn scan_parameters(
     model: &Model,
     s: &Signals,
@@ -562,6 +564,7 @@ fn scan_parameters(
     w: &[f64; 6],
     params: &mut [Option<f64>],
     near_previous: bool,
+    resolution: &[f64; 6],
 ) {
     for (k, e) in model.effects().iter().enumerate() {
         let Some(spec) = e.scan() else { continue };
@@ -608,12 +611,7 @@ fn scan_parameters(
             let residual_at = |engine: &GramEngine<'_>, g: f64| -> (Vec<[f64; 6]>, EffectParams) {
                 let d = effect_design(e.as_ref(), s, Some(g));
                 let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-                let mut r = engine.residual(&d.cols, d.offset.as_ref(), &ev.beta);
-                for x in r.iter_mut() {
-                    for c in 0..6 {
-                        x[c] /= w[c];
-                    }
-                }
+                let r = engine.residual_unweighted(&d.cols, d.offset.as_ref(), &ev.beta);
                 let mut filt = other_filters.clone();
                 if filters(s, e.as_ref(), Some(g)) {
                     filt.push((e.clone(), Some(g)));
@@ -624,7 +622,7 @@ fn scan_parameters(
             // likelihood over the grid ([`likelihood`]).
             let now = params[k].unwrap_or(grid[grid.len() / 2]);
             let (r0, f0) = residual_at(&full, now);
-            let (noise, _) = noise_of_residual(s, &r0, &f0, &default_resolution(s));
+            let (noise, _) = noise_of_residual(s, &r0, &f0, resolution);
             let engine = window.as_ref().unwrap_or(&full);
             scan_min(&grid, |g| {
                 let (r, filt) = residual_at(engine, g);
@@ -702,7 +700,7 @@ enum PassKind {
     Intermediate,
     /// The QR solve, with the prediction and the residual.
     Final,
-    /// The QR solve, with the residual only ([`fit_residual_only`]).
+    /// The QR solve, with the residual only ([`fit`] without `keep_prediction`).
     FinalResidual,
 }
 
