@@ -8,11 +8,12 @@
 //! flights). What is drawn and how each flight is scored: the docs of
 //! `tagk::diagnosis_benchmark`.
 
+mod common;
+
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use tagk::diagnosis_benchmark::{
     BenchmarkOptions, DEFAULT_DETECTABLE, DEFAULT_FLIGHTS, DEFAULT_SEED, FlightResult,
@@ -79,17 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         pool = pool.num_threads(t);
     }
     let pool = pool.build()?;
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        let b = ProgressBar::new(flights as u64);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} flights ({per_sec}, eta {eta})",
-        ) {
-            b.set_style(style);
-        }
-        b
-    };
+    let bar = common::Progress::counting(!args.quiet, flights as u64, "flights");
     let simulate_us = AtomicU64::new(0);
     let diagnose_us = AtomicU64::new(0);
     let start = Instant::now();
@@ -100,12 +91,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let (result, timings) = run_flight(&options, i);
                 simulate_us.fetch_add((timings.simulate * 1e6) as u64, Ordering::Relaxed);
                 diagnose_us.fetch_add((timings.diagnose * 1e6) as u64, Ordering::Relaxed);
-                bar.inc(1);
+                bar.inc();
                 result
             })
             .collect()
     });
-    bar.finish_and_clear();
+    bar.finish();
     let wall = start.elapsed().as_secs_f64();
     let summary = Summary::of(&options, &results);
     let table = summary.markdown();

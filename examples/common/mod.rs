@@ -61,19 +61,24 @@ impl CommonArgs {
     }
 }
 
-/// An indicatif progress bar over a sweep's trials, as a sweep observer.
+/// An indicatif progress bar over a sweep's trials (a sweep observer), or over any count.
 pub struct Progress {
     bar: ProgressBar,
 }
 
 impl Progress {
-    /// A visible bar (or a hidden one).
+    /// A visible bar over trials (or a hidden one).
     pub fn new(visible: bool) -> Self {
+        Self::counting(visible, 0, "trials")
+    }
+
+    /// A visible bar over `len` items called `unit` (or a hidden one).
+    pub fn counting(visible: bool, len: u64, unit: &str) -> Self {
         let bar = if visible {
-            let b = ProgressBar::new(0);
-            if let Ok(style) = ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({per_sec}, eta {eta})",
-            ) {
+            let b = ProgressBar::new(len);
+            if let Ok(style) = ProgressStyle::with_template(&format!(
+                "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit} ({{per_sec}}, eta {{eta}})"
+            )) {
                 b.set_style(style);
             }
             b
@@ -82,6 +87,16 @@ impl Progress {
         };
         Self { bar }
     }
+
+    /// One item done.
+    pub fn inc(&self) {
+        self.bar.inc(1);
+    }
+
+    /// Clears the bar.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
 }
 
 impl SweepObserver for Progress {
@@ -89,11 +104,11 @@ impl SweepObserver for Progress {
         if self.bar.length() != Some(total as u64) {
             self.bar.set_length(total as u64);
         }
-        self.bar.inc(1);
+        self.inc();
     }
 
     fn sweep_finished(&mut self) {
-        self.bar.finish_and_clear();
+        self.finish();
     }
 }
 

@@ -2,14 +2,14 @@
 //! alone: the noise per channel, each true effect's strength over it, the coefficients.
 
 use serde::{Deserialize, Serialize};
-use tagk_diagnose::{DiagnoseOptions, EffectKind, FLOOR_RESOLUTION};
+use tagk_diagnose::{DiagnoseOptions, EffectKind, resolution_of};
 use tagk_dynamics::nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::{
     InertialParams, newton_euler, proper_acceleration, write_rigid_body_regressor,
 };
 use tagk_sim::{SensingProfile, SimOutput};
 
-use super::FlightSpec;
+use super::{DRAG_LAWS, FlightSpec};
 
 /// Name of the sensor truth of an uncalibrated accelerometer, the diagnosis' own name for that
 /// candidate: its constant bias `b_a` (body frame) makes the logged proper acceleration
@@ -83,9 +83,9 @@ pub struct GroundTruth {
     /// accelerometer bias `w = Y(b_a, 0, 0) θ`): the noise realisation as the diagnosis sees it
     /// (rotor-speed noise, IMU noise through θ, the discretisation of the logged `ω̇`).
     pub residual_rms: [f64; 6],
-    /// The resolution floor per channel \[N, N m\]: `FLOOR_RESOLUTION` × the RMS measured
-    /// force magnitude for forces, times the airframe radius (0.0325 m) for torques (the
-    /// diagnosis' README).
+    /// The resolution floor per channel \[N, N m\]: the diagnosis' own
+    /// ([`tagk_diagnose::resolution_of`]) of the logged wrench, with the default airframe
+    /// radius (`DiagnoseOptions::airframe_radius`).
     pub resolution: [f64; 6],
     /// The true effects: the hidden plant effects (vocabulary order), then the sensor truths.
     pub effects: Vec<TrueEffect>,
@@ -115,7 +115,6 @@ pub struct RigidProjection {
     basis: DMatrix<f64>,
     /// Channel weights `1/σ_c`.
     weights: [f64; 6],
-    samples: usize,
 }
 
 impl RigidProjection {
@@ -150,26 +149,19 @@ impl RigidProjection {
             .filter(|&k| svd.singular_values[k] > 1e-10 * largest)
             .collect();
         let basis = DMatrix::from_fn(6 * n, keep.len(), |r, k| u[(r, keep[k])]);
-        Self {
-            basis,
-            weights,
-            samples: n,
-        }
+        Self { basis, weights }
     }
 
-    /// Per channel: the RMS of `wrench` (one `[fx..tz]` per sample \[N, N m\]) after removing
-    /// its weighted least-squares projection on the rigid-body columns, over the channel's σ
-    /// (dimensionless).
+    /// Per channel: the RMS of `wrench` (one `[fx..tz]` per sample of the regressors \[N, N m\])
+    /// after removing its weighted least-squares projection on the rigid-body columns, over
+    /// the channel's σ (dimensionless).
+    ///
+    /// # Panics
+    /// When `wrench` has not one row per sample of the regressors.
     pub fn strength(&self, wrench: &[[f64; 6]]) -> [f64; 6] {
-        let n = self.samples.min(wrench.len());
-        let v = DVector::from_fn(6 * self.samples, |r, _| {
-            let (i, c) = (r / 6, r % 6);
-            if i < n {
-                wrench[i][c] * self.weights[c]
-            } else {
-                0.0
-            }
-        });
+        let n = self.basis.nrows() / 6;
+        assert_eq!(wrench.len(), n, "one wrench per regressor sample");
+        let v = DVector::from_fn(6 * n, |r, _| wrench[r / 6][r % 6] * self.weights[r % 6]);
         let e = &v - &self.basis * (self.basis.transpose() * &v);
         let mut out = [0.0; 6];
         for (c, o) in out.iter_mut().enumerate() {
@@ -178,17 +170,6 @@ impl RigidProjection {
         }
         out
     }
-}
-
-/// [`RigidProjection::strength`] of one wrench series for the given regressors, mass and
-/// noise: the convenience form of the projection.
-pub fn strengths(
-    regressors: &[[f64; 60]],
-    known_mass: bool,
-    noise: [f64; 6],
-    wrench: &[[f64; 6]],
-) -> [f64; 6] {
-    RigidProjection::new(regressors, known_mass, noise).strength(wrench)
 }
 
 /// `Y(a, ω, ω̇)`, 6×10 row-major.
@@ -257,7 +238,6 @@ impl GroundTruth {
         }
         // The noise: the true model's residual on the logged signals.
         let mut sum_sq = [0.0; 6];
-        let mut force_sq = 0.0;
         for i in 0..n {
             let [w, x, y, z] = log.attitude[i];
             let q = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
@@ -275,18 +255,9 @@ impl GroundTruth {
                 let r = log.wrench[i][c] - yt[c] + effects;
                 sum_sq[c] += r * r;
             }
-            force_sq += log.wrench[i][..3].iter().map(|f| f * f).sum::<f64>();
         }
         let residual_rms = sum_sq.map(|s| (s / n as f64).sqrt());
-        let force_floor = FLOOR_RESOLUTION * (force_sq / n as f64).sqrt();
-        let radius = DiagnoseOptions::default().airframe_radius;
-        let resolution: [f64; 6] = std::array::from_fn(|c| {
-            if c < 3 {
-                force_floor
-            } else {
-                force_floor * radius
-            }
-        });
+        let resolution = resolution_of(&log.wrench, DiagnoseOptions::default().airframe_radius);
         let noise: [f64; 6] = std::array::from_fn(|c| residual_rms[c].max(resolution[c]));
         // Strengths over the noise, after the rigid body absorbed what it can (its regressor on
         // the true motion, with the log's interval-mean ω̇).
@@ -350,9 +321,8 @@ impl GroundTruth {
 /// The wrench an accelerometer bias `b_a` \[m/s²\] adds to `Y(logged a) θ`:
 /// `Y(b_a, 0, 0) θ = [m b_a; h × b_a]` \[N, N m\].
 fn accel_bias_wrench(theta: &InertialParams, b_a: &Vector3<f64>) -> [f64; 6] {
-    let f = b_a * theta.mass();
-    let t = theta.first_moment().cross(b_a);
-    [f.x, f.y, f.z, t.x, t.y, t.z]
+    let zero = Vector3::zeros();
+    newton_euler(theta, b_a, &zero, &zero).to_array()
 }
 
 /// The coefficients each diagnosis effect should report on this flight (the table of the
@@ -365,14 +335,7 @@ fn expected_coefficients(
     let e = &spec.effects;
     let theta = truth.samples[0].params;
     let b_a = Vector3::from(truth.accel_bias);
-    let drag_laws: Vec<String> = [
-        EffectKind::LinearDrag,
-        EffectKind::QuadraticDrag,
-        EffectKind::RotorDrag,
-    ]
-    .iter()
-    .map(|k| k.name().to_string())
-    .collect();
+    let drag_laws: Vec<String> = DRAG_LAWS.iter().map(|k| k.name().to_string()).collect();
     let wind = vec![EffectKind::Wind.name().to_string()];
     let mut out = Vec::new();
     let mut group =

@@ -109,7 +109,6 @@ use tagk_sim::{
 
 pub use ground_truth::{
     ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth, RigidProjection, TrueEffect,
-    strengths,
 };
 pub use score::{
     CONSTANT_HEADING_STAND_INS, CoefficientScore, DiagnosisOutcome, EffectScore, FlightScore,
@@ -243,11 +242,6 @@ impl FlightSpec {
             .iter()
             .filter_map(|n| EffectKind::from_name(n))
             .collect()
-    }
-
-    /// The true mass of vehicle plus payload \[kg\].
-    pub fn true_mass(&self) -> f64 {
-        SimConfig::default().vehicle.params.mass() + self.payload.mass
     }
 }
 
@@ -522,6 +516,26 @@ fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "panic".into())
 }
 
+/// A flight's failure at `stage`.
+fn failure(stage: &str, message: String) -> FlightFailure {
+    FlightFailure {
+        stage: stage.into(),
+        message,
+    }
+}
+
+/// Runs `f`, the `stage` of a flight: its error, or a panic inside it, as the stage's failure.
+fn caught<T, E: std::fmt::Display>(
+    stage: &str,
+    f: impl FnOnce() -> Result<T, E> + std::panic::UnwindSafe,
+) -> Result<T, FlightFailure> {
+    match std::panic::catch_unwind(f) {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(failure(stage, e.to_string())),
+        Err(p) => Err(failure(stage, format!("panic: {}", panic_message(&*p)))),
+    }
+}
+
 /// Draws, flies, diagnoses and scores flight `index` of the benchmark of `options`. Never
 /// panics on a flight's failure: a simulator error, an aborted flight, a diagnosis error (or a
 /// panic inside either) is recorded in [`FlightResult::failure`].
@@ -534,75 +548,51 @@ pub fn run_flight(options: &BenchmarkOptions, index: usize) -> (FlightResult, Fl
         score: None,
         failure: None,
     };
-    let fail = |stage: &str, message: String| {
-        Some(FlightFailure {
-            stage: stage.into(),
-            message,
-        })
-    };
-    let spec = match draw_flight(options, index) {
-        Ok(s) => s,
-        Err(e) => {
-            result.failure = fail("draw", e.to_string());
-            return (result, timings);
-        }
-    };
-    result.spec = Some(spec.clone());
+    match score_drawn_flight(options, index, &mut result, &mut timings) {
+        Ok(score) => result.score = Some(score),
+        Err(f) => result.failure = Some(f),
+    }
+    (result, timings)
+}
+
+/// [`run_flight`]'s stages: the score, or the first stage's failure. Fills in the spec, the
+/// samples logged and the timings on the way.
+fn score_drawn_flight(
+    options: &BenchmarkOptions,
+    index: usize,
+    result: &mut FlightResult,
+    timings: &mut FlightTimings,
+) -> Result<FlightScore, FlightFailure> {
+    let drawn = draw_flight(options, index).map_err(|e| failure("draw", e.to_string()))?;
+    let spec = result.spec.insert(drawn);
     let start = Instant::now();
     let config = spec.sim_config();
-    let flown = std::panic::catch_unwind(|| tagk_sim::simulate(&config));
+    let flown = caught("simulator", || tagk_sim::simulate(&config));
     timings.simulate = start.elapsed().as_secs_f64();
-    let output = match flown {
-        Ok(Ok(o)) => o,
-        Ok(Err(e)) => {
-            result.failure = fail("simulator", e.to_string());
-            return (result, timings);
-        }
-        Err(p) => {
-            result.failure = fail("simulator", format!("panic: {}", panic_message(&*p)));
-            return (result, timings);
-        }
-    };
+    let output = flown?;
     result.samples = output.log.len();
     if output.metrics.aborted {
-        result.failure = fail(
+        return Err(failure(
             "aborted",
             format!(
                 "tracking error above 30 cm after {} of {} control steps",
                 output.metrics.steps,
                 config.control_steps().unwrap_or(0)
             ),
-        );
-        return (result, timings);
+        ));
     }
-    let truth = match GroundTruth::of_flight(&spec, &output, options.detectable) {
-        Ok(t) => t,
-        Err(e) => {
-            result.failure = fail("truth", e);
-            return (result, timings);
-        }
-    };
+    let truth = GroundTruth::of_flight(spec, &output, options.detectable)
+        .map_err(|e| failure("truth", e))?;
     let known_mass = spec.known_mass.then_some(truth.mass);
     let start = Instant::now();
     let log = output.log;
-    let diagnosed = std::panic::catch_unwind(move || run_diagnosis(log, known_mass));
+    let diagnosed = caught("diagnosis", move || run_diagnosis(log, known_mass));
     timings.diagnose = start.elapsed().as_secs_f64();
-    let report = match diagnosed {
-        Ok(Ok(r)) => r,
-        Ok(Err(e)) => {
-            result.failure = fail("diagnosis", e.to_string());
-            return (result, timings);
-        }
-        Err(p) => {
-            result.failure = fail("diagnosis", format!("panic: {}", panic_message(&*p)));
-            return (result, timings);
-        }
-    };
-    result.score = Some(score_flight(
+    let report = diagnosed?;
+    Ok(score_flight(
         &truth,
         &DiagnosisOutcome::from_report(&report),
-    ));
-    (result, timings)
+    ))
 }
 
 #[cfg(test)]

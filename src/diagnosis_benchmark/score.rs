@@ -2,7 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 use tagk_diagnose::{BuiltinOptions, Coefficient, EffectKind, FittedEffect, Report};
-use tagk_dynamics::nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use tagk_dynamics::InertialParams;
+use tagk_dynamics::nalgebra::SymmetricEigen;
 use tagk_sim::SensingProfile;
 
 use super::ground_truth::{ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth};
@@ -15,23 +16,32 @@ use super::ground_truth::{ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, Grou
 ///   the mass known, its vertical part scales the thrust and `thrust-gain` fits that.
 pub const STAND_INS: &[(&str, &str)] = &[
     (ACCEL_BIAS, ACCEL_BIAS),
-    (ACCEL_BIAS, "body-bias"),
-    (ACCEL_BIAS, "thrust-gain"),
+    (ACCEL_BIAS, BODY_BIAS),
+    (ACCEL_BIAS, EffectKind::ThrustGain.name()),
     // The plant's body bias is a constant force and torque: its force is the accelerometer
     // offset's signature, which the diagnosis names (its torque about x and y trades with the
     // centre of mass in level flight).
-    ("body-bias", ACCEL_BIAS),
+    (BODY_BIAS, ACCEL_BIAS),
 ];
 
 /// Stand-ins that hold only at a constant heading (a flight without a yaw rate): a force fixed
 /// in the world and one fixed in the body are then the same in the data, so a wind (a drag and
 /// a world force) and a constant body force with a drag explain a log alike. `(truth, stands
 /// for it)`; a wind's stand-in also needs a drag law in the final model.
-pub const CONSTANT_HEADING_STAND_INS: &[(&str, &str)] = &[
-    ("wind", ACCEL_BIAS),
-    (ACCEL_BIAS, "wind"),
-    ("body-bias", "wind"),
-];
+pub const CONSTANT_HEADING_STAND_INS: &[(&str, &str)] =
+    &[(WIND, ACCEL_BIAS), (ACCEL_BIAS, WIND), (BODY_BIAS, WIND)];
+
+/// The vocabulary's `body-bias`.
+const BODY_BIAS: &str = EffectKind::BodyBias.name();
+/// The vocabulary's `wind`.
+const WIND: &str = EffectKind::Wind.name();
+/// The drag laws' family (`drag`).
+const DRAG_FAMILY: &str = EffectKind::LinearDrag.family();
+
+/// Whether `name` names a drag law (an effect of [`DRAG_FAMILY`]).
+fn is_drag_law(name: &str) -> bool {
+    EffectKind::from_name(name).is_some_and(|k| k.family() == DRAG_FAMILY)
+}
 
 /// The strength of a missing effect (RMS over the noise) that raises a channel's residual to
 /// the diagnosis' adequacy factor: `√(F² − 1)` for `F = tagk_diagnose::ADEQUACY_FACTOR`
@@ -208,10 +218,7 @@ fn constant_heading_stand_in(
     if !truth.constant_heading || !CONSTANT_HEADING_STAND_INS.contains(&(name, reported)) {
         return false;
     }
-    name != "wind"
-        || finals.iter().any(|f| {
-            EffectKind::from_name(f).is_some_and(|k| k.family() == EffectKind::LinearDrag.family())
-        })
+    name != WIND || finals.iter().any(|f| is_drag_law(f))
 }
 
 /// Whether a final-model effect `reported` is in the family of the true effect `truth`.
@@ -224,8 +231,7 @@ fn in_family(truth: &str, reported: &str) -> bool {
         EffectKind::from_name(reported),
     ) {
         (Some(t), Some(r)) => {
-            t.family() == r.family()
-                || (t.family() == EffectKind::LinearDrag.family() && r.includes_drag())
+            t.family() == r.family() || (t.family() == DRAG_FAMILY && r.includes_drag())
         }
         _ => false,
     }
@@ -274,7 +280,7 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
     for fe in &outcome.fitted {
         let kind = EffectKind::from_name(&fe.effect);
         let signed: &[Coefficient] = match kind {
-            Some(k) if k.family() == EffectKind::LinearDrag.family() => &fe.coefficients,
+            Some(k) if k.family() == DRAG_FAMILY => &fe.coefficients,
             // The wind's drag coefficients only (its wind force, `kv_w*` or `F_w*`, is signed).
             Some(EffectKind::Wind) => {
                 let drags = fe
@@ -319,36 +325,35 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
         .iter()
         .map(|p| p.std_error.unwrap_or(0.0))
         .collect();
-    if theta.len() == 10 {
-        let m = theta[0];
-        if m.is_nan() || m <= 0.0 {
-            out.push(format!("mass {m:.4e} kg not positive"));
-        } else if let Some((lambda, lambda_se)) = second_moment_eigen(&theta, &se)
-            && lambda < -IMPLAUSIBLE_PSEUDO_INERTIA * lambda_se
-        {
-            out.push(format!(
-                "pseudo-inertia not positive definite: the second moment about the centre of mass has the eigenvalue {lambda:.2e} ± {lambda_se:.1e} kg m²"
-            ));
+    match InertialParams::from_slice(&theta) {
+        Ok(params) => {
+            let m = params.mass();
+            if m.is_nan() || m <= 0.0 {
+                out.push(format!("mass {m:.4e} kg not positive"));
+            } else if let Some((lambda, lambda_se)) = second_moment_eigen(&params, &se)
+                && lambda < -IMPLAUSIBLE_PSEUDO_INERTIA * lambda_se
+            {
+                out.push(format!(
+                    "pseudo-inertia not positive definite: the second moment about the centre of mass has the eigenvalue {lambda:.2e} ± {lambda_se:.1e} kg m²"
+                ));
+            }
         }
-    } else {
-        out.push(format!(
+        Err(_) => out.push(format!(
             "{} rigid-body parameters, 10 expected",
             theta.len()
-        ));
+        )),
     }
     out
 }
 
 /// The smallest eigenvalue `λ` of `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] for the parameters
-/// `theta` (order of `InertialParams`, `m > 0`) and its standard error from the parameters'
-/// standard errors `se` (independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
-fn second_moment_eigen(theta: &[f64], se: &[f64]) -> Option<(f64, f64)> {
-    let m = theta[0];
-    let h = Vector3::new(theta[1], theta[2], theta[3]);
-    let i = Matrix3::new(
-        theta[4], theta[5], theta[7], theta[5], theta[6], theta[8], theta[7], theta[8], theta[9],
-    );
-    let sigma = Matrix3::identity() * (0.5 * i.trace()) - i - h * h.transpose() / m;
+/// `theta` (`m > 0`) and its standard error from the parameters' standard errors `se`
+/// (`InertialParams` order, independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
+/// `½ tr(I) 1 − I` is the pseudo-inertia's upper-left block.
+fn second_moment_eigen(theta: &InertialParams, se: &[f64]) -> Option<(f64, f64)> {
+    let m = theta.mass();
+    let h = theta.first_moment();
+    let sigma = theta.pseudo_inertia().fixed_view::<3, 3>(0, 0) - h * h.transpose() / m;
     let eig = SymmetricEigen::new(sigma);
     let k = eig.eigenvalues.imin();
     let lambda = eig.eigenvalues[k];
@@ -374,6 +379,7 @@ fn second_moment_eigen(theta: &[f64], se: &[f64]) -> Option<(f64, f64)> {
 /// fields for every rule).
 pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightScore {
     let finals = &outcome.final_effects;
+    let windy = truth.effects.iter().any(|u| u.name == WIND);
     let effects: Vec<EffectScore> = truth
         .effects
         .iter()
@@ -394,11 +400,8 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                 .or_else(|| {
                     // A true wind acts through the flight's drag law: the diagnosis' `wind`
                     // is a drag and a wind fitted together, so it stands for that law too.
-                    let law = EffectKind::from_name(&t.name)
-                        .is_some_and(|k| k.family() == EffectKind::LinearDrag.family());
-                    let windy = truth.effects.iter().any(|u| u.name == "wind");
-                    (law && windy)
-                        .then(|| finals.iter().find(|f| f.as_str() == "wind"))
+                    (windy && is_drag_law(&t.name))
+                        .then(|| finals.iter().find(|f| f.as_str() == WIND))
                         .flatten()
                 })
                 .cloned();
@@ -423,12 +426,10 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                     || STAND_INS.contains(&(t.name.as_str(), f.as_str()))
                     || constant_heading_stand_in(truth, finals, &t.name, f)
                     // A wind's drag law at a constant heading.
-                    || (t.name == "wind"
+                    || (t.name == WIND
                         && truth.constant_heading
                         && finals.iter().any(|g| g == ACCEL_BIAS)
-                        && EffectKind::from_name(f).is_some_and(|k| {
-                            k.family() == EffectKind::LinearDrag.family()
-                        }))
+                        && is_drag_law(f))
             })
         })
         .cloned()
@@ -456,9 +457,7 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         (estimate(j) - truth_ii).abs() / truth_ii.abs()
     });
     // Found by name or stand-in, or a drag law found in its family.
-    let accounted = |e: &EffectScore| {
-        e.found || (e.family == EffectKind::LinearDrag.family() && e.found_in_family)
-    };
+    let accounted = |e: &EffectScore| e.found || (e.family == DRAG_FAMILY && e.found_in_family);
     let adequate_expected = effects.iter().all(|e| !e.detectable || accounted(e));
     let adequate_gray = effects
         .iter()

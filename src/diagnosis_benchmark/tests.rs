@@ -322,13 +322,13 @@ fn the_projection_removes_what_the_rigid_body_absorbs() {
         .iter()
         .map(|y| std::array::from_fn(|c| 0.003 * y[10 * c]))
         .collect();
-    let free = strengths(&ys, false, noise, &mass_like);
+    let free = RigidProjection::new(&ys, false, noise).strength(&mass_like);
     assert!(free.iter().all(|s| *s < 1e-9), "{free:?}");
-    let known = strengths(&ys, true, noise, &mass_like);
+    let known = RigidProjection::new(&ys, true, noise).strength(&mass_like);
     assert!(known[2] > 20.0, "{known:?}");
     // A constant horizontal force is not in the span: it keeps almost all its RMS.
     let bias: Vec<[f64; 6]> = ys.iter().map(|_| [2e-3, 0.0, 0.0, 0.0, 0.0, 0.0]).collect();
-    let s = strengths(&ys, false, noise, &bias);
+    let s = RigidProjection::new(&ys, false, noise).strength(&bias);
     assert!(s[0] > 1.0 && s[0] <= 2.0 + 1e-12, "{s:?}");
 }
 

@@ -33,6 +33,7 @@ pub use effects::{
     effect_columns, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
+pub use fit::resolution_of;
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};

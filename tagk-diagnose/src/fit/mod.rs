@@ -653,9 +653,15 @@ pub(crate) fn default_resolution(s: &Signals) -> [f64; 6] {
 /// The resolution per channel: `crate::FLOOR_RESOLUTION` × the RMS measured force magnitude,
 /// times `airframe_radius` \[m\] for the torques.
 pub(crate) fn resolution(s: &Signals, airframe_radius: f64) -> [f64; 6] {
-    let n = s.len().max(1) as f64;
-    let force_rms = (s
-        .wrench()
+    resolution_of(s.wrench(), airframe_radius)
+}
+
+/// The resolution per channel of a wrench series (one `[fx..tz]` per sample \[N, N m\]):
+/// `crate::FLOOR_RESOLUTION` × the RMS force magnitude for forces, times `airframe_radius`
+/// \[m\] for torques.
+pub fn resolution_of(wrench: &[[f64; 6]], airframe_radius: f64) -> [f64; 6] {
+    let n = wrench.len().max(1) as f64;
+    let force_rms = (wrench
         .iter()
         .map(|b| b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
         .sum::<f64>()

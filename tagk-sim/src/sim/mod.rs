@@ -128,6 +128,9 @@ struct Flight<'a> {
     planned_steps: usize,
     /// `∫ (p̂ − p_ref) dt` of the flight stack's integral action \[m s\] (world frame).
     position_integral: Vector3<f64>,
+    /// The states after each physics step of the current control interval (for a physics-rate
+    /// log or the truth), a buffer kept from interval to interval.
+    interval_steps: Vec<(PlantState, Accelerations)>,
 }
 
 /// What [`SimConfig::record_truth`] keeps during a flight.
@@ -355,6 +358,7 @@ impl<'a> Flight<'a> {
             latest_estimate: nominal.to_array(),
             planned_steps: steps,
             position_integral: Vector3::zeros(),
+            interval_steps: Vec::new(),
         })
     }
 
@@ -394,7 +398,8 @@ impl<'a> Flight<'a> {
             .truth
             .is_some()
             .then(|| (*self.plant.state(), self.plant.accelerations(&cmd)));
-        let mut steps = Vec::new();
+        let mut steps = std::mem::take(&mut self.interval_steps);
+        steps.clear();
         let (mid_state, mid_acc) =
             self.fly_interval(&cmd, (physics_log || start.is_some()).then_some(&mut steps));
         // What the vehicle measures of its actuators: the rotor speeds read back (+ noise) and,
@@ -444,6 +449,7 @@ impl<'a> Flight<'a> {
                 self.record_truth(k, k as f64 + 0.5, t_s, mid, Some(interval), &cmd);
             }
         }
+        self.interval_steps = steps;
         self.update_estimator(k, t, &frame, &wrench_measured)?;
         Ok(ControlFlow::Continue(()))
     }
@@ -621,7 +627,6 @@ impl<'a> Flight<'a> {
             t,
             *self.plant.params(),
             sample,
-            self.plant.acting_rotor_speeds(sample.0, cmd),
             logged,
             at_sample,
             over_interval,

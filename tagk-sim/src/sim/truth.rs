@@ -77,9 +77,6 @@ pub struct TruthSample {
     /// length (the interval mean of `ω̇`, which the differenced gyro measures); for a
     /// physics-rate sample (no `ω̇` logged) [`TruthSample::angular_acceleration`].
     pub logged_angular_acceleration: [f64; 3],
-    /// Rotor speeds the motors actually turn at the sample \[rad/s\] (the clamped command
-    /// without a motor lag).
-    pub rotor_speeds: [f64; 4],
     /// The total non-gravitational wrench acting on the body, `Y(a, ω, ω̇) θ`, body frame, about
     /// the origin: `[fx, fy, fz]` \[N\], `[tx, ty, tz]` \[N m\].
     pub wrench: [f64; 6],
@@ -118,17 +115,10 @@ pub struct FlightTruth {
     /// The flight's constant rate-gyro bias, body frame \[rad/s\] (added to the log's
     /// `wx..wz`; it cancels in `dwx..dwz`).
     pub gyro_bias: [f64; 3],
-    /// One sample per logged sample (empty without
-    /// [`SimConfig::record_log`](crate::SimConfig::record_log)).
+    /// One sample per logged sample, in the log's order. Without
+    /// [`SimConfig::record_log`](crate::SimConfig::record_log) there is no truth at all
+    /// ([`SimOutput::truth`](crate::SimOutput::truth) is `None`).
     pub samples: Vec<TruthSample>,
-}
-
-impl FlightTruth {
-    /// The position of `kind` in [`FlightTruth::effects`] (the index into
-    /// [`TruthSample::effect_wrenches`]), `None` when it does not act.
-    pub fn effect_index(&self, kind: EffectKind) -> Option<usize> {
-        self.effects.iter().position(|k| *k == kind)
-    }
 }
 
 /// The effects of `effects` that act, in [`EffectKind::ALL`] order, with the implicit rotor
@@ -213,15 +203,13 @@ impl TruthParts {
 
 impl TruthSample {
     /// The truth of a log sample at time `t` \[s\] of a body with parameters `params`: the
-    /// state and accelerations at the sample, the rotor speeds acting, the logged actuator
-    /// wrench, the wrenches at the sample and, for a control-rate sample, their means over the
-    /// control interval with the interval mean of `ω̇` (the change of the body rate over the
-    /// interval's length).
+    /// state and accelerations at the sample, the logged actuator wrench, the wrenches at the
+    /// sample and, for a control-rate sample, their means over the control interval with the
+    /// interval mean of `ω̇` (the change of the body rate over the interval's length).
     pub(crate) fn new(
         t: f64,
         params: InertialParams,
         (state, acc): (&PlantState, &Accelerations),
-        rotor_speeds: [f64; 4],
         logged: Wrench,
         at_sample: TruthParts,
         over_interval: Option<(TruthParts, Vector3<f64>)>,
@@ -258,7 +246,6 @@ impl TruthSample {
             body_rate: state.body_rate.into(),
             angular_acceleration: acc.angular.into(),
             logged_angular_acceleration,
-            rotor_speeds,
             wrench: at_sample.wrench,
             logged_wrench,
             logged_actuator_wrench: logged.to_array(),
