@@ -43,10 +43,10 @@ pub struct DiagnoseArgs {
     pub report: Option<PathBuf>,
     /// Also run TAG-K online over the log, as the simulator's tuned TAG-K flies, and compare
     /// it with the batch fit of the model. It sees the fz and torque rows only. The model's
-    /// fitted effects are removed from the measured wrench first. Rows are scaled by the
-    /// fit's residual noise, columns by the batch estimate. TAG-K starts from the batch
-    /// estimate; each window stops at the noise. It reports the online mass against the
-    /// batch mass.
+    /// fitted effects are removed from the measured wrench first. TAG-K starts from the
+    /// --vehicle's mass and inertia priors when it has both, else from the batch estimate.
+    /// Rows are scaled by the fit's residual noise, columns by that start. Each window stops
+    /// at the noise. It reports the online mass against the batch mass.
     #[arg(long)]
     pub online: bool,
     /// Custom candidate effect from log signals: NAME=COL[*COL...]@CH[,CH...]
@@ -388,8 +388,8 @@ pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>),
         plan = plan.vehicle(v);
     }
     let plan = args.with_inputs(plan, &args.logs[..args.logs.len().min(1)])?;
-    match plan.read()?.flights().next() {
-        Some(flight) => Ok((flight.log.clone(), flight.merge.clone())),
+    match plan.read()?.into_flights().into_iter().next() {
+        Some(flight) => Ok((flight.log, flight.merge)),
         None => Err(InputError::NoStream.into()),
     }
 }
@@ -450,7 +450,7 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
             }
         }
     }
-    let report = args.finish(plan.run()?);
+    let report = args.finish(plan.run_read()?);
     write_outputs(&report, args)
 }
 

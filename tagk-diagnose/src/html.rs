@@ -776,19 +776,19 @@ fn section_staircase(html: &mut String, report: &Report) {
         }
         html.push_str("</tr>");
     }
-    html.push_str("<tr><td>noise</td>");
-    for f in report.noise_floor.rms {
-        let _ = write!(html, "<td>{f:.3e}</td>");
+    let noise = &report.noise_floor;
+    for (label, values) in [
+        ("noise", noise.rms),
+        ("of it: measured wrench", noise.from_wrench),
+        ("of it: motion sensors", noise.from_motion),
+    ] {
+        let _ = write!(html, "<tr><td>{label}</td>");
+        for f in values {
+            let _ = write!(html, "<td>{f:.3e}</td>");
+        }
+        html.push_str("</tr>");
     }
-    html.push_str("</tr><tr><td>of it: measured wrench</td>");
-    for f in report.noise_floor.from_wrench {
-        let _ = write!(html, "<td>{f:.3e}</td>");
-    }
-    html.push_str("</tr><tr><td>of it: motion sensors</td>");
-    for f in report.noise_floor.from_motion {
-        let _ = write!(html, "<td>{f:.3e}</td>");
-    }
-    html.push_str("</tr></table>");
+    html.push_str("</table>");
     let _ = write!(
         html,
         "<p id=\"stopped\">stopped: {}</p><p>final model: <b>{}</b></p>",
@@ -858,9 +858,10 @@ pub fn render(report: &Report) -> String {
     );
     // The staircase's first step, and — separately — whether the final model is adequate: a
     // model with nothing left to add need not be at its noise.
-    let first_step = match report.steps.get(1).and_then(|s| s.effect.as_deref()) {
-        Some(_) => report.final_model.added.join(" + "),
-        None => "nothing (no admissible set of effects)".to_string(),
+    let first_step = if report.final_model.added.is_empty() {
+        "nothing (no admissible set of effects)".to_string()
+    } else {
+        report.final_model.added.join(" + ")
     };
     let _ = write!(
         html,

@@ -28,9 +28,9 @@ pub use diagnose::{
     discover, discover_from,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, MAX_ACCEL_BIAS,
-    Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with,
-    effect_columns, is_sensor_effect, subsample,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility,
+    ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, effect_columns,
+    is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;

@@ -294,6 +294,9 @@ pub fn online_pass_with(
         .map_err(|e| DiagnoseError::Online(e.to_string()))?;
 
     let target = s.target();
+    // The rigid regressor's entries from the signals' cache when the fit filled it (the same
+    // values; the entries it leaves empty are the regressor's zeros).
+    let cache = s.rigid_cache_if_computed();
     let mut a = vec![0.0; m_max * 10];
     let mut b = vec![0.0; m_max];
     let mut y = [0.0; 60];
@@ -304,13 +307,24 @@ pub fn online_pass_with(
     let mut end = WINDOW_FRAMES;
     while end <= n {
         for (f, i) in (end - WINDOW_FRAMES..end).enumerate() {
-            // Infallible: the buffer has 60 entries.
-            let _ = write_rigid_body_regressor(
-                &s.accel_proper[i],
-                &s.omega(i),
-                &s.omega_dot(i),
-                &mut y,
-            );
+            match cache {
+                Some(rows) => {
+                    for &c in &ACTUATED_CHANNELS {
+                        for q in 10 * c..10 * c + 10 {
+                            y[q] = rows[q].get(i).copied().unwrap_or(0.0);
+                        }
+                    }
+                }
+                None => {
+                    // Infallible: the buffer has 60 entries.
+                    let _ = write_rigid_body_regressor(
+                        &s.accel_proper[i],
+                        &s.omega(i),
+                        &s.omega_dot(i),
+                        &mut y,
+                    );
+                }
+            }
             for (k, &c) in ACTUATED_CHANNELS.iter().enumerate() {
                 let r = ROWS_PER_FRAME * f + k;
                 let yc = &y[10 * c..10 * c + 10];

@@ -13,7 +13,7 @@ use tagk_dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_str
 use tagk_dynamics::vehicle::Vehicle;
 
 use crate::diagnose::DiagnoseOptions;
-use crate::effects::{CustomEffect, Effect, EffectRef, builtin, builtin_by_name, builtin_effects};
+use crate::effects::{CustomEffect, Effect, EffectRef, builtin, builtin_by_name};
 use crate::error::{DiagnoseError, LogError};
 use crate::fit::Model;
 use crate::log::{FlightLog, MIN_ROWS};
@@ -21,10 +21,11 @@ use crate::online::{OnlineOptions, online_pass_with};
 use crate::report::{Report, run_logs, run_loop};
 use crate::sampling::SamplingFindings;
 use crate::signals::{CHANNEL_NAMES, Signals};
-use crate::streams::{AlignOptions, align_streams_owned};
+use crate::streams::{AlignOptions, StreamAlignment, align_streams_owned};
 
-/// Samples between two windows of the online TAG-K pass of `tagk diagnose --online`.
-pub const DEFAULT_ONLINE_STRIDE: usize = 5;
+/// Samples between two windows of the online TAG-K pass of `tagk diagnose --online`: the
+/// window length, so that windows touch without overlapping.
+pub const DEFAULT_ONLINE_STRIDE: usize = tagk_dynamics::front_end::WINDOW_FRAMES;
 
 /// A known vehicle mass: a value, or the vehicle's mass prior.
 ///
@@ -501,14 +502,6 @@ impl DiagnosisPlan {
             base = base.with_known_mass(m);
         }
         base.validate()?;
-        let mut candidates = builtin_effects();
-        candidates.extend(customs);
-        candidates.extend(self.candidates.iter().cloned());
-        let defaults = DiagnoseOptions::default();
-        let airframe_radius = self
-            .airframe_radius
-            .or(self.vehicle.as_ref().map(|v| v.airframe_radius))
-            .unwrap_or(defaults.airframe_radius);
         let noise_floor = match &self.noise_floor {
             None => None,
             Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
@@ -518,24 +511,20 @@ impl DiagnosisPlan {
                 }
             })?),
         };
-        // The vehicle's airframe (rotor plane, vertical limit of the centre of mass) and mass
-        // prior, then the explicit airframe radius.
-        let defaults = match &self.vehicle {
-            Some(v) => defaults.with_vehicle(v),
-            None => defaults,
-        };
-        let options = DiagnoseOptions {
-            airframe_radius,
-            com_vertical_limit: if self.airframe_radius.is_some() {
-                0.5 * airframe_radius
-            } else {
-                defaults.com_vertical_limit
-            },
-            candidates,
-            noise_floor,
-            max_steps: self.max_steps,
-            ..defaults
-        };
+        // Every built-in candidate, the vehicle's airframe (radius, rotor plane, vertical limit
+        // of the centre of mass) and mass prior, then the explicit airframe radius.
+        let mut options = DiagnoseOptions::default();
+        if let Some(v) = &self.vehicle {
+            options = options.with_vehicle(v);
+        }
+        if let Some(r) = self.airframe_radius {
+            options.airframe_radius = r;
+            options.com_vertical_limit = 0.5 * r;
+        }
+        options.candidates.extend(customs);
+        options.candidates.extend(self.candidates.iter().cloned());
+        options.noise_floor = noise_floor;
+        options.max_steps = self.max_steps;
         options.validate()?;
         Ok(ResolvedPlan {
             base,
@@ -639,6 +628,24 @@ impl DiagnosisPlan {
         })
     }
 
+    /// The flights in memory, in the order given, out of the plan (every flight after
+    /// [`DiagnosisPlan::read`]).
+    pub fn into_flights(mut self) -> Vec<Flight> {
+        self.take_flights()
+    }
+
+    /// Takes the flights in memory out of the plan, in the order given; the plan keeps no
+    /// input.
+    fn take_flights(&mut self) -> Vec<Flight> {
+        std::mem::take(&mut self.inputs)
+            .into_iter()
+            .filter_map(|input| match input {
+                Input::Flight(flight) => Some(*flight),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Runs the plan: checks it, reads the files, diagnoses one flight alone or several
     /// jointly, and returns the report.
     ///
@@ -646,6 +653,9 @@ impl DiagnosisPlan {
     /// vehicle), the sampling findings, the resampling, the stream alignment. Then one flight
     /// is split at its gaps and fitted ([`run_loop`]), with the online pass if asked; several
     /// flights are fitted jointly ([`run_logs`]).
+    ///
+    /// It is [`DiagnosisPlan::validate`], [`DiagnosisPlan::read`], then
+    /// [`DiagnosisPlan::run_read`].
     ///
     /// # Errors
     /// As [`DiagnosisPlan::resolve`] (against the first flight) and [`DiagnosisPlan::read`];
@@ -656,13 +666,18 @@ impl DiagnosisPlan {
     /// online pass's errors.
     pub fn run(self) -> Result<Report, DiagnoseError> {
         self.validate()?;
+        self.read()?.run_read()
+    }
+
+    /// [`DiagnosisPlan::run`] of a plan already read ([`DiagnosisPlan::read`]), without
+    /// checking it first. A caller can then look at the flights before the work. A file not
+    /// read yet is read first.
+    ///
+    /// # Errors
+    /// As [`DiagnosisPlan::run`].
+    pub fn run_read(self) -> Result<Report, DiagnoseError> {
         let mut settings = self.read()?;
-        let mut flights: Vec<Flight> = Vec::new();
-        for input in std::mem::take(&mut settings.inputs) {
-            if let Input::Flight(flight) = input {
-                flights.push(*flight);
-            }
-        }
+        let mut flights = settings.take_flights();
         match flights.len() {
             0 => Err(DiagnoseError::InvalidOption {
                 field: "logs",
@@ -673,26 +688,38 @@ impl DiagnosisPlan {
         }
     }
 
+    /// A flight's log ready to fit, and what was found on the way: the wrench from the rotor
+    /// speeds if the log has none ([`log_with_wrench`]), the sampling findings (named
+    /// `label`), the resampling and the stream alignment. The wrench's errors pass through
+    /// `wrench_error`, the resampling's and the alignment's through `error`.
+    fn condition(
+        &self,
+        label: &str,
+        log: FlightLog,
+        wrench_error: impl FnOnce(DiagnoseError) -> DiagnoseError,
+        error: impl Fn(DiagnoseError) -> DiagnoseError,
+    ) -> Result<(FlightLog, Vec<StreamAlignment>, SamplingFindings), DiagnoseError> {
+        let log = log_with_wrench(log, self.vehicle.as_ref()).map_err(wrench_error)?;
+        let sampling = SamplingFindings::of(label, &log, self.resample);
+        let log = match self.resample {
+            Some(dt) => log.resample_linear(dt).map_err(|e| error(e.into()))?,
+            None => log,
+        };
+        let (log, streams) = align_streams_owned(log, &self.align).map_err(error)?;
+        Ok((log, streams, sampling))
+    }
+
     /// One flight alone: split at its gaps, its segments fitted jointly.
     fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
         let plan = self.resolve(&flight.log)?;
-        let vehicle = self.vehicle.as_ref();
-        let log = if flight.log.has_wrench() {
-            flight.log
-        } else {
-            // A flight without a name is a log in memory: its errors stay as they are.
-            log_with_wrench(flight.log, vehicle).map_err(|e| match flight.name.as_str() {
-                "" => e,
-                name => in_file(name, e),
-            })?
+        let name = flight.name;
+        // A flight without a name is a log in memory: its errors stay as they are.
+        let wrench_error = |e| match name.as_str() {
+            "" => e,
+            name => in_file(name, e),
         };
-        let sampling = SamplingFindings::of("", &log, self.resample);
-        let log = match self.resample {
-            Some(dt) => log.resample_linear(dt)?,
-            None => log,
-        };
-        let (aligned, streams) = align_streams_owned(log, &self.align)?;
-        let (s, _) = Signals::from_owned_log_split(aligned)?;
+        let (log, streams, sampling) = self.condition("", flight.log, wrench_error, |e| e)?;
+        let (s, _) = Signals::from_owned_log_split(log)?;
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
         report.streams = streams;
         report.sampling = vec![sampling];
@@ -713,26 +740,20 @@ impl DiagnosisPlan {
     /// Several flights jointly; a flight with gaps joins as one log per long enough segment.
     fn run_joint(&self, flights: Vec<Flight>) -> Result<Report, DiagnoseError> {
         let plan = self.resolve(&flights[0].log)?;
-        let vehicle = self.vehicle.as_ref();
         let mut parts = Vec::new();
         let mut streams = Vec::new();
         let mut sampling = Vec::new();
         for Flight { name, log, .. } in flights {
             let in_file = |e: DiagnoseError| in_file(&name, e);
-            let log = log_with_wrench(log, vehicle).map_err(in_file)?;
-            sampling.push(SamplingFindings::of(name.clone(), &log, self.resample));
-            let log = match self.resample {
-                Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
-                None => log,
-            };
-            let (log, timing) = align_streams_owned(log, &self.align).map_err(in_file)?;
+            let (log, timing, findings) = self.condition(&name, log, in_file, in_file)?;
+            sampling.push(findings);
             streams.extend(timing.into_iter().map(|mut t| {
                 t.log = name.clone();
                 t
             }));
             let segments = log.sampling().segments();
             if segments.len() == 1 {
-                let s = Signals::from_log(&log).map_err(|e| in_file(e.into()))?;
+                let s = Signals::from_owned_log(log).map_err(|e| in_file(e.into()))?;
                 parts.push((name, s));
                 continue;
             }
@@ -752,14 +773,14 @@ impl DiagnosisPlan {
                 if r.len() < MIN_ROWS {
                     continue;
                 }
-                let segment = log.slice(r.clone());
                 let label = format!(
                     "{name} (segment {} of {count}, t = {:.3}..{:.3} s)",
                     k + 1,
                     log.t[r.start],
                     log.t[r.end - 1]
                 );
-                let s = Signals::from_log(&segment).map_err(|e| in_file(e.into()))?;
+                // A segment of the validated log, of at least `MIN_ROWS` samples, is valid.
+                let s = Signals::from_segment(log.slice(r)).map_err(|e| in_file(e.into()))?;
                 parts.push((label, s));
             }
         }
@@ -773,10 +794,7 @@ impl DiagnosisPlan {
 /// A log error of the flight `name`, wrapped to name it ([`LogError::InFile`]).
 fn in_file(name: &str, e: DiagnoseError) -> DiagnoseError {
     match e {
-        DiagnoseError::Log(source) => DiagnoseError::Log(LogError::InFile {
-            path: name.to_string(),
-            source: Box::new(source),
-        }),
+        DiagnoseError::Log(source) => DiagnoseError::Log(LogError::in_file(name, source)),
         other => other,
     }
 }

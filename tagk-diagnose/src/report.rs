@@ -4,8 +4,8 @@ use serde::Serialize;
 
 use crate::diagnose::FloorSource;
 use crate::diagnose::{
-    Candidate, CandidateStatus, DiagnoseOptions, Diagnosis, Discovery, NoiseFloor, Step, diagnose,
-    diagnose_against, discover, discover_from,
+    Candidate, CandidateStatus, ChannelAdequacy, DiagnoseOptions, Diagnosis, Discovery, NoiseFloor,
+    Step, diagnose, diagnose_against, discover, discover_from,
 };
 use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
@@ -400,6 +400,14 @@ pub fn run_logs(
     Ok(report)
 }
 
+impl ChannelAdequacy {
+    /// `true` when the channel's residual is white: its autocorrelation sum is within its
+    /// limit.
+    pub fn is_white(&self) -> bool {
+        self.autocorrelation_sum <= self.autocorrelation_limit
+    }
+}
+
 fn fmt_fit(f: Option<f64>) -> String {
     f.map_or("   n/a".to_string(), |x| format!("{x:6.1}"))
 }
@@ -539,19 +547,19 @@ pub fn staircase_table(r: &Report) -> String {
         FloorSource::Data => "noise (data)",
         FloorSource::Given => "noise (given)",
     };
-    s.push_str(&format!("{source:<26}"));
-    for f in r.noise_floor.rms {
-        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
+    let noise = &r.noise_floor;
+    for (label, values) in [
+        (source, noise.rms),
+        ("  of it: measured wrench", noise.from_wrench),
+        ("  of it: motion sensors", noise.from_motion),
+    ] {
+        s.push_str(&format!("{label:<26}"));
+        for f in values {
+            s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
+        }
+        s.push('\n');
     }
-    s.push_str(&format!("\n{:<26}", "  of it: measured wrench"));
-    for f in r.noise_floor.from_wrench {
-        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
-    }
-    s.push_str(&format!("\n{:<26}", "  of it: motion sensors"));
-    for f in r.noise_floor.from_motion {
-        s.push_str(&format!(" {f:>9.3e}{:>8}", ""));
-    }
-    s.push_str(&format!("\nstopped: {}\n", r.stopped));
+    s.push_str(&format!("stopped: {}\n", r.stopped));
     for step in r.steps.iter().skip(1) {
         if let Some(e) = &step.effect {
             let coefs: Vec<String> = step
@@ -700,11 +708,7 @@ fn remains(d: &Diagnosis) -> String {
             percent_cell(ch.error_percent, 7),
             d.held_out_rms[c],
             a.ratio,
-            if a.autocorrelation_sum <= a.autocorrelation_limit {
-                "yes"
-            } else {
-                "no"
-            },
+            if a.is_white() { "yes" } else { "no" },
             a.limited_by
         ));
     }

@@ -133,6 +133,15 @@ impl Signals {
         Self::derive(log.clone())
     }
 
+    /// [`Signals::from_log`] of a log the signals keep ([`Signals::log`]): no copy.
+    ///
+    /// # Errors
+    /// The log's validation error.
+    pub(crate) fn from_owned_log(log: FlightLog) -> Result<Self, LogError> {
+        log.validate()?;
+        Self::derive(log)
+    }
+
     /// The signals of a validated log (or segment of one), which they keep
     /// ([`Signals::log`]).
     fn derive(log: FlightLog) -> Result<Self, LogError> {
@@ -281,7 +290,7 @@ impl Signals {
 
     /// The signals of one segment of a validated log: [`Signals::from_log`] without the
     /// validation (a segment may be shorter than [`MIN_ROWS`](crate::log::MIN_ROWS)).
-    fn from_segment(log: FlightLog) -> Result<Self, LogError> {
+    pub(crate) fn from_segment(log: FlightLog) -> Result<Self, LogError> {
         Self::derive(log)
     }
 
@@ -518,6 +527,15 @@ impl Signals {
                 Some(std::sync::Arc::new(rows))
             })
             .as_ref()
+            .map(|rows| rows.as_slice())
+    }
+
+    /// [`Signals::rigid_cache`] if it was computed already (`None` otherwise: nothing is
+    /// computed).
+    pub(crate) fn rigid_cache_if_computed(&self) -> Option<&[Vec<f64>]> {
+        self.rigid_cache
+            .get()
+            .and_then(|rows| rows.as_ref())
             .map(|rows| rows.as_slice())
     }
 

@@ -26,7 +26,14 @@ pub const ACTUATED_CHANNELS: [usize; 4] = [2, 3, 4, 5];
 
 /// `true` if wrench channel `channel` (`0..6`) is one of the [`ACTUATED_CHANNELS`].
 pub const fn is_actuated(channel: usize) -> bool {
-    channel >= 2 && channel < 6
+    let mut k = 0;
+    while k < ACTUATED_CHANNELS.len() {
+        if ACTUATED_CHANNELS[k] == channel {
+            return true;
+        }
+        k += 1;
+    }
+    false
 }
 
 /// `κ_stop`: an iterative estimator stops a window's iterations once the window's residual

@@ -641,10 +641,8 @@ impl FlightLog {
     pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
         let path = path.as_ref();
         let file = open_log_file(path)?;
-        Self::from_csv_reader(std::io::BufReader::new(file)).map_err(|e| LogError::InFile {
-            path: path.display().to_string(),
-            source: Box::new(e),
-        })
+        Self::from_csv_reader(std::io::BufReader::new(file))
+            .map_err(|e| LogError::in_file(path.display().to_string(), e))
     }
 
     /// Reads and validates a CSV flight log (the [format](self)): one header row, then one row per
@@ -1015,6 +1013,14 @@ pub enum LogError {
 }
 
 impl LogError {
+    /// `source` in the file `path` ([`LogError::InFile`]).
+    pub fn in_file(path: impl Into<String>, source: LogError) -> Self {
+        LogError::InFile {
+            path: path.into(),
+            source: Box::new(source),
+        }
+    }
+
     /// The 1-based CSV line the error points at (the header is line 1), if any.
     pub fn line(&self) -> Option<usize> {
         match self {

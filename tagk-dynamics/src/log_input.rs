@@ -715,12 +715,8 @@ impl ColumnMapping {
     /// Reads one stream file with this mapping.
     fn read_stream(&self, path: &Path) -> Result<Stream, InputError> {
         let name = file_name(path);
-        let in_file = |e: LogError| {
-            InputError::Log(LogError::InFile {
-                path: path.display().to_string(),
-                source: Box::new(e),
-            })
-        };
+        let in_file =
+            |e: LogError| InputError::Log(LogError::in_file(path.display().to_string(), e));
         let file = crate::log::open_log_file(path)?;
         let (header, cols, lines) = read_table(std::io::BufReader::new(file)).map_err(in_file)?;
         let per = self.streams.get(&name).cloned().unwrap_or_default();
@@ -1170,9 +1166,8 @@ pub fn read_streams(
             .map(|(f, t)| [f[0], f[1], f[2], t[0], t[1], t[2]])
             .collect();
     } else if let Some(vehicle) = options.vehicle {
-        let named = |e: LogError| LogError::InFile {
-            path: format!("{} (merged onto its time base)", report.primary),
-            source: Box::new(e),
+        let named = |e: LogError| {
+            LogError::in_file(format!("{} (merged onto its time base)", report.primary), e)
         };
         log.compute_wrench_from_rotor_speeds(vehicle)
             .map_err(named)?;
@@ -1187,10 +1182,10 @@ pub fn read_streams(
     }
     log.validate().map_err(|e| match e {
         LogError::TooShort { .. } => e,
-        other => LogError::InFile {
-            path: format!("{} (merged onto its time base)", report.primary),
-            source: Box::new(other),
-        },
+        other => LogError::in_file(
+            format!("{} (merged onto its time base)", report.primary),
+            other,
+        ),
     })?;
     Ok((log, report))
 }

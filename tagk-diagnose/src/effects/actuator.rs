@@ -2,6 +2,7 @@
 //! streams, and a thrust-gain error.
 
 use tagk_dynamics::EffectKind;
+use tagk_dynamics::front_end::is_actuated;
 
 use crate::effects::{Effect, EffectColumn, Plausibility, ScanSpec};
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
@@ -17,6 +18,37 @@ use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 pub(crate) struct MotorLag {
     /// Time constants scanned \[s\].
     pub grid: Vec<f64>,
+}
+
+impl MotorLag {
+    /// The time constant \[s\]: `p`, else the middle of the grid.
+    fn tau(&self, p: Option<f64>) -> f64 {
+        p.unwrap_or(self.grid[self.grid.len() / 2])
+    }
+}
+
+/// `true` when channel `channel`'s lagged response is the interval mean of the lag's state
+/// rather than its value at the interval's middle: with rotor speeds and a rotor mixer the
+/// torques are the interval means of the lagged rotors (what a differenced gyro sees), the
+/// thrust its value at the middle; without, every channel is lagged at the middle
+/// ([`MotorLag::sampled_columns`]).
+fn interval_mean(s: &Signals, channel: Channel) -> bool {
+    // No rotor speeds, no mixer.
+    s.rotor_mixer().is_some() && channel > 2
+}
+
+/// The factors of the first-order lag over one step `x = Δt/τ`: `a = e^{−x}` (the state's
+/// decay over the step) and `g`, that of the sampled output
+/// (`y_k = u_k + g (Y_{k−1} − u_k)`): `(1 − a)/x` for the interval mean,
+/// `e^{−x/2}` at the middle.
+fn lag_factors(x: f64, interval_mean: bool) -> (f64, f64) {
+    let a = (-x).exp();
+    let g = if interval_mean {
+        (1.0 - a) / x
+    } else {
+        (-0.5 * x).exp()
+    };
+    (a, g)
 }
 
 impl Default for MotorLag {
@@ -224,13 +256,7 @@ pub(crate) fn inverse_first_order_lag(t: &[f64], y: &mut [f64], tau: f64, interv
         let dt = t[k] - t[k - 1];
         if !same_step(dt, last_dt) {
             last_dt = dt;
-            let x = dt / tau;
-            a = (-x).exp();
-            g = if interval_mean {
-                (1.0 - a) / x
-            } else {
-                (-0.5 * x).exp()
-            };
+            (a, g) = lag_factors(dt / tau, interval_mean);
         }
         let u = (y[k] - g * end) / (1.0 - g);
         end = u + a * (end - u);
@@ -262,7 +288,7 @@ impl Effect for MotorLag {
     }
     fn sampled_columns(&self, s: &Signals, p: Option<f64>, stride: usize) -> Vec<EffectColumn> {
         let stride = stride.max(1);
-        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        let tau = self.tau(p);
         let b = s.wrench();
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         if let Some(lagged) = lagged_wrench_from_rotors(s, tau, stride) {
@@ -306,15 +332,10 @@ impl Effect for MotorLag {
         cols
     }
     fn unfilter(&self, s: &Signals, p: Option<f64>, channel: Channel, series: &mut [f64]) -> bool {
-        if !(2..6).contains(&channel) {
+        if !is_actuated(channel) {
             return false;
         }
-        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
-        // With rotor speeds the torques are the interval means of the lagged rotors (what a
-        // differenced gyro sees), the thrust its value at the middle; without, every channel
-        // is lagged at the middle ([`MotorLag::sampled_columns`]).
-        let rotors = s.rotor_speeds().is_some() && s.rotor_mixer().is_some();
-        inverse_first_order_lag(&s.t, series, tau, rotors && channel > 2);
+        inverse_first_order_lag(&s.t, series, self.tau(p), interval_mean(s, channel));
         true
     }
     fn target_filter(
@@ -323,23 +344,16 @@ impl Effect for MotorLag {
         p: Option<f64>,
         channel: Channel,
     ) -> Option<crate::fit::TargetFilter> {
-        if !(2..6).contains(&channel) {
+        if !is_actuated(channel) {
             return None;
         }
-        let tau = p.unwrap_or(self.grid[self.grid.len() / 2]);
+        let tau = self.tau(p);
         let dt = s.mean_dt();
         if !(tau > 0.0 && dt > 0.0) {
             return None;
         }
-        let rotors = s.rotor_speeds().is_some() && s.rotor_mixer().is_some();
-        let x = dt / tau;
-        let a = (-x).exp();
         // y_k = u_k + g (Y_{k−1} − u_k): L(z) = ((1 − g) + (g − a) z⁻¹) / (1 − a z⁻¹).
-        let g = if rotors && channel > 2 {
-            (1.0 - a) / x
-        } else {
-            (-0.5 * x).exp()
-        };
+        let (a, g) = lag_factors(dt / tau, interval_mean(s, channel));
         Some(crate::fit::TargetFilter {
             g0: 1.0 - g,
             g1: g - a,

@@ -85,37 +85,35 @@ impl Effect for QuadraticDrag {
     }
 }
 
-/// The force of a steady wind through the rotors' drag, per unit `k_h v_w,j` (world
-/// direction `j`, horizontal): each hub feels `+|ω_i| Rᵀ e_j` (the air moving past it) and
-/// its moment `r_i × (…)` about the origin, on all six channels. `None` without rotor speeds
-/// or a rotor mixer (hub positions).
-pub(crate) fn hub_wind_column(s: &Signals, j: usize) -> Option<[Option<Vec<f64>>; 6]> {
+/// The force of a steady wind through the rotors' drag, per unit `k_h v_w,j`, for the world
+/// directions `j = x, y` (horizontal), in one pass over the attitudes: each hub feels
+/// `+|ω_i| Rᵀ e_j` (the air moving past it) and its moment `r_i × (…)` about the origin, on
+/// all six channels. `None` without rotor speeds or a rotor mixer (hub positions).
+pub(crate) fn hub_wind_columns(s: &Signals) -> Option<[[Option<Vec<f64>>; 6]; 2]> {
     let w = s.rotor_speeds()?;
     let hubs = s.rotor_mixer()?.hubs;
     let n = s.len();
-    let mut data: [Option<Vec<f64>>; 6] = std::array::from_fn(|_| Some(vec![0.0; n]));
-    let mut e = nalgebra::Vector3::zeros();
-    e[j] = 1.0;
+    let mut data: [[Vec<f64>; 6]; 2] =
+        std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n]));
+    let axes = [0, 1].map(|j| nalgebra::Vector3::ith(j, 1.0));
     for (i, rot) in s.rotations().enumerate() {
-        let d = rot.transpose() * e;
-        for (r, hub) in hubs.iter().enumerate() {
-            let (x, y) = (hub[0], hub[1]);
-            let wr = w[i][r].abs();
-            let (hx, hy, hz) = (wr * d.x, wr * d.y, wr * d.z);
-            let mut add = |c: usize, v: f64| {
-                if let Some(col) = data[c].as_mut() {
-                    col[i] += v;
-                }
-            };
-            add(0, hx);
-            add(1, hy);
-            add(2, hz);
-            add(3, y * hz);
-            add(4, -x * hz);
-            add(5, x * hy - y * hx);
+        let rt = rot.transpose();
+        for (col, e) in data.iter_mut().zip(axes) {
+            let d = rt * e;
+            for (r, hub) in hubs.iter().enumerate() {
+                let (x, y) = (hub[0], hub[1]);
+                let wr = w[i][r].abs();
+                let (hx, hy, hz) = (wr * d.x, wr * d.y, wr * d.z);
+                col[0][i] += hx;
+                col[1][i] += hy;
+                col[2][i] += hz;
+                col[3][i] += y * hz;
+                col[4][i] += -x * hz;
+                col[5][i] += x * hy - y * hx;
+            }
         }
     }
-    Some(data)
+    Some(data.map(|col| col.map(Some)))
 }
 
 /// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with

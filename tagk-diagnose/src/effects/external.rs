@@ -55,10 +55,6 @@ impl Effect for BodyBias {
 /// physics, and not an effect the simulator's plant has (its sensing profiles have it).
 pub const ACCEL_BIAS: &str = "accel-bias";
 
-/// Largest plausible accelerometer offset, as a constant force per unit mass \[m/s²\] (1 m/s²:
-/// ten times the typical zero-g offset of a MEMS accelerometer, 20 mg).
-pub const MAX_ACCEL_BIAS: f64 = 1.0;
-
 /// Accelerometer offset: a constant body-frame bias `b_a` of the measured specific force. The
 /// regression multiplies the measured acceleration by the mass, so the logged wrench differs
 /// from the model by `m b_a`, a constant body-frame force: columns `f_x`, `f_y` \[N\] (the
@@ -85,8 +81,7 @@ impl Effect for AccelBias {
             .map(|c| EffectColumn::on(&format!("f_{}", ["x", "y"][c]), "N", c, vec![1.0; n]))
             .collect()
     }
-    fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
-        let _ = coef;
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         Plausibility::ok()
     }
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
@@ -127,6 +122,41 @@ const WIND_COLUMNS: [(&str, &str); 5] = [
     ("F_wy", "N"),
 ];
 
+/// Where the wind's coefficients are: the hub form (`k_h`, `k_z`, then the wind `kv_wx`,
+/// `kv_wy`) or the body-origin form (`d_x`, `d_y`, `d_z`, then `F_wx`, `F_wy`, or their
+/// rotor-speed-scaled `k`, `kv`).
+struct WindLayout {
+    /// The names of the drag coefficients (the first ones).
+    drags: &'static [&'static str],
+    /// The index of the first wind coefficient.
+    first_wind: usize,
+    /// The drag that divides the wind force, and its standard error: `k_h`, or the mean of
+    /// `d_x` and `d_y`.
+    drag: (f64, f64),
+}
+
+impl WindLayout {
+    /// The layout of the coefficients `coef` with standard errors `se`.
+    fn of(coef: &[f64], se: &[f64]) -> Self {
+        if coef.len() == 4 {
+            Self {
+                drags: &["k_h", "k_z"],
+                first_wind: 2,
+                drag: (coef[0], se[0]),
+            }
+        } else {
+            Self {
+                drags: &["d_x", "d_y", "d_z"],
+                first_wind: 3,
+                drag: (
+                    0.5 * (coef[0] + coef[1]),
+                    0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt(),
+                ),
+            }
+        }
+    }
+}
+
 impl Effect for Wind {
     fn name(&self) -> &str {
         EffectKind::Wind.name()
@@ -142,12 +172,7 @@ impl Effect for Wind {
         // With rotor speeds and hub positions the wind acts through the rotors' drag at each
         // hub, moments included: the rotor drag's columns (`k_h`, `k_z`) and the wind's
         // (`kv_wx`, `kv_wy`, per unit `k_h v_w`).
-        if s.rotor_mixer().is_some()
-            && let (Some(x), Some(y)) = (
-                crate::effects::drag::hub_wind_column(s, 0),
-                crate::effects::drag::hub_wind_column(s, 1),
-            )
-        {
+        if let Some([x, y]) = crate::effects::drag::hub_wind_columns(s) {
             let mut cols = crate::effects::drag::RotorDrag.columns(s, None);
             for (name, data) in [("kv_wx", x), ("kv_wy", y)] {
                 cols.push(EffectColumn {
@@ -185,31 +210,36 @@ impl Effect for Wind {
             })
             .collect();
         // Horizontal wind only: a constant vertical world force is the weight `m g` again and
-        // would trade against the fitted mass.
-        for j in 0..2 {
-            let mut e = Vector3::zeros();
-            e[j] = 1.0;
-            let body: Vec<Vector3<f64>> = s.rotations().map(|r| r.transpose() * e).collect();
-            let mut data: [Option<Vec<f64>>; 6] = Default::default();
-            for (c, d) in data.iter_mut().enumerate().take(3) {
-                *d = Some(body.iter().zip(&scale).map(|(v, f)| v[c] * f).collect());
+        // would trade against the fitted mass. The body-frame `Rᵀ e_x`, `Rᵀ e_y` in one pass
+        // over the attitudes.
+        let axes = [0, 1].map(|j| Vector3::ith(j, 1.0));
+        let mut wind: [[Vec<f64>; 3]; 2] =
+            std::array::from_fn(|_| std::array::from_fn(|_| Vec::with_capacity(s.len())));
+        for (r, f) in s.rotations().zip(&scale) {
+            let rt = r.transpose();
+            for (force, e) in wind.iter_mut().zip(axes) {
+                let v = rt * e;
+                for (c, column) in force.iter_mut().enumerate() {
+                    column.push(v[c] * f);
+                }
             }
+        }
+        for (j, [x, y, z]) in wind.into_iter().enumerate() {
             cols.push(EffectColumn {
                 name: names[3 + j].0.to_string(),
                 unit: names[3 + j].1.into(),
-                data,
+                data: [Some(x), Some(y), Some(z), None, None, None],
                 fixed: None,
             });
         }
         cols
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
-        // The hub form (`k_h`, `k_z`, then the wind) or the body-origin form (three drags).
-        let (drags, first_wind): (&[&str], usize) = if coef.len() == 4 {
-            (&["k_h", "k_z"], 2)
-        } else {
-            (&["d_x", "d_y", "d_z"], 3)
-        };
+        let WindLayout {
+            drags,
+            first_wind,
+            drag: (d, d_se),
+        } = WindLayout::of(coef, se);
         let drag = nonneg(drags, coef, se, "drag coefficient");
         if !drag.plausible {
             return drag;
@@ -227,14 +257,6 @@ impl Effect for Wind {
         }
         // The implied wind speed needs the drag: when a drag effect of the model carries it,
         // the wind's own drag columns are duplicates and their share is not the drag.
-        let (d, d_se) = if coef.len() == 4 {
-            (coef[0], se[0])
-        } else {
-            (
-                0.5 * (coef[0] + coef[1]),
-                0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt(),
-            )
-        };
         let force = coef[first_wind].hypot(coef[first_wind + 1]);
         if d > 3.0 * d_se && force / d > MAX_WIND_SPEED {
             return Plausibility::broken(
@@ -248,25 +270,11 @@ impl Effect for Wind {
         Plausibility::ok()
     }
     fn derived(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Vec<Coefficient> {
-        // The hub form (`k_h`, `k_z`, `kv_wx`, `kv_wy`) or the body-origin form (`d_x`, `d_y`,
-        // `d_z`, `F_wx`, `F_wy`, or their rotor-speed-scaled `k`, `kv`).
-        if coef.len() == 4 {
-            let (d, d_se) = (coef[0], se[0]);
-            if d.is_nan() || d <= 3.0 * d_se {
-                return Vec::new();
-            }
-            return ["v_wx", "v_wy"]
-                .iter()
-                .enumerate()
-                .map(|(j, name)| {
-                    let v = coef[2 + j] / d;
-                    let e = ((se[2 + j] / d).powi(2) + (v * d_se / d).powi(2)).sqrt();
-                    Coefficient::new(name, "m/s", v, e.is_finite().then_some(e))
-                })
-                .collect();
-        }
-        let d = 0.5 * (coef[0] + coef[1]);
-        let d_se = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
+        let WindLayout {
+            first_wind,
+            drag: (d, d_se),
+            ..
+        } = WindLayout::of(coef, se);
         if d.is_nan() || d <= 3.0 * d_se {
             // No drag of its own (another effect carries it): no wind speed to report.
             return Vec::new();
@@ -276,9 +284,8 @@ impl Effect for Wind {
             .enumerate()
             .map(|(j, name)| {
                 // Delta method on F / d (independent errors).
-                let v = coef[3 + j] / d;
-                let sd = 0.5 * (se[0].powi(2) + se[1].powi(2)).sqrt();
-                let e = ((se[3 + j] / d).powi(2) + (v * sd / d).powi(2)).sqrt();
+                let v = coef[first_wind + j] / d;
+                let e = ((se[first_wind + j] / d).powi(2) + (v * d_se / d).powi(2)).sqrt();
                 Coefficient::new(name, "m/s", v, e.is_finite().then_some(e))
             })
             .collect()

@@ -20,7 +20,7 @@ mod ground;
 #[cfg(test)]
 pub(crate) use actuator::{first_order_lag, shifted};
 pub use custom::CustomEffect;
-pub use external::{ACCEL_BIAS, MAX_ACCEL_BIAS};
+pub use external::ACCEL_BIAS;
 
 /// `true` for a built-in effect that is a sensor error, not physics (the accelerometer
 /// offset, [`ACCEL_BIAS`]).
