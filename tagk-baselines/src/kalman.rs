@@ -58,7 +58,7 @@ impl KalmanFilter {
             n,
             m_max,
             config,
-            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
+            crate::owned_buffer(n, m_max)?,
         )
     }
 

@@ -47,7 +47,7 @@ impl Rls {
             n,
             m_max,
             config,
-            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
+            crate::owned_buffer(n, m_max)?,
         )
     }
 

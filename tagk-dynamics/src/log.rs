@@ -1392,6 +1392,39 @@ mod tests {
         }
     }
 
+    /// A bad cell is reported on its own line of the file, whatever came before it: CRLF line
+    /// ends, blank lines, a quoted field that spans two lines.
+    #[test]
+    fn a_bad_cell_names_its_line_after_crlf_blank_lines_and_quoted_newlines() {
+        let cases: &[(&[u8], usize)] = &[
+            (b"a,b\n1,2\n3,x\n", 3),
+            (b"a,b\r\n1,2\r\n3,x\r\n", 3),
+            (b"a,b\n1,2\n\n3,x\n", 4),
+            (b"a,b\r\n1,2\r\n\r\n\r\n3,x\r\n", 5),
+            (b"a,b\n\"1\",\"2\"\n\"3\",\"x\"\n", 3),
+            (b"a,\"b\nc\"\n1,2\n3,x\n", 4),
+            (b"a,b\n\"1\n\",2\n3,x\n", 4),
+            (b"a,b\r\n\"1\r\n\",2\r\n\r\n3,x\r\n", 5),
+        ];
+        for (input, line) in cases {
+            let err = numeric_rows(input).unwrap_err();
+            let expected = format!(
+                "{:?}",
+                LogError::NotANumber {
+                    line: *line,
+                    column: "b".into(),
+                    value: "x".into(),
+                }
+            );
+            let expected = if input.starts_with(b"a,\"b\nc") {
+                expected.replace("column: \"b\"", "column: \"b\\nc\"")
+            } else {
+                expected
+            };
+            assert_eq!(err, expected, "input {:?}", String::from_utf8_lossy(input));
+        }
+    }
+
     /// Pieces of cells and separators that exercise trimming, quoting, UTF-8 and numbers.
     const PIECES: &[&[u8]] = &[
         b"1",
