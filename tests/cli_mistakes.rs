@@ -61,7 +61,11 @@ fn shell_words(dir: &Path, command: &str) -> Vec<String> {
         .current_dir(dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     text.split_terminator('\0').map(str::to_string).collect()
 }
@@ -82,7 +86,11 @@ fn printed_commands_round_trip_through_a_shell_and_run_nothing() {
     let effects = vec!["linear-drag".to_string(), "wind".to_string()];
     let expected = args.command_args(&effects);
     let command = args.command_for(&effects);
-    assert_eq!(shlex::split(&command).as_ref(), Some(&expected), "{command}");
+    assert_eq!(
+        shlex::split(&command).as_ref(),
+        Some(&expected),
+        "{command}"
+    );
     assert_eq!(shell_words(&dir, &command), expected, "{command}");
     // Safe arguments stay readable.
     assert!(command.contains(" --with linear-drag,wind"), "{command}");
@@ -116,7 +124,11 @@ fn reproduce_and_next_commands_are_quoted_in_every_output() {
         .arg(&report)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -124,7 +136,11 @@ fn reproduce_and_next_commands_are_quoted_in_every_output() {
     for key in [&v["final_model"]["command"], &v["next"]["command"]] {
         let command = key.as_str().unwrap();
         let words = shlex::split(command).unwrap();
-        assert_eq!(words[..3], ["tagk", "diagnose", log_arg.as_str()], "{command}");
+        assert_eq!(
+            words[..3],
+            ["tagk", "diagnose", log_arg.as_str()],
+            "{command}"
+        );
         assert!(text.contains(command), "terminal lacks {command}\n{text}");
     }
     let next = shlex::split(v["next"]["command"].as_str().unwrap()).unwrap();
@@ -154,8 +170,14 @@ fn a_mass_outside_any_physical_range_is_refused() {
             "{mass}: {err:?}"
         );
         assert!(err.to_string().contains("--mass"), "{err}");
-        let err = DiagnosisPlan::new().known_mass(mass).validate().unwrap_err();
-        assert!(matches!(err, DiagnoseError::InvalidOption { field: "mass", .. }), "{err:?}");
+        let err = DiagnosisPlan::new()
+            .known_mass(mass)
+            .validate()
+            .unwrap_err();
+        assert!(
+            matches!(err, DiagnoseError::InvalidOption { field: "mass", .. }),
+            "{err:?}"
+        );
     }
     for mass in [KNOWN_MASS_RANGE[0], 0.035, 1.5, KNOWN_MASS_RANGE[1]] {
         DiagnosisPlan::new().known_mass(mass).validate().unwrap();
@@ -218,7 +240,11 @@ fn each_error_is_printed_once() {
         .unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(stderr.matches("`oops` is not a number").count(), 1, "{stderr}");
+    assert_eq!(
+        stderr.matches("`oops` is not a number").count(),
+        1,
+        "{stderr}"
+    );
     assert!(stderr.contains("line 5"), "{stderr}");
 }
 
@@ -315,8 +341,14 @@ fn a_heavier_vehicle_among_three_logs_is_named_and_not_blended() {
         assert_eq!(l["excluded"], false, "{l}");
     }
     let note = heavy_v["note"].as_str().unwrap();
-    assert!(note.contains("mass") && note.contains("not blended"), "{note}");
-    assert!(text.contains("DISAGREES: log ") && text.contains("not blended"), "{text}");
+    assert!(
+        note.contains("mass") && note.contains("not blended"),
+        "{note}"
+    );
+    assert!(
+        text.contains("DISAGREES: log ") && text.contains("not blended"),
+        "{text}"
+    );
     assert!(html.contains("not blended"), "the HTML lacks the note");
     // The joint fit is the two others': its mass is theirs, not a blend.
     let joint = v["final_diagnosis"]["parameters"]
@@ -355,11 +387,16 @@ fn a_log_with_its_velocity_in_mm_per_s_is_named() {
         .as_array()
         .unwrap()
         .iter()
-        .find(|p| p["name"].as_str().unwrap().starts_with("linear-drag") && p["consistent"] == false)
+        .find(|p| {
+            p["name"].as_str().unwrap().starts_with("linear-drag") && p["consistent"] == false
+        })
         .unwrap_or_else(|| panic!("{}", logs[2]));
     let ratio = drag["others"].as_f64().unwrap() / drag["value"].as_f64().unwrap();
     assert!(ratio > 300.0, "{drag}");
-    assert!(text.contains("mm.csv") && text.contains("not blended"), "{text}");
+    assert!(
+        text.contains("mm.csv") && text.contains("not blended"),
+        "{text}"
+    );
     assert!(html.contains("not blended"));
 }
 

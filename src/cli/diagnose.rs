@@ -4,11 +4,11 @@
 use std::path::PathBuf;
 
 pub use crate::diagnose::KnownMass;
+use crate::diagnose::format::shell_join;
 use crate::diagnose::{
     AlignOptions, DEFAULT_ONLINE_STRIDE, DiagnoseError, DiagnosisPlan, EffectKind, FlightLog,
     NextStep, Report, ResolvedPlan, parse_shift, report_table,
 };
-use crate::diagnose::format::shell_join;
 use crate::dynamics::log_input::{ColumnMapping, InputError, MergeReport};
 use crate::dynamics::vehicle::Vehicle;
 
@@ -19,7 +19,9 @@ pub struct DiagnoseArgs {
     /// Flight log(s) (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
     /// repository). With --columns each is read through the column mapping. Several logs of
     /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients), and
-    /// each log's own staircase is compared with the joint one.
+    /// each log's own staircase and parameters are compared with the joint ones: a log whose
+    /// mass or effect coefficients differ beyond their intervals (another vehicle state) is
+    /// named and left out of the joint fit. The same data twice is refused.
     #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
     pub logs: Vec<PathBuf>,
     /// Column mapping (TOML, docs/COLUMN_MAPPING.md): column names, units, quaternion order,
@@ -221,10 +223,10 @@ impl DiagnoseArgs {
     /// flight (a joint diagnosis of several logs).
     pub fn next_step(&self, report: &Report) -> NextStep {
         let effects = &report.final_model.effects;
-        let report_dir = self
-            .report
-            .as_ref()
-            .map_or_else(|| "tagk-report".to_string(), |d| d.to_string_lossy().into_owned());
+        let report_dir = self.report.as_ref().map_or_else(
+            || "tagk-report".to_string(),
+            |d| d.to_string_lossy().into_owned(),
+        );
         let report_dir = shell_join(["--report", &report_dir]);
         let with_report = format!("{} {report_dir}", self.command_for(effects));
         if !report.final_model.added.is_empty() {
@@ -474,7 +476,10 @@ pub fn check_outputs(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     };
     if let Some(path) = &args.json {
         if path.is_dir() {
-            return Err(output(path, "is a directory, not a file (--json FILE)".into()));
+            return Err(output(
+                path,
+                "is a directory, not a file (--json FILE)".into(),
+            ));
         }
         let parent = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
@@ -495,11 +500,17 @@ pub fn check_outputs(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     }
     if let Some(dir) = &args.report {
         std::fs::create_dir_all(dir).map_err(|e| {
-            output(dir, format!("cannot create the report directory (--report): {e}"))
+            output(
+                dir,
+                format!("cannot create the report directory (--report): {e}"),
+            )
         })?;
         let file = dir.join(crate::diagnose::html::REPORT_FILE);
         if file.is_dir() {
-            return Err(output(&file, "is a directory, not a file (--report DIR)".into()));
+            return Err(output(
+                &file,
+                "is a directory, not a file (--report DIR)".into(),
+            ));
         }
     }
     Ok(())

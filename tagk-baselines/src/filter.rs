@@ -165,8 +165,8 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
         tagk_core::check_dimensions(n, m_max)?;
         let found = buf.as_ref().len();
         // Sizes whose least layout overflows can never be satisfied.
-        let compact = checked_buffer_len(n, m_max, false)
-            .ok_or(ConfigError::TooLarge { n, m: m_max })?;
+        let compact =
+            checked_buffer_len(n, m_max, false).ok_or(ConfigError::TooLarge { n, m: m_max })?;
         let full = checked_buffer_len(n, m_max, true).unwrap_or(usize::MAX);
         let fallback = found >= full;
         if !fallback {

@@ -85,8 +85,8 @@ pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage,
 /// refuses (no abort).
 #[cfg(feature = "alloc")]
 fn owned_buffer(n: usize, m_max: usize) -> Result<alloc::vec::Vec<f64>, ConfigError> {
-    let len = filter::checked_buffer_len(n, m_max, true)
-        .ok_or(ConfigError::TooLarge { n, m: m_max })?;
+    let len =
+        filter::checked_buffer_len(n, m_max, true).ok_or(ConfigError::TooLarge { n, m: m_max })?;
     tagk_core::zeroed_buffer(len, n, m_max)
 }
 

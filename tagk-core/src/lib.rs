@@ -33,12 +33,12 @@ pub use front_end::{
     FrontEnd, FrontEndConfig, FrontEndInfo, checked_front_end_buffer_len, front_end_buffer_len,
     scales_from_prior,
 };
+#[cfg(feature = "alloc")]
+pub use kaczmarz::zeroed_buffer;
 pub use kaczmarz::{
     BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
     TagK, TailAveragedKaczmarz, checked_kaczmarz_buffer_len, kaczmarz_buffer_len,
     tagk_paper_config,
 };
-#[cfg(feature = "alloc")]
-pub use kaczmarz::zeroed_buffer;
 pub use real::Real;
 pub use synthetic::SyntheticWindows;

@@ -25,9 +25,18 @@ fn overflowing_sizes_are_typed_errors() {
         let too_large = Some(ConfigError::TooLarge { n, m });
         assert_eq!(TagK::<f64, Vec<f64>>::new(n, m, config).err(), too_large);
         assert_eq!(TagK::<f32, Vec<f32>>::new(n, m, config).err(), too_large);
-        assert_eq!(GreedyKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(), too_large);
-        assert_eq!(RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(), too_large);
-        assert_eq!(TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(), too_large);
+        assert_eq!(
+            GreedyKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(),
+            too_large
+        );
+        assert_eq!(
+            RandomizedKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(),
+            too_large
+        );
+        assert_eq!(
+            TailAveragedKaczmarz::<f64, Vec<f64>>::new(n, m, config).err(),
+            too_large
+        );
     }
     // The checked length says why; the const length saturates (never a short buffer).
     assert_eq!(checked_kaczmarz_buffer_len(usize::MAX, usize::MAX), None);

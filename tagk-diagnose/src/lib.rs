@@ -40,8 +40,7 @@ pub use log_params::{LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{
     CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KNOWN_MASS_RANGE,
-    KnownMass,
-    ResolvedPlan,
+    KnownMass, ResolvedPlan,
 };
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,

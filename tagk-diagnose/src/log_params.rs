@@ -77,7 +77,12 @@ impl LogParameter {
             } else {
                 "differs from the others'"
             };
-            s.push_str(&format!(" ({verb} {} [{}, {}])", sig4(o), sig4(lo), sig4(hi)));
+            s.push_str(&format!(
+                " ({verb} {} [{}, {}])",
+                sig4(o),
+                sig4(lo),
+                sig4(hi)
+            ));
         }
         s
     }
@@ -123,7 +128,11 @@ pub(crate) fn estimates(model: &Model, s: &Signals) -> Vec<Estimate> {
             se,
         });
     }
-    for e in fit.effects.iter().filter(|e| is_vehicle_property(&e.effect)) {
+    for e in fit
+        .effects
+        .iter()
+        .filter(|e| is_vehicle_property(&e.effect))
+    {
         for c in &e.coefficients {
             if c.name.starts_with("start_") || c.name.contains('@') {
                 continue;
@@ -294,5 +303,100 @@ pub(crate) fn refusal(names: &[String], params: &[Vec<LogParameter>]) -> Diagnos
              log of the same state, the odd one is left out)",
             what.join("; ")
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn est(name: &str, value: f64, se: f64) -> Estimate {
+        Estimate {
+            name: name.into(),
+            unit: "kg".into(),
+            value,
+            se,
+        }
+    }
+
+    /// Three logs of one vehicle within their intervals: none flagged; each is shown against
+    /// the pool of the two others.
+    #[test]
+    fn consistent_logs_are_not_flagged() {
+        let logs = vec![
+            vec![est("mass", 0.0350, 2e-4)],
+            vec![est("mass", 0.0352, 2e-4)],
+            vec![est("mass", 0.0349, 3e-4)],
+        ];
+        let (params, flagged) = compare(&logs);
+        assert_eq!(flagged, [false; 3]);
+        let p = &params[0][0];
+        assert!(p.consistent);
+        let others = p.others.unwrap();
+        assert!((others - 0.03508).abs() < 1e-4, "{others}");
+    }
+
+    /// A heavier vehicle among three: only it is flagged, named against the others' pool.
+    #[test]
+    fn the_odd_log_among_three_is_flagged() {
+        let logs = vec![
+            vec![est("mass", 0.0350, 2e-4), est("drag d_x", 7e-3, 2e-3)],
+            vec![est("mass", 0.0520, 5e-4), est("drag d_x", 7e-3, 2e-3)],
+            vec![est("mass", 0.0351, 2e-4), est("drag d_x", 7.5e-3, 2e-3)],
+        ];
+        let (params, flagged) = compare(&logs);
+        assert_eq!(flagged, [false, true, false]);
+        let note = excluded_note("b.csv", &params[1]);
+        assert!(
+            note.starts_with(
+                "log b.csv: mass 0.05200 kg [0.05102, 0.05298] (differs from the others' 0.03505"
+            ),
+            "{note}"
+        );
+        assert!(note.contains("not blended"), "{note}");
+    }
+
+    /// A drag coefficient 1000× off (velocity in mm/s) is flagged on the log scale even where
+    /// each log's interval is ±40 % and the linear test, dominated by the wide intervals,
+    /// would not see it.
+    #[test]
+    fn a_unit_error_is_flagged_on_the_log_scale() {
+        let logs = vec![
+            vec![est("drag d_x", 7.1e-3, 2.5e-3)],
+            vec![est("drag d_x", 7.0e-3, 2.6e-3)],
+            vec![est("drag d_x", 7.1e-6, 2.8e-6)],
+        ];
+        assert!(7.1e-3 - 7.1e-6 <= LOG_CONSISTENCY_Z * 2.5e-3f64.hypot(2.8e-6));
+        let (_, flagged) = compare(&logs);
+        assert_eq!(flagged, [false, false, true]);
+        // Insignificant values are not compared as ratios.
+        let logs = vec![
+            vec![est("drag d_x", 1e-3, 2e-3)],
+            vec![est("drag d_x", 1e-6, 2e-3)],
+            vec![est("drag d_x", -1e-4, 2e-3)],
+        ];
+        assert_eq!(compare(&logs).1, [false; 3]);
+    }
+
+    /// Two logs that disagree: both are flagged (neither can be preferred): the joint fit is
+    /// refused, naming both.
+    #[test]
+    fn two_logs_that_disagree_are_both_flagged() {
+        let logs = vec![
+            vec![est("mass", 0.035, 2e-4)],
+            vec![est("mass", 0.052, 2e-4)],
+        ];
+        let (params, flagged) = compare(&logs);
+        assert_eq!(flagged, [true, true]);
+        let err = refusal(&["a.csv".into(), "b.csv".into()], &params);
+        let text = err.to_string();
+        assert!(matches!(
+            err,
+            DiagnoseError::InvalidOption { field: "logs", .. }
+        ));
+        assert!(
+            text.contains("a.csv: mass 0.03500 kg") && text.contains("b.csv: mass 0.05200 kg"),
+            "{text}"
+        );
     }
 }

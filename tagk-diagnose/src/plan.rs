@@ -844,7 +844,10 @@ fn refuse_duplicates(flights: &[Flight]) -> Result<(), DiagnoseError> {
                 let same = if a.name == b.name {
                     format!("{} is given twice", a.name)
                 } else {
-                    format!("{} and {} hold the same data (identical samples)", a.name, b.name)
+                    format!(
+                        "{} and {} hold the same data (identical samples)",
+                        a.name, b.name
+                    )
                 };
                 return Err(DiagnoseError::InvalidOption {
                     field: "logs",

@@ -408,7 +408,7 @@ pub fn run_logs(
         for (k, ((name, d), params)) in names.into_iter().zip(single).zip(parameters).enumerate() {
             if flagged[k] {
                 let mut notes = vec![crate::log_params::excluded_note(&name, &params)];
-                notes.extend(family_notes(&families(&report.final_model.added), &d));
+                notes.extend(family_notes(&families(&kept.final_model.added), &d));
                 all.push(LogVerdict {
                     note: notes.join("; "),
                     log: name,
@@ -751,7 +751,11 @@ pub fn report_table(r: &Report) -> String {
                     l.log, l.samples, l.note
                 ));
             }
-            if let Some(mass) = l.parameters.iter().find(|p| p.name == "mass" && p.consistent) {
+            if let Some(mass) = l
+                .parameters
+                .iter()
+                .find(|p| p.name == "mass" && p.consistent)
+            {
                 s.push_str(&format!("    own {}\n", mass.describe()));
             }
         }
