@@ -45,10 +45,16 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("tagk: {err}");
+            let message = err.to_string();
+            eprintln!("tagk: {message}");
+            // A cause the message already quotes (`file: line 3 ...` and its `line 3 ...`) is
+            // not printed a second time.
             let mut source = err.source();
             while let Some(cause) = source {
-                eprintln!("  caused by: {cause}");
+                let text = cause.to_string();
+                if !message.contains(&text) {
+                    eprintln!("  caused by: {text}");
+                }
                 source = cause.source();
             }
             ExitCode::FAILURE

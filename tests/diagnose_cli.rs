@@ -20,10 +20,15 @@ fn tmpdir(name: &str) -> PathBuf {
 /// A 25 s figure-8 flight with quadratic drag hidden (seed 3, medium noise), written by the
 /// simulator's log writer.
 fn write_drag_log(dir: &Path) -> PathBuf {
+    write_drag_log_seeded(dir, 3, "drag.csv")
+}
+
+/// [`write_drag_log`] with another seed, written to `dir/name`.
+fn write_drag_log_seeded(dir: &Path, seed: u64, name: &str) -> PathBuf {
     let config = SimConfig {
         trajectory: TrajectoryKind::Figure8,
         duration: 25.0,
-        seed: 3,
+        seed,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
         effects: PlantEffects::only(EffectKind::QuadraticDrag).unwrap(),
@@ -34,7 +39,7 @@ fn write_drag_log(dir: &Path) -> PathBuf {
     };
     let out = tagk::sim::simulate(&config).expect("simulation runs");
     assert!(!out.metrics.aborted);
-    let path = dir.join("drag.csv");
+    let path = dir.join(name);
     out.log.write_csv_path(&path).unwrap();
     path
 }
@@ -436,8 +441,8 @@ fn the_staircase_is_in_the_json_and_its_command_reproduces_it() {
 fn several_logs_on_the_command_line_and_a_bad_noise_floor() {
     let dir = tmpdir("several");
     let a = write_drag_log(&dir);
-    let b = dir.join("copy.csv");
-    std::fs::copy(&a, &b).unwrap();
+    // Another flight of the vehicle (the same data twice is refused: tests/cli_mistakes.rs).
+    let b = write_drag_log_seeded(&dir, 4, "second.csv");
     let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
         .arg("diagnose")
         .arg(&a)

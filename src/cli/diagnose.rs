@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 pub use crate::diagnose::KnownMass;
+use crate::diagnose::format::shell_join;
 use crate::diagnose::{
     AlignOptions, DEFAULT_ONLINE_STRIDE, DiagnoseError, DiagnosisPlan, EffectKind, FlightLog,
     NextStep, Report, ResolvedPlan, parse_shift, report_table,
@@ -18,7 +19,9 @@ pub struct DiagnoseArgs {
     /// Flight log(s) (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
     /// repository). With --columns each is read through the column mapping. Several logs of
     /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients), and
-    /// each log's own staircase is compared with the joint one.
+    /// each log's own staircase and parameters are compared with the joint ones: a log whose
+    /// mass or effect coefficients differ beyond their intervals (another vehicle state) is
+    /// named and left out of the joint fit. The same data twice is refused.
     #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
     pub logs: Vec<PathBuf>,
     /// Column mapping (TOML, docs/COLUMN_MAPPING.md): column names, units, quaternion order,
@@ -35,10 +38,12 @@ pub struct DiagnoseArgs {
     /// built-in names or aliases (listed below) or the names of --custom effects.
     #[arg(long = "with", value_delimiter = ',', value_name = "EFFECT")]
     pub with: Vec<String>,
-    /// Write every number as JSON to this file.
+    /// Write every number as JSON to this file. Its directory must exist: checked before the
+    /// log is read.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Write a self-contained HTML report with SVG plots into this directory.
+    /// Write a self-contained HTML report with SVG plots into this directory (created, with
+    /// its parents, before the log is read).
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Also run TAG-K online over the log, as the simulator's tuned TAG-K flies, and compare
@@ -60,7 +65,8 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "NAME|FILE")]
     pub vehicle: Option<String>,
     /// Known vehicle mass in kg, or vehicle for the mass prior of --vehicle (fixes the
-    /// mass; makes thrust-gain identifiable). Without it the mass is fitted.
+    /// mass; makes thrust-gain identifiable). Without it the mass is fitted. A mass outside
+    /// 1e-4..1e4 kg is refused (a typo or grams).
     #[arg(long, value_name = "KG|vehicle")]
     pub mass: Option<KnownMass>,
     /// Airframe radius in m beyond which a fitted centre of mass is flagged [default: the
@@ -155,59 +161,57 @@ impl DiagnoseArgs {
         })
     }
 
-    /// The command line that reproduces the final model of a report: these arguments with
-    /// `--with` set to every effect of the final model (the files and flags as given).
-    pub fn command_for(&self, effects: &[String]) -> String {
-        let quote = |p: &std::path::Path| {
-            let s = p.display().to_string();
-            if s.contains(|c: char| c.is_whitespace() || c == '\'' || c == '"') {
-                format!("'{}'", s.replace('\'', "'\\''"))
-            } else {
-                s
-            }
-        };
-        let mut cmd = String::from("tagk diagnose");
-        for log in &self.logs {
-            cmd.push(' ');
-            cmd.push_str(&quote(log));
-        }
+    /// The arguments that reproduce the final model of a report, unquoted: these arguments
+    /// with `--with` set to every effect of the final model (the files and flags as given).
+    pub fn command_args(&self, effects: &[String]) -> Vec<String> {
+        let path = |p: &std::path::Path| p.to_string_lossy().into_owned();
+        let mut args = vec!["tagk".to_string(), "diagnose".to_string()];
+        args.extend(self.logs.iter().map(|l| path(l)));
         for stream in &self.stream {
-            cmd.push_str(&format!(" --stream {}", quote(stream)));
+            args.extend(["--stream".into(), path(stream)]);
         }
         if let Some(c) = &self.columns {
-            cmd.push_str(&format!(" --columns {}", quote(c)));
+            args.extend(["--columns".into(), path(c)]);
         }
         if let Some(v) = &self.vehicle {
-            cmd.push_str(&format!(" --vehicle {v}"));
+            args.extend(["--vehicle".into(), v.clone()]);
         }
         match self.mass {
-            Some(KnownMass::Kg(m)) => cmd.push_str(&format!(" --mass {m}")),
-            Some(KnownMass::Vehicle) => cmd.push_str(" --mass vehicle"),
+            Some(KnownMass::Kg(m)) => args.extend(["--mass".into(), m.to_string()]),
+            Some(KnownMass::Vehicle) => args.extend(["--mass".into(), "vehicle".into()]),
             None => {}
         }
         if let Some(r) = self.airframe_radius {
-            cmd.push_str(&format!(" --airframe-radius {r}"));
+            args.extend(["--airframe-radius".into(), r.to_string()]);
         }
         for c in &self.custom {
-            cmd.push_str(&format!(" --custom {c}"));
+            args.extend(["--custom".into(), c.clone()]);
         }
         if let Some(f) = &self.noise_floor {
             let v: Vec<String> = f.iter().map(|x| format!("{x:e}")).collect();
-            cmd.push_str(&format!(" --noise-floor {}", v.join(",")));
+            args.extend(["--noise-floor".into(), v.join(",")]);
         }
         if let Some(dt) = self.resample {
-            cmd.push_str(&format!(" --resample {dt}"));
+            args.extend(["--resample".into(), dt.to_string()]);
         }
         if self.no_align {
-            cmd.push_str(" --no-align");
+            args.push("--no-align".into());
         }
         for shift in &self.shift {
-            cmd.push_str(&format!(" --shift {}", shift.replace(' ', "")));
+            args.extend(["--shift".into(), shift.replace(' ', "")]);
         }
         if !effects.is_empty() {
-            cmd.push_str(&format!(" --with {}", effects.join(",")));
+            args.extend(["--with".into(), effects.join(",")]);
         }
-        cmd
+        args
+    }
+
+    /// The command line that reproduces the final model of a report ([`Self::command_args`]),
+    /// safe to paste into a POSIX shell: every argument with a character outside
+    /// `[A-Za-z0-9_./=,:@%+-]` (a file name with a space, `;` or `$(…)`, a `--custom`
+    /// specification with `*`) is single-quoted ([`shell_join`]).
+    pub fn command_for(&self, effects: &[String]) -> String {
+        shell_join(self.command_args(effects))
     }
 }
 
@@ -219,11 +223,12 @@ impl DiagnoseArgs {
     /// flight (a joint diagnosis of several logs).
     pub fn next_step(&self, report: &Report) -> NextStep {
         let effects = &report.final_model.effects;
-        let report_dir = self
-            .report
-            .as_ref()
-            .map_or_else(|| "tagk-report".to_string(), |d| d.display().to_string());
-        let with_report = format!("{} --report {report_dir}", self.command_for(effects));
+        let report_dir = self.report.as_ref().map_or_else(
+            || "tagk-report".to_string(),
+            |d| d.to_string_lossy().into_owned(),
+        );
+        let report_dir = shell_join(["--report", &report_dir]);
+        let with_report = format!("{} {report_dir}", self.command_for(effects));
         if !report.final_model.added.is_empty() {
             NextStep {
                 command: with_report,
@@ -246,7 +251,7 @@ impl DiagnoseArgs {
             let mut joint = self.clone();
             joint.logs.push(PathBuf::from("SECOND_FLIGHT.csv"));
             NextStep {
-                command: format!("{} --report {report_dir}", joint.command_for(effects)),
+                command: format!("{} {report_dir}", joint.command_for(effects)),
                 why: "the model is adequate: check it on a second flight of the vehicle".into(),
             }
         } else {
@@ -428,8 +433,11 @@ pub fn merge_summary(m: &MergeReport) -> String {
 /// from the rotor speeds), runs it, prints the summary and writes the requested files.
 ///
 /// # Errors
-/// Log validation errors (naming line and column), fit failures, output failures.
+/// [`DiagnoseError::Output`] for a `--json` or `--report` destination that cannot be written,
+/// before any file is read ([`check_outputs`]); log validation errors (naming line and
+/// column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
+    check_outputs(args)?;
     let vehicle = load_vehicle(args)?;
     let plan = args.with_inputs(args.settings(vehicle.clone())?, &args.logs)?;
     plan.validate()?;
@@ -452,6 +460,60 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     }
     let report = args.finish(plan.run_read()?);
     write_outputs(&report, args)
+}
+
+/// Checks the `--json` and `--report` destinations before any work, so that a typo in them
+/// costs no fit: the JSON file's directory must exist and the file must not be a directory;
+/// the report directory is created (with its parents) and its `index.html` must not be a
+/// directory.
+///
+/// # Errors
+/// [`DiagnoseError::Output`] naming the destination and what is wrong with it.
+pub fn check_outputs(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
+    let output = |path: &std::path::Path, message: String| DiagnoseError::Output {
+        path: path.display().to_string(),
+        message,
+    };
+    if let Some(path) = &args.json {
+        if path.is_dir() {
+            return Err(output(
+                path,
+                "is a directory, not a file (--json FILE)".into(),
+            ));
+        }
+        let parent = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        if !parent.is_dir() {
+            return Err(output(
+                path,
+                format!(
+                    "cannot write the JSON (--json): directory {} does not exist",
+                    parent.display()
+                ),
+            ));
+        }
+        if std::fs::metadata(path).is_ok_and(|m| m.permissions().readonly()) {
+            return Err(output(path, "is read-only (--json)".into()));
+        }
+    }
+    if let Some(dir) = &args.report {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            output(
+                dir,
+                format!("cannot create the report directory (--report): {e}"),
+            )
+        })?;
+        let file = dir.join(crate::diagnose::html::REPORT_FILE);
+        if file.is_dir() {
+            return Err(output(
+                &file,
+                "is a directory, not a file (--report DIR)".into(),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Prints the report (unless `--quiet`) and writes the `--json` and `--report` files.

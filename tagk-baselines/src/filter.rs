@@ -164,9 +164,10 @@ impl<T: Real, S: Storage<T>> BlockFilter<T, S> {
     ) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
         let found = buf.as_ref().len();
-        // Overflowing sizes can never be satisfied: report them as `usize::MAX`.
+        // Sizes whose least layout overflows can never be satisfied.
+        let compact =
+            checked_buffer_len(n, m_max, false).ok_or(ConfigError::TooLarge { n, m: m_max })?;
         let full = checked_buffer_len(n, m_max, true).unwrap_or(usize::MAX);
-        let compact = checked_buffer_len(n, m_max, false).unwrap_or(usize::MAX);
         let fallback = found >= full;
         if !fallback {
             // The compact layout serves the portable kernel only; report the least that works.

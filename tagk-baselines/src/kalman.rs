@@ -54,12 +54,7 @@ impl KalmanFilter {
     pub fn new(n: usize, m_max: usize, config: KalmanConfig) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
-        Self::with_storage(
-            n,
-            m_max,
-            config,
-            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
-        )
+        Self::with_storage(n, m_max, config, crate::owned_buffer(n, m_max)?)
     }
 
     /// The TAG-K paper's "KF-low" baseline ([`KalmanConfig::LOW`]: `σ_Q = 10⁻³`,

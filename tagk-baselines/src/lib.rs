@@ -80,14 +80,14 @@ pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;
 pub use tagk_core::{ConfigError, EstimatorError, OnlineEstimator, Real, Storage, UpdateInfo};
 
-/// The length of the buffer the `Vec` constructors allocate, or a typed error for sizes that
-/// overflow `usize`.
+/// The zeroed buffer the `Vec` constructors allocate ([`tagk_core::zeroed_buffer`]), or
+/// [`ConfigError::TooLarge`] for sizes that overflow `usize` or an allocation the heap
+/// refuses (no abort).
 #[cfg(feature = "alloc")]
-fn owned_buffer_len(n: usize, m_max: usize) -> Result<usize, ConfigError> {
-    filter::checked_buffer_len(n, m_max, true).ok_or(ConfigError::BufferTooSmall {
-        needed: usize::MAX,
-        found: 0,
-    })
+fn owned_buffer(n: usize, m_max: usize) -> Result<alloc::vec::Vec<f64>, ConfigError> {
+    let len =
+        filter::checked_buffer_len(n, m_max, true).ok_or(ConfigError::TooLarge { n, m: m_max })?;
+    tagk_core::zeroed_buffer(len, n, m_max)
 }
 
 /// The storage of [`Rls`] and [`KalmanFilter`] when none is named: a `Vec<T>` with the

@@ -43,12 +43,7 @@ impl Rls {
     pub fn new(n: usize, m_max: usize, config: RlsConfig) -> Result<Self, ConfigError> {
         tagk_core::check_dimensions(n, m_max)?;
         config.validate()?;
-        Self::with_storage(
-            n,
-            m_max,
-            config,
-            alloc::vec![0.0; crate::owned_buffer_len(n, m_max)?],
-        )
+        Self::with_storage(n, m_max, config, crate::owned_buffer(n, m_max)?)
     }
 
     /// The TAG-K paper's "RLS-low" baseline ([`RlsConfig::LOW`]: `λ = 0.99`, `P₀ = 10³·I`).

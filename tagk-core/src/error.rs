@@ -109,6 +109,17 @@ pub enum ConfigError {
         /// Offered length.
         found: usize,
     },
+    /// The buffers of dimension `n` and window capacity `m` hold more scalars than a `usize`
+    /// counts, more bytes than an allocation may have, or more than the heap could give.
+    #[error(
+        "dimension {n} with windows of {m} rows needs more memory than can be addressed or allocated"
+    )]
+    TooLarge {
+        /// The parameter dimension.
+        n: usize,
+        /// The window capacity (maximum rows).
+        m: usize,
+    },
     /// A scalar setting is out of its valid range.
     #[error("invalid `{name}` = {value}: {reason}")]
     InvalidParameter {

@@ -55,8 +55,28 @@ use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
 
 /// Length of the buffer a [`FrontEnd`] of dimension `n` and window capacity `m_max` needs:
 /// `4n + m_max (n + 1)` scalars (scales, estimate, scratch, average, the transformed window).
+/// Saturates at `usize::MAX` where the length overflows (such sizes are refused);
+/// [`checked_front_end_buffer_len`] says so with `None`.
 pub const fn front_end_buffer_len(n: usize, m_max: usize) -> usize {
-    4 * n + m_max * (n + 1)
+    match checked_front_end_buffer_len(n, m_max) {
+        Some(len) => len,
+        None => usize::MAX,
+    }
+}
+
+/// [`front_end_buffer_len`] in checked arithmetic: `None` when the length overflows a
+/// `usize` (the constructors then return [`ConfigError::TooLarge`]).
+pub const fn checked_front_end_buffer_len(n: usize, m_max: usize) -> Option<usize> {
+    let Some(four_n) = n.checked_mul(4) else {
+        return None;
+    };
+    let Some(n1) = n.checked_add(1) else {
+        return None;
+    };
+    let Some(window) = m_max.checked_mul(n1) else {
+        return None;
+    };
+    four_n.checked_add(window)
 }
 
 /// Column scales from a prior guess `prior` of the parameters: `d_j = max(|prior_j|, floor)`
@@ -228,7 +248,8 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> FrontEnd<T, E, S> {
     ) -> Result<Self, ConfigError> {
         config.validate()?;
         let (n, m_max) = (inner.dim(), inner.capacity());
-        let needed = front_end_buffer_len(n, m_max);
+        let needed =
+            checked_front_end_buffer_len(n, m_max).ok_or(ConfigError::TooLarge { n, m: m_max })?;
         let found = buf.as_ref().len();
         if found < needed {
             return Err(ConfigError::BufferTooSmall { needed, found });
@@ -426,10 +447,13 @@ impl<T: Real, E: OnlineEstimator<T>> FrontEnd<T, E, alloc::vec::Vec<T>> {
     /// [`FrontEnd::with_storage`] with its buffer on the heap (allocated once, here).
     ///
     /// # Errors
-    /// As [`FrontEnd::with_storage`].
+    /// As [`FrontEnd::with_storage`]; [`ConfigError::TooLarge`] when the buffer's length
+    /// overflows or its allocation is refused (no abort).
     pub fn new(inner: E, scales: &[T], config: FrontEndConfig) -> Result<Self, ConfigError> {
-        let len = front_end_buffer_len(inner.dim(), inner.capacity());
-        Self::with_storage(inner, scales, config, alloc::vec![T::zero(); len])
+        let (n, m) = (inner.dim(), inner.capacity());
+        let len = checked_front_end_buffer_len(n, m).ok_or(ConfigError::TooLarge { n, m })?;
+        let buf = crate::kaczmarz::zeroed_buffer(len, n, m)?;
+        Self::with_storage(inner, scales, config, buf)
     }
 }
 

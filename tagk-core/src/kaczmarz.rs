@@ -214,16 +214,60 @@ impl KaczmarzConfig {
 /// past its end by the AVX2 Gram kernel).
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
+/// Saturates at `usize::MAX` where the length overflows (no buffer is that long, so such sizes
+/// are refused); [`checked_kaczmarz_buffer_len`] says so with `None`.
 pub const fn kaczmarz_buffer_len(n: usize, m_max: usize) -> usize {
-    let p = padded(m_max);
+    match checked_kaczmarz_buffer_len(n, m_max) {
+        Some(len) => len,
+        None => usize::MAX,
+    }
+}
+
+/// [`kaczmarz_buffer_len`] in checked arithmetic: `None` when the length overflows a `usize`
+/// (the constructors then return [`ConfigError::TooLarge`]).
+pub const fn checked_kaczmarz_buffer_len(n: usize, m_max: usize) -> Option<usize> {
+    /// `?` for `Option` in a `const fn`.
+    macro_rules! ok {
+        ($e:expr) => {
+            match $e {
+                Some(v) => v,
+                None => return None,
+            }
+        };
+    }
+    let p = ok!(crate::linalg::checked_padded(m_max));
     // The transposed copy of a window is only kept where SIMD units are wide (see the Gram
     // kernels).
     let transposed = if crate::linalg::TRANSPOSED_COPY {
-        n * p + crate::linalg::TRANSPOSED_SLACK
+        ok!(ok!(n.checked_mul(p)).checked_add(crate::linalg::TRANSPOSED_SLACK))
     } else {
         0
     };
-    2 * n + 7 * p + p * p + ALIGN_SLACK + transposed
+    let len = ok!(n.checked_mul(2));
+    let len = ok!(len.checked_add(ok!(p.checked_mul(7))));
+    let len = ok!(len.checked_add(ok!(p.checked_mul(p))));
+    let len = ok!(len.checked_add(ALIGN_SLACK));
+    len.checked_add(transposed)
+}
+
+/// A zeroed heap buffer of `len` scalars for an estimator of dimension `n` and capacity `m`,
+/// or [`ConfigError::TooLarge`] when the allocation is refused (`Vec::try_reserve_exact`:
+/// too many bytes for one allocation, or the heap cannot give them) instead of aborting.
+/// Every heap constructor of the workspace's estimators allocates through it.
+///
+/// # Errors
+/// [`ConfigError::TooLarge`] `{ n, m }` when the allocation is refused.
+#[cfg(feature = "alloc")]
+pub fn zeroed_buffer<T: Real>(
+    len: usize,
+    n: usize,
+    m: usize,
+) -> Result<alloc::vec::Vec<T>, ConfigError> {
+    let mut buf = alloc::vec::Vec::new();
+    buf.try_reserve_exact(len)
+        .map_err(|_| ConfigError::TooLarge { n, m })?;
+    buf.resize(len, T::zero());
+    Ok(buf)
 }
 
 /// Whether the final check that the new estimate is finite visits every entry branch-free (a
@@ -313,7 +357,8 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
     ) -> Result<Self, ConfigError> {
         crate::check_dimensions(n, m_max)?;
         config.validate()?;
-        let needed = kaczmarz_buffer_len(n, m_max);
+        let needed =
+            checked_kaczmarz_buffer_len(n, m_max).ok_or(ConfigError::TooLarge { n, m: m_max })?;
         let found = buf.as_ref().len();
         if found < needed {
             return Err(ConfigError::BufferTooSmall { needed, found });
@@ -634,13 +679,16 @@ impl<T: Real, const GREEDY: bool, const AVERAGE: bool>
 {
     /// Builds an estimator of dimension `n` for windows of at most `m_max` rows, with its
     /// buffers on the heap (allocated once, here). The initial estimate is zero.
+    ///
+    /// # Errors
+    /// As [`Kaczmarz::with_storage`]; [`ConfigError::TooLarge`] when the buffer's length
+    /// overflows or its allocation is refused (no abort).
     pub fn new(n: usize, m_max: usize, config: KaczmarzConfig) -> Result<Self, ConfigError> {
-        Self::with_storage(
-            n,
-            m_max,
-            config,
-            alloc::vec![T::zero(); kaczmarz_buffer_len(n, m_max)],
-        )
+        crate::check_dimensions(n, m_max)?;
+        config.validate()?;
+        let len =
+            checked_kaczmarz_buffer_len(n, m_max).ok_or(ConfigError::TooLarge { n, m: m_max })?;
+        Self::with_storage(n, m_max, config, zeroed_buffer(len, n, m_max)?)
     }
 }
 

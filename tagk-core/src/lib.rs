@@ -30,11 +30,15 @@ pub use estimator::{
     validate_estimate, validate_window,
 };
 pub use front_end::{
-    FrontEnd, FrontEndConfig, FrontEndInfo, front_end_buffer_len, scales_from_prior,
+    FrontEnd, FrontEndConfig, FrontEndInfo, checked_front_end_buffer_len, front_end_buffer_len,
+    scales_from_prior,
 };
+#[cfg(feature = "alloc")]
+pub use kaczmarz::zeroed_buffer;
 pub use kaczmarz::{
     BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
-    TagK, TailAveragedKaczmarz, kaczmarz_buffer_len, tagk_paper_config,
+    TagK, TailAveragedKaczmarz, checked_kaczmarz_buffer_len, kaczmarz_buffer_len,
+    tagk_paper_config,
 };
 pub use real::Real;
 pub use synthetic::SyntheticWindows;

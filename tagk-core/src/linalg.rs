@@ -156,6 +156,11 @@ pub(crate) const fn padded(m: usize) -> usize {
     m.div_ceil(8) * 8
 }
 
+/// [`padded`], or `None` when the rounded size overflows a `usize`.
+pub(crate) const fn checked_padded(m: usize) -> Option<usize> {
+    m.div_ceil(8).checked_mul(8)
+}
+
 /// Whether the portable kernels build the Gram matrix from a transposed copy of the window
 /// (`transpose_padded`, then `gram_transposed`: 8-wide tiles for wide SIMD units, x86-64) or
 /// from its rows (`gram_rows`: 2 × 4 tiles for few registers, a Cortex-M7; on aarch64 the

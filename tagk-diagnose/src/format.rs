@@ -56,6 +56,33 @@ pub fn percent_cell(p: Option<f64>, width: usize) -> String {
     format!("{text:>width$}")
 }
 
+/// The characters a command-line argument may hold and still be printed without quotes: a
+/// POSIX shell gives none of them a meaning (`[A-Za-z0-9_./=,:@%+-]`).
+pub fn is_shell_safe(c: char) -> bool {
+    c.is_ascii_alphanumeric() || "_./=,:@%+-".contains(c)
+}
+
+/// One argument as a POSIX shell reads it back unchanged: as it is when made only of
+/// [`is_shell_safe`] characters (and not empty), otherwise in single quotes, each `'` written
+/// `'\''`. Nothing inside single quotes is expanded: `;`, `$(…)`, backticks, spaces and
+/// newlines stay text.
+pub fn shell_quote(arg: &str) -> std::borrow::Cow<'_, str> {
+    if !arg.is_empty() && arg.chars().all(is_shell_safe) {
+        std::borrow::Cow::Borrowed(arg)
+    } else {
+        std::borrow::Cow::Owned(format!("'{}'", arg.replace('\'', r"'\''")))
+    }
+}
+
+/// A command line from its arguments, each quoted by [`shell_quote`] and separated by one
+/// space: safe to paste into a POSIX shell, which splits it back into the same arguments.
+pub fn shell_join<S: AsRef<str>>(args: impl IntoIterator<Item = S>) -> String {
+    args.into_iter()
+        .map(|a| shell_quote(a.as_ref()).into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -831,14 +831,26 @@ fn section_staircase(html: &mut String, report: &Report) {
         ));
     }
     if !report.logs.is_empty() {
-        html.push_str("<h3>Each log alone</h3><table id=\"logs\"><tr><th>log</th><th>samples</th><th>its own staircase</th><th>verdict</th></tr>");
+        html.push_str("<h3>Each log alone</h3><table id=\"logs\"><tr><th>log</th><th>samples</th><th>its own staircase</th><th>its own parameters (95 %), against the others</th><th>verdict</th></tr>");
         for l in &report.logs {
+            let params: Vec<String> = l
+                .parameters
+                .iter()
+                .map(|p| {
+                    format!(
+                        "<span class=\"{}\">{}</span>",
+                        if p.consistent { "" } else { "warn" },
+                        escape(&p.describe())
+                    )
+                })
+                .collect();
             let _ = write!(
                 html,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td></tr>",
                 escape(&l.log),
                 l.samples,
                 escape(&l.added.join(" → ")),
+                params.join("<br>"),
                 if l.agrees { "" } else { "warn" },
                 if l.agrees {
                     "agrees".to_string()

@@ -11,6 +11,7 @@ mod fit;
 pub mod format;
 pub mod html;
 pub mod log;
+pub mod log_params;
 pub mod online;
 mod plan;
 pub mod report;
@@ -36,10 +37,11 @@ pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
 pub use log::{FlightLog, LogSample};
+pub use log_params::{LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{
-    CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KnownMass,
-    ResolvedPlan,
+    CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KNOWN_MASS_RANGE,
+    KnownMass, ResolvedPlan,
 };
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,

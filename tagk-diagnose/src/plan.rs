@@ -27,6 +27,11 @@ use crate::streams::{AlignOptions, StreamAlignment, align_streams_owned};
 /// window length, so that windows touch without overlapping.
 pub const DEFAULT_ONLINE_STRIDE: usize = tagk_dynamics::front_end::WINDOW_FRAMES;
 
+/// The masses a known mass may take \[kg\]: from 0.1 g (below any vehicle that carries an
+/// IMU) to 10 t (beyond any multirotor). A `--mass` outside is a typo or a wrong unit
+/// (grams for kilograms), never a vehicle: it is refused, not fitted.
+pub const KNOWN_MASS_RANGE: [f64; 2] = [1e-4, 1e4];
+
 /// A known vehicle mass: a value, or the vehicle's mass prior.
 ///
 /// It parses from `0.035` or `vehicle` (the command line's `--mass`).
@@ -383,6 +388,7 @@ impl DiagnosisPlan {
     }
 
     /// Fixes the mass: a value in kg, or [`KnownMass::Vehicle`]. Without it the mass is fitted.
+    /// [`DiagnosisPlan::validate`] refuses a mass outside [`KNOWN_MASS_RANGE`].
     pub fn known_mass(mut self, mass: impl Into<KnownMass>) -> Self {
         self.known_mass = Some(mass.into());
         self
@@ -449,8 +455,8 @@ impl DiagnosisPlan {
     /// a built-in effect's name; [`DiagnoseError::UnknownColumn`]: a custom effect naming a
     /// column the log lacks; [`DiagnoseError::UnknownEffect`]: an unknown effect name;
     /// [`DiagnoseError::InvalidOption`] (field `mass`): [`KnownMass::Vehicle`] without a
-    /// vehicle or a mass prior; [`DiagnoseError::InvalidModel`]: a mass that is not positive
-    /// and finite, an effect twice; [`DiagnoseError::InvalidOption`]: invalid options (e.g.
+    /// vehicle or a mass prior, or a mass outside [`KNOWN_MASS_RANGE`];
+    /// [`DiagnoseError::InvalidModel`]: a mass that is not positive and finite, an effect twice; [`DiagnoseError::InvalidOption`]: invalid options (e.g.
     /// `airframe_radius`, `noise_floor`).
     pub fn resolve(&self, log: &FlightLog) -> Result<ResolvedPlan, DiagnoseError> {
         self.resolve_on(Some(log))
@@ -533,7 +539,8 @@ impl DiagnosisPlan {
         })
     }
 
-    /// The known mass \[kg\], checked: positive and finite, the vehicle's prior if asked.
+    /// The known mass \[kg\], checked: positive and finite, within [`KNOWN_MASS_RANGE`], the
+    /// vehicle's prior if asked.
     fn mass(&self) -> Result<Option<f64>, DiagnoseError> {
         let mass = match self.known_mass {
             None => return Ok(None),
@@ -563,6 +570,27 @@ impl DiagnosisPlan {
                     "`--mass {mass}`: the known mass must be a positive, finite number of kg"
                 ),
             }));
+        }
+        let [lo, hi] = KNOWN_MASS_RANGE;
+        if !(lo..=hi).contains(&mass) {
+            // 1e-300 as `1e-300`, not as three hundred digits.
+            let shown = if (1e-3..1e6).contains(&mass.abs()) {
+                format!("{mass}")
+            } else {
+                format!("{mass:e}")
+            };
+            let given = match self.known_mass {
+                Some(KnownMass::Vehicle) => {
+                    format!("`--mass vehicle` (the vehicle's prior {shown} kg)")
+                }
+                _ => format!("`--mass {shown}`"),
+            };
+            return Err(DiagnoseError::InvalidOption {
+                field: "mass",
+                reason: format!(
+                    "{given} is outside any vehicle's mass ({lo:e} to {hi:e} kg): a typo or another unit (grams?)"
+                ),
+            });
         }
         Ok(Some(mass))
     }
@@ -659,7 +687,8 @@ impl DiagnosisPlan {
     ///
     /// # Errors
     /// As [`DiagnosisPlan::resolve`] (against the first flight) and [`DiagnosisPlan::read`];
-    /// [`DiagnoseError::InvalidOption`] (field `logs`) for no flight, or for a flight among
+    /// [`DiagnoseError::InvalidOption`] (field `logs`) for no flight, for two flights with the
+    /// same samples (the same file twice, or identical copies), or for a flight among
     /// several whose gaps leave no segment of [`MIN_ROWS`] samples; a log without the wrench
     /// and no vehicle or no rotor speeds ([`LogError::MissingWrench`], in
     /// [`LogError::InFile`] naming the flight); the log's, the alignment's, the fit's and the
@@ -739,6 +768,7 @@ impl DiagnosisPlan {
 
     /// Several flights jointly; a flight with gaps joins as one log per long enough segment.
     fn run_joint(&self, flights: Vec<Flight>) -> Result<Report, DiagnoseError> {
+        refuse_duplicates(&flights)?;
         let plan = self.resolve(&flights[0].log)?;
         let mut parts = Vec::new();
         let mut streams = Vec::new();
@@ -789,6 +819,67 @@ impl DiagnosisPlan {
         report.sampling = sampling;
         Ok(report)
     }
+}
+
+/// A hash of every sample of a log (time, motion, wrench, the optional signals and the extra
+/// columns with their names), to find the same data given twice under two names.
+fn data_hash(log: &FlightLog) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    let mut floats = |v: &mut dyn Iterator<Item = f64>| {
+        for x in v {
+            x.to_bits().hash(&mut h);
+        }
+        u64::MAX.hash(&mut h);
+    };
+    floats(&mut log.t.iter().copied());
+    floats(&mut log.position.iter().flatten().copied());
+    floats(&mut log.velocity.iter().flatten().copied());
+    floats(&mut log.attitude.iter().flatten().copied());
+    floats(&mut log.omega.iter().flatten().copied());
+    floats(&mut log.wrench.iter().flatten().copied());
+    floats(&mut log.accel.iter().flatten().flatten().copied());
+    floats(&mut log.omega_dot.iter().flatten().flatten().copied());
+    floats(&mut log.rotor_speeds.iter().flatten().flatten().copied());
+    for (name, column) in &log.extra {
+        name.hash(&mut h);
+        for x in column {
+            x.to_bits().hash(&mut h);
+        }
+    }
+    h.finish()
+}
+
+/// Refuses a joint diagnosis in which two flights hold the same data (the same file given
+/// twice, or two files with identical samples): counted twice, one flight would narrow every
+/// interval by √2 and look like a confirmation. Compared by a hash of the samples, then
+/// sample by sample.
+///
+/// # Errors
+/// [`DiagnoseError::InvalidOption`] (field `logs`) naming both flights.
+fn refuse_duplicates(flights: &[Flight]) -> Result<(), DiagnoseError> {
+    let hashes: Vec<u64> = flights.iter().map(|f| data_hash(&f.log)).collect();
+    for (j, b) in flights.iter().enumerate() {
+        for (k, a) in flights[..j].iter().enumerate() {
+            if hashes[k] == hashes[j] && a.log == b.log {
+                let same = if a.name == b.name {
+                    format!("{} is given twice", a.name)
+                } else {
+                    format!(
+                        "{} and {} hold the same data (identical samples)",
+                        a.name, b.name
+                    )
+                };
+                return Err(DiagnoseError::InvalidOption {
+                    field: "logs",
+                    reason: format!(
+                        "{same}: one flight counted twice would narrow every interval by √2; give each flight once"
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A log error of the flight `name`, wrapped to name it ([`LogError::InFile`]).

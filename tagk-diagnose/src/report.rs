@@ -10,7 +10,7 @@ use crate::diagnose::{
 use crate::effects::EffectRef;
 use crate::error::DiagnoseError;
 use crate::fit::{ChannelFit, Model};
-use crate::format::{change_percent, percent_cell};
+use crate::format::{change_percent, percent_cell, shell_join};
 use crate::online::OnlineSummary;
 use crate::signals::{CHANNEL_NAMES, Signals};
 use tagk_dynamics::EffectKind;
@@ -154,6 +154,13 @@ pub struct LogVerdict {
     pub agrees: bool,
     /// Why it disagrees (empty when it agrees).
     pub note: String,
+    /// The log's own parameters under the final joint model (its mass when fitted, the
+    /// effects' coefficients), each against the other logs'
+    /// ([`crate::log_params`]).
+    pub parameters: Vec<crate::log_params::LogParameter>,
+    /// `true` when its parameters are inconsistent with the other logs' (another vehicle
+    /// state): it is left out of the joint fit, and `agrees` is false.
+    pub excluded: bool,
 }
 
 /// The final model of the staircase.
@@ -181,7 +188,7 @@ impl Report {
     pub fn next_step(&self) -> Option<NextStep> {
         self.next.clone().or_else(|| {
             (!self.final_model.added.is_empty()).then(|| NextStep {
-                command: format!("--with {}", self.final_model.effects.join(",")),
+                command: shell_join(["--with", &self.final_model.effects.join(",")]),
                 why: "refit with the effects the stepwise search added".into(),
             })
         })
@@ -339,8 +346,15 @@ fn families(names: &[String]) -> std::collections::BTreeMap<String, String> {
 /// then each log's own staircase, compared with the joint one ([`Report::logs`]). A log that
 /// disagrees says which effect it misses or adds and where that effect stands on it alone.
 ///
+/// Each log's own parameters under the final joint model (mass, effect coefficients) are
+/// compared with the other logs' ([`crate::log_params`]): a log whose parameters are
+/// inconsistent (another vehicle state) is named, left out, and the joint loop is run again
+/// on the others.
+///
 /// # Errors
-/// As [`run_loop`]; [`DiagnoseError::InvalidOption`] for no log or an empty one.
+/// As [`run_loop`]; [`DiagnoseError::InvalidOption`] for no log or an empty one, or (field
+/// `logs`) when no log's parameters are consistent with the others' (two logs of two vehicle
+/// states).
 pub fn run_logs(
     logs: Vec<(String, Signals)>,
     base: &Model,
@@ -361,39 +375,81 @@ pub fn run_logs(
         .iter()
         .map(|p| discover(&start, p, opts))
         .collect::<Result<_, _>>()?;
-    let joint = Signals::concat(parts)?;
+    let joint = Signals::concat(parts.clone())?;
     let mut report = run_loop(&joint, base, with, opts)?;
+    // Each log's own fit of the final joint model, against the others'.
+    let mut final_model = start.clone();
+    for name in &report.final_model.added {
+        if let Some(e) = opts.candidates.iter().find(|c| c.name() == name) {
+            final_model = final_model.with_ref(e.clone());
+        }
+    }
+    let estimates: Vec<_> = parts
+        .iter()
+        .map(|p| crate::log_params::estimates(&final_model, p))
+        .collect();
+    let (parameters, flagged) = crate::log_params::compare(&estimates);
+    if flagged.iter().all(|f| *f) {
+        return Err(crate::log_params::refusal(&names, &parameters));
+    }
+    if flagged.iter().any(|f| *f) {
+        // The consistent logs alone, then the others' verdicts beside theirs, in order.
+        let keep: Vec<(String, Signals)> = names
+            .iter()
+            .cloned()
+            .zip(parts)
+            .zip(&flagged)
+            .filter(|(_, f)| !**f)
+            .map(|(l, _)| l)
+            .collect();
+        let mut kept = run_logs(keep, base, with, opts)?;
+        let mut own = std::mem::take(&mut kept.logs).into_iter();
+        let mut all = Vec::new();
+        for (k, ((name, d), params)) in names.into_iter().zip(single).zip(parameters).enumerate() {
+            if flagged[k] {
+                let mut notes = vec![crate::log_params::excluded_note(&name, &params)];
+                notes.extend(family_notes(&families(&kept.final_model.added), &d));
+                all.push(LogVerdict {
+                    note: notes.join("; "),
+                    log: name,
+                    samples: d.first().samples,
+                    added: d.added.clone(),
+                    agrees: false,
+                    parameters: params,
+                    excluded: true,
+                });
+            } else if let Some(v) = own.next() {
+                all.push(LogVerdict {
+                    parameters: params,
+                    ..v
+                });
+            } else {
+                // The one log left was diagnosed alone: it is the joint fit.
+                all.push(LogVerdict {
+                    log: name,
+                    samples: d.first().samples,
+                    added: d.added.clone(),
+                    agrees: true,
+                    note: String::new(),
+                    parameters: params,
+                    excluded: false,
+                });
+            }
+        }
+        kept.logs = all;
+        return Ok(kept);
+    }
     let joint_families = families(&report.final_model.added);
-    for (name, d) in names.into_iter().zip(single) {
-        let own = families(&d.added);
-        let mut notes = Vec::new();
-        for (family, effect) in &joint_families {
-            if !own.contains_key(family) {
-                let why = d
-                    .last()
-                    .ranking
-                    .iter()
-                    .find(|c| &c.effect == effect)
-                    .map_or_else(
-                        || "not available on this log".to_string(),
-                        |c| c.explanation.rsplit("; ").next().unwrap_or("").to_string(),
-                    );
-                notes.push(format!("misses `{effect}` (alone: {why})"));
-            }
-        }
-        for (family, effect) in &own {
-            if !joint_families.contains_key(family) {
-                notes.push(format!(
-                    "adds `{effect}`, which the joint fit of all logs does not need"
-                ));
-            }
-        }
+    for ((name, d), params) in names.into_iter().zip(single).zip(parameters) {
+        let notes = family_notes(&joint_families, &d);
         verdicts.push(LogVerdict {
             log: name,
             samples: d.first().samples,
             added: d.added.clone(),
             agrees: notes.is_empty(),
             note: notes.join("; "),
+            parameters: params,
+            excluded: false,
         });
     }
     report.logs = verdicts;
@@ -406,6 +462,39 @@ impl ChannelAdequacy {
     pub fn is_white(&self) -> bool {
         self.autocorrelation_sum <= self.autocorrelation_limit
     }
+}
+
+/// How a log's own staircase `d` differs from the joint one (its effect families
+/// `joint_families`): the effects it misses (and where each stands on it alone) and the ones
+/// it adds. Empty when it agrees.
+fn family_notes(
+    joint_families: &std::collections::BTreeMap<String, String>,
+    d: &Discovery,
+) -> Vec<String> {
+    let own = families(&d.added);
+    let mut notes = Vec::new();
+    for (family, effect) in joint_families {
+        if !own.contains_key(family) {
+            let why = d
+                .last()
+                .ranking
+                .iter()
+                .find(|c| &c.effect == effect)
+                .map_or_else(
+                    || "not available on this log".to_string(),
+                    |c| c.explanation.rsplit("; ").next().unwrap_or("").to_string(),
+                );
+            notes.push(format!("misses `{effect}` (alone: {why})"));
+        }
+    }
+    for (family, effect) in &own {
+        if !joint_families.contains_key(family) {
+            notes.push(format!(
+                "adds `{effect}`, which the joint fit of all logs does not need"
+            ));
+        }
+    }
+    notes
 }
 
 fn fmt_fit(f: Option<f64>) -> String {
@@ -603,8 +692,8 @@ pub fn staircase_table(r: &Report) -> String {
         s.push_str(&format!("reproduce it: {cmd}\n"));
     } else if !r.final_model.effects.is_empty() {
         s.push_str(&format!(
-            "reproduce it: --with {}\n",
-            r.final_model.effects.join(",")
+            "reproduce it: {}\n",
+            shell_join(["--with", &r.final_model.effects.join(",")])
         ));
     }
     s
@@ -669,6 +758,13 @@ pub fn report_table(r: &Report) -> String {
                     "  {} ({} samples): {found}; DISAGREES: {}\n",
                     l.log, l.samples, l.note
                 ));
+            }
+            if let Some(mass) = l
+                .parameters
+                .iter()
+                .find(|p| p.name == "mass" && p.consistent)
+            {
+                s.push_str(&format!("    own {}\n", mass.describe()));
             }
         }
     }

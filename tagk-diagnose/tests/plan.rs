@@ -200,3 +200,32 @@ fn a_file_and_the_same_log_in_memory_give_the_same_report() {
     assert!(err.to_string().contains("nosuch.csv"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The same data twice — one log under two names — is refused before the fit, naming both
+/// (counted twice, it would narrow every interval by √2); a changed sample makes it another
+/// flight.
+#[test]
+fn the_same_flight_twice_is_refused() {
+    let log = drag_log(2);
+    let err = DiagnosisPlan::new()
+        .named_log("a", log.clone())
+        .named_log("b", log.clone())
+        .run()
+        .unwrap_err();
+    match &err {
+        DiagnoseError::InvalidOption {
+            field: "logs",
+            reason,
+        } => assert!(reason.starts_with("a and b hold the same data"), "{reason}"),
+        other => panic!("{other:?}"),
+    }
+    let mut other = log.clone();
+    other.wrench[10][2] += 1e-9;
+    let report = DiagnosisPlan::new()
+        .named_log("a", log)
+        .named_log("b", other)
+        .max_steps(0)
+        .run()
+        .unwrap();
+    assert_eq!(report.logs.len(), 2);
+}

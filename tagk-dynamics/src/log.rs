@@ -1117,11 +1117,106 @@ fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
 /// so a row costs no allocation. The results and errors are those of reading each row as a
 /// trimmed `csv::StringRecord` (`csv::Trim::All`), which this reader replaced.
 pub(crate) struct NumericRows<R: Read> {
-    rdr: csv::Reader<R>,
+    rdr: csv::Reader<LineCounter<R>>,
     record: csv::ByteRecord,
     /// The column names, in file order.
     pub(crate) header: Vec<String>,
     line: usize,
+}
+
+/// A reader that notes where its input's lines break, so that a row's 1-based line is
+/// counted from its byte offset: the CSV reader's own line count misses the blank lines and
+/// counts a CRLF file one line short (and a CR-only file not at all). A line ends at `\n`,
+/// or at a `\r` not followed by `\n`. The CSV reader's offset of a row is where the line
+/// ends before it begin (the `\n` of a CRLF, blank lines): the row's line is the one after
+/// them. Only the line ends not yet passed by the rows read are kept (at most the CSV
+/// reader's buffer ahead).
+pub(crate) struct LineCounter<R> {
+    inner: R,
+    /// Byte offset of the next byte read.
+    offset: u64,
+    /// The `\r` and `\n` bytes read but not yet passed: offset, and whether it ends a line.
+    ends: std::collections::VecDeque<(u64, bool)>,
+    /// Line ends already passed.
+    passed: usize,
+    /// Whether the last byte read was a `\r` (still in `ends`, as not ending a line yet).
+    after_cr: bool,
+}
+
+impl<R: Read> LineCounter<R> {
+    fn new(inner: R) -> Self {
+        Self {
+            inner,
+            offset: 0,
+            ends: std::collections::VecDeque::new(),
+            passed: 0,
+            after_cr: false,
+        }
+    }
+
+    /// The 1-based line of the row the CSV reader places at byte `offset` (offsets asked for
+    /// never decrease): the line ends before it, and those of the run of `\r`/`\n` bytes
+    /// that starts at it.
+    fn line_of(&mut self, offset: u64) -> usize {
+        let mut next = offset;
+        while let Some(&(at, ends)) = self.ends.front() {
+            if at < offset || at == next {
+                if at == next {
+                    next += 1;
+                }
+                self.passed += usize::from(ends);
+                self.ends.pop_front();
+            } else {
+                break;
+            }
+        }
+        self.passed + 1
+    }
+
+    /// Marks the `\r` read last as a line end of its own (the next byte is not `\n`).
+    fn close_cr(&mut self) {
+        if std::mem::take(&mut self.after_cr)
+            && let Some(last) = self.ends.back_mut()
+        {
+            last.1 = true;
+        }
+    }
+}
+
+impl<R: Read> Read for LineCounter<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if n == 0 {
+            self.close_cr();
+            return Ok(0);
+        }
+        for (k, &byte) in buf[..n].iter().enumerate() {
+            let at = self.offset + k as u64;
+            match byte {
+                // A CRLF is one line end, at its `\n`.
+                b'\n' => {
+                    self.after_cr = false;
+                    self.ends.push_back((at, true));
+                }
+                b'\r' => {
+                    self.close_cr();
+                    self.ends.push_back((at, false));
+                    self.after_cr = true;
+                }
+                _ => self.close_cr(),
+            }
+        }
+        self.offset += n as u64;
+        Ok(n)
+    }
+}
+
+/// A CSV reader's error message with its own line count (`line: 2,` or `line 2,`) replaced
+/// by the right one.
+fn with_line(message: String, csv_line: u64, line: usize) -> String {
+    message
+        .replacen(&format!("line: {csv_line},"), &format!("line: {line},"), 1)
+        .replacen(&format!("line {csv_line},"), &format!("line {line},"), 1)
 }
 
 /// The CSV reader's input buffer \[bytes\]: large enough that a long log is read in few system
@@ -1135,7 +1230,7 @@ impl<R: Read> NumericRows<R> {
             .has_headers(true)
             .trim(csv::Trim::Headers)
             .buffer_capacity(CSV_BUFFER_BYTES)
-            .from_reader(reader);
+            .from_reader(LineCounter::new(reader));
         let header: Vec<String> = rdr
             .headers()
             .map_err(|e| LogError::Malformed {
@@ -1172,21 +1267,25 @@ impl<R: Read> NumericRows<R> {
             Ok(false) => return Ok(None),
             Ok(true) => {}
             Err(e) => {
-                return Err(LogError::Malformed {
-                    line: e.position().map_or(self.line + 1, |p| p.line() as usize),
-                    message: e.to_string(),
-                });
+                let (line, message) = match e.position() {
+                    Some(p) => {
+                        let line = self.rdr.get_mut().line_of(p.byte());
+                        (line, with_line(e.to_string(), p.line(), line))
+                    }
+                    None => (self.line + 1, e.to_string()),
+                };
+                return Err(LogError::Malformed { line, message });
             }
         }
-        let line = self
-            .record
-            .position()
-            .map_or(self.line + 1, |p| p.line() as usize);
+        let line = match self.record.position() {
+            Some(p) => self.rdr.get_mut().line_of(p.byte()),
+            None => self.line + 1,
+        };
         self.line = line;
         // A row that is not all ASCII is checked for UTF-8 before any cell is parsed, as the
         // string reader did (its error comes before a non-number in an earlier column).
         if !self.record.as_slice().is_ascii()
-            && let Some(e) = utf8_error(&self.record)
+            && let Some(e) = utf8_error(&self.record, line)
         {
             return Err(e);
         }
@@ -1245,18 +1344,18 @@ fn trim_cell(cell: &str) -> &str {
 /// The error of a row that is not valid UTF-8, worded as the CSV reader words it when it reads
 /// the row as a trimmed `csv::StringRecord` (the field's index and the byte up to which it is
 /// valid counted after ASCII trimming), or `None` if the row is valid UTF-8.
-fn utf8_error(record: &csv::ByteRecord) -> Option<LogError> {
+fn utf8_error(record: &csv::ByteRecord, line: usize) -> Option<LogError> {
     let mut trimmed = record.clone();
     trimmed.trim();
     let err = csv::StringRecord::from_byte_record(trimmed).err()?;
     let err = err.utf8_error();
     let pos = record.position()?;
     Some(LogError::Malformed {
-        line: pos.line() as usize,
+        line,
         message: format!(
             "CSV parse error: record {} (line {}, field: {}, byte: {}): {}",
             pos.record(),
-            pos.line(),
+            line,
             err.field(),
             pos.byte(),
             err
@@ -1312,13 +1411,19 @@ mod tests {
                 Ok(false) => return Ok((header, rows)),
                 Ok(true) => {}
                 Err(e) => {
-                    return Err(err(LogError::Malformed {
-                        line: e.position().map_or(last + 1, |p| p.line() as usize),
-                        message: e.to_string(),
-                    }));
+                    let (line, message) = match e.position() {
+                        Some(p) => {
+                            let line = line_at(input, p.byte());
+                            (line, with_line(e.to_string(), p.line(), line))
+                        }
+                        None => (last + 1, e.to_string()),
+                    };
+                    return Err(err(LogError::Malformed { line, message }));
                 }
             }
-            let line = record.position().map_or(last + 1, |p| p.line() as usize);
+            let line = record
+                .position()
+                .map_or(last + 1, |p| line_at(input, p.byte()));
             last = line;
             if record.len() != header.len() {
                 return Err(err(LogError::Malformed {
@@ -1346,6 +1451,23 @@ mod tests {
             }
             rows.push((line, bits));
         }
+    }
+
+    /// The 1-based line of the row the CSV reader places at byte `offset` of `input`, counted
+    /// directly: one more than the `\n` and the `\r` not followed by `\n` before the row's
+    /// first byte that is neither.
+    fn line_at(input: &[u8], offset: u64) -> usize {
+        // The row itself starts after the line ends at its offset.
+        let mut start = (offset as usize).min(input.len());
+        while matches!(input.get(start), Some(b'\r' | b'\n')) {
+            start += 1;
+        }
+        let breaks = input[..start]
+            .iter()
+            .enumerate()
+            .filter(|&(k, &b)| b == b'\n' || (b == b'\r' && input.get(k + 1) != Some(&b'\n')))
+            .count();
+        breaks + 1
     }
 
     /// The same table through [`NumericRows`].
@@ -1379,6 +1501,11 @@ mod tests {
             b"",
             b"a,b\n",
             b"a,b\r\n1,2\r\n\r\n3,4",
+            b"a,b\r\n1,2\r\n\r\n3,x\r\n",
+            b"a,b\n1,2\n\n\n3,x\n",
+            b"a,b\r1,2\r\r3,x\r",
+            b"a,b\r\n\"1\r\n\",2\r\n3,4,5\r\n",
+            b"a,b\n\n1,2\n\n3,\xff\n",
             // Not UTF-8: in a later cell than a non-number, after white space, split by a
             // delimiter, in the header, in an otherwise valid row.
             b"a,b\nx,\xff\n",
@@ -1395,6 +1522,40 @@ mod tests {
                 "input {:?}",
                 String::from_utf8_lossy(case)
             );
+        }
+    }
+
+    /// A bad cell is reported on its own line of the file, whatever came before it: CRLF line
+    /// ends, blank lines, a quoted field that spans two lines.
+    #[test]
+    fn a_bad_cell_names_its_line_after_crlf_blank_lines_and_quoted_newlines() {
+        let cases: &[(&[u8], usize)] = &[
+            (b"a,b\n1,2\n3,x\n", 3),
+            (b"a,b\r\n1,2\r\n3,x\r\n", 3),
+            (b"a,b\n1,2\n\n3,x\n", 4),
+            (b"a,b\r\n1,2\r\n\r\n\r\n3,x\r\n", 5),
+            (b"a,b\n\"1\",\"2\"\n\"3\",\"x\"\n", 3),
+            (b"a,\"b\nc\"\n1,2\n3,x\n", 4),
+            (b"a,b\n\"1\n\",2\n3,x\n", 4),
+            (b"a,b\r\n\"1\r\n\",2\r\n\r\n3,x\r\n", 5),
+            (b"a,b\r1,2\r\r3,x\r", 4),
+        ];
+        for (input, line) in cases {
+            let err = numeric_rows(input).unwrap_err();
+            let expected = format!(
+                "{:?}",
+                LogError::NotANumber {
+                    line: *line,
+                    column: "b".into(),
+                    value: "x".into(),
+                }
+            );
+            let expected = if input.starts_with(b"a,\"b\nc") {
+                expected.replace("column: \"b\"", "column: \"b\\nc\"")
+            } else {
+                expected
+            };
+            assert_eq!(err, expected, "input {:?}", String::from_utf8_lossy(input));
         }
     }
 
