@@ -9,21 +9,26 @@
 //! t = ["timestamp", "time"] # the first one a stream has is used)
 //! px = "pos.x"
 //! q = ["q0", "q1", "q2", "q3"]   # the four quaternion columns, in file order
+//! vbat = "Vbat"             # not a project column: an extra signal renamed (custom effects)
+//! ignore = ["ax", "ay", "az"]    # file columns never read
 //!
-//! [units]                   # by project column or group; SI if absent
+//! [units]                   # by project column, group or extra column; SI if absent
 //! t = "ms"                  # s, ms, us (µs), ns
 //! position = "mm"           # m, cm, mm   (groups: position velocity accel specific_force
 //! omega = "deg/s"           #   omega omega_dot force torque rotor_speeds time)
-//! rotor_speeds = "rpm"      # rad/s, deg/s, rpm
+//! rotor_speeds = { unit = "erpm", pole_pairs = 7 }   # or "rpm", "rad/s", "deg/s"
 //! specific_force = "g"      # the accelerometer (sfx, sfy, sfz): m/s2, mm/s2, g
+//! vbat = 0.001              # a number: multiply by this to get SI
 //!
 //! [frames]
 //! world = "ned"             # enu (default: z up) or ned
 //! body = "frd"              # flu (default: x forward, y left, z up) or frd
 //! quaternion = "xyzw"       # order of the `q` list: wxyz (default) or xyzw
+//! accel = "specific-force"  # ax..az hold p̈ (acceleration, default) or f_w = p̈ − g_w
+//! normalize_quaternion = true   # divide the quaternions by their norm (default false)
 //!
 //! [streams]                 # optional
-//! files = ["imu.csv", "mocap.csv"]   # relative to the mapping file
+//! files = ["imu.csv", "mocap.csv"]   # relative to the mapping file, inside its folder
 //! primary = "imu.csv"       # whose time stamps are the time base (default: the first file)
 //! [streams."mocap.csv"]     # per-stream settings, by file name
 //! offset = 0.02             # [s], added to this stream's time stamps
@@ -32,9 +37,50 @@
 //!
 //! Units (factor to SI): time `s` 1, `ms` 1e-3, `us`/`µs` 1e-6, `ns` 1e-9; length `m` 1, `cm`
 //! 1e-2, `mm` 1e-3; speed `m/s`, `cm/s`, `mm/s`; acceleration `m/s2`, `mm/s2`, `g` (9.80665);
-//! angular rate `rad/s` 1, `deg/s` π/180, `rpm` 2π/60; angular acceleration `rad/s2`,
-//! `deg/s2`; force `N`, `mN`; torque `Nm`, `mNm`, `Nmm`; extra columns also take `rad`, `deg`.
-//! A unit that does not fit the column's quantity (`t = "rpm"`) is an error.
+//! angular rate `rad/s` 1, `deg/s` π/180, `rpm` 2π/60, `{ unit = "erpm", pole_pairs = N }`
+//! (electrical rpm: `2π/60 / N`); angular acceleration `rad/s2`, `deg/s2`; force `N`, `mN`;
+//! torque `Nm`, `mNm`, `Nmm`; extra columns also take `rad`, `deg`. A positive number is the
+//! factor itself. A unit that does not fit the column's quantity (`t = "rpm"`) is an error.
+//!
+//! # Strictness
+//!
+//! A mistake in the mapping is an error, never a silent fallback:
+//!
+//! - a `[columns]` key whose column no stream has ([`InputError::AbsentColumn`], naming the
+//!   key and the nearest header name) — a mapped column is never replaced by the file's column
+//!   of the project's name. One exception: a whole optional quantity (`ax..az`, `sfx..sfz`,
+//!   `dwx..dwz`, `vx..vz`) mapped and in no stream (a mapping shared by logs with and
+//!   without an accelerometer) is a warning of the [`MergeReport`];
+//! - an unknown key in `[units]`, `[frames]`, `[columns]`, `[streams."NAME"]` or at the top
+//!   level that is a typo of a known key (within one edit for keys of up to three characters,
+//!   two for longer ones): `did you mean `omega`?`. Other `[columns]` keys rename an extra
+//!   column, other `[units]` keys give an extra column's unit and must name a column;
+//! - a `[streams."NAME"]` table or `primary` naming no stream file ([`InputError::UnknownStream`],
+//!   with the nearest file name);
+//! - a stream file of `[streams] files` outside the mapping file's folder (absolute, or a
+//!   `..` that leaves it).
+//!
+//! Only the columns the mapping uses are parsed strictly (a bad cell names file, line and
+//! column). Every other column is read leniently: text, booleans (`True`/`False`) and empty
+//! cells are allowed there, and such a column is not offered as an extra signal (the
+//! [`MergeReport`] lists it in `unread_columns`; a custom effect naming it says why).
+//!
+//! # Acceleration or specific force
+//!
+//! The project's `ax..az` are the world acceleration `p̈` (gravity removed). Some logs store the
+//! **world-frame specific force** `f_w = p̈ − g_w` under those names (`+9.81` m/s² on z at
+//! hover): say so with `[frames] accel = "specific-force"`, read as `p̈ = f_w + g_w` with the
+//! project's [`GRAVITY_WORLD`] `(0, 0, −9.81)`. Read as `p̈`, columns whose mean on z differs
+//! from the velocity's `Δv_z / T` by more than `g/2` are refused
+//! ([`InputError::AccelLooksLikeSpecificForce`]). `[columns] ignore = ["ax", "ay", "az"]`
+//! leaves them out (the acceleration is then derived).
+//!
+//! # Quaternion norm
+//!
+//! With `[frames] normalize_quaternion = true` the quaternions are divided by their norm (a
+//! norm farther than [`QUATERNION_RENORMALISE_LIMIT`] from 1 is still an error) and the
+//! largest deviation is reported ([`MergeReport::quaternion_renormalised`], and a warning).
+//! Without it a norm off by more than [`crate::log::QUATERNION_NORM_TOLERANCE`] is refused.
 //!
 //! # Frames (the exact rotations)
 //!
@@ -76,6 +122,16 @@
 //! gap of a stream it interpolates, or outside that stream's time range, is **dropped** (never
 //! interpolated over) and counted in the [`MergeReport`]. Gaps of the primary stream itself
 //! are reported too (the diagnosis splits the log at every gap, [`FlightLog::sampling`]).
+//!
+//! Each stream's rate (one over its median step), span, offset, overlap with the time base and
+//! the samples dropped because of it are in the [`MergeReport`] ([`StreamSummary`]). A stream
+//! that provides a quantity is refused ([`InputError::StreamTooSparse`]) with fewer than
+//! [`MIN_STREAM_SAMPLES`] samples, or, unless it provides only position and velocity, a
+//! median step above [`MAX_STREAM_STEP`] (below 10 Hz); and
+//! ([`InputError::StreamOverlap`]) when its time range overlaps less than
+//! [`MIN_STREAM_OVERLAP`] of the time base's span (an implausible offset, a wrong time unit, a
+//! stream of another flight). More than [`DROPPED_WARNING_FRACTION`] of the time base dropped
+//! because of one stream is a warning.
 //!
 //! Derived columns: a stream with position but no velocity gets its velocity by the
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
@@ -761,7 +817,7 @@ fn parse_units(t: &toml::Table, what: &str) -> Result<BTreeMap<String, f64>, Str
             }
             None => {
                 // An extra column's unit, unless a typo of a project key.
-                if let Some(near) = nearest(k, unit_keys(), typo_edits(k).max(2)) {
+                if let Some(near) = nearest(k, unit_keys(), typo_edits(k)) {
                     return Err(format!(
                         "{key}: unknown key `{k}`; did you mean `{near}`? (keys: t, the project \
                          columns, the groups time position velocity attitude omega force torque \
@@ -1459,7 +1515,18 @@ impl ColumnMapping {
             }
             best.map(|b| b.1).unwrap_or_default()
         };
+        let has_header = |c: &str| streams.iter().any(|s| s.header.iter().any(|h| h == c));
+        // The nearest header name to the columns asked for, or the file's column of the key's
+        // own name (which a mapping never falls back on) when it has one.
         let absent = |key: String, cands: &[String]| InputError::AbsentColumn {
+            nearest: {
+                let own = key.rsplit('.').next().unwrap_or_default().to_string();
+                if cands.contains(&own) || !has_header(&own) {
+                    nearest_header(cands)
+                } else {
+                    nearest_header(&[own])
+                }
+            },
             key,
             columns: cands
                 .iter()
@@ -1467,9 +1534,7 @@ impl ColumnMapping {
                 .collect::<Vec<_>>()
                 .join(" or "),
             streams: listing(),
-            nearest: nearest_header(cands),
         };
-        let has_header = |c: &str| streams.iter().any(|s| s.header.iter().any(|h| h == c));
         if let Some(q) = &self.quaternion
             && !streams.iter().any(|s| s.found.contains("q"))
         {
