@@ -62,14 +62,25 @@ fn simulate() -> FlightLog {
 /// `map.toml`, with `mapping`'s text); returns the log's path.
 fn write_benchmark(log: &FlightLog, dir: &Path, mapping: &str) -> PathBuf {
     let erpm = 30.0 / std::f64::consts::PI * POLE_PAIRS;
-    let accel = log.accel.as_ref().expect("the simulator logs accelerations");
-    let speeds = log.rotor_speeds.as_ref().expect("the simulator logs rotor speeds");
+    let accel = log
+        .accel
+        .as_ref()
+        .expect("the simulator logs accelerations");
+    let speeds = log
+        .rotor_speeds
+        .as_ref()
+        .expect("the simulator logs rotor speeds");
     let mut text = String::from(
         "t,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz,ax,ay,az,m1_erpm,m2_erpm,m3_erpm,m4_erpm,Vbat,\
          body_poses,target_poses,is_flying,is_tracking\n",
     );
     for i in 0..log.len() {
-        let (p, v, q, w) = (log.position[i], log.velocity[i], log.attitude[i], log.omega[i]);
+        let (p, v, q, w) = (
+            log.position[i],
+            log.velocity[i],
+            log.attitude[i],
+            log.omega[i],
+        );
         // The world-frame specific force f_w = p̈ − g_w.
         let f: Vec<f64> = (0..3).map(|k| accel[i][k] - GRAVITY_WORLD[k]).collect();
         let s = QUATERNION_NORM;
@@ -141,8 +152,15 @@ fn a_benchmark_flight_gives_the_simulators_mass_within_2_percent() {
     );
     assert_eq!(read.extra.len(), 1);
     assert_eq!(read.extra[0].0, "vbat");
-    let unread: Vec<&str> = merge.unread_columns.iter().map(|u| u.column.as_str()).collect();
-    assert_eq!(unread, ["body_poses", "target_poses", "is_flying", "is_tracking"]);
+    let unread: Vec<&str> = merge
+        .unread_columns
+        .iter()
+        .map(|u| u.column.as_str())
+        .collect();
+    assert_eq!(
+        unread,
+        ["body_poses", "target_poses", "is_flying", "is_tracking"]
+    );
     let report = diagnose_log(&read, &args).unwrap();
     let m = report.final_diagnosis().parameters[0].value;
     let error = (m - CRAZYFLIE_MASS).abs() / CRAZYFLIE_MASS;
@@ -175,7 +193,14 @@ fn the_naive_mapping_is_refused_naming_the_specific_force() {
     );
     // The command line says so on its standard error and fails.
     let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(["diagnose", "--columns", "map.toml", "--vehicle", "crazyflie-2.1", "flight.csv"])
+        .args([
+            "diagnose",
+            "--columns",
+            "map.toml",
+            "--vehicle",
+            "crazyflie-2.1",
+            "flight.csv",
+        ])
         .current_dir(&dir)
         .output()
         .unwrap();
@@ -210,16 +235,17 @@ fn the_renormalised_quaternion_and_the_unread_columns_are_in_terminal_json_and_h
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let warning = "warning: the quaternions of flight.csv were divided by their norm \
                    (normalize_quaternion): the largest |‖q‖ − 1| was 0.0130";
     let unread = "not read (unmapped, not numeric): body_poses (flight.csv, line 2: ``)";
     assert!(stdout.contains(warning), "{stdout}");
     assert!(stdout.contains(unread), "{stdout}");
-    assert!(
-        stdout.contains("stream flight.csv: 50.0 Hz, "),
-        "{stdout}"
-    );
+    assert!(stdout.contains("stream flight.csv: 50.0 Hz, "), "{stdout}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
     let input = &json["inputs"][0];

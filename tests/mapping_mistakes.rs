@@ -81,7 +81,12 @@ fn refused(dir: &Path, expected: &str) {
 #[test]
 fn a_mapped_column_no_stream_has_is_refused_naming_the_key() {
     let dir = copy_shipped("absent");
-    edit(&dir, "map.toml", "sfx = \"acc_x\"", "sfx = \"no_such_column\"");
+    edit(
+        &dir,
+        "map.toml",
+        "sfx = \"acc_x\"",
+        "sfx = \"no_such_column\"",
+    );
     refused(
         &dir,
         "columns.sfx = \"no_such_column\": no stream has this column (imu.csv: time_ms, gyro_x",
@@ -101,7 +106,12 @@ fn a_typo_in_a_unit_key_is_refused_with_the_nearest_key() {
 #[test]
 fn a_typo_in_a_streams_key_is_refused_with_the_nearest_file_name() {
     let dir = copy_shipped("streamkey");
-    edit(&dir, "map.toml", "[streams.\"mocap.csv\"]", "[streams.\"mocap.cvs\"]");
+    edit(
+        &dir,
+        "map.toml",
+        "[streams.\"mocap.csv\"]",
+        "[streams.\"mocap.cvs\"]",
+    );
     refused(
         &dir,
         "streams.\"mocap.cvs\": no stream file is named `mocap.cvs` (the streams: imu.csv, \
@@ -146,7 +156,11 @@ fn a_motors_stream_2_s_late_is_warned_about_in_terminal_json_and_html() {
         Some(r)
     });
     let out = diagnose(&dir, &["--json", "out.json", "--report", "rep"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let warning = "100 of the time base's 1250 samples (8 %) dropped because of motors.csv \
                    (outside its time range t = 2.010 to 26.990 s, offset 0 s, or in its gaps): \
@@ -173,7 +187,10 @@ fn a_motors_stream_2_s_late_is_warned_about_in_terminal_json_and_html() {
     assert_eq!(input["streams"][1]["stream"], "motors.csv");
     assert_eq!(input["streams"][1]["dropped"], 100);
     let html = std::fs::read_to_string(dir.join("rep/index.html")).unwrap();
-    assert!(html.contains(&format!("warning: {warning}")), "no warning in the HTML");
+    assert!(
+        html.contains(&format!("warning: {warning}")),
+        "no warning in the HTML"
+    );
     // With --quiet the terminal is silent, the JSON still has it.
     let out = diagnose(&dir, &["--quiet", "--json", "quiet.json"]);
     assert!(out.stdout.is_empty());
@@ -198,7 +215,11 @@ fn text_in_an_unmapped_column_is_not_read_and_is_reported() {
     }
     std::fs::write(&p, out).unwrap();
     let out = diagnose(&dir, &["--json", "out.json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("not read (unmapped, not numeric): status (imu.csv, line 2: `False`)"),

@@ -679,21 +679,22 @@ impl DiagnosisPlan {
     /// # Errors
     /// As [`DiagnosisPlan::resolve`]; [`DiagnoseError::UnreadColumn`] for such a column.
     pub fn resolve_flight(&self, flight: &Flight) -> Result<ResolvedPlan, DiagnoseError> {
-        self.resolve(&flight.log).map_err(|e| match (e, &flight.merge) {
-            (DiagnoseError::UnknownColumn { effect, column }, Some(merge)) => {
-                match merge.unread_columns.iter().find(|u| u.column == column) {
-                    Some(u) => DiagnoseError::UnreadColumn {
-                        effect,
-                        column,
-                        stream: u.stream.clone(),
-                        line: u.line,
-                        value: u.value.clone(),
-                    },
-                    None => DiagnoseError::UnknownColumn { effect, column },
+        self.resolve(&flight.log)
+            .map_err(|e| match (e, &flight.merge) {
+                (DiagnoseError::UnknownColumn { effect, column }, Some(merge)) => {
+                    match merge.unread_columns.iter().find(|u| u.column == column) {
+                        Some(u) => DiagnoseError::UnreadColumn {
+                            effect,
+                            column,
+                            stream: u.stream.clone(),
+                            line: u.line,
+                            value: u.value.clone(),
+                        },
+                        None => DiagnoseError::UnknownColumn { effect, column },
+                    }
                 }
-            }
-            (e, _) => e,
-        })
+                (e, _) => e,
+            })
     }
 
     /// One flight alone: split at its gaps, its segments fitted jointly.

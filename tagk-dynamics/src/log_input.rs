@@ -609,7 +609,11 @@ fn edit_distance(a: &str, b: &str) -> usize {
 }
 
 /// The candidate nearest `word` by edit distance, if any is within `max` edits.
-fn nearest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>, max: usize) -> Option<&'a str> {
+fn nearest<'a>(
+    word: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+    max: usize,
+) -> Option<&'a str> {
     candidates
         .into_iter()
         .map(|c| (edit_distance(word, c), c))
@@ -744,7 +748,10 @@ fn parse_unit_value(v: &toml::Value, key: &str) -> Result<(f64, Option<Quantity>
             .as_integer()
             .filter(|n| *n > 0)
             .ok_or_else(|| format!("{key}.pole_pairs: expected a positive whole number"))?;
-        Ok((std::f64::consts::PI / 30.0 / n as f64, Some(Quantity::AngularRate)))
+        Ok((
+            std::f64::consts::PI / 30.0 / n as f64,
+            Some(Quantity::AngularRate),
+        ))
     };
     match v {
         toml::Value::String(u) => {
@@ -765,7 +772,9 @@ fn parse_unit_value(v: &toml::Value, key: &str) -> Result<(f64, Option<Quantity>
             Ok((f, Some(q)))
         }
         toml::Value::Integer(_) | toml::Value::Float(_) => {
-            let x = v.as_float().unwrap_or_else(|| v.as_integer().unwrap_or(0) as f64);
+            let x = v
+                .as_float()
+                .unwrap_or_else(|| v.as_integer().unwrap_or(0) as f64);
             if x.is_finite() && x > 0.0 {
                 Ok((x, None))
             } else {
@@ -808,7 +817,9 @@ fn parse_units(t: &toml::Table, what: &str) -> Result<BTreeMap<String, f64>, Str
                 if let Some(q) = q
                     && expected != q
                 {
-                    let u = v.as_str().or_else(|| v.get("unit").and_then(|u| u.as_str()));
+                    let u = v
+                        .as_str()
+                        .or_else(|| v.get("unit").and_then(|u| u.as_str()));
                     return Err(format!(
                         "{key}: unit `{}` does not fit (a {expected:?} unit is expected)",
                         u.unwrap_or_default()
@@ -1008,7 +1019,11 @@ impl ColumnMapping {
                                 s.units = parse_units(table(sv, &what)?, &what)?;
                             }
                             other => {
-                                return Err(unknown_key(&what, other, &["offset", "columns", "units"]));
+                                return Err(unknown_key(
+                                    &what,
+                                    other,
+                                    &["offset", "columns", "units"],
+                                ));
                             }
                         }
                     }
@@ -1161,7 +1176,12 @@ impl MergeReport {
             let cols: Vec<String> = self
                 .unread_columns
                 .iter()
-                .map(|c| format!("{} ({}, line {}: `{}`)", c.column, c.stream, c.line, c.value))
+                .map(|c| {
+                    format!(
+                        "{} ({}, line {}: `{}`)",
+                        c.column, c.stream, c.line, c.value
+                    )
+                })
                 .collect();
             text.push_str(&format!(
                 "\nnot read (unmapped, not numeric): {}",
@@ -1345,9 +1365,9 @@ impl ColumnMapping {
                 extra_idx.push((k.clone(), j));
             }
         }
-        for j in 0..header.len() {
+        for (j, h) in header.iter().enumerate() {
             if !used.contains(&j) && !ignored(j) && !extra_idx.iter().any(|(_, e)| *e == j) {
-                extra_idx.push((header[j].clone(), j));
+                extra_idx.push((h.clone(), j));
             }
         }
         reader.set_lenient((0..header.len()).map(|j| !used.contains(&j)).collect());
@@ -1386,7 +1406,7 @@ impl ColumnMapping {
             if *g == Group::Attitude && self.normalize_quaternion {
                 for (i, q) in rows.iter_mut().enumerate() {
                     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-                    if !((norm - 1.0).abs() <= QUATERNION_RENORMALISE_LIMIT) {
+                    if norm.is_nan() || (norm - 1.0).abs() > QUATERNION_RENORMALISE_LIMIT {
                         return Err(InputError::QuaternionFarFromUnit {
                             path: path.display().to_string(),
                             line: lines[i],
@@ -1474,7 +1494,11 @@ impl ColumnMapping {
     /// Checks the mapping against the streams read: every `[streams."NAME"]` and `primary`
     /// names a stream; every `[columns]` key has a column in some stream (a whole optional
     /// quantity that no stream has is a warning); every extra column's unit names a column.
-    fn check_against(&self, streams: &[Stream], report: &mut MergeReport) -> Result<(), InputError> {
+    fn check_against(
+        &self,
+        streams: &[Stream],
+        report: &mut MergeReport,
+    ) -> Result<(), InputError> {
         let names: Vec<&str> = streams.iter().map(|s| s.name.as_str()).collect();
         let unknown = |key: String, name: &str| InputError::UnknownStream {
             key,
@@ -1546,17 +1570,20 @@ impl ColumnMapping {
             if streams.iter().any(|s| s.found.contains(k)) {
                 continue;
             }
-            let group = Group::ALL.iter().copied().find(|g| g.columns().contains(&k.as_str()));
+            let group = Group::ALL
+                .iter()
+                .copied()
+                .find(|g| g.columns().contains(&k.as_str()));
             // A whole optional quantity mapped and in no stream (a mapping shared by logs with
             // and without, say, an accelerometer) is a warning; anything else is an error.
             let optional_and_wholly_absent = group.is_some_and(|g| {
                 matches!(
                     g,
                     Group::Accel | Group::SpecificForce | Group::OmegaDot | Group::Velocity
-                ) && g.columns().iter().all(|c| {
-                    !has_header(c)
-                        && !streams.iter().any(|s| s.found.contains(*c))
-                })
+                ) && g
+                    .columns()
+                    .iter()
+                    .all(|c| !has_header(c) && !streams.iter().any(|s| s.found.contains(*c)))
             });
             if !optional_and_wholly_absent || has_header(k) {
                 return Err(absent(format!("columns.{k}"), cands));
@@ -1567,7 +1594,11 @@ impl ColumnMapping {
                 let mapped: Vec<String> = g
                     .columns()
                     .iter()
-                    .filter_map(|c| self.columns.get(*c).map(|v| format!("{c} = {}", v.join(" or "))))
+                    .filter_map(|c| {
+                        self.columns
+                            .get(*c)
+                            .map(|v| format!("{c} = {}", v.join(" or ")))
+                    })
                     .collect();
                 report.warnings.push(format!(
                     "the mapping's {} ({}) is in no stream: {} not read",
@@ -1581,7 +1612,9 @@ impl ColumnMapping {
             if key_quantity(k).is_none()
                 && !has_header(k)
                 && !streams.iter().any(|s| s.extra.iter().any(|(n, _)| n == k))
-                && !streams.iter().any(|s| s.unread.iter().any(|u| &u.column == k))
+                && !streams
+                    .iter()
+                    .any(|s| s.unread.iter().any(|u| &u.column == k))
             {
                 return Err(absent(format!("units.{k}"), std::slice::from_ref(k)));
             }
@@ -1863,8 +1896,7 @@ pub fn read_streams(
             .iter()
             .any(|g| !matches!(g, Group::Position | Group::Velocity));
         if !provides.is_empty()
-            && (s.t.len() < MIN_STREAM_SAMPLES
-                || (fast_needed && !(step <= MAX_STREAM_STEP)))
+            && (s.t.len() < MIN_STREAM_SAMPLES || (fast_needed && (step.is_nan() || step > MAX_STREAM_STEP)))
         {
             return Err(InputError::StreamTooSparse {
                 stream: s.name.clone(),
@@ -2062,7 +2094,7 @@ fn check_accel_is_acceleration(
         return Ok(());
     }
     let span = t[n - 1] - t[0];
-    if !(span > 0.0) {
+    if span.is_nan() || span <= 0.0 {
         return Ok(());
     }
     let mean_z = accel.iter().map(|a| a[2]).sum::<f64>() / n as f64;

@@ -7,11 +7,10 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::UnitQuaternion;
-use tagk_dynamics::log_input::{
-    ColumnMapping, InputError, MergeReport, QUATERNION_RENORMALISE_LIMIT, ReadOptions,
-    read_streams,
-};
 use tagk_dynamics::log::{FlightLog, LogError};
+use tagk_dynamics::log_input::{
+    ColumnMapping, InputError, MergeReport, QUATERNION_RENORMALISE_LIMIT, ReadOptions, read_streams,
+};
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tagk-strict-{name}-{}", std::process::id()));
@@ -119,10 +118,15 @@ fn a_mapped_column_no_stream_has_is_an_error_naming_the_key_and_the_nearest_head
         "{e:?}"
     );
     assert!(
-        msg.starts_with("columns.ax = \"no_such_column\": no stream has this column (log.csv: t, px"),
+        msg.starts_with(
+            "columns.ax = \"no_such_column\": no stream has this column (log.csv: t, px"
+        ),
         "{msg}"
     );
-    assert!(msg.ends_with("nearest header name: `ax` (log.csv)"), "{msg}");
+    assert!(
+        msg.ends_with("nearest header name: `ax` (log.csv)"),
+        "{msg}"
+    );
     // A list of candidates is fine when one stream has one of them, and with two streams a
     // key may be in one only.
     let (a, _) = read(
@@ -133,10 +137,7 @@ fn a_mapped_column_no_stream_has_is_an_error_naming_the_key_and_the_nearest_head
     assert!(a.accel.is_some());
     let r = rows();
     let gyro: Vec<Vec<f64>> = r.iter().map(|x| vec![x[0], x[11], x[12], x[13]]).collect();
-    let rest: Vec<Vec<f64>> = r
-        .iter()
-        .map(|x| [&x[..11], &x[14..]].concat())
-        .collect();
+    let rest: Vec<Vec<f64>> = r.iter().map(|x| [&x[..11], &x[14..]].concat()).collect();
     let mut rest_header = HEADER[..11].to_vec();
     rest_header.extend(&HEADER[14..]);
     let a = write(&dir, "a.csv", &rest_header, &rest);
@@ -147,9 +148,14 @@ fn a_mapped_column_no_stream_has_is_an_error_naming_the_key_and_the_nearest_head
     )
     .unwrap();
     assert_eq!(merged.omega[5], [r[5][11], r[5][12], r[5][13]]);
-    let e = read(&[a, b], "[columns]\nwx = \"gx\"\nwy = \"gy\"\nwz = \"g_z\"\n").unwrap_err();
+    let e = read(
+        &[a, b],
+        "[columns]\nwx = \"gx\"\nwy = \"gy\"\nwz = \"g_z\"\n",
+    )
+    .unwrap_err();
     assert!(
-        e.to_string().contains("columns.wz = \"g_z\": no stream has this column")
+        e.to_string()
+            .contains("columns.wz = \"g_z\": no stream has this column")
             && e.to_string().contains("nearest header name: `gz` (b.csv)"),
         "{e}"
     );
@@ -158,12 +164,30 @@ fn a_mapped_column_no_stream_has_is_an_error_naming_the_key_and_the_nearest_head
 #[test]
 fn a_typo_in_a_key_is_an_error_with_the_nearest_key() {
     let cases = [
-        ("[units]\nomgea = \"deg/s\"\n", "units.omgea: unknown key `omgea`; did you mean `omega`?"),
-        ("[frames]\nwrold = \"ned\"\n", "frames: unknown key `wrold`; did you mean `world`?"),
-        ("[frames]\nacel = \"specific-force\"\n", "did you mean `accel`?"),
-        ("[columns]\npxx = \"x\"\n", "columns.pxx: unknown project column `pxx`; did you mean `px`?"),
-        ("[columns]\nomega = \"gyro\"\n", "columns.omega: columns are mapped one by one (wx, wy, wz)"),
-        ("[unit]\nt = \"ms\"\n", "unknown table `unit`; did you mean `units`?"),
+        (
+            "[units]\nomgea = \"deg/s\"\n",
+            "units.omgea: unknown key `omgea`; did you mean `omega`?",
+        ),
+        (
+            "[frames]\nwrold = \"ned\"\n",
+            "frames: unknown key `wrold`; did you mean `world`?",
+        ),
+        (
+            "[frames]\nacel = \"specific-force\"\n",
+            "did you mean `accel`?",
+        ),
+        (
+            "[columns]\npxx = \"x\"\n",
+            "columns.pxx: unknown project column `pxx`; did you mean `px`?",
+        ),
+        (
+            "[columns]\nomega = \"gyro\"\n",
+            "columns.omega: columns are mapped one by one (wx, wy, wz)",
+        ),
+        (
+            "[unit]\nt = \"ms\"\n",
+            "unknown table `unit`; did you mean `units`?",
+        ),
         (
             "[streams.\"a.csv\"]\nofset = 0.1\n",
             "streams.\"a.csv\": unknown key `ofset`; did you mean `offset`?",
@@ -203,28 +227,43 @@ fn a_streams_table_naming_no_stream_file_is_an_error_with_the_nearest_name() {
          mean `imu.csv`?"
     );
     let e = read(std::slice::from_ref(&log), "[streams]\nprimary = \"imu\"\n").unwrap_err();
-    assert!(e.to_string().starts_with("streams.primary: no stream file"), "{e}");
+    assert!(
+        e.to_string().starts_with("streams.primary: no stream file"),
+        "{e}"
+    );
 }
 
 #[test]
 fn stream_files_outside_the_mapping_folder_are_refused() {
     for bad in ["../imu.csv", "sub/../../imu.csv", "/etc/imu.csv"] {
-        let e = ColumnMapping::from_toml_str(&format!("[streams]\nfiles = [\"{bad}\"]\n"))
-            .unwrap_err();
+        let e =
+            ColumnMapping::from_toml_str(&format!("[streams]\nfiles = [\"{bad}\"]\n")).unwrap_err();
         assert!(
-            e.starts_with(&format!("streams.files: `{bad}` is outside the mapping file's folder")),
+            e.starts_with(&format!(
+                "streams.files: `{bad}` is outside the mapping file's folder"
+            )),
             "{e}"
         );
     }
     let dir = tmpdir("confined");
-    std::fs::write(dir.join("map.toml"), "[streams]\nfiles = [\"sub/../imu.csv\", \"logs/a.csv\"]\n")
-        .unwrap();
+    std::fs::write(
+        dir.join("map.toml"),
+        "[streams]\nfiles = [\"sub/../imu.csv\", \"logs/a.csv\"]\n",
+    )
+    .unwrap();
     let m = ColumnMapping::from_path(dir.join("map.toml")).unwrap();
-    assert_eq!(m.files, [dir.join("sub/../imu.csv"), dir.join("logs/a.csv")]);
+    assert_eq!(
+        m.files,
+        [dir.join("sub/../imu.csv"), dir.join("logs/a.csv")]
+    );
     std::fs::write(dir.join("bad.toml"), "[streams]\nfiles = [\"../x.csv\"]\n").unwrap();
     let e = ColumnMapping::from_path(dir.join("bad.toml")).unwrap_err();
     assert!(matches!(e, InputError::Mapping { .. }));
-    assert!(e.to_string().contains("bad.toml: streams.files: `../x.csv`"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("bad.toml: streams.files: `../x.csv`"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -295,7 +334,11 @@ fn unmapped_columns_are_not_parsed_and_used_ones_still_are() {
         .collect();
     assert_eq!(
         unread,
-        [("status", 2, "True"), ("body_poses", 2, ""), ("note", 2, "ok")]
+        [
+            ("status", 2, "True"),
+            ("body_poses", 2, ""),
+            ("note", 2, "ok")
+        ]
     );
     assert!(
         report
@@ -336,7 +379,8 @@ fn a_quaternion_of_norm_1_013_is_refused_or_renormalised_on_request() {
         "{e:?}"
     );
     assert!(
-        e.to_string().contains("`[frames] normalize_quaternion = true`"),
+        e.to_string()
+            .contains("`[frames] normalize_quaternion = true`"),
         "{e}"
     );
     let (l, report) = read(
@@ -349,8 +393,11 @@ fn a_quaternion_of_norm_1_013_is_refused_or_renormalised_on_request() {
     let q = l.attitude[3];
     assert!((q.iter().map(|x| x * x).sum::<f64>().sqrt() - 1.0).abs() < 1e-12);
     assert!(
-        report.warnings.iter().any(|w| w.contains("divided by their norm")
-            && w.contains("largest |‖q‖ − 1| was 0.0130")),
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("divided by their norm")
+                && w.contains("largest |‖q‖ − 1| was 0.0130")),
         "{:?}",
         report.warnings
     );
@@ -358,7 +405,9 @@ fn a_quaternion_of_norm_1_013_is_refused_or_renormalised_on_request() {
     let r: Vec<Vec<f64>> = rows()
         .into_iter()
         .map(|mut r| {
-            r[7..11].iter_mut().for_each(|x| *x *= 1.0 + 2.0 * QUATERNION_RENORMALISE_LIMIT);
+            r[7..11]
+                .iter_mut()
+                .for_each(|x| *x *= 1.0 + 2.0 * QUATERNION_RENORMALISE_LIMIT);
             r
         })
         .collect();
@@ -393,11 +442,16 @@ fn the_world_frame_specific_force_is_refused_as_acceleration_and_read_when_said(
     .unwrap();
     for (i, &t) in l.t.iter().enumerate() {
         let a = accel(t);
-        for k in 0..3 {
-            assert!((l.accel.as_ref().unwrap()[i][k] - a[k]).abs() < 1e-12);
+        for (read, exact) in l.accel.as_ref().unwrap()[i].iter().zip(a) {
+            assert!((read - exact).abs() < 1e-12);
         }
     }
-    assert!(report.derived.iter().any(|d| d.contains("world-frame specific force")));
+    assert!(
+        report
+            .derived
+            .iter()
+            .any(|d| d.contains("world-frame specific force"))
+    );
     // Said explicitly, `acceleration` reads p̈ as it is.
     let plain = tmpdir("specific-plain");
     let (l, _) = read(
@@ -442,10 +496,13 @@ fn a_wrench_stream_at_1_hz_or_of_2_rows_is_refused() {
         matches!(&e, InputError::StreamTooSparse { stream, samples: 11, .. } if stream == "w.csv"),
         "{e:?}"
     );
-    assert!(e.to_string().starts_with(
-        "w.csv: 11 samples at a median step of 1.000 s (1.00 Hz) cannot support the fit of \
+    assert!(
+        e.to_string().starts_with(
+            "w.csv: 11 samples at a median step of 1.000 s (1.00 Hz) cannot support the fit of \
          force, torque"
-    ), "{e}");
+        ),
+        "{e}"
+    );
     let two: Vec<Vec<f64>> = vec![wrench_at(0.0, 0.0), wrench_at(9.99, 0.0)];
     let e = read(&two_streams(&dir, &two), "").unwrap_err();
     assert!(
@@ -457,7 +514,9 @@ fn a_wrench_stream_at_1_hz_or_of_2_rows_is_refused() {
 #[test]
 fn a_stream_of_another_flight_is_refused_and_a_late_one_warned_about() {
     let dir = tmpdir("late");
-    let other: Vec<Vec<f64>> = (0..1000).map(|i| wrench_at(0.01 * i as f64, 120.0)).collect();
+    let other: Vec<Vec<f64>> = (0..1000)
+        .map(|i| wrench_at(0.01 * i as f64, 120.0))
+        .collect();
     let e = read(&two_streams(&dir, &other), "").unwrap_err();
     assert!(
         matches!(&e, InputError::StreamOverlap { stream, percent, .. } if stream == "w.csv" && *percent == 0.0),
@@ -475,15 +534,20 @@ fn a_stream_of_another_flight_is_refused_and_a_late_one_warned_about() {
     assert!((w.rate - 100.0).abs() < 1e-6);
     assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
     assert!(
-        report.warnings[0].starts_with("200 of the time base's 1000 samples (20 %) dropped because of w.csv"),
+        report.warnings[0]
+            .starts_with("200 of the time base's 1000 samples (20 %) dropped because of w.csv"),
         "{}",
         report.warnings[0]
     );
     assert!(report.text().contains("\nwarning: 200 of the time base's"));
-    assert!(report.text().contains(
-        "stream w.csv: 100.0 Hz, 1000 samples, t = 2.000 to 11.990 s, offset 0 s, overlap 80 % \
+    assert!(
+        report.text().contains(
+            "stream w.csv: 100.0 Hz, 1000 samples, t = 2.000 to 11.990 s, offset 0 s, overlap 80 % \
          of the time base, 200 samples dropped"
-    ), "{}", report.text());
+        ),
+        "{}",
+        report.text()
+    );
     // The offset said: nothing dropped, no warning.
     let (l, report) = read(&paths, "[streams.\"w.csv\"]\noffset = -2.0\n").unwrap();
     assert_eq!(l.len(), 1000);
