@@ -427,6 +427,13 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
                 );
             }
         }
+    } else if !args.quiet {
+        // Several flights: each merge's warnings (the whole reports are in the JSON and HTML).
+        for flight in &flights {
+            for w in flight.merge.iter().flat_map(|m| &m.warnings) {
+                println!("{}: warning: {w}", flight.name);
+            }
+        }
     }
     let report = args.finish(plan.run()?);
     write_outputs(&report, args)

@@ -1896,7 +1896,8 @@ pub fn read_streams(
             .iter()
             .any(|g| !matches!(g, Group::Position | Group::Velocity));
         if !provides.is_empty()
-            && (s.t.len() < MIN_STREAM_SAMPLES || (fast_needed && (step.is_nan() || step > MAX_STREAM_STEP)))
+            && (s.t.len() < MIN_STREAM_SAMPLES
+                || (fast_needed && (step.is_nan() || step > MAX_STREAM_STEP)))
         {
             return Err(InputError::StreamTooSparse {
                 stream: s.name.clone(),
