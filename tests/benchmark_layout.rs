@@ -41,10 +41,15 @@ fn tmpdir(name: &str) -> PathBuf {
 /// A 25 s figure-8 of the Crazyflie with rotor drag in the plant and the paper's medium sensor
 /// noise (seed 3), as the simulator logs it (with its accelerations).
 fn simulate() -> FlightLog {
+    simulate_seed(3)
+}
+
+/// [`simulate`] with another seed.
+fn simulate_seed(seed: u64) -> FlightLog {
     let config = SimConfig {
         trajectory: TrajectoryKind::Figure8,
         duration: 25.0,
-        seed: 3,
+        seed,
         noise: NoiseLevel::Medium,
         payload: PayloadSchedule::None,
         effects: PlantEffects::only(EffectKind::RotorDrag).unwrap(),
@@ -265,4 +270,32 @@ fn the_renormalised_quaternion_and_the_unread_columns_are_in_terminal_json_and_h
     );
     assert!(html.contains("<h2 id=\"inputs\">Inputs</h2>"));
     assert!(html.contains("<td>flight.csv</td><td>50.0</td>"));
+    // Several flights: each one's warnings in the terminal, under its name.
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let second = write_benchmark(&simulate_seed(4), &other, MAPPING);
+    std::fs::copy(second, dir.join("second.csv")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args([
+            "diagnose",
+            "--columns",
+            "map.toml",
+            "--vehicle",
+            "crazyflie-2.1",
+            "flight.csv",
+            "second.csv",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for name in ["flight.csv", "second.csv"] {
+        let line = format!("{name}: warning: the quaternions of {name} were divided by their norm");
+        assert!(stdout.contains(&line), "{stdout}");
+    }
 }
