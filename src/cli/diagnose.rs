@@ -399,32 +399,10 @@ pub fn read_log(args: &DiagnoseArgs) -> Result<(FlightLog, Option<MergeReport>),
     }
 }
 
-/// The merge report in a few lines (primary stream, sources, derived quantities, gaps,
-/// dropped samples).
+/// The merge report in a few lines (primary stream, sources, derived quantities, each
+/// stream, gaps, dropped samples, warnings): [`MergeReport::text`].
 pub fn merge_summary(m: &MergeReport) -> String {
-    let mut text = format!("time base: {}", m.primary);
-    let sources: Vec<String> = m
-        .sources
-        .iter()
-        .map(|(q, s)| format!("{q} <- {s}"))
-        .collect();
-    text.push_str(&format!("\nquantities: {}", sources.join(", ")));
-    if !m.derived.is_empty() {
-        text.push_str(&format!("\nderived: {}", m.derived.join(", ")));
-    }
-    for g in &m.gaps {
-        text.push_str(&format!(
-            "\ngap in {}: {:.3} s long at t = {:.3} s",
-            g.stream, g.duration, g.start
-        ));
-    }
-    if m.dropped_in_gaps + m.dropped_outside > 0 {
-        text.push_str(&format!(
-            "\ndropped: {} samples inside gaps, {} outside another stream's time range",
-            m.dropped_in_gaps, m.dropped_outside
-        ));
-    }
-    text
+    m.text()
 }
 
 /// `tagk diagnose LOG [--vehicle NAME|FILE] [--with ...] [--json FILE] [--report DIR]
@@ -445,7 +423,7 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     let flights: Vec<_> = plan.flights().collect();
     if let [flight] = flights[..] {
         // Argument errors first, then what was read; the wrench's errors name the file.
-        plan.resolve(&flight.log)?;
+        plan.resolve_flight(flight)?;
         if !args.quiet {
             if let Some(merge) = &flight.merge {
                 println!("{}", merge_summary(merge));
@@ -455,6 +433,13 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
                     "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
                     v.name
                 );
+            }
+        }
+    } else if !args.quiet {
+        // Several flights: each merge's warnings (the whole reports are in the JSON and HTML).
+        for flight in &flights {
+            for w in flight.merge.iter().flat_map(|m| &m.warnings) {
+                println!("{}: warning: {w}", flight.name);
             }
         }
     }

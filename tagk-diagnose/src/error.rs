@@ -42,6 +42,26 @@ pub enum DiagnoseError {
         /// The missing column.
         column: String,
     },
+    /// A custom effect multiplies a column of the log that was not read as a signal: an
+    /// unmapped column with a cell that is not a number
+    /// ([`tagk_dynamics::log_input::UnreadColumn`]).
+    #[error(
+        "custom effect `{effect}`: the column `{column}` of {stream} was not read as a signal: \
+         its cell on line {line} is `{value}`, not a number (unmapped columns are offered to \
+         custom effects only when every cell is a finite number)"
+    )]
+    UnreadColumn {
+        /// Effect name.
+        effect: String,
+        /// The column.
+        column: String,
+        /// The stream file it is in.
+        stream: String,
+        /// The CSV line of its first cell that is not a number.
+        line: usize,
+        /// That cell's text.
+        value: String,
+    },
     /// A setting out of its domain (e.g. `DiagnoseOptions { folds: 0 }`).
     #[error("invalid option `{field}`: {reason}")]
     InvalidOption {

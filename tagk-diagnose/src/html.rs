@@ -26,6 +26,52 @@ pub(crate) const MAX_POINTS: usize = 1200;
 /// Most lags of the correlation plots (`resid`'s default is 25).
 const MAX_LAG: usize = 25;
 
+/// How the flights read through a column mapping were merged: the warnings first, a table of
+/// the streams (rate, span, offset, overlap, dropped samples), then the terminal's lines
+/// ([`tagk_dynamics::log_input::MergeReport::text`]).
+fn section_inputs(html: &mut String, report: &Report) {
+    if report.inputs.is_empty() {
+        return;
+    }
+    let _ = write!(html, "<h2 id=\"inputs\">Inputs</h2>");
+    for (k, m) in report.inputs.iter().enumerate() {
+        for w in &m.warnings {
+            let _ = write!(
+                html,
+                "<p class=\"warn input-warning\">warning: {}</p>",
+                text(w)
+            );
+        }
+        let _ = write!(
+            html,
+            "<table id=\"input-streams-{k}\"><tr><th>stream</th><th>rate [Hz]</th>\
+             <th>samples</th><th>t [s]</th><th>offset [s]</th><th>overlap</th>\
+             <th>dropped</th><th>provides</th></tr>"
+        );
+        for s in &m.streams {
+            let _ = write!(
+                html,
+                "<tr><td>{}</td><td>{:.1}</td><td>{}</td><td>{:.3} to {:.3}</td><td>{}</td>\
+                 <td>{:.0} %</td><td>{}</td><td>{}</td></tr>",
+                escape(&s.stream),
+                s.rate,
+                s.samples,
+                s.start,
+                s.end,
+                s.offset,
+                s.overlap_fraction * 100.0,
+                s.dropped,
+                escape(&s.provides.join(", "))
+            );
+        }
+        let _ = write!(
+            html,
+            "</table><pre id=\"merge-report-{k}\">{}</pre>",
+            text(&m.text())
+        );
+    }
+}
+
 /// Escapes text for HTML/SVG.
 pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -888,6 +934,7 @@ pub fn render(report: &Report) -> String {
             )
         }
     );
+    section_inputs(&mut html, report);
     if !report.streams.is_empty() {
         // The terminal's lines: one wording for both (docs/CONVENTIONS.md §7.2).
         let _ = write!(

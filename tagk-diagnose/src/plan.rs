@@ -738,9 +738,34 @@ impl DiagnosisPlan {
         Ok((log, streams, sampling))
     }
 
+    /// [`DiagnosisPlan::resolve`] on a flight: a custom effect that names a column its merge
+    /// did not read (a cell is not a number) says so.
+    ///
+    /// # Errors
+    /// As [`DiagnosisPlan::resolve`]; [`DiagnoseError::UnreadColumn`] for such a column.
+    pub fn resolve_flight(&self, flight: &Flight) -> Result<ResolvedPlan, DiagnoseError> {
+        self.resolve(&flight.log)
+            .map_err(|e| match (e, &flight.merge) {
+                (DiagnoseError::UnknownColumn { effect, column }, Some(merge)) => {
+                    match merge.unread_columns.iter().find(|u| u.column == column) {
+                        Some(u) => DiagnoseError::UnreadColumn {
+                            effect,
+                            column,
+                            stream: u.stream.clone(),
+                            line: u.line,
+                            value: u.value.clone(),
+                        },
+                        None => DiagnoseError::UnknownColumn { effect, column },
+                    }
+                }
+                (e, _) => e,
+            })
+    }
+
     /// One flight alone: split at its gaps, its segments fitted jointly.
-    fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
-        let plan = self.resolve(&flight.log)?;
+    fn run_one(&self, mut flight: Flight) -> Result<Report, DiagnoseError> {
+        let plan = self.resolve_flight(&flight)?;
+        let inputs: Vec<MergeReport> = flight.merge.take().into_iter().collect();
         let name = flight.name;
         // A flight without a name is a log in memory: its errors stay as they are.
         let wrench_error = |e| match name.as_str() {
@@ -752,6 +777,7 @@ impl DiagnosisPlan {
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
         report.streams = streams;
         report.sampling = vec![sampling];
+        report.inputs = inputs;
         if let Some(stride) = self.online {
             // From the vehicle's nominal parameters when it has them (a pass that converges,
             // as in flight), otherwise from the batch estimate (a pass that stays).
@@ -769,11 +795,13 @@ impl DiagnosisPlan {
     /// Several flights jointly; a flight with gaps joins as one log per long enough segment.
     fn run_joint(&self, flights: Vec<Flight>) -> Result<Report, DiagnoseError> {
         refuse_duplicates(&flights)?;
-        let plan = self.resolve(&flights[0].log)?;
+        let plan = self.resolve_flight(&flights[0])?;
         let mut parts = Vec::new();
         let mut streams = Vec::new();
         let mut sampling = Vec::new();
-        for Flight { name, log, .. } in flights {
+        let mut inputs = Vec::new();
+        for Flight { name, log, merge } in flights {
+            inputs.extend(merge);
             let in_file = |e: DiagnoseError| in_file(&name, e);
             let (log, timing, findings) = self.condition(&name, log, in_file, in_file)?;
             sampling.push(findings);
@@ -817,6 +845,7 @@ impl DiagnosisPlan {
         let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
         report.streams = streams;
         report.sampling = sampling;
+        report.inputs = inputs;
         Ok(report)
     }
 }

@@ -138,6 +138,12 @@ pub struct Report {
     /// what was done about it (split at the gaps, resampled); one entry per log, filled in by
     /// the caller that read the log ([`crate::sampling::SamplingFindings`]), empty otherwise.
     pub sampling: Vec<crate::sampling::SamplingFindings>,
+    /// How each flight read through a column mapping was merged from its streams: each
+    /// stream's rate, span, overlap with the time base and dropped samples, the gaps, the
+    /// unread columns and the warnings ([`tagk_dynamics::log_input::MergeReport`], the lines
+    /// the terminal prints before the diagnosis); one entry per such flight, empty for logs
+    /// read in the project's format.
+    pub inputs: Vec<tagk_dynamics::log_input::MergeReport>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -316,6 +322,7 @@ fn loop_from(
         next: None,
         streams: Vec::new(),
         sampling: Vec::new(),
+        inputs: Vec::new(),
     })
 }
 

@@ -921,7 +921,9 @@ pub enum LogError {
     },
     /// The attitude quaternion's norm is far from one.
     #[error(
-        "line {line}, columns `qw,qx,qy,qz`: quaternion norm {norm:.4} is not 1 (tolerance {tolerance})"
+        "line {line}, columns `qw,qx,qy,qz`: quaternion norm {norm:.4} is not 1 (tolerance {tolerance}); \
+         if the log's quaternions are merely not normalised, read it through a column mapping \
+         with `[frames] normalize_quaternion = true` (docs/COLUMN_MAPPING.md)"
     )]
     QuaternionNorm {
         /// CSV line (1-based; the header is line 1).
@@ -1122,6 +1124,10 @@ pub(crate) struct NumericRows<R: Read> {
     /// The column names, in file order.
     pub(crate) header: Vec<String>,
     line: usize,
+    /// Columns read leniently ([`NumericRows::set_lenient`]); empty: every column is strict.
+    lenient: Vec<bool>,
+    /// For each lenient column, its first cell that is not a finite number: line and text.
+    pub(crate) first_bad: Vec<Option<(usize, String)>>,
 }
 
 /// A reader that notes where its input's lines break, so that a row's 1-based line is
@@ -1257,7 +1263,17 @@ impl<R: Read> NumericRows<R> {
             record: csv::ByteRecord::new(),
             header,
             line: 1,
+            lenient: Vec::new(),
+            first_bad: Vec::new(),
         })
+    }
+
+    /// Reads the columns flagged `true` leniently: a cell that is not a finite number (text,
+    /// a boolean, an empty cell) is read as NaN instead of being an error, and the column's
+    /// first such cell is kept in `first_bad`. The other columns keep every check.
+    pub(crate) fn set_lenient(&mut self, lenient: Vec<bool>) {
+        self.first_bad = vec![None; lenient.len()];
+        self.lenient = lenient;
     }
 
     /// Reads the next row into `values` (one per header column) and returns its line, or
@@ -1301,6 +1317,18 @@ impl<R: Read> NumericRows<R> {
         let row = std::str::from_utf8(self.record.as_slice()).unwrap_or_default();
         for (j, value) in values.iter_mut().enumerate().take(header.len()) {
             let text = self.record.range(j).and_then(|r| row.get(r)).map(trim_cell);
+            if self.lenient.get(j).copied().unwrap_or(false) {
+                *value = match text.map(str::parse::<f64>) {
+                    Some(Ok(x)) if x.is_finite() => x,
+                    _ => {
+                        if self.first_bad[j].is_none() {
+                            self.first_bad[j] = Some((line, text.unwrap_or_default().to_string()));
+                        }
+                        f64::NAN
+                    }
+                };
+                continue;
+            }
             let Some(Ok(x)) = text.map(str::parse::<f64>) else {
                 return Err(LogError::NotANumber {
                     line,
