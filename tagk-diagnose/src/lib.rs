@@ -9,12 +9,14 @@ pub mod effects;
 mod error;
 mod fit;
 pub mod format;
+pub mod glitches;
 pub mod html;
 pub mod log;
 pub mod online;
 mod plan;
 pub mod report;
 pub mod sampling;
+pub mod scales;
 mod signals;
 mod stats;
 pub mod streams;
@@ -34,6 +36,7 @@ pub use effects::{
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
+pub use glitches::Glitch;
 pub use log::{FlightLog, LogSample};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{
@@ -45,6 +48,7 @@ pub use report::{
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
 pub use sampling::{SamplingFindings, sampling_text};
+pub use scales::{ScaleFinding, Severity};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 pub use streams::{
     AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift, streams_table,

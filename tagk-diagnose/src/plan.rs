@@ -270,6 +270,7 @@ pub struct DiagnosisPlan {
     align: AlignOptions,
     online: Option<usize>,
     max_steps: usize,
+    accept_scales: bool,
 }
 
 impl Default for DiagnosisPlan {
@@ -296,7 +297,16 @@ impl DiagnosisPlan {
             align: AlignOptions::default(),
             online: None,
             max_steps: DiagnoseOptions::default().max_steps,
+            accept_scales: false,
         }
+    }
+
+    /// Goes on when a scale or consistency check fails ([`crate::scales`]): the finding is
+    /// reported (severity `accepted`) instead of stopping the run with
+    /// [`DiagnoseError::ScaleMismatch`] (the command line's `--accept-scales`). Default: off.
+    pub fn accept_scales(mut self, accept: bool) -> Self {
+        self.accept_scales = accept;
+        self
     }
 
     /// Adds a flight in memory, without a name.
@@ -677,6 +687,7 @@ impl DiagnosisPlan {
     fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
         let plan = self.resolve(&flight.log)?;
         let vehicle = self.vehicle.as_ref();
+        let from_rotor_speeds = !flight.log.has_wrench();
         let log = if flight.log.has_wrench() {
             flight.log
         } else {
@@ -687,15 +698,22 @@ impl DiagnosisPlan {
             })?
         };
         let sampling = SamplingFindings::of("", &log, self.resample);
+        let glitches = crate::glitches::screen("", &log);
+        let (log, excluded) = crate::glitches::exclude(log, &glitches);
         let log = match self.resample {
             Some(dt) => log.resample_linear(dt)?,
             None => log,
         };
         let (aligned, streams) = align_streams_owned(log, &self.align)?;
+        let mut findings = self.check_scales("", &aligned, from_rotor_speeds)?;
         let (s, _) = Signals::from_owned_log_split(aligned)?;
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
+        findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
         report.streams = streams;
         report.sampling = vec![sampling];
+        report.scale_checks = findings;
+        report.glitches = glitches;
+        report.glitch_samples_excluded = excluded;
         if let Some(stride) = self.online {
             // From the vehicle's nominal parameters when it has them (a pass that converges,
             // as in flight), otherwise from the batch estimate (a pass that stays).
@@ -717,15 +735,26 @@ impl DiagnosisPlan {
         let mut parts = Vec::new();
         let mut streams = Vec::new();
         let mut sampling = Vec::new();
+        let mut findings = Vec::new();
+        let mut glitches = Vec::new();
+        let mut excluded = 0;
+        let mut from_rotor_speeds = false;
         for Flight { name, log, .. } in flights {
             let in_file = |e: DiagnoseError| in_file(&name, e);
+            from_rotor_speeds |= !log.has_wrench();
+            let own_wrench = log.has_wrench();
             let log = log_with_wrench(log, vehicle).map_err(in_file)?;
             sampling.push(SamplingFindings::of(name.clone(), &log, self.resample));
+            let found = crate::glitches::screen(&name, &log);
+            let (log, removed) = crate::glitches::exclude(log, &found);
+            glitches.extend(found);
+            excluded += removed;
             let log = match self.resample {
                 Some(dt) => log.resample_linear(dt).map_err(|e| in_file(e.into()))?,
                 None => log,
             };
             let (log, timing) = align_streams_owned(log, &self.align).map_err(in_file)?;
+            findings.extend(self.check_scales(&name, &log, !own_wrench)?);
             streams.extend(timing.into_iter().map(|mut t| {
                 t.log = name.clone();
                 t
@@ -764,9 +793,57 @@ impl DiagnosisPlan {
             }
         }
         let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
+        findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
         report.streams = streams;
         report.sampling = sampling;
+        report.scale_checks = findings;
+        report.glitches = glitches;
+        report.glitch_samples_excluded = excluded;
         Ok(report)
+    }
+
+    /// The scale checks of one flight's log before the fit ([`crate::scales::check_log`])
+    /// against the known mass, else the vehicle's; `from_rotor_speeds`: its wrench was
+    /// computed with the vehicle's rotors.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.
+    fn check_scales(
+        &self,
+        name: &str,
+        log: &FlightLog,
+        from_rotor_speeds: bool,
+    ) -> Result<Vec<crate::scales::ScaleFinding>, DiagnoseError> {
+        let mass = self.mass()?.or(self.vehicle.as_ref().and_then(|v| v.mass));
+        let wrench_vehicle = self.vehicle.as_ref().filter(|_| from_rotor_speeds);
+        let mut found = crate::scales::check_log(name, log, mass, wrench_vehicle);
+        crate::scales::settle(&mut found, self.accept_scales)?;
+        Ok(found)
+    }
+
+    /// The checks of the fit against the vehicle file ([`crate::scales::check_fit`]), none
+    /// without a vehicle.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.
+    fn check_fit(
+        &self,
+        name: &str,
+        report: &Report,
+        from_rotor_speeds: bool,
+    ) -> Result<Vec<crate::scales::ScaleFinding>, DiagnoseError> {
+        let Some(vehicle) = &self.vehicle else {
+            return Ok(Vec::new());
+        };
+        let mut found = crate::scales::check_fit(
+            name,
+            report,
+            vehicle,
+            self.known_mass.is_none(),
+            from_rotor_speeds,
+        );
+        crate::scales::settle(&mut found, self.accept_scales)?;
+        Ok(found)
     }
 }
 
