@@ -13,19 +13,21 @@
 //! | `mass` | the fitted mass with the vehicle file's | the accelerations' or the wrench's unit |
 //! | `inertia` | the fitted `I_xx, I_yy, I_zz` with the vehicle file's | the gyro's unit, the arm length |
 //!
-//! **The gain.** Both signals of a pair are filtered alike (the derivative's Savitzky–Golay
-//! window; the measured one is smoothed over the same window), demeaned per segment between
-//! gaps and per axis, the filter's edges left out. The gain is the ratio of their spreads
-//! with the sign of their correlation (`sign(Sxy)·√(Syy/Sxx)`: noise on either side biases it
-//! alike), its standard error `|g|·√((1 − ρ²)/n_eff)` with `n_eff` the samples divided by the
-//! filter's width (neighbouring filtered samples are not independent). A pair whose
-//! correlation `|ρ|` is below [`MIN_CORRELATION`] says nothing (too little motion, or too
-//! much noise) and is skipped. A fit's parameter is compared through its standard error.
+//! **The gain.** Both signals of a pair go through the same filters: the derivative's
+//! Savitzky–Golay window, then a smoothing over [`COMPARISON_WINDOW`]; then their changes over
+//! half that window are compared (a bias or a slow drift cancels), pooled over the axes and
+//! the segments between gaps, the filters' edges left out. Noise on the twin biases the
+//! regression of the measured signal on it (`Sxy/Sxx`) low, noise on the measured signal
+//! biases the inverse regression (`Syy/Sxy`) high: the true gain lies between them, each
+//! widened by its standard error (the residual's, with the samples counted per smoothing
+//! window, as neighbouring filtered samples are not independent). A pair with little motion
+//! or much noise has a wide bracket and is not judged. A fit's parameter is compared through
+//! its standard error.
 //!
 //! **The verdicts.** With `z` = [`CHECK_Z`] standard errors: an **error** when the gain's
-//! interval `g ± z·se` lies wholly outside `[1/ERROR_FACTOR, ERROR_FACTOR]` (a factor of 2
-//! and more: a unit, not a calibration) or the correlation is negative (a flipped sign); a
-//! **warning** when it lies wholly outside `[1 − WARNING_DEVIATION, 1 + WARNING_DEVIATION]`.
+//! bracket (or a parameter's `± z·se`) lies wholly outside `[1/ERROR_FACTOR, ERROR_FACTOR]` (a factor of 2
+//! and more: a unit, not a calibration) or below zero (a flipped sign); a
+//! **warning** when it lies wholly outside `[1/WARNING_FACTOR, WARNING_FACTOR]`.
 //! The inertia, less well determined by a flight, uses [`INERTIA_ERROR_FACTOR`] and the
 //! warning at [`ERROR_FACTOR`]. An error stops the diagnosis ([`DiagnoseError::ScaleMismatch`])
 //! unless accepted (`--accept-scales`, [`crate::DiagnosisPlan::accept_scales`]): it is then
@@ -50,8 +52,10 @@ pub const CHECK_Z: f64 = 3.89;
 /// A gain off by this factor or more (either way) is an error: a unit, not a calibration.
 pub const ERROR_FACTOR: f64 = 2.0;
 
-/// A gain off by more than this fraction of 1 (and less than [`ERROR_FACTOR`]) is a warning.
-pub const WARNING_DEVIATION: f64 = 0.1;
+/// A gain off by this factor or more (and less than [`ERROR_FACTOR`]) is a warning. Not
+/// tighter: on the diagnosis benchmark's flights the gyro's gain against the attitude's
+/// rate reaches 1.3 on valid logs (the attitude's derivative loses the fastest rotations).
+pub const WARNING_FACTOR: f64 = 1.5;
 
 /// The fitted inertia off the vehicle file's by this factor or more is an error (a warning
 /// from [`ERROR_FACTOR`] on).
@@ -285,7 +289,7 @@ fn gain(
 
 /// The verdict on a gain whose interval is `(lo, hi)` against 1: an error when it lies
 /// wholly outside `[1/f, f]` or below zero, a warning when wholly outside
-/// `1 ± WARNING_DEVIATION` (or `[1/w, w]` when `warn_factor` is given).
+/// `[1/w, w]` (`w`: `warn_factor`, else [`WARNING_FACTOR`]).
 fn verdict_of(
     (lo, hi): (f64, f64),
     error_factor: f64,
@@ -295,11 +299,8 @@ fn verdict_of(
     if outside(1.0 / error_factor, error_factor) {
         return Some(Severity::Error);
     }
-    let (a, b) = match warn_factor {
-        Some(w) => (1.0 / w, w),
-        None => (1.0 - WARNING_DEVIATION, 1.0 + WARNING_DEVIATION),
-    };
-    outside(a, b).then_some(Severity::Warning)
+    let w = warn_factor.unwrap_or(WARNING_FACTOR);
+    outside(1.0 / w, w).then_some(Severity::Warning)
 }
 
 /// [`verdict_of`] a value with its standard error.
@@ -423,7 +424,12 @@ pub fn check_log(
     let min_len = 2 * h + 1;
     let rows = inner_rows(log, h + 2 * DEFAULT_HALF_WIDTH);
     let width = 2 * h + 1;
-    let smoothed = |x: &[[f64; 3]]| per_segment(log, min_len, |r, s| smooth3(&s.t, &x[r], h));
+    // The measured signal through the derivative's smoothing too: both sides filtered alike.
+    let smoothed = |x: &[[f64; 3]]| {
+        per_segment(log, min_len, |r, s| {
+            smooth3(&s.t, &smooth3(&s.t, &x[r], DEFAULT_HALF_WIDTH), h)
+        })
+    };
     // The gyro against the attitude's rate.
     let rate = per_segment(log, min_len, |_, s| {
         smooth3(&s.t, &omega_from_attitude(&s.t, &s.attitude), h)
