@@ -112,7 +112,7 @@ fn an_accelerometer_in_g_read_as_m_s2_is_named_and_accepted_on_request() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("d.json")).unwrap()).unwrap();
     assert_eq!(json["scale_checks"][0]["check"], "accelerometer");
     assert_eq!(json["scale_checks"][0]["severity"], "accepted");
-    let html = std::fs::read_to_string(dir.join("html/report.html")).unwrap();
+    let html = std::fs::read_to_string(dir.join("html/index.html")).unwrap();
     assert!(html.contains("id=\"scale-findings\""), "no scale section");
     assert!(html.contains("an acceleration in g mapped as m/s²"));
 }
@@ -202,7 +202,7 @@ fn glitch_report(dir: &Path, value: &str) -> (String, serde_json::Value, String)
     assert!(ok, "{err}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("d.json")).unwrap()).unwrap();
-    let html = std::fs::read_to_string(dir.join("html/report.html")).unwrap();
+    let html = std::fs::read_to_string(dir.join("html/index.html")).unwrap();
     (out, json, html)
 }
 

@@ -96,7 +96,7 @@ pub struct DiagnoseArgs {
     pub quiet: bool,
     /// Go on when a scale or consistency check fails (a gain of 57.3 between the gyro and
     /// the attitude's rate, a fitted mass 10× the vehicle's, …): the finding is reported
-    /// instead of stopping (docs/CONVENTIONS.md §8).
+    /// instead of stopping (docs/CONVENTIONS.md §7.3).
     #[arg(long)]
     pub accept_scales: bool,
 }

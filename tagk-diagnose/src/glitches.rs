@@ -1,7 +1,7 @@
 //! Glitches: isolated samples that jump off their neighbours (a spike, a corrupted row), found
 //! by a robust screen and excluded from the fit so that one bad row cannot move a parameter.
 //!
-//! **The screen** (docs/CONVENTIONS.md §8). For each screened channel — the wrench
+//! **The screen** (docs/CONVENTIONS.md §7.3). For each screened channel — the wrench
 //! `fx..tz`, the position, the velocity, the gyro, and the accelerations when logged — the
 //! residual of each sample against the straight line through its two neighbours,
 //! `rᵢ = xᵢ − x̂ᵢ` (`x̂ᵢ` interpolated at `tᵢ` between `xᵢ₋₁` and `xᵢ₊₁`), is compared with the

@@ -1,7 +1,7 @@
 //! Scale and consistency checks: do the log's signals agree with each other in *gain*, and
 //! the fit with the vehicle file? A unit mistake (deg/s read as rad/s, mm/s as m/s, g as
 //! m/s²), a flipped sign or swapped rotor spins gives a plausible but wrong answer; these
-//! checks name it before the fit is believed (docs/CONVENTIONS.md §8).
+//! checks name it before the fit is believed (docs/CONVENTIONS.md §7.3).
 //!
 //! | check | compares | an error names |
 //! |---|---|---|
@@ -48,6 +48,10 @@ use crate::report::Report;
 
 /// Standard errors around a gain before it counts as off (two-sided 99.99 %).
 pub const CHECK_Z: f64 = 3.89;
+
+/// Standard errors by which a fitted yaw inertia must be negative for the rotor spins to be
+/// named (as the centre-of-mass rule's 2: a negative inertia is no body at all).
+pub const SIGN_Z: f64 = 2.0;
 
 /// A gain off by this factor or more (either way) is an error: a unit, not a calibration.
 pub const ERROR_FACTOR: f64 = 2.0;
@@ -599,7 +603,8 @@ pub fn check_fit(
         }
         let (v, se) = value(j);
         let ratio = v / prior;
-        if axis == "I_zz" && vehicle_wrench && v + CHECK_Z * se < 0.0 {
+        // Negative beyond SIGN_Z standard errors: not a body.
+        if axis == "I_zz" && vehicle_wrench && v + SIGN_Z * se < 0.0 {
             out.push(ScaleFinding {
                 log: name.to_string(),
                 check: "yaw-torque".into(),
@@ -619,6 +624,9 @@ pub fn check_fit(
         };
         let cause = match cause_of(ratio, INERTIA_CAUSES) {
             Some(c) => c,
+            None if ratio <= 0.0 => {
+                "a negative inertia is no body: a torque missing from the model, or a flipped torque sign?"
+            }
             None if severity == Severity::Error => {
                 "a unit mistake in the gyro or the torques, the arm length, or the wrong vehicle file?"
             }
