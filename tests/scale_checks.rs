@@ -266,7 +266,7 @@ fn realistic_logs_raise_no_scale_finding_and_no_glitch() {
             ],
         );
         assert_eq!(screen("", &log), [], "seed {seed}");
-        let findings = check_log("", &log, Some(0.035), None);
+        let findings = check_log("", &log, Some(0.035));
         assert_eq!(findings, [], "seed {seed}");
     }
 }
@@ -310,7 +310,7 @@ fn the_benchmark_flights_raise_no_scale_error_and_no_glitch() {
         for g in &found {
             errors.push(format!("flight {index}: glitch {}", g.text()));
         }
-        for f in check_log("", &log, mass, None) {
+        for f in check_log("", &log, mass) {
             *counts
                 .entry(format!("{} {:?}", f.check, f.severity))
                 .or_default() += 1;

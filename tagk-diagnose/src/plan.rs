@@ -687,7 +687,7 @@ impl DiagnosisPlan {
     fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
         let plan = self.resolve(&flight.log)?;
         let vehicle = self.vehicle.as_ref();
-        let from_rotor_speeds = !flight.log.has_wrench();
+        let from_rotor_speeds = !flight.log.has_wrench() || flight.log.rotor_speeds.is_some();
         let log = if flight.log.has_wrench() {
             flight.log
         } else {
@@ -705,7 +705,7 @@ impl DiagnosisPlan {
             None => log,
         };
         let (aligned, streams) = align_streams_owned(log, &self.align)?;
-        let mut findings = self.check_scales("", &aligned, from_rotor_speeds)?;
+        let mut findings = self.check_scales("", &aligned)?;
         let (s, _) = Signals::from_owned_log_split(aligned)?;
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
         findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
@@ -741,8 +741,7 @@ impl DiagnosisPlan {
         let mut from_rotor_speeds = false;
         for Flight { name, log, .. } in flights {
             let in_file = |e: DiagnoseError| in_file(&name, e);
-            from_rotor_speeds |= !log.has_wrench();
-            let own_wrench = log.has_wrench();
+            from_rotor_speeds |= !log.has_wrench() || log.rotor_speeds.is_some();
             let log = log_with_wrench(log, vehicle).map_err(in_file)?;
             sampling.push(SamplingFindings::of(name.clone(), &log, self.resample));
             let found = crate::glitches::screen(&name, &log);
@@ -754,7 +753,7 @@ impl DiagnosisPlan {
                 None => log,
             };
             let (log, timing) = align_streams_owned(log, &self.align).map_err(in_file)?;
-            findings.extend(self.check_scales(&name, &log, !own_wrench)?);
+            findings.extend(self.check_scales(&name, &log)?);
             streams.extend(timing.into_iter().map(|mut t| {
                 t.log = name.clone();
                 t
@@ -803,8 +802,7 @@ impl DiagnosisPlan {
     }
 
     /// The scale checks of one flight's log before the fit ([`crate::scales::check_log`])
-    /// against the known mass, else the vehicle's; `from_rotor_speeds`: its wrench was
-    /// computed with the vehicle's rotors.
+    /// against the known mass, else the vehicle's.
     ///
     /// # Errors
     /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.
@@ -812,17 +810,16 @@ impl DiagnosisPlan {
         &self,
         name: &str,
         log: &FlightLog,
-        from_rotor_speeds: bool,
     ) -> Result<Vec<crate::scales::ScaleFinding>, DiagnoseError> {
         let mass = self.mass()?.or(self.vehicle.as_ref().and_then(|v| v.mass));
-        let wrench_vehicle = self.vehicle.as_ref().filter(|_| from_rotor_speeds);
-        let mut found = crate::scales::check_log(name, log, mass, wrench_vehicle);
+        let mut found = crate::scales::check_log(name, log, mass);
         crate::scales::settle(&mut found, self.accept_scales)?;
         Ok(found)
     }
 
     /// The checks of the fit against the vehicle file ([`crate::scales::check_fit`]), none
-    /// without a vehicle.
+    /// without a vehicle; `from_rotor_speeds`: the log has rotor speeds or no wrench of its
+    /// own (its wrench may come from the vehicle's rotors).
     ///
     /// # Errors
     /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.

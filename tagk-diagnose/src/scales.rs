@@ -9,7 +9,7 @@
 //! | `velocity` | the velocity with the position's derivative | mm/s, cm/s, km/h, ft/s ↔ m/s |
 //! | `accelerometer` | the logged `p̈` with the velocity's derivative | g ↔ m/s² (9.81) |
 //! | `thrust` | the mass `fz` implies (`fz` on the proper acceleration `a_z`) with the known or vehicle mass | a thrust or mass in the wrong unit |
-//! | `yaw-torque` | the sign of the yaw torque `tz` against the yaw acceleration | rotor spins swapped |
+//! | `yaw-torque` | the fitted yaw inertia `I_zz`: negative by [`SIGN_Z`] standard errors with a wrench from the vehicle's rotors | rotor spins swapped |
 //! | `mass` | the fitted mass with the vehicle file's | the accelerations' or the wrench's unit |
 //! | `inertia` | the fitted `I_xx, I_yy, I_zz` with the vehicle file's | the gyro's unit, the arm length |
 //!
@@ -410,14 +410,8 @@ fn times(g: f64) -> String {
 }
 
 /// The checks of a log before the fit: the gyro, the velocity and the accelerometer against
-/// the pose; the thrust against `mass` (the known mass, else the vehicle file's); the yaw
-/// torque's sign (`vehicle_wrench`: the vehicle whose rotor spins computed the wrench).
-pub fn check_log(
-    name: &str,
-    log: &FlightLog,
-    mass: Option<f64>,
-    vehicle_wrench: Option<&Vehicle>,
-) -> Vec<ScaleFinding> {
+/// the pose; the thrust against `mass` (the known mass, else the vehicle file's).
+pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFinding> {
     let mut out = Vec::new();
     let dt = log.sampling().median_step;
     if !(dt > 0.0) {
@@ -520,44 +514,12 @@ pub fn check_log(
             });
         }
     }
-    // The yaw torque's sign against the yaw acceleration.
-    let w_dot: Vec<[f64; 3]> = match &log.omega_dot {
-        Some(a) => a.clone(),
-        None => per_segment(log, min_len, |_, s| {
-            savitzky_golay_derivative3(&s.t, &s.omega, DEFAULT_HALF_WIDTH)
-        }),
-    };
-    let tz: Vec<[f64; 3]> = log.wrench.iter().map(|w| [w[5], 0.0, 0.0]).collect();
-    let wz: Vec<[f64; 3]> = w_dot.iter().map(|w| [w[2], 0.0, 0.0]).collect();
-    let (tz, wz) = (smoothed(&tz), smoothed(&wz));
-    if let Some(g) = gain(&tz, &wz, &rows, width)
-        && g.interval().1 < 0.0
-    {
-        let message = match vehicle_wrench {
-            Some(v) => format!(
-                "the yaw torque tz opposes the yaw acceleration (correlation {:.2}): the rotor spins of vehicle `{}` may be swapped (its [[rotor]] `spin` keys, cw/ccw, in the order of w1..w4)",
-                g.rho, v.name
-            ),
-            None => format!(
-                "the yaw torque tz opposes the yaw acceleration (correlation {:.2}): tz's sign may be flipped (or the rotor spins that computed it swapped)",
-                g.rho
-            ),
-        };
-        out.push(ScaleFinding {
-            log: name.to_string(),
-            check: "yaw-torque".into(),
-            ratio: g.value(),
-            std_error: Some(g.se()),
-            severity: Severity::Error,
-            message,
-        });
-    }
     out
 }
 
 /// The checks of a fit against the vehicle file: the fitted mass (when it was fitted) and
 /// inertia against the vehicle's priors, and a negative yaw inertia against its rotor spins
-/// (`vehicle_wrench`: the wrench was computed with them).
+/// (`vehicle_wrench`: the log has rotor speeds, or its wrench came from them).
 pub fn check_fit(
     name: &str,
     report: &Report,
