@@ -138,7 +138,7 @@ pub fn screen(name: &str, log: &FlightLog) -> Vec<Glitch> {
             channel(column, &|i| a[i][k]);
         }
     }
-    out.sort_by(|a, b| a.sample.cmp(&b.sample));
+    out.sort_by_key(|g| g.sample);
     out
 }
 
@@ -177,7 +177,7 @@ fn screen_channel(
     let threshold = (GLITCH_SIGMAS * sigma).max(GLITCH_PERCENTILE_FACTOR * q99);
     for i in 2..n.saturating_sub(2) {
         let (ri, before, after) = (r[i], r[i - 1], r[i + 1]);
-        if !(ri.abs() > threshold) || before.is_nan() || after.is_nan() {
+        if ri.is_nan() || ri.abs() <= threshold || before.is_nan() || after.is_nan() {
             continue;
         }
         let neighbour_ok = |rn: f64| {

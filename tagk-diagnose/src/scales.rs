@@ -270,8 +270,7 @@ fn gain(
         n += 3 * (r.len() - lag);
     }
     let w = width as f64;
-    if !(sxx > 0.0 && syy > 0.0 && sxy != 0.0) || !(sxx * syy).is_finite() || (n as f64) < 10.0 * w
-    {
+    if !(sxx > 0.0 && syy > 0.0 && sxy != 0.0 && (sxx * syy).is_finite()) || (n as f64) < 10.0 * w {
         return None;
     }
     let n = n as f64;
@@ -414,7 +413,7 @@ fn times(g: f64) -> String {
 pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFinding> {
     let mut out = Vec::new();
     let dt = log.sampling().median_step;
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         return out;
     }
     // The comparison's smoothing: COMPARISON_WINDOW, at least the derivative's window.
