@@ -324,3 +324,54 @@ fn the_benchmark_flights_raise_no_scale_error_and_no_glitch() {
     println!("{checked} flights, {samples} samples: {glitches} glitches; findings {counts:?}");
     assert!(errors.is_empty(), "{}", errors.join("\n"));
 }
+
+#[test]
+fn a_mass_or_an_inertia_far_from_the_vehicle_file_is_named() {
+    let dir = tmpdir("vehicle");
+    let log = simulate(&dir, &["--sensing", "realistic", "--seed", "6"]);
+    // A known mass ten times the thrust's: the thrust check.
+    let err = DiagnosisPlan::new()
+        .log(log.clone())
+        .known_mass(0.35)
+        .max_steps(0)
+        .run()
+        .unwrap_err();
+    match err {
+        DiagnoseError::ScaleMismatch { check, message } => {
+            assert_eq!(check, "thrust", "{message}");
+            assert!(message.contains("the mass 0.35 kg"), "{message}");
+        }
+        other => panic!("{other}"),
+    }
+    // A vehicle file whose mass and inertia are 10× and 74× the body's: the fit's checks.
+    let preset = common::tagk_in(&dir, &["vehicle", "show", "crazyflie-2.1"]);
+    let heavy = preset.replace("mass = 0.035", "mass = 0.35").replace(
+        "inertia = [1.66e-5, 8.3e-7, 1.66e-5, 7.2e-7, 1.8e-6, 2.93e-5]",
+        "inertia = [1.23e-3, 8.3e-7, 1.23e-3, 7.2e-7, 1.8e-6, 2.17e-3]",
+    );
+    assert_ne!(heavy, preset);
+    std::fs::write(dir.join("heavy.toml"), heavy).unwrap();
+    let vehicle = tagk::dynamics::vehicle::Vehicle::from_path(dir.join("heavy.toml")).unwrap();
+    let report = DiagnosisPlan::new()
+        .log(log)
+        .vehicle(vehicle)
+        .max_steps(0)
+        .accept_scales(true)
+        .run()
+        .unwrap();
+    let checks: Vec<&str> = report
+        .scale_checks
+        .iter()
+        .map(|f| f.check.as_str())
+        .collect();
+    assert!(checks.contains(&"thrust"), "{checks:?}");
+    assert!(checks.contains(&"mass"), "{checks:?}");
+    assert!(checks.contains(&"inertia"), "{checks:?}");
+    let inertia = report
+        .scale_checks
+        .iter()
+        .find(|f| f.check == "inertia")
+        .unwrap();
+    assert!(inertia.message.contains("I_xx"), "{}", inertia.message);
+    assert_eq!(inertia.severity, Severity::Accepted);
+}
