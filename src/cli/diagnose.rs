@@ -100,6 +100,11 @@ pub struct DiagnoseArgs {
     /// Do not print the terminal summary.
     #[arg(long)]
     pub quiet: bool,
+    /// Go on when a scale or consistency check fails (a gain of 57.3 between the gyro and
+    /// the attitude's rate, a fitted mass 10× the vehicle's, …): the finding is reported
+    /// instead of stopping (docs/CONVENTIONS.md §7.3).
+    #[arg(long)]
+    pub accept_scales: bool,
 }
 
 /// The built-in effects with their aliases and one-line summaries, for `--help`.
@@ -142,6 +147,7 @@ impl DiagnoseArgs {
             quiet: false,
             no_align: false,
             shift: Vec::new(),
+            accept_scales: false,
         }
     }
 
@@ -272,7 +278,8 @@ impl DiagnoseArgs {
         let mut plan = DiagnosisPlan::new()
             .with_effects(&self.with)
             .align(self.align_options()?)
-            .max_steps(self.max_steps);
+            .max_steps(self.max_steps)
+            .accept_scales(self.accept_scales);
         for spec in &self.custom {
             plan = plan.custom(spec);
         }

@@ -93,6 +93,17 @@ pub enum DiagnoseError {
         /// The OS or serialisation error.
         message: String,
     },
+    /// A scale or consistency check failed (a unit mistake, a flipped sign, swapped rotor
+    /// spins: [`crate::scales`]); accept it with `--accept-scales`
+    /// ([`crate::DiagnosisPlan::accept_scales`]).
+    #[error("{message} (if the data are right, go on with --accept-scales)")]
+    ScaleMismatch {
+        /// The first check that failed (`gyro`, `velocity`, `accelerometer`, `thrust`,
+        /// `yaw-torque`, `mass`, `inertia`).
+        check: String,
+        /// Every failed check, with its likely cause.
+        message: String,
+    },
     /// The online TAG-K pass failed: the estimator could not be built or rejected a window.
     #[error("online TAG-K pass failed: {0}")]
     Online(String),

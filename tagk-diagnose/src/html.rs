@@ -971,6 +971,21 @@ pub fn render(report: &Report) -> String {
             text(&lines.join("\n"))
         );
     }
+    let glitches = crate::glitches::glitches_text(&report.glitches, report.glitch_samples_excluded);
+    if !glitches.is_empty() {
+        let _ = write!(
+            html,
+            "<h2 id=\"glitches\">Glitches</h2><pre id=\"glitch-list\">{}</pre>",
+            text(&glitches)
+        );
+    }
+    if !report.scale_checks.is_empty() {
+        let _ = write!(
+            html,
+            "<h2 id=\"scale-checks\">Scale checks</h2><pre id=\"scale-findings\" class=\"warn\">{}</pre>",
+            text(&crate::scales::scales_text(&report.scale_checks))
+        );
+    }
     section_staircase(&mut html, report);
     if let (Some(after), Some(change)) = (&report.after, &report.change) {
         let _ = write!(

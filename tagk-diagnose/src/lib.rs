@@ -9,6 +9,7 @@ pub mod effects;
 mod error;
 mod fit;
 pub mod format;
+pub mod glitches;
 pub mod html;
 pub mod log;
 pub mod log_params;
@@ -16,6 +17,7 @@ pub mod online;
 mod plan;
 pub mod report;
 pub mod sampling;
+pub mod scales;
 mod signals;
 mod stats;
 pub mod streams;
@@ -36,6 +38,7 @@ pub use effects::{
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
+pub use glitches::Glitch;
 pub use log::{FlightLog, LogSample};
 pub use log_params::{LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
@@ -48,6 +51,7 @@ pub use report::{
     add_recommended, diagnosis_table, report_table, run_logs, run_loop, staircase_table,
 };
 pub use sampling::{SamplingFindings, sampling_text};
+pub use scales::{ScaleFinding, Severity};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 pub use streams::{
     AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift, streams_table,

@@ -276,6 +276,7 @@ pub struct DiagnosisPlan {
     align: AlignOptions,
     online: Option<usize>,
     max_steps: usize,
+    accept_scales: bool,
 }
 
 impl Default for DiagnosisPlan {
@@ -302,7 +303,16 @@ impl DiagnosisPlan {
             align: AlignOptions::default(),
             online: None,
             max_steps: DiagnoseOptions::default().max_steps,
+            accept_scales: false,
         }
+    }
+
+    /// Goes on when a scale or consistency check fails ([`crate::scales`]): the finding is
+    /// reported (severity `accepted`) instead of stopping the run with
+    /// [`DiagnoseError::ScaleMismatch`] (the command line's `--accept-scales`). Default: off.
+    pub fn accept_scales(mut self, accept: bool) -> Self {
+        self.accept_scales = accept;
+        self
     }
 
     /// Adds a flight in memory, without a name.
@@ -719,23 +729,34 @@ impl DiagnosisPlan {
 
     /// A flight's log ready to fit, and what was found on the way: the wrench from the rotor
     /// speeds if the log has none ([`log_with_wrench`]), the sampling findings (named
-    /// `label`), the resampling and the stream alignment. The wrench's errors pass through
-    /// `wrench_error`, the resampling's and the alignment's through `error`.
+    /// `label`), the glitches excluded ([`crate::glitches`]), the resampling, the stream
+    /// alignment and the scale checks ([`DiagnosisPlan::check_scales`]). The wrench's errors
+    /// pass through `wrench_error`, the resampling's and the alignment's through `error`.
     fn condition(
         &self,
         label: &str,
         log: FlightLog,
         wrench_error: impl FnOnce(DiagnoseError) -> DiagnoseError,
         error: impl Fn(DiagnoseError) -> DiagnoseError,
-    ) -> Result<(FlightLog, Vec<StreamAlignment>, SamplingFindings), DiagnoseError> {
+    ) -> Result<Conditioned, DiagnoseError> {
         let log = log_with_wrench(log, self.vehicle.as_ref()).map_err(wrench_error)?;
         let sampling = SamplingFindings::of(label, &log, self.resample);
+        let glitches = crate::glitches::screen(label, &log);
+        let (log, excluded) = crate::glitches::exclude(log, &glitches);
         let log = match self.resample {
             Some(dt) => log.resample_linear(dt).map_err(|e| error(e.into()))?,
             None => log,
         };
         let (log, streams) = align_streams_owned(log, &self.align).map_err(error)?;
-        Ok((log, streams, sampling))
+        let scale_checks = self.check_scales(label, &log)?;
+        Ok(Conditioned {
+            log,
+            streams,
+            sampling,
+            glitches,
+            excluded,
+            scale_checks,
+        })
     }
 
     /// [`DiagnosisPlan::resolve`] on a flight: a custom effect that names a column its merge
@@ -772,12 +793,18 @@ impl DiagnosisPlan {
             "" => e,
             name => in_file(name, e),
         };
-        let (log, streams, sampling) = self.condition("", flight.log, wrench_error, |e| e)?;
-        let (s, _) = Signals::from_owned_log_split(log)?;
+        let from_rotor_speeds = !flight.log.has_wrench() || flight.log.rotor_speeds.is_some();
+        let c = self.condition("", flight.log, wrench_error, |e| e)?;
+        let (s, _) = Signals::from_owned_log_split(c.log)?;
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
-        report.streams = streams;
-        report.sampling = vec![sampling];
+        let mut findings = c.scale_checks;
+        findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
+        report.streams = c.streams;
+        report.sampling = vec![c.sampling];
         report.inputs = inputs;
+        report.scale_checks = findings;
+        report.glitches = c.glitches;
+        report.glitch_samples_excluded = c.excluded;
         if let Some(stride) = self.online {
             // From the vehicle's nominal parameters when it has them (a pass that converges,
             // as in flight), otherwise from the batch estimate (a pass that stays).
@@ -800,11 +827,20 @@ impl DiagnosisPlan {
         let mut streams = Vec::new();
         let mut sampling = Vec::new();
         let mut inputs = Vec::new();
+        let mut findings = Vec::new();
+        let mut glitches = Vec::new();
+        let mut excluded = 0;
+        let mut from_rotor_speeds = false;
         for Flight { name, log, merge } in flights {
             inputs.extend(merge);
             let in_file = |e: DiagnoseError| in_file(&name, e);
-            let (log, timing, findings) = self.condition(&name, log, in_file, in_file)?;
-            sampling.push(findings);
+            from_rotor_speeds |= !log.has_wrench() || log.rotor_speeds.is_some();
+            let c = self.condition(&name, log, in_file, in_file)?;
+            let (log, timing) = (c.log, c.streams);
+            sampling.push(c.sampling);
+            findings.extend(c.scale_checks);
+            glitches.extend(c.glitches);
+            excluded += c.excluded;
             streams.extend(timing.into_iter().map(|mut t| {
                 t.log = name.clone();
                 t
@@ -843,11 +879,73 @@ impl DiagnosisPlan {
             }
         }
         let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
+        findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
         report.streams = streams;
         report.sampling = sampling;
         report.inputs = inputs;
+        report.scale_checks = findings;
+        report.glitches = glitches;
+        report.glitch_samples_excluded = excluded;
         Ok(report)
     }
+
+    /// The scale checks of one flight's log before the fit ([`crate::scales::check_log`])
+    /// against the known mass, else the vehicle's.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.
+    fn check_scales(
+        &self,
+        name: &str,
+        log: &FlightLog,
+    ) -> Result<Vec<crate::scales::ScaleFinding>, DiagnoseError> {
+        let mass = self.mass()?.or(self.vehicle.as_ref().and_then(|v| v.mass));
+        let mut found = crate::scales::check_log(name, log, mass);
+        crate::scales::settle(&mut found, self.accept_scales)?;
+        Ok(found)
+    }
+
+    /// The checks of the fit against the vehicle file ([`crate::scales::check_fit`]), none
+    /// without a vehicle; `from_rotor_speeds`: the log has rotor speeds or no wrench of its
+    /// own (its wrench may come from the vehicle's rotors).
+    ///
+    /// # Errors
+    /// [`DiagnoseError::ScaleMismatch`] unless the scales are accepted.
+    fn check_fit(
+        &self,
+        name: &str,
+        report: &Report,
+        from_rotor_speeds: bool,
+    ) -> Result<Vec<crate::scales::ScaleFinding>, DiagnoseError> {
+        let Some(vehicle) = &self.vehicle else {
+            return Ok(Vec::new());
+        };
+        let mut found = crate::scales::check_fit(
+            name,
+            report,
+            vehicle,
+            self.known_mass.is_none(),
+            from_rotor_speeds,
+        );
+        crate::scales::settle(&mut found, self.accept_scales)?;
+        Ok(found)
+    }
+}
+
+/// A flight's log ready to fit and what was found on the way ([`DiagnosisPlan::condition`]).
+struct Conditioned {
+    /// The log: wrench computed, glitches excluded, resampled and aligned as asked.
+    log: FlightLog,
+    /// The timing of each sensor stream against the pose, and the offsets removed.
+    streams: Vec<StreamAlignment>,
+    /// How the log is sampled.
+    sampling: SamplingFindings,
+    /// The glitches found and excluded.
+    glitches: Vec<crate::glitches::Glitch>,
+    /// Samples excluded around the glitches.
+    excluded: usize,
+    /// The scale checks before the fit that found something.
+    scale_checks: Vec<crate::scales::ScaleFinding>,
 }
 
 /// A hash of every sample of a log (time, motion, wrench, the optional signals and the extra

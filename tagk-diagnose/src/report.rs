@@ -144,6 +144,15 @@ pub struct Report {
     /// the terminal prints before the diagnosis); one entry per such flight, empty for logs
     /// read in the project's format.
     pub inputs: Vec<tagk_dynamics::log_input::MergeReport>,
+    /// The scale and consistency checks that found something ([`crate::scales`]: errors
+    /// accepted, warnings), filled in by the caller that read the log; empty otherwise.
+    pub scale_checks: Vec<crate::scales::ScaleFinding>,
+    /// The glitches found and excluded from the fit ([`crate::glitches`]), filled in by the
+    /// caller that read the log; empty otherwise.
+    pub glitches: Vec<crate::glitches::Glitch>,
+    /// Samples excluded around the glitches (each glitch and the samples whose derivatives
+    /// read it).
+    pub glitch_samples_excluded: usize,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -323,6 +332,9 @@ fn loop_from(
         streams: Vec::new(),
         sampling: Vec::new(),
         inputs: Vec::new(),
+        scale_checks: Vec::new(),
+        glitches: Vec::new(),
+        glitch_samples_excluded: 0,
     })
 }
 
@@ -710,6 +722,11 @@ pub fn staircase_table(r: &Report) -> String {
 /// before/after table instead of a second full section), the staircase, and what remains.
 pub fn report_table(r: &Report) -> String {
     let mut s = crate::sampling::sampling_text(&r.sampling);
+    s.push_str(&crate::glitches::glitches_text(
+        &r.glitches,
+        r.glitch_samples_excluded,
+    ));
+    s.push_str(&crate::scales::scales_text(&r.scale_checks));
     if !r.streams.is_empty() {
         s.push_str(&crate::streams::streams_table(&r.streams));
         s.push('\n');
