@@ -1865,7 +1865,16 @@ pub fn read_streams(
     // Each stream's rate, span and overlap with the time base; a stream that provides a
     // quantity must be dense enough and overlap the base.
     let base = &streams[0].t;
-    let (base_start, base_end) = (base[0], base[base.len() - 1]);
+    let (Some(&base_start), Some(&base_end)) = (base.first(), base.last()) else {
+        // A time base without a sample: the log would be empty.
+        return Err(InputError::Log(LogError::in_file(
+            streams[0].name.clone(),
+            LogError::TooShort {
+                rows: 0,
+                needed: crate::log::MIN_ROWS,
+            },
+        )));
+    };
     let base_span = base_end - base_start;
     for (k, s) in streams.iter().enumerate() {
         let provides: Vec<Group> = used
@@ -1874,7 +1883,23 @@ pub fn read_streams(
             .map(|(g, _)| *g)
             .collect();
         let step = median_step(&s.t);
-        let (start, end) = (s.t[0], s.t[s.t.len() - 1]);
+        let (Some(&start), Some(&end)) = (s.t.first(), s.t.last()) else {
+            // A stream without a sample provides nothing (a quantity it maps is too sparse).
+            if provides.is_empty() {
+                continue;
+            }
+            return Err(InputError::StreamTooSparse {
+                stream: s.name.clone(),
+                samples: 0,
+                step,
+                rate: 1.0 / step,
+                quantities: provides
+                    .iter()
+                    .map(|g| g.key())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        };
         let overlap = (end.min(base_end) - start.max(base_start)).max(0.0);
         let overlap_fraction = if k == 0 || base_span <= 0.0 {
             1.0

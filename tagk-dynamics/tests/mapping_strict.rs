@@ -511,6 +511,34 @@ fn a_wrench_stream_at_1_hz_or_of_2_rows_is_refused() {
     );
 }
 
+/// Found by the `column_mapping` fuzz target: a stream with a header and no row indexed its
+/// first time stamp.
+#[test]
+fn a_stream_without_rows_is_a_typed_error_not_a_panic() {
+    let dir = tmpdir("empty");
+    // The wrench stream has its header only: it provides the wrench with no sample.
+    let e = read(&two_streams(&dir, &[]), "").unwrap_err();
+    assert!(
+        matches!(&e, InputError::StreamTooSparse { stream, samples: 0, .. } if stream == "w.csv"),
+        "{e:?}"
+    );
+    // The primary stream (the time base) has its header only.
+    let paths = two_streams(
+        &dir,
+        &rows()
+            .iter()
+            .map(|r| wrench_at(r[0], 0.0))
+            .collect::<Vec<_>>(),
+    );
+    write(&dir, "a.csv", &HEADER[..14], &[]);
+    let e = read(&paths, "").unwrap_err();
+    assert!(
+        matches!(&e, InputError::Log(LogError::InFile { path, source })
+            if path == "a.csv" && matches!(**source, LogError::TooShort { rows: 0, .. })),
+        "{e:?}"
+    );
+}
+
 #[test]
 fn a_stream_of_another_flight_is_refused_and_a_late_one_warned_about() {
     let dir = tmpdir("late");
