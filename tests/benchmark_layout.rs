@@ -9,6 +9,8 @@
 //! cause. The renormalised quaternion and the unread columns are reported in the terminal, the
 //! JSON and the HTML report.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -275,8 +277,9 @@ fn the_renormalised_quaternion_and_the_unread_columns_are_in_terminal_json_and_h
     std::fs::create_dir_all(&other).unwrap();
     let second = write_benchmark(&simulate_seed(4), &other, MAPPING);
     std::fs::copy(second, dir.join("second.csv")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args([
+    let stdout = common::tagk_in(
+        &dir,
+        &[
             "diagnose",
             "--columns",
             "map.toml",
@@ -284,16 +287,8 @@ fn the_renormalised_quaternion_and_the_unread_columns_are_in_terminal_json_and_h
             "crazyflie-2.1",
             "flight.csv",
             "second.csv",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
     );
-    let stdout = String::from_utf8_lossy(&out.stdout);
     for name in ["flight.csv", "second.csv"] {
         let line = format!("{name}: warning: the quaternions of {name} were divided by their norm");
         assert!(stdout.contains(&line), "{stdout}");

@@ -115,21 +115,19 @@ fn reproduce_and_next_commands_are_quoted_in_every_output() {
     let log = simulate(&dir, name, 3, &[]);
     let json = dir.join("out.json");
     let report = dir.join("report dir");
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .arg("diagnose")
-        .arg(&log)
-        .arg("--json")
-        .arg(&json)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let path = |p: &Path| p.to_str().unwrap().to_string();
+    let (log_path, json_path, report_path) = (path(&log), path(&json), path(&report));
+    let text = tagk_in(
+        &dir,
+        &[
+            "diagnose",
+            &log_path,
+            "--json",
+            &json_path,
+            "--report",
+            &report_path,
+        ],
     );
-    let text = String::from_utf8(out.stdout).unwrap();
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let log_arg = log.to_string_lossy().into_owned();

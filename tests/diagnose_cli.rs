@@ -1,6 +1,8 @@
 //! `tagk diagnose` end to end on a simulator log written to CSV: terminal run, JSON keys,
 //! HTML report (opened in headless Chromium when it is installed), typed errors, `--help`.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -443,18 +445,10 @@ fn several_logs_on_the_command_line_and_a_bad_noise_floor() {
     let a = write_drag_log(&dir);
     // Another flight of the vehicle (the same data twice is refused: tests/cli_mistakes.rs).
     let b = write_drag_log_seeded(&dir, 4, "second.csv");
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .arg("diagnose")
-        .arg(&a)
-        .arg(&b)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let text = common::tagk_in(
+        &dir,
+        &["diagnose", a.to_str().unwrap(), b.to_str().unwrap()],
     );
-    let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("=== each log alone"), "{text}");
     assert!(text.contains("agrees"), "{text}");
     let mut args = DiagnoseArgs::new(&a);
