@@ -249,6 +249,15 @@ fn each_error_is_printed_once() {
 /// Runs `tagk diagnose` on `logs` in `dir` with `--json` and `--report`: the exit status, the
 /// terminal, the standard error, the JSON and the HTML.
 fn diagnose_all(dir: &Path, logs: &[&Path]) -> (bool, String, String, serde_json::Value, String) {
+    diagnose_all_with(dir, logs, &[])
+}
+
+/// [`diagnose_all`] with `extra` arguments.
+fn diagnose_all_with(
+    dir: &Path,
+    logs: &[&Path],
+    extra: &[&str],
+) -> (bool, String, String, serde_json::Value, String) {
     let json = dir.join("out.json");
     let report = dir.join("report");
     let _ = std::fs::remove_file(&json);
@@ -260,6 +269,7 @@ fn diagnose_all(dir: &Path, logs: &[&Path]) -> (bool, String, String, serde_json
         .arg(&json)
         .arg("--report")
         .arg(&report)
+        .args(extra)
         .output()
         .unwrap();
     let v = std::fs::read_to_string(&json)
@@ -360,8 +370,9 @@ fn a_heavier_vehicle_among_three_logs_is_named_and_not_blended() {
     assert!((joint - 0.035).abs() < 0.003, "joint mass {joint}");
 }
 
-/// One of three logs with its velocity in mm/s (mapped as m/s): its drag coefficient is 1000×
-/// off, it is named, left out, and does not "agree".
+/// One of three logs with its velocity in mm/s (mapped as m/s): the scale check names it
+/// before the fit; with the scales accepted, its drag coefficient is 1000× off, it is named,
+/// left out, and does not "agree".
 #[test]
 fn a_log_with_its_velocity_in_mm_per_s_is_named() {
     let dir = tmpdir("mm");
@@ -376,7 +387,9 @@ fn a_log_with_its_velocity_in_mm_per_s_is_named() {
     }
     let mm = dir.join("mm.csv");
     log.write_csv_path(&mm).unwrap();
-    let (ok, text, stderr, v, html) = diagnose_all(&dir, &[&a, &b, &mm]);
+    let (ok, _, stderr, _, _) = diagnose_all(&dir, &[&a, &b, &mm]);
+    assert!(!ok && stderr.contains("mm/s mapped as m/s?"), "{stderr}");
+    let (ok, text, stderr, v, html) = diagnose_all_with(&dir, &[&a, &b, &mm], &["--accept-scales"]);
     assert!(ok, "{stderr}");
     let logs = v["logs"].as_array().unwrap();
     assert_eq!(logs[2]["agrees"], false, "{}", logs[2]);

@@ -40,7 +40,9 @@ pub use fit::resolution_of;
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
 pub use glitches::Glitch;
 pub use log::{FlightLog, LogSample};
-pub use log_params::{LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter};
+pub use log_params::{
+    LOG_CONSISTENCY_EFFECT_FACTOR, LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter,
+};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{
     CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KNOWN_MASS_RANGE,
