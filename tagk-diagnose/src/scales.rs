@@ -69,6 +69,11 @@ pub const INERTIA_ERROR_FACTOR: f64 = 4.0;
 /// flight motion lies below a few hertz, white sensor noise is spread over the whole band.
 pub const COMPARISON_WINDOW: f64 = 0.5;
 
+/// The most samples the gain checks read, from the log's start: 100 000 (33 min at 50 Hz).
+/// A unit does not change within a log, and more samples only narrow an interval that is
+/// already narrow; a 1 000 000-row log would otherwise spend 1.2 s smoothing.
+pub const MAX_SCALE_CHECK_SAMPLES: usize = 100_000;
+
 /// Standard gravity \[m/s²\] (the `g` of an accelerometer in g).
 const STANDARD_GRAVITY: f64 = 9.806_65;
 
@@ -316,29 +321,43 @@ fn verdict(g: f64, se: f64, error_factor: f64, warn_factor: Option<f64>) -> Opti
 }
 
 /// The rows of each segment between gaps of `log`, without `edge` samples at either end.
-fn inner_rows(log: &FlightLog, edge: usize) -> Vec<Range<usize>> {
-    log.sampling()
-        .segments()
-        .into_iter()
+fn inner_rows(segments: &[Range<usize>], edge: usize) -> Vec<Range<usize>> {
+    segments
+        .iter()
         .filter(|r| r.len() > 2 * edge + 2)
         .map(|r| r.start + edge..r.end - edge)
         .collect()
 }
 
-/// `f` applied to each segment of `log` between gaps (its rows and its slice), the results
+/// The `segments` cut to their first `most` samples in all.
+fn first_samples(segments: Vec<Range<usize>>, most: usize) -> Vec<Range<usize>> {
+    let mut left = most;
+    let mut out = Vec::new();
+    for r in segments {
+        if left == 0 {
+            break;
+        }
+        let take = r.len().min(left);
+        left -= take;
+        out.push(r.start..r.start + take);
+    }
+    out
+}
+
+/// `f` applied to the rows of each of the `segments` between a log's gaps, the results
 /// concatenated; a segment too short to differentiate gets defaults (never read:
 /// [`inner_rows`] leaves it out).
 fn per_segment<T: Default + Clone>(
-    log: &FlightLog,
+    segments: &[Range<usize>],
     min_len: usize,
-    f: impl Fn(Range<usize>, &FlightLog) -> Vec<T>,
+    f: impl Fn(Range<usize>) -> Vec<T>,
 ) -> Vec<T> {
-    let mut out = Vec::with_capacity(log.len());
-    for r in log.sampling().segments() {
+    let mut out = Vec::with_capacity(segments.last().map_or(0, |r| r.end));
+    for r in segments {
         if r.len() < min_len {
             out.extend(std::iter::repeat_n(T::default(), r.len()));
         } else {
-            out.extend(f(r.clone(), &log.slice(r)));
+            out.extend(f(r.clone()));
         }
     }
     out
@@ -412,24 +431,28 @@ fn times(g: f64) -> String {
 /// the pose; the thrust against `mass` (the known mass, else the vehicle file's).
 pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFinding> {
     let mut out = Vec::new();
-    let dt = log.sampling().median_step;
+    let sampling = log.sampling();
+    let dt = sampling.median_step;
     if dt.is_nan() || dt <= 0.0 {
         return out;
     }
+    let segments = first_samples(sampling.segments(), MAX_SCALE_CHECK_SAMPLES);
     // The comparison's smoothing: COMPARISON_WINDOW, at least the derivative's window.
     let h = ((0.5 * COMPARISON_WINDOW / dt).round() as usize).max(DEFAULT_HALF_WIDTH);
     let min_len = 2 * h + 1;
-    let rows = inner_rows(log, h + 2 * DEFAULT_HALF_WIDTH);
+    let rows = inner_rows(&segments, h + 2 * DEFAULT_HALF_WIDTH);
     let width = 2 * h + 1;
     // The measured signal through the derivative's smoothing too: both sides filtered alike.
     let smoothed = |x: &[[f64; 3]]| {
-        per_segment(log, min_len, |r, s| {
-            smooth3(&s.t, &smooth3(&s.t, &x[r], DEFAULT_HALF_WIDTH), h)
+        per_segment(&segments, min_len, |r| {
+            let t = &log.t[r.clone()];
+            smooth3(t, &smooth3(t, &x[r], DEFAULT_HALF_WIDTH), h)
         })
     };
     // The gyro against the attitude's rate.
-    let rate = per_segment(log, min_len, |_, s| {
-        smooth3(&s.t, &omega_from_attitude(&s.t, &s.attitude), h)
+    let rate = per_segment(&segments, min_len, |r| {
+        let t = &log.t[r.clone()];
+        smooth3(t, &omega_from_attitude(t, &log.attitude[r]), h)
     });
     if let Some(g) = gain(&smoothed(&log.omega), &rate, &rows, width) {
         out.extend(gain_finding(
@@ -441,9 +464,10 @@ pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFin
         ));
     }
     // The velocity against the position's derivative.
-    let p_dot = per_segment(log, min_len, |_, s| {
-        let d = savitzky_golay_derivative3(&s.t, &s.position, DEFAULT_HALF_WIDTH);
-        smooth3(&s.t, &d, h)
+    let p_dot = per_segment(&segments, min_len, |r| {
+        let t = &log.t[r.clone()];
+        let d = savitzky_golay_derivative3(t, &log.position[r], DEFAULT_HALF_WIDTH);
+        smooth3(t, &d, h)
     });
     if let Some(g) = gain(&smoothed(&log.velocity), &p_dot, &rows, width) {
         out.extend(gain_finding(
@@ -455,8 +479,8 @@ pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFin
         ));
     }
     // The logged acceleration against the velocity's derivative.
-    let v_dot = per_segment(log, min_len, |_, s| {
-        savitzky_golay_derivative3(&s.t, &s.velocity, DEFAULT_HALF_WIDTH)
+    let v_dot = per_segment(&segments, min_len, |r| {
+        savitzky_golay_derivative3(&log.t[r.clone()], &log.velocity[r], DEFAULT_HALF_WIDTH)
     });
     if let Some(a) = &log.accel
         && let Some(g) = gain(&smoothed(a), &smoothed(&v_dot), &rows, width)
@@ -645,4 +669,22 @@ pub fn scales_text(findings: &[ScaleFinding]) -> String {
         .iter()
         .map(|f| format!("scale check: {}\n", f.text()))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_samples;
+
+    /// The segments are cut at the cap, in order; under the cap they are kept whole.
+    #[test]
+    fn the_gain_checks_read_the_first_samples_only() {
+        let segments = vec![0..40, 50..100, 120..200];
+        assert_eq!(first_samples(segments.clone(), 1000), segments);
+        assert_eq!(first_samples(segments.clone(), 60), vec![0..40, 50..70]);
+        assert_eq!(first_samples(segments.clone(), 40), vec![0..40]);
+        assert_eq!(
+            first_samples(segments, 0),
+            Vec::<std::ops::Range<usize>>::new()
+        );
+    }
 }

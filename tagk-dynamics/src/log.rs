@@ -1196,21 +1196,27 @@ impl<R: Read> Read for LineCounter<R> {
             self.close_cr();
             return Ok(0);
         }
-        for (k, &byte) in buf[..n].iter().enumerate() {
-            let at = self.offset + k as u64;
-            match byte {
-                // A CRLF is one line end, at its `\n`.
-                b'\n' => {
-                    self.after_cr = false;
-                    self.ends.push_back((at, true));
-                }
-                b'\r' => {
-                    self.close_cr();
-                    self.ends.push_back((at, false));
-                    self.after_cr = true;
-                }
-                _ => self.close_cr(),
+        // Only the `\r` and `\n` bytes are looked at (found by `memchr`); any other byte
+        // after a `\r` makes it a line end of its own.
+        let mut next = 0;
+        for k in memchr::memchr2_iter(b'\n', b'\r', &buf[..n]) {
+            if k > next {
+                self.close_cr();
             }
+            let at = self.offset + k as u64;
+            if buf[k] == b'\n' {
+                // A CRLF is one line end, at its `\n`.
+                self.after_cr = false;
+                self.ends.push_back((at, true));
+            } else {
+                self.close_cr();
+                self.ends.push_back((at, false));
+                self.after_cr = true;
+            }
+            next = k + 1;
+        }
+        if n > next {
+            self.close_cr();
         }
         self.offset += n as u64;
         Ok(n)
