@@ -4,7 +4,10 @@
 //! the hidden physics and nothing else; a log without an offset must be left alone.
 
 use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log};
-use tagk::diagnose::{EffectKind as Vocabulary, FlightLog, Report, Sensor, StreamAlignment};
+use tagk::diagnose::{
+    AlignOptions, EffectKind as Vocabulary, FlightLog, Report, Sensor, StreamAlignment,
+    align_streams, streams_table,
+};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, Sensing, SimConfig,
     TrajectoryKind,
@@ -236,4 +239,64 @@ fn given_shifts_and_no_align_are_honoured_and_reproduced() {
         let e = diagnose_log(&shifted, &a).unwrap_err().to_string();
         assert!(e.contains("shift"), "{bad}: {e}");
     }
+}
+
+/// A `--shift` that contradicts the measured offset (issue #25): the pose and the velocity 3
+/// samples late, shifted by the right amount, get no warning; with the wrong sign, or a gyro shift that the
+/// gyro's own timing against the pose contradicts, the stream timing says so (terminal
+/// table; the JSON's `streams[].warning`; the HTML prints the table).
+#[test]
+fn a_given_shift_that_contradicts_the_measured_offset_is_flagged() {
+    let log = flight();
+    let shifted = late(&log, 3, true, false);
+    let late_by = 3.0 * period(&log);
+    let align = |shifts: Vec<(Sensor, f64)>| {
+        let options = AlignOptions {
+            shifts,
+            ..AlignOptions::default()
+        };
+        align_streams(&shifted, &options).unwrap().1
+    };
+    // The pose's stream carries the velocity too: both move (a pose shift alone leaves the
+    // velocity late against the moved position, and is flagged for it).
+    let right = align(vec![(Sensor::Pose, late_by), (Sensor::Velocity, late_by)]);
+    assert!(right.iter().all(|e| e.warning.is_empty()), "{right:?}");
+    let wrong = align(vec![(Sensor::Pose, -late_by)]);
+    let pose = wrong.iter().find(|e| e.sensor == Sensor::Pose).unwrap();
+    assert!(
+        pose.warning
+            .contains("the shifts given assume the gyro +60.0 ms against the pose")
+            && pose.warning.contains("a wrong sign or stream in --shift?"),
+        "{}",
+        pose.warning
+    );
+    let table = streams_table(&wrong);
+    assert!(
+        table.contains("warning: the shifts given assume the gyro"),
+        "{table}"
+    );
+    let json = serde_json::to_value(&wrong).unwrap();
+    assert!(
+        json.as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["warning"].as_str().unwrap().contains("wrong sign")),
+        "{json}"
+    );
+    // The gyro shifted although the pose is what is late.
+    let gyro = align(vec![(Sensor::Gyro, late_by)]);
+    let g = gyro.iter().find(|e| e.sensor == Sensor::Gyro).unwrap();
+    assert!(
+        g.warning.contains("assume the gyro +60.0 ms"),
+        "{}",
+        g.warning
+    );
+    // The pose alone: the velocity, in the pose's stream, is left behind.
+    let alone = align(vec![(Sensor::Pose, late_by)]);
+    let pose = alone.iter().find(|e| e.sensor == Sensor::Pose).unwrap();
+    assert!(
+        pose.warning.contains("assume the velocity -60.0 ms") && !pose.warning.contains("gyro"),
+        "{}",
+        pose.warning
+    );
 }

@@ -56,7 +56,8 @@ pub use sampling::{SamplingFindings, sampling_text};
 pub use scales::{ScaleFinding, Severity};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
 pub use streams::{
-    AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift, streams_table,
+    AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift,
+    shift_contradiction, streams_table,
 };
 /// The effect vocabulary shared with the simulator (re-exported from `tagk-dynamics`): the
 /// built-in candidates are keyed by it ([`builtin`]).

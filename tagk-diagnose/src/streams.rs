@@ -50,6 +50,32 @@ pub struct StreamAlignment {
     pub applied: f64,
     /// `"measured"` (removed because significant), `"given"` (`--shift`), or `"none"`.
     pub action: &'static str,
+    /// Why the shifts given contradict this stream's measured offset (empty when they do
+    /// not, or when nothing was given): [`shift_contradiction`].
+    pub warning: String,
+}
+
+/// Whether the shifts given leave a stream off its measured offset: the offset they assume
+/// against the pose, `given − given_pose` \[s\], lies outside the measured 95 % interval
+/// widened by half a sampling period (what a shift can resolve). Returns the warning.
+pub fn shift_contradiction(
+    sensor: Sensor,
+    estimate: &DelayEstimate,
+    assumed: f64,
+) -> Option<String> {
+    let (lo, hi) = estimate.confidence_interval;
+    let slack = 0.5 * estimate.sample_period;
+    (assumed < lo - slack || assumed > hi + slack).then(|| {
+        format!(
+            "the shifts given assume the {} {:+.1} ms against the pose, but it measures {:+.1} ms \
+             [{:+.1}, {:+.1}]: a wrong sign or stream in --shift?",
+            sensor.name(),
+            1e3 * assumed,
+            1e3 * estimate.delay,
+            1e3 * lo,
+            1e3 * hi
+        )
+    })
 }
 
 /// Parses `SENSOR=SECONDS` (`gyro=0.012`): a `--shift` argument.
@@ -155,6 +181,7 @@ fn align(
         note: String::new(),
         applied: 0.0,
         action: "none",
+        warning: String::new(),
     };
     // The shifted log, once a stream moves (`None`: the log as given).
     let mut out: Option<FlightLog> = None;
@@ -189,12 +216,48 @@ fn align(
         d
     };
     let mut offsets = [None; 3];
+    let mut measured: Vec<DelayEstimate> = Vec::new();
     for (sensor, result) in alignment::estimate_delays(&log, options.max_delay) {
+        if let Ok(estimate) = &result {
+            measured.push(estimate.clone());
+        }
         let d = significant(sensor, result);
         match sensor {
             Sensor::Gyro => offsets[0] = d,
             Sensor::Velocity => offsets[2] = d,
             _ => offsets[1] = d,
+        }
+    }
+    // With shifts given: each measured stream against what they assume of it.
+    if !options.shifts.is_empty() {
+        let given = |sensor: Sensor| {
+            options
+                .shifts
+                .iter()
+                .find(|(s, _)| *s == sensor)
+                .map(|(_, d)| *d)
+        };
+        let pose = given(Sensor::Pose).unwrap_or(0.0);
+        for estimate in &measured {
+            let own = given(estimate.sensor);
+            if own.is_none() && pose == 0.0 {
+                continue;
+            }
+            let assumed = own.unwrap_or(0.0) - pose;
+            if let Some(w) = shift_contradiction(estimate.sensor, estimate, assumed) {
+                // On the stream's entry, or on the pose's when only the pose was shifted.
+                let on = if own.is_some() {
+                    estimate.sensor
+                } else {
+                    Sensor::Pose
+                };
+                if let Some(e) = entries.iter_mut().find(|e| e.sensor == on) {
+                    if !e.warning.is_empty() {
+                        e.warning.push_str("; ");
+                    }
+                    e.warning.push_str(&w);
+                }
+            }
         }
     }
     if auto {
@@ -281,6 +344,9 @@ pub fn streams_table(entries: &[StreamAlignment]) -> String {
             },
         };
         s.push_str(&format!("{who:<24} {line}\n"));
+        if !e.warning.is_empty() {
+            s.push_str(&format!("{:<24} warning: {}\n", "", e.warning));
+        }
     }
     s
 }
