@@ -239,34 +239,12 @@ pub fn exclude(log: FlightLog, glitches: &[Glitch]) -> (FlightLog, usize) {
         out = Some(match out {
             None => part,
             Some(mut joined) => {
-                append(&mut joined, part);
+                joined.append(part);
                 joined
             }
         });
     }
     (out.unwrap_or_else(|| log.slice(0..0)), removed)
-}
-
-/// Appends the samples of `b` (same columns) to `a`.
-fn append(a: &mut FlightLog, b: FlightLog) {
-    a.t.extend(b.t);
-    a.position.extend(b.position);
-    a.velocity.extend(b.velocity);
-    a.attitude.extend(b.attitude);
-    a.omega.extend(b.omega);
-    a.wrench.extend(b.wrench);
-    if let (Some(x), Some(y)) = (&mut a.accel, b.accel) {
-        x.extend(y);
-    }
-    if let (Some(x), Some(y)) = (&mut a.omega_dot, b.omega_dot) {
-        x.extend(y);
-    }
-    if let (Some(x), Some(y)) = (&mut a.rotor_speeds, b.rotor_speeds) {
-        x.extend(y);
-    }
-    for ((_, x), (_, y)) in a.extra.iter_mut().zip(b.extra) {
-        x.extend(y);
-    }
 }
 
 /// The glitches as the report prints them: a heading line and one line per glitch, or

@@ -387,6 +387,30 @@ impl FlightLog {
         Sampling::of(&self.t)
     }
 
+    /// Appends the samples of `other`, which has the same signals and extra columns (a log
+    /// cut with [`FlightLog::slice`] and joined again). An optional signal or an extra column
+    /// that `other` lacks stays as it is.
+    pub fn append(&mut self, other: FlightLog) {
+        self.t.extend(other.t);
+        self.position.extend(other.position);
+        self.velocity.extend(other.velocity);
+        self.attitude.extend(other.attitude);
+        self.omega.extend(other.omega);
+        self.wrench.extend(other.wrench);
+        if let (Some(x), Some(y)) = (&mut self.accel, other.accel) {
+            x.extend(y);
+        }
+        if let (Some(x), Some(y)) = (&mut self.omega_dot, other.omega_dot) {
+            x.extend(y);
+        }
+        if let (Some(x), Some(y)) = (&mut self.rotor_speeds, other.rotor_speeds) {
+            x.extend(y);
+        }
+        for ((_, x), (_, y)) in self.extra.iter_mut().zip(other.extra) {
+            x.extend(y);
+        }
+    }
+
     /// The samples `range` as a log of their own (every signal, extra columns included).
     ///
     /// # Panics

@@ -89,6 +89,19 @@ fn damaged_csv() -> impl Strategy<Value = Vec<u8>> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
+    /// A log cut anywhere into two slices and appended again is the log, every signal and
+    /// extra column included (the glitch screen cuts and joins logs this way).
+    #[test]
+    fn slices_appended_give_the_log_back(log in flight_log(), cut in 0.0f64..1.0) {
+        let mut log = log;
+        let n = log.len();
+        log.add_extra("vbat", (0..n).map(|i| 3.7 + i as f64 * 1e-3).collect());
+        let k = ((n as f64) * cut) as usize;
+        let mut joined = log.slice(0..k);
+        joined.append(log.slice(k..n));
+        prop_assert_eq!(joined, log);
+    }
+
     #[test]
     fn write_then_read_gives_the_same_log(log in flight_log()) {
         let mut csv = Vec::new();
