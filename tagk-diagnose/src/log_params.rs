@@ -142,7 +142,7 @@ pub(crate) fn estimates(model: &Model, s: &Signals) -> Vec<Estimate> {
         .filter(|e| is_vehicle_property(&e.effect))
     {
         for c in &e.coefficients {
-            if c.name.starts_with("start_") || c.name.contains('@') {
+            if crate::fit::is_start_nuisance(&c.name) || c.name.contains('@') {
                 continue;
             }
             if let Some(se) = c.std_error.filter(|se| se.is_finite() && *se > 0.0) {

@@ -673,7 +673,7 @@ pub fn staircase_table(r: &Report) -> String {
             let coefs: Vec<String> = step
                 .coefficients
                 .iter()
-                .filter(|c| !c.name.starts_with("start_"))
+                .filter(|c| !crate::fit::is_start_nuisance(&c.name))
                 .chain(&step.derived)
                 .map(|c| match c.confidence_interval {
                     Some([lo, hi]) => {

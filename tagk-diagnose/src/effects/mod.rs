@@ -422,7 +422,7 @@ pub fn effect_columns(effect: &dyn Effect, s: &Signals, param: Option<f64>) -> V
     let mut out = Vec::new();
     for j in 0..count {
         let first = &per_part[0][j];
-        if first.name.starts_with("start_") || effect.per_log() {
+        if crate::fit::is_start_nuisance(&first.name) || effect.per_log() {
             let mut offset = 0;
             for (k, cols) in per_part.iter().enumerate() {
                 let mut data: [Option<Vec<f64>>; 6] = Default::default();
