@@ -7,8 +7,8 @@ use tagk_core::{ConfigError, Real};
 /// Which dense-algebra code runs the block update.
 ///
 /// Both backends compute the same algorithm (see the crate docs) in the same preallocated
-/// buffers and share the Cholesky factorisation; they differ in how the matrix products and
-/// the triangular solve are executed, so results agree to round-off, not bit for bit.
+/// buffers, and share the Cholesky factorisation. They differ in how the matrix products and
+/// the triangular solve are executed. So results agree to round-off, not bit for bit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Backend {
     /// The backend measured fastest: [`Backend::Faer`] for `f64` with the `faer` feature (it

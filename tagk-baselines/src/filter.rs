@@ -60,12 +60,12 @@ pub const fn covariance_buffer_len(n: usize, m_max: usize) -> usize {
 /// `n² + 3n + 2·m_max·n + m_max² + 3·m_max` scalars (one covariance, updated in place).
 ///
 /// A filter built in a buffer shorter than [`covariance_buffer_len`] has **no
-/// information-form fallback**: a window that the fallback would redo (a Cholesky
-/// factorisation of `S` that fails, or a covariance update that cancels to fewer than ~4
-/// digits on the diagonal; see the crate docs) is refused with
+/// information-form fallback**. The fallback would redo a window whose Cholesky factorisation
+/// of `S` fails, or whose covariance update cancels to fewer than ~4 digits on the diagonal
+/// (see the crate docs). Here such a window is refused with
 /// [`EstimatorError::NumericalFailure`] and leaves the filter as it was. Every other window
-/// gives the same bits as with the full buffer. For memory-bound targets (the Cortex-M7
-/// firmware of `tagk-mcu`); [`Backend::Faer`] needs the full buffer.
+/// gives the same bits as with the full buffer. This suits memory-bound targets, such as the
+/// Cortex-M7 firmware of `tagk-mcu`. [`Backend::Faer`] needs the full buffer.
 pub const fn compact_covariance_buffer_len(n: usize, m_max: usize) -> usize {
     n * n + 3 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
 }

@@ -20,19 +20,19 @@ use crate::{DefaultStorage, KalmanConfig};
 /// ```
 ///
 /// **Covariance update: the symmetrised form `P⁻ − Gᵀ G`, not the Joseph form.** With
-/// `G = L⁻¹ A P⁻`, the subtracted term `K S Kᵀ = K A P⁻` is a Gram matrix: only its upper
-/// triangle is computed and it is mirrored, so `P` is symmetric *exactly* (the asymmetric drift
-/// of the plain `(I − K A) P⁻` product, the usual reason for Joseph, cannot occur), at
+/// `G = L⁻¹ A P⁻`, the subtracted term `K S Kᵀ = K A P⁻` is a Gram matrix. Only its upper
+/// triangle is computed, then mirrored, so `P` is symmetric *exactly*. The asymmetric drift of
+/// the plain `(I − K A) P⁻` product, the usual reason for Joseph, cannot occur. The cost is
 /// `m n²/2` multiply-adds. The Joseph form `(I − KA) P⁻ (I − KA)ᵀ + K R Kᵀ` costs `2n³` as
-/// written, 4–5× the whole update at `n = 120, m = 30`, and its `O(m n²)` rearrangement is
-/// again a difference of nearly equal terms, so it buys nothing over the symmetrised form in
-/// the one regime where either loses accuracy: a window that pins a direction far below
-/// rounding level of the prior (`p₀ ‖a‖² / σ_R² ≳ 10¹²`; KF-low's first window on
-/// quadrotor data is one). That regime is detected (a diagonal entry that kept fewer than ~4
-/// digits, or a failed Cholesky factorisation of `S`) and the window is redone in
-/// information form, which is well conditioned there (see the crate docs). Every update
-/// also checks that `P` stays finite with a positive diagonal; otherwise it is refused
-/// ([`EstimatorError::Diverged`] / [`EstimatorError::NumericalFailure`]) and the state is kept.
+/// written: 4–5× the whole update at `n = 120, m = 30`. Its `O(m n²)` rearrangement is again a
+/// difference of nearly equal terms. So it buys nothing over the symmetrised form in the one
+/// regime where either loses accuracy. That is a window that pins a direction far below the
+/// rounding level of the prior (`p₀ ‖a‖² / σ_R² ≳ 10¹²`); KF-low's first window on quadrotor
+/// data is one. That regime is detected: a diagonal entry that kept fewer than ~4 digits, or a
+/// failed Cholesky factorisation of `S`. The window is then redone in information form, which
+/// is well conditioned there (see the crate docs). Every update also checks that `P` stays
+/// finite with a positive diagonal. Otherwise it is refused ([`EstimatorError::Diverged`] /
+/// [`EstimatorError::NumericalFailure`]) and the state is kept.
 ///
 /// The cost per update is `O(m n²)` (see the crate docs); nothing is allocated after
 /// construction. Zero rows of a window carry no information and change nothing (a window of

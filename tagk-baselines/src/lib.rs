@@ -19,43 +19,47 @@
 //! In total about `1.5 m n² + m² n + m³/6` multiply-adds: `O(m n²)` for `m ≤ n`, never
 //! `O(n³)`, and no inverse or gain matrix is formed. The Kalman filter adds `P ← P + σ_Q²·I`
 //! (`n`) before step 1; RLS scales by `s = 1/λ` in step 6. Measured per-update times are in
-//! the README. The faer backend runs these steps as written; the portable kernel
-//! ([`Backend::Loops`], the firmware's) computes the same quantities with dot products only
-//! (`W = A P`, `Z = Wᵀ L⁻ᵀ` so that `Gᵀ w = Z L⁻¹ r` and `Gᵀ G = Z Zᵀ`), updates `P` in place
-//! after checking a bound on every new entry, and keeps `‖z_i‖²` for the checks below. The
-//! Cholesky factorisation is tagk-core's
-//! [`cholesky_in_place`](tagk_core::linalg::cholesky_in_place).
+//! the README.
 //!
-//! **Extreme dynamic range.** When a window pins a direction far below the rounding level of
-//! the prior (`p₀ ‖a‖² / d ≳ 10¹²` with `d = λ` or `σ_R²`; in practice the first window of
-//! "KF-low", `P₀ = 10³`, `σ_R² = 10⁻¹⁰`), `S` is numerically singular or step 6 cancels to
-//! no correct digits. This is detected (a failed Cholesky pivot, or a diagonal entry
-//! `P⁺_kk ≤ 10⁴ ε P_kk`, `ε` of `f64` also for `f32`, where it thus catches only a complete
-//! cancellation) and that window is redone in information form,
+//! The faer backend runs these steps as written. The portable kernel ([`Backend::Loops`], the
+//! firmware's) computes the same quantities with dot products only: `W = A P`, `Z = Wᵀ L⁻ᵀ`,
+//! so that `Gᵀ w = Z L⁻¹ r` and `Gᵀ G = Z Zᵀ`. It updates `P` in place after checking a bound
+//! on every new entry, and keeps `‖z_i‖²` for the checks below. The Cholesky factorisation is
+//! tagk-core's [`cholesky_in_place`](tagk_core::linalg::cholesky_in_place).
+//!
+//! **Extreme dynamic range.** A window may pin a direction far below the rounding level of
+//! the prior: `p₀ ‖a‖² / d ≳ 10¹²`, with `d = λ` or `σ_R²`. In practice this is the first
+//! window of "KF-low" (`P₀ = 10³`, `σ_R² = 10⁻¹⁰`). Then `S` is numerically singular, or step
+//! 6 cancels to no correct digits. This is detected: a failed Cholesky pivot, or a diagonal
+//! entry `P⁺_kk ≤ 10⁴ ε P_kk`. `ε` is that of `f64` also for `f32`, where it thus catches only
+//! a complete cancellation. That window is redone in information form,
 //! `P⁺ = (P⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, by Cholesky factorisations of `n × n`
 //! matrices: about `n³ + m n²`, on such windows only.
 //!
 //! **Memory.** One buffer of [`covariance_buffer_len`]`(n, m)` = `2n² + 4n + 2mn + m² + 3m`
-//! scalars (two copies of `θ`, committed by switching; `P` and a second `n × n` copy, where
-//! the faer backend computes its posterior and the fallback its `P⁺`, with its factorisations
-//! in place; the workspace), allocated by [`Rls::new`] / [`KalmanFilter::new`] or provided by
-//! the caller (`with_storage`); `update` does not allocate. The portable kernel updates `P` in
-//! place (after every check), so with `with_storage` it also runs in a buffer of only
-//! [`compact_covariance_buffer_len`]`(n, m)` = `n² + 3n + 2mn + m² + 3m` scalars, **without the
-//! fallback**: the windows it would redo are then refused with
-//! [`EstimatorError::NumericalFailure`] (the
-//! state is kept), all others give the same bits ([`Rls::has_information_fallback`]). With [`Backend::Faer`], faer additionally keeps
-//! per-thread packing buffers (sized by the L3 cache) that it allocates on first use in a
-//! thread; the constructor runs one dummy update so they exist for the constructing thread (an
-//! estimator moved to another thread triggers that one-time allocation there on its first
-//! update).
+//! scalars holds everything. That is two copies of `θ`, committed by switching; `P` and a
+//! second `n × n` copy, where the faer backend computes its posterior and the fallback its
+//! `P⁺`, with its factorisations in place; and the workspace. [`Rls::new`] /
+//! [`KalmanFilter::new`] allocate it, or the caller provides it (`with_storage`); `update` does
+//! not allocate.
+//!
+//! The portable kernel updates `P` in place (after every check). So with `with_storage` it also
+//! runs in a buffer of only [`compact_covariance_buffer_len`]`(n, m)` =
+//! `n² + 3n + 2mn + m² + 3m` scalars, **without the fallback**. The windows it would redo are
+//! then refused with [`EstimatorError::NumericalFailure`] and the state is kept. All others
+//! give the same bits ([`Rls::has_information_fallback`]).
+//!
+//! With [`Backend::Faer`], faer additionally keeps per-thread packing buffers, sized by the L3
+//! cache. It allocates them on first use in a thread. The constructor runs one dummy update so
+//! they exist for the constructing thread. An estimator moved to another thread triggers that
+//! one-time allocation there on its first update.
 //!
 //! # Failure handling
 //!
-//! Every update validates the window first (shape, capacity, finiteness: the same typed
-//! [`EstimatorError`](tagk_core::EstimatorError)s as the Kaczmarz estimators), then computes
-//! the new `θ` and `P` in scratch space (or checks a bound on every new entry before updating
-//! `P` in place) and commits them only if they are finite with a positive diagonal. On any
+//! Every update validates the window first: shape, capacity, finiteness, with the same typed
+//! [`EstimatorError`](tagk_core::EstimatorError)s as the Kaczmarz estimators. Then it computes
+//! the new `θ` and `P` in scratch space, or checks a bound on every new entry before updating
+//! `P` in place. It commits them only if they are finite with a positive diagonal. On any
 //! error the estimate and covariance are exactly what they were.
 
 #![no_std]

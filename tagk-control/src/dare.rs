@@ -15,8 +15,8 @@
 //!   with rate about `ρ(A − BK)²`.
 //! - [`solve_dare_sda`] — the structure-preserving doubling algorithm (Chu, Fan & Lin 2005,
 //!   *A structure-preserving doubling algorithm for discrete-time algebraic Riccati
-//!   equations*): its `k`-th iterate equals the `2ᵏ`-th iterate of the difference equation
-//!   started from `P = 0`, so it converges quadratically; it cannot use a warm start.
+//!   equations*). Its `k`-th iterate equals the `2ᵏ`-th iterate of the difference equation
+//!   started from `P = 0`, so it converges quadratically. It cannot use a warm start.
 //!
 //! Both are generic over nalgebra dimensions: `SMatrix<f64, 12, 12>` / `SMatrix<f64, 12, 4>`
 //! (statically sized: no heap allocation on success) and `DMatrix<f64>` (workspace allocated

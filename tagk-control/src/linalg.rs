@@ -1,7 +1,7 @@
-//! Small dense kernels on contiguous column-major slices, so that the Riccati solvers
-//! neither allocate inside their loops (nalgebra's `Cholesky` and `LU` consume their
-//! argument, which allocates for `DMatrix`) nor pay for bounds checks in the inner loops:
-//! every inner loop is an `axpy` or a dot product over contiguous memory. The Cholesky
+//! Small dense kernels on contiguous column-major slices. The Riccati solvers use them so
+//! they do not allocate inside their loops: nalgebra's `Cholesky` and `LU` consume their
+//! argument, which allocates for `DMatrix`. Nor do they pay for bounds checks in the inner
+//! loops: every inner loop is an `axpy` or a dot product over contiguous memory. The Cholesky
 //! factorisation and its solves are tagk-core's (`tagk_core::linalg`), the one implementation
 //! of the workspace.
 
@@ -33,11 +33,11 @@ fn with_scratch<R>(n: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
 
 /// Cholesky factorisation in place of the `n×n` symmetric column-major `a` by the
 /// workspace's one factorisation, [`tagk_core::linalg::cholesky_in_place`]. That routine is
-/// row-major: it reads the lower triangle of the row-major view, which is the **upper**
-/// triangle of the column-major `a` (the same values for a symmetric `a`), and writes the
-/// factor `L` there, so on success the column-major upper triangle holds `Lᵀ` with
-/// `a = L Lᵀ`; the strict lower triangle is left as it was. Returns `false` if `a` is not
-/// (numerically) positive definite or holds non-finite values.
+/// row-major. It reads the lower triangle of the row-major view: the **upper** triangle of the
+/// column-major `a`, the same values for a symmetric `a`. It writes the factor `L` there. So on
+/// success the column-major upper triangle holds `Lᵀ`, with `a = L Lᵀ`. The strict lower
+/// triangle is left as it was. Returns `false` if `a` is not (numerically) positive definite
+/// or holds non-finite values.
 pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     debug_assert_eq!(a.len(), n * n);
     tagk_core::linalg::cholesky_in_place(a, n).is_ok()

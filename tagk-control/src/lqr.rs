@@ -44,11 +44,10 @@ impl LqrWeights {
     /// | body rate z | 1 rad/s | 1 |
     /// | each rotor thrust deviation | 0.02 N | 2500 |
     ///
-    /// At nominal parameters and 50 Hz the slowest discrete closed-loop pole has
-    /// `|z| ≈ 0.93` (time constant ≈ 0.27 s), fast enough to track the 0.5 m/s trajectories
-    /// of the protocol; the hover trim leaves about 0.058 N of headroom per rotor, roughly
-    /// three times the 0.02 N design deviation. (With a 50 % payload at 30 % of the arm,
-    /// `|z| ≈ 0.94`.)
+    /// At nominal parameters and 50 Hz the slowest discrete closed-loop pole has `|z| ≈ 0.93`
+    /// (time constant ≈ 0.27 s). That is fast enough to track the 0.5 m/s trajectories of the
+    /// protocol. The hover trim leaves about 0.058 N of headroom per rotor, roughly three times
+    /// the 0.02 N design deviation. With a 50 % payload at 30 % of the arm, `|z| ≈ 0.94`.
     pub fn crazyflie() -> Self {
         Self::from_diagonals(
             [
@@ -68,11 +67,11 @@ impl Default for LqrWeights {
 
 /// How the controller solves its Riccati equation.
 ///
-/// The default is [`RiccatiSolver::Doubling`] because it is the faster one even against a
-/// warm-started iteration: the plain iteration converges linearly with rate
-/// `ρ(A−BK)² ≈ 0.86` for the default Crazyflie design, so a warm start `δ` (relative error)
-/// away from the solution only saves about `ln(1/δ)/ln(1/ρ²)` of its ≈ 170–190 steps (a
-/// 40 % mass change: 147 instead of 181), whereas doubling needs 8–9 steps whatever the start.
+/// The default is [`RiccatiSolver::Doubling`] because it is the faster one, even against a
+/// warm-started iteration. The plain iteration converges linearly with rate
+/// `ρ(A−BK)² ≈ 0.86` for the default Crazyflie design. A warm start `δ` (relative error) away
+/// from the solution only saves about `ln(1/δ)/ln(1/ρ²)` of its ≈ 170–190 steps; a 40 % mass
+/// change takes 147 instead of 181. Doubling needs 8–9 steps whatever the start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RiccatiSolver {
     /// Riccati difference iteration ([`solve_dare`], the reference): cold start from `Q`

@@ -133,11 +133,12 @@ impl<T: Real> Kernels<T> for Neon {
     }
 }
 
-/// `at[k p + j] = a[j n + k]` (the window transposed, `p = padded(m)` columns, zero from `m`
-/// on) and, from the same loads, `r_j = b_j − a_jᵀx` (zero from `m` to `p`), each dot product
-/// summed as [`crate::linalg::dot`] does: partial sums `s_{k mod 4}` over the first `4⌊n/4⌋`
-/// entries (lanes of two `q` registers), combined as `(s₀ + s₂) + (s₁ + s₃)`, then the
-/// remaining entries in order. Rows go in pairs, as 2 × 2 transposes.
+/// `at[k p + j] = a[j n + k]`: the window transposed, `p = padded(m)` columns, zero from `m`
+/// on. The same loads give `r_j = b_j − a_jᵀx` (zero from `m` to `p`). Each dot product is
+/// summed as [`crate::linalg::dot`] does. Partial sums `s_{k mod 4}` run over the first
+/// `4⌊n/4⌋` entries (lanes of two `q` registers). They are combined as
+/// `(s₀ + s₂) + (s₁ + s₃)`, then the remaining entries are added in order. Rows go in pairs,
+/// as 2 × 2 transposes.
 fn transpose_and_residual_f64(
     a: &[f64],
     b: &[f64],
@@ -220,12 +221,12 @@ fn transpose_and_residual_f64(
 }
 
 /// The tiles `G[I, J]`, `I ≤ J`, of the panel `J = bj..bj+8` of `G = A Aᵀ` (`f64`) from the
-/// transposed window `at` (`n × p`, stride `p`): 4 × 8 tiles of sixteen `q` accumulators, each
-/// entry summed in order of `k` (multiply, then add), as `gram_transposed` does; in the
-/// diagonal block the lower four rows only right of its split (a 4 × 4 tile), their left
-/// quarter the upper-right one's mirror image (the same products in the same order). Columns
-/// from `m` on are padding: they are not computed but written as zeros (rows from `m` on are
-/// left unspecified, as the kernel contract allows).
+/// transposed window `at` (`n × p`, stride `p`). They are 4 × 8 tiles of sixteen `q`
+/// accumulators. Each entry is summed in order of `k` (multiply, then add), as
+/// `gram_transposed` does. In the diagonal block, the lower four rows are computed only right
+/// of its split (a 4 × 4 tile). Their left quarter is the upper-right one's mirror image: the
+/// same products in the same order. Columns from `m` on are padding: they are not computed but
+/// written as zeros. Rows from `m` on are left unspecified, as the kernel contract allows.
 ///
 /// # Safety
 /// `at` must hold `n · p` and `gram` `p · p` entries, `bj + 8 ≤ p`, `bj < m`.
@@ -371,9 +372,10 @@ unsafe fn tile_step<const Q: usize>(
 }
 
 /// `G = A Aᵀ` for `f32` from the transposed window `at` (`n × p`, stride `p`, zero in the
-/// padding columns): for each block pair `I ≤ J` of eight rows an 8 × 8 tile in sixteen `q`
-/// accumulators, each entry summed in order of `k` (multiply, then add) as `gram_transposed`
-/// does, stored with its mirror image `G[J, I]` (the same products in the same order).
+/// padding columns). Each block pair `I ≤ J` of eight rows is an 8 × 8 tile in sixteen `q`
+/// accumulators. Each entry is summed in order of `k` (multiply, then add), as
+/// `gram_transposed` does. The tile is stored with its mirror image `G[J, I]`: the same
+/// products in the same order.
 ///
 /// # Safety
 /// `at` must hold `n · p` entries and `gram` `p · p`, `p` a multiple of 8.

@@ -3,14 +3,15 @@
 //!
 //! # When it matters
 //! The estimators see raw windows `A θ ≈ b`. That is fine when every column of `A` has the
-//! same order of magnitude. It is not when parameters of different units share a window (a
-//! mass in kg next to an inertia in kg m²): the per-window condition number reaches the
-//! thousands, and a Kaczmarz method, which moves `θ̂` along the rows, barely moves the
+//! same order of magnitude. It is not when parameters of different units share a window, such
+//! as a mass in kg next to an inertia in kg m². The per-window condition number then reaches
+//! the thousands. A Kaczmarz method moves `θ̂` along the rows, so it barely moves the
 //! parameters of small columns. One pass per window then leaves errors orders of magnitude
-//! above batch least squares on the same data (`tagk-core/tests/front_end.rs`: a 3-parameter
-//! problem with per-window `κ ≈ 3000`, raw TAG-K against batch least squares and the wrapped
-//! TAG-K). The recursive filters are scale-invariant in exact arithmetic but not in their
-//! noise model, so the front end helps them less; its event-aware windows help all of them.
+//! above batch least squares on the same data. `tagk-core/tests/front_end.rs` shows it: a
+//! 3-parameter problem with per-window `κ ≈ 3000`, raw TAG-K against batch least squares and
+//! the wrapped TAG-K. The recursive filters are scale-invariant in exact arithmetic, but not
+//! in their noise model, so the front end helps them less. Its event-aware windows help all
+//! of them.
 //!
 //! # What it does, per window
 //! 1. **Column scaling** `D = diag(d)`: the estimator sees `A D` and estimates `D⁻¹ θ`;
@@ -29,13 +30,13 @@
 //!    (units of `b`): the expected norm of the residual `b − A θ` at the true `θ`.
 //! 4. **Event-aware window**: when the prior residual `‖b − A θ̂‖` exceeds
 //!    [`event_multiple`](FrontEndConfig::event_multiple) times the floor, the parameters have
-//!    probably changed within or before this window. With
-//!    [`block_rows`](FrontEndConfig::block_rows) set (the rows of one sample, 6 for a rigid
-//!    body), the window is **shortened** to its rows from the first block whose own residual
-//!    exceeds the same multiple of its own floor: the blocks before it still fit the old
-//!    parameters and would pull the estimate back. On the first such window after a quiet one
-//!    the estimator is **restarted** ([`reset`](OnlineEstimator::reset) to its current estimate:
-//!    covariances back to their initial value, so a filter adapts at once).
+//!    probably changed within or before this window. [`block_rows`](FrontEndConfig::block_rows)
+//!    may be set to the rows of one sample (6 for a rigid body). Then the window is
+//!    **shortened** to its rows from the first block whose own residual exceeds the same
+//!    multiple of its own floor. The blocks before it still fit the old parameters and would
+//!    pull the estimate back. On the first such window after a quiet one, the estimator is
+//!    **restarted**: [`reset`](OnlineEstimator::reset) to its current estimate, with
+//!    covariances back to their initial value, so a filter adapts at once.
 //! 5. **Noise-aware stop**: an iterative estimator (the Kaczmarz family) stops a window's
 //!    iterations once `‖r‖ ≤` [`stop_multiple`](FrontEndConfig::stop_multiple) `×` floor
 //!    ([`OnlineEstimator::set_tolerance`]): projecting further would fit the noise. Estimators
@@ -134,10 +135,10 @@ pub struct FrontEndConfig {
     /// the window.
     pub block_rows: usize,
     /// `H`: report the running mean of the estimator's last (up to) `H` window estimates
-    /// instead of the last one (0 or 1: off). Between events the parameters are constant, so
-    /// the mean keeps the noise of one window's fit from reaching the estimate (its error falls
-    /// as `1/√k` over `k ≤ H` windows); an event (or a reset) restarts the mean, so it never
-    /// blends parameters from before and after. The update is `x̄ ← x̄ + (x − x̄)/min(k, H)`.
+    /// instead of the last one (0 or 1: off). Between events the parameters are constant. So the
+    /// mean keeps the noise of one window's fit from reaching the estimate: its error falls as
+    /// `1/√k` over `k ≤ H` windows. An event (or a reset) restarts the mean, so it never blends
+    /// parameters from before and after. The update is `x̄ ← x̄ + (x − x̄)/min(k, H)`.
     pub average_horizon: usize,
 }
 

@@ -1,6 +1,6 @@
 //! The greedy iterations of GRK and TAG-K on one window, behind a small kernel interface
-//! ([`Kernels`]): a portable implementation for every target and scalar, and SIMD ones on
-//! x86-64 (`x86.rs`) and aarch64 (`aarch64.rs`), whose greedy loops without AVX-512 are one
+//! ([`Kernels`]). A portable implementation serves every target and scalar. SIMD ones serve
+//! x86-64 (`x86.rs`) and aarch64 (`aarch64.rs`). Without AVX-512, their greedy loops are one
 //! loop over eight-lane chunks (`lanes.rs`).
 //!
 //! Every floating-point operation happens in an order fixed here, and every implementation
@@ -8,19 +8,19 @@
 //! same bits. The order is chosen for short dependency chains on 8-lane SIMD units:
 //!
 //! - Vectors of the window (residual `r`, row norms, coefficients) are padded with zeros to
-//!   `p = padded(m)` entries, a multiple of 8, handled as chunks of 8 lanes; the Gram matrix is
-//!   `p × p` with row stride `p` (rows `≥ m` unspecified, zero in columns `≥ m`).
+//!   `p = padded(m)` entries, a multiple of 8. They are handled as chunks of 8 lanes. The Gram
+//!   matrix is `p × p` with row stride `p`: rows `≥ m` unspecified, zero in columns `≥ m`.
 //! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j` (eight
 //!   accumulators fit a Cortex-M7's registers), combined as `t_l = s_l + s_{l+4}`, then
 //!   `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
 //! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
 //!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
-//! - Rows are sampled in lane-major order (lane `l = j mod 8` first, then chunk
-//!   `c = j div 8`), which needs no shuffles down the chunks: running sums
-//!   `V_{c,l} = V_{c−1,l} + w_{8c+l}` (`V_{0,l} = w_l`); the lane totals `T_l = V_{last,l}`
-//!   scanned across lanes in three steps `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4` (lanes `l ≥ d`,
-//!   from the values before the step); running sums `P_{c,l} = x_{l−1} + V_{c,l}` (`l ≥ 1`;
-//!   `P_{c,0} = V_{c,0}`); total `x_7`.
+//! - Rows are sampled in lane-major order: lane `l = j mod 8` first, then chunk
+//!   `c = j div 8`. This needs no shuffles down the chunks.
+//!   - Running sums `V_{c,l} = V_{c−1,l} + w_{8c+l}` (`V_{0,l} = w_l`).
+//!   - The lane totals `T_l = V_{last,l}` are scanned across lanes in three steps
+//!     `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4` (lanes `l ≥ d`, from the values before the step).
+//!   - Running sums `P_{c,l} = x_{l−1} + V_{c,l}` (`l ≥ 1`; `P_{c,0} = V_{c,0}`); total `x_7`.
 //! - With `target = u · total`, `u ∈ [0, 1)`, the row drawn is the first in that order with
 //!   `w_j > 0` and `P_j > target`; on round-off, the last in that order with `w_j > 0`; if
 //!   every weight is zero, the first `j` of largest ratio.
@@ -232,11 +232,11 @@ impl<'a> Draws<'a> {
 )]
 impl Draws<'_> {
     /// Takes every draw the window can need from the generator now, when they fit one batch
-    /// (`1 ≤ most ≤ DRAW_BATCH`), and says whether it did: the same words a first
-    /// [`Draws::next`] would take (nothing else draws meanwhile), so that a SIMD loop reads
-    /// its `k`-th draw with [`Draws::prefilled`], without a check per iteration, and records
-    /// how many it took with [`Draws::taken`] before [`Draws::finish`] (which returns the
-    /// rest, all of them if none was taken).
+    /// (`1 ≤ most ≤ DRAW_BATCH`), and says whether it did. These are the same words a first
+    /// [`Draws::next`] would take (nothing else draws meanwhile). A SIMD loop then reads its
+    /// `k`-th draw with [`Draws::prefilled`], without a check per iteration. It records how many
+    /// it took with [`Draws::taken`] before [`Draws::finish`]. That returns the rest, all of them
+    /// if none was taken.
     #[inline(always)]
     pub fn prefill(&mut self) -> bool {
         let fits = (1..=DRAW_BATCH).contains(&self.left) && self.len == 0;
@@ -293,11 +293,11 @@ pub(crate) trait Kernels<T: Real>: Copy {
     }
 
     /// The estimator's setup passes over the padded window (`pm` entries each, a multiple of
-    /// 8), where the kernel set has its own: from finite norms and prior residuals of the `m`
-    /// rows, entries `≥ m` of `norm2` and `resid` zeroed, `inv_norm2 = 1/‖a_i‖²` where
-    /// `‖a_i‖² > 0` and zero elsewhere, the residual zeroed there too, the coefficients
-    /// cleared; returns `‖A‖_F²` (as [`lane_sum`]) and the residual's statistics (as
-    /// [`residual_stats`]), the bits of the estimator's portable passes. `None` (the default)
+    /// 8), where the kernel set has its own. They start from finite norms and prior residuals of
+    /// the `m` rows. Entries `≥ m` of `norm2` and `resid` are zeroed. `inv_norm2 = 1/‖a_i‖²`
+    /// where `‖a_i‖² > 0` and zero elsewhere; the residual is zeroed there too. The coefficients
+    /// are cleared. Returns `‖A‖_F²` (as [`lane_sum`]) and the residual's statistics (as
+    /// [`residual_stats`]): the bits of the estimator's portable passes. `None` (the default)
     /// leaves them to those passes.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]

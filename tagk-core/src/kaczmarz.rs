@@ -38,23 +38,21 @@
 //! - Finish: `x̄ = x₀ + Aᵀc̄` (or `x₀ + Aᵀc`): `2mn` flops.
 //!
 //! Measured on a 2-core AMD EPYC (Zen 4) VM, `f64`, `m = 30` (`cargo bench --bench
-//! estimators`): about 1.9 µs per TAG-K update at `n = 10` and 5.4 µs at `n = 120`, of which
-//! the 30 greedy iterations take about 1.1 µs and, at `n = 120`, the Gram matrix about 2.5 µs.
+//! estimators`): about 1.9 µs per TAG-K update at `n = 10` and 5.4 µs at `n = 120`. Of that,
+//! the 30 greedy iterations take about 1.1 µs, and at `n = 120` the Gram matrix about 2.5 µs.
 //!
 //! # Kernels and bit-identical results
-//! The greedy variants run on one of four kernel sets, chosen at run time on x86-64 and at
-//! compile time on aarch64, which perform the same floating-point operations in the same
-//! order (the order is fixed in the `greedy` module and documented there; multiplies and adds
-//! are never fused), so the same seed gives the same bits on every machine:
-//! - portable loops (any target, any scalar; what a Cortex-M7 runs);
-//! - x86-64 with AVX2 (`std` feature): for `f64` the window packed transposed (with the prior
-//!   residual from the same loads), the Gram matrix along the diagonals of blocks of four
-//!   rows from it, and
-//!   `x₀ + Aᵀc̄` in `ymm` blocks; for `f32` 8 × 8 Gram tiles; for `f64` and `f32`, windows
-//!   of up to 32 rows, the greedy loop with the window held in `ymm` registers across
-//!   iterations;
+//! The greedy variants run on one of four kernel sets. The set is chosen at run time on
+//! x86-64 and at compile time on aarch64. All perform the same floating-point operations in the
+//! same order: the order is fixed in the `greedy` module and documented there, and multiplies
+//! and adds are never fused. So the same seed gives the same bits on every machine:
+//! - portable loops (any target, any scalar; what a Cortex-M7 runs).
+//! - x86-64 with AVX2 (`std` feature). For `f64`: the window packed transposed (with the prior
+//!   residual from the same loads), the Gram matrix from it along the diagonals of blocks of
+//!   four rows, and `x₀ + Aᵀc̄` in `ymm` blocks. For `f32`: 8 × 8 Gram tiles. For both, windows
+//!   of up to 32 rows run the greedy loop with the window held in `ymm` registers.
 //! - x86-64 with AVX-512F and BMI2: for `f64`, 8 × 8 Gram tiles and the greedy loop in `zmm`
-//!   and mask registers (`f32` as with AVX2);
+//!   and mask registers (`f32` as with AVX2).
 //! - aarch64 (NEON, with or without `std`): the portable Gram loops and, for `f64` and `f32`,
 //!   windows of up to 32 rows, the greedy loop in NEON registers.
 //!
@@ -208,10 +206,10 @@ impl KaczmarzConfig {
 }
 
 /// Length of the buffer a Kaczmarz estimator of dimension `n` and window capacity `m_max`
-/// needs: `2n + 7p + p² + 16` scalars with `p = m_max` rounded up to a multiple of 8 (`p²`
-/// holds the Gram matrix, 16 scalars let the work area start on a 64-byte boundary), plus
-/// `n·p` on x86-64 and aarch64 for a transposed copy of the window (and 4 more on x86-64, read
-/// past its end by the AVX2 Gram kernel).
+/// needs. It is `2n + 7p + p² + 16` scalars, with `p = m_max` rounded up to a multiple of 8.
+/// `p²` holds the Gram matrix; 16 scalars let the work area start on a 64-byte boundary. On
+/// x86-64 and aarch64, `n·p` more hold a transposed copy of the window. x86-64 adds 4 more,
+/// read past its end by the AVX2 Gram kernel.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; kaczmarz_buffer_len(120, 30)]`.
 /// Saturates at `usize::MAX` where the length overflows (no buffer is that long, so such sizes
@@ -270,10 +268,10 @@ pub fn zeroed_buffer<T: Real>(
     Ok(buf)
 }
 
-/// Whether the final check that the new estimate is finite visits every entry branch-free (a
-/// vectorisable pass, on hosts with wide SIMD units) or stops at the first non-finite one (on
-/// microcontrollers, the loop their Table III instruction counts were taken with). The same
-/// answer either way.
+/// Whether the final check that the new estimate is finite visits every entry branch-free,
+/// or stops at the first non-finite one. The first is a vectorisable pass, for hosts with wide
+/// SIMD units. The second suits microcontrollers: their Table III instruction counts were
+/// taken with it. The answer is the same either way.
 const FINITE_CHECK_BRANCH_FREE: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
 /// Scalars skipped at most to start the per-update work area on a 64-byte boundary (a cache
@@ -384,10 +382,10 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         self.buf
     }
 
-    /// The buffer's views. The estimate, the only state kept between updates, comes first
-    /// (so a storage that moves keeps it); the work area after it starts on a 64-byte
-    /// boundary wherever the storage is, with the `p`-sized arrays first so that every one
-    /// of them, and the Gram rows, are aligned too.
+    /// The buffer's views. The estimate, the only state kept between updates, comes first, so a
+    /// storage that moves keeps it. The work area after it starts on a 64-byte boundary wherever
+    /// the storage is. Its `p`-sized arrays come first, so every one of them is aligned, and the
+    /// Gram rows too.
     fn parts(buf: &mut S, n: usize, m_max: usize) -> Parts<'_, T> {
         let m = padded(m_max);
         let (estimate, rest) = buf.as_mut().split_at_mut(n);
@@ -729,11 +727,11 @@ mod tests {
         return e.run(k, a, b);
     }
 
-    /// The SIMD kernels must reproduce the portable ones bit for bit (the portable ones are
-    /// what a microcontroller runs), over window sizes that change between calls, zero rows,
-    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`: on x86-64 the
-    /// kernels detected (AVX-512 where the CPU has it) and, forced, the AVX2 ones; on aarch64
-    /// the NEON ones.
+    /// The SIMD kernels must reproduce the portable ones bit for bit: the portable ones are what
+    /// a microcontroller runs. Cases: window sizes that change between calls, zero rows,
+    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`. On x86-64 the kernels
+    /// detected run (AVX-512 where the CPU has it), and the AVX2 ones forced. On aarch64 the NEON
+    /// ones run.
     #[test]
     fn simd_and_portable_kernels_give_the_same_bits() {
         #[cfg(target_arch = "x86_64")]

@@ -2,13 +2,13 @@
 //! lanes ([`Lanes8`]), for the SIMD units without AVX-512's masks and 512-bit registers: AVX2
 //! (`f64` as two `ymm`, `f32` as one) and NEON (`f64` as four `q` registers, `f32` as two).
 //!
-//! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy` module),
-//! so every operation below is one of the portable loop's, lane for lane, in the same order:
-//! separate multiplies and adds (never fused), the same sums in the same association, the
-//! same comparisons. The squares `r_j²`, ratios `r_j²/‖a_j‖²` and reciprocal norms of a
-//! window of up to 32 rows stay in registers (or the compiler's spill slots) across the
-//! iterations, the residual is stored once per iteration and read once by the next update,
-//! and the row choice is a bit scan over lane masks instead of a search through memory.
+//! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy`
+//! module). So every operation below is one of the portable loop's, lane for lane, in the same
+//! order. Multiplies and adds stay separate (never fused); sums keep the same association;
+//! comparisons are the same. The squares `r_j²`, ratios `r_j²/‖a_j‖²` and reciprocal norms of
+//! a window of up to 32 rows stay in registers (or the compiler's spill slots) across the
+//! iterations. The residual is stored once per iteration and read once by the next update. The
+//! row choice is a bit scan over lane masks instead of a search through memory.
 
 use rand_chacha::ChaCha8Rng;
 
@@ -339,13 +339,13 @@ pub(crate) fn prefix_chunks<V: Lanes8, const C: usize>(weights: &[V; C]) -> ([V;
     (down, across.shift::<1>(), across.broadcast_last())
 }
 
-/// The row drawn for `target` (documented order, the rule of
-/// [`crate::greedy::draw_row`]), given the masks of the positive weights (all-ones lanes where
-/// `w > 0`): the first row in lane-major order with a positive weight and `P > target`; on
-/// round-off, the last with a positive weight; `None` if no weight is positive. Rows are drawn
-/// among positive weights only: a candidate's weight can be zero when the threshold underflows
-/// to zero, and its running sum can still exceed the target by round-off (the scan across the
-/// lanes is not the sequential sum).
+/// The row drawn for `target`, in the documented order and by the rule of
+/// [`crate::greedy::draw_row`]. The masks of the positive weights are given (all-ones lanes
+/// where `w > 0`). The row is the first in lane-major order with a positive weight and
+/// `P > target`. On round-off it is the last with a positive weight; `None` if no weight is
+/// positive. Rows are drawn among positive weights only. A candidate's weight can be zero when
+/// the threshold underflows to zero. Its running sum can still exceed the target by round-off,
+/// since the scan across the lanes is not the sequential sum.
 #[inline(always)]
 pub(crate) fn pick_chunks<V: Lanes8, const C: usize>(
     positive: &[V; C],

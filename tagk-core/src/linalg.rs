@@ -162,18 +162,19 @@ pub(crate) const fn checked_padded(m: usize) -> Option<usize> {
 }
 
 /// Whether the portable kernels build the Gram matrix from a transposed copy of the window
-/// (`transpose_padded`, then `gram_transposed`: 8-wide tiles for wide SIMD units, x86-64) or
-/// from its rows (`gram_rows`: 2 × 4 tiles for few registers, a Cortex-M7; on aarch64 the
-/// NEON kernels take the transposed path themselves). The two give the same bits.
+/// or from its rows. The first is `transpose_padded`, then `gram_transposed`: 8-wide tiles for
+/// wide SIMD units (x86-64). The second is `gram_rows`: 2 × 4 tiles for few registers (a
+/// Cortex-M7). On aarch64 the NEON kernels take the transposed path themselves. The two give
+/// the same bits.
 pub(crate) const GRAM_FROM_TRANSPOSED: bool = cfg!(target_arch = "x86_64");
 
 /// Whether the estimators' buffers hold a transposed copy of the window (`n · p` scalars):
 /// where a Gram kernel reads one (x86-64, aarch64).
 pub(crate) const TRANSPOSED_COPY: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
-/// Scalars readable past the transposed copy (x86-64: the AVX2 Gram kernel's vectors along the
-/// diagonals read up to three entries past a row of `Aᵀ`, the last row's from here; what they
-/// read only lands in entries of `G` written again afterwards).
+/// Scalars readable past the transposed copy. On x86-64 the AVX2 Gram kernel's vectors along
+/// the diagonals read up to three entries past a row of `Aᵀ`, the last row's from here. What
+/// they read only lands in entries of `G` written again afterwards.
 pub(crate) const TRANSPOSED_SLACK: usize = if cfg!(target_arch = "x86_64") { 4 } else { 0 };
 
 /// Writes `Aᵀ` of a row-major `m × n` matrix into `at` as an `n × stride` row-major matrix
@@ -261,10 +262,10 @@ pub(crate) fn gram_transposed<T: Real>(at: &[T], n: usize, m: usize, gram: &mut 
     }
 }
 
-/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, directly from the rows, written
-/// full and symmetric into `gram` as a `p × p` row-major matrix with `p = padded(m)` (zero
-/// outside the leading `m × m` block): 2 × 4 register tiles (eight accumulators, which fit the
-/// sixteen double registers of a Cortex-M7 FPU without spilling).
+/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, directly from the rows. It is
+/// written full and symmetric into `gram` as a `p × p` row-major matrix with `p = padded(m)`,
+/// zero outside the leading `m × m` block. The kernel uses 2 × 4 register tiles: eight
+/// accumulators fit the sixteen double registers of a Cortex-M7 FPU without spilling.
 ///
 /// Every entry is `Σ_k a_ik a_jk` accumulated in order of `k`, exactly as in
 /// `gram_transposed`: the two kernels return the same bits, so a microcontroller and a host
@@ -342,10 +343,10 @@ pub(crate) fn residual_rows<T: Real>(a: &[T], n: usize, m: usize, x: &[T], b: &[
 }
 
 /// `x ← x + Aᵀc` for a row-major `m × n` matrix `A`, over the rows with a nonzero
-/// coefficient: each entry summed in order of those rows exactly as calls of [`axpy`] would
-/// (`x_k ← a_ik c_i + x_k`), but with the loops interchanged so that each block of entries of
-/// `x` stays in registers instead of making a round trip through memory per row. The rows
-/// used are found through bit masks (one branch per 64 rows and block, not per row).
+/// coefficient. Each entry is summed in order of those rows, exactly as calls of [`axpy`]
+/// would (`x_k ← a_ik c_i + x_k`). The loops are interchanged, so each block of entries of `x`
+/// stays in registers instead of making a round trip through memory per row. The rows used
+/// are found through bit masks (one branch per 64 rows and block, not per row).
 #[inline(always)]
 pub(crate) fn add_combination<T: Real>(x: &mut [T], a: &[T], coef: &[T], n: usize, m: usize) {
     let (x, a, coef) = (&mut x[..n], &a[..m * n], &coef[..m]);
@@ -402,9 +403,9 @@ pub fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
 }
 
 /// In-place Cholesky factorisation `A = L Lᵀ` of the `n × n` symmetric positive definite
-/// matrix in the leading `n²` entries of `a` (row-major): the one factorisation of the
-/// workspace (the RLS/Kalman block update, its information-form fallback and the Riccati
-/// solvers of `tagk-control` all use it).
+/// matrix in the leading `n²` entries of `a` (row-major). It is the one factorisation of the
+/// workspace. The RLS/Kalman block update, its information-form fallback and the Riccati
+/// solvers of `tagk-control` all use it.
 ///
 /// Only the lower triangle is read, and `L` overwrites it; the strict upper triangle is left
 /// as it was. Cholesky–Crout, column by column: `l_jj = √(a_jj − Σ_{k<j} l_jk²)`, then

@@ -1,13 +1,14 @@
 //! AVX2 and AVX-512 kernels of the greedy iterations on x86-64 (detected at run time).
 //!
 //! They perform the operations of the portable kernels ([`crate::greedy::Portable`]) in the
-//! same order — separate multiplies and adds, never fused — so estimates are bit-identical
-//! with and without AVX2 and to a microcontroller's; only the instructions differ (explicit
-//! 4-wide vectors, a register-blocked Gram tile that the compiler would otherwise spill, and a
-//! register-resident greedy loop). For windows of up to 32 rows the greedy loop runs in
-//! registers: with AVX-512F in `zmm` registers and mask registers ([`iterate_avx512`]), else
-//! the eight-lane loop of the `lanes` module on AVX2 (`f64` as two `ymm` per chunk, `f32` as
-//! one). The Gram kernels are `f64` only; `f32` builds its Gram matrix with the portable loops
+//! same order: separate multiplies and adds, never fused. So estimates are bit-identical with
+//! and without AVX2, and to a microcontroller's. Only the instructions differ: explicit 4-wide
+//! vectors, a register-blocked Gram tile that the compiler would otherwise spill, and a
+//! register-resident greedy loop.
+//!
+//! For windows of up to 32 rows the greedy loop runs in registers. With AVX-512F it uses
+//! `zmm` and mask registers ([`iterate_avx512`]). On AVX2 it is the eight-lane loop of the
+//! `lanes` module (`f64` as two `ymm` per chunk, `f32` as one). The Gram kernels are `f64` only; `f32` builds its Gram matrix with the portable loops
 //! (compiled for AVX2), and other scalar types run the portable kernels throughout.
 
 use core::any::TypeId;
@@ -541,13 +542,17 @@ impl Lanes8 for F32x8 {
     }
 }
 
-/// [`Kernels::prepare`] for `f64` in one pass of four entries at a time: the padding masked
-/// to zero, `1/‖a_i‖²` and the residual where `‖a_i‖² > 0` (a division, as the portable
-/// pass), the coefficients cleared, and the sums of `‖a_i‖²` and `r_i²` in two vectors each
-/// (lanes `j mod 8 < 4` and `≥ 4`: the eight lane sums of [`crate::greedy::lane_sum`], each in
-/// order of `j`), combined as `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`; the largest
-/// ratio `r_i²/‖a_i‖²` lane by lane (MAXPD keeps the running value on a NaN, as the portable
-/// `if v > best`), then across the lanes (a maximum is exact in any order).
+/// [`Kernels::prepare`] for `f64`, in one pass of four entries at a time.
+///
+/// - The padding is masked to zero.
+/// - `1/‖a_i‖²` and the residual are set where `‖a_i‖² > 0` (a division, as the portable
+///   pass). The coefficients are cleared.
+/// - The sums of `‖a_i‖²` and `r_i²` use two vectors each: lanes `j mod 8 < 4` and `≥ 4`.
+///   These are the eight lane sums of [`crate::greedy::lane_sum`], each in order of `j`.
+///   They are combined as `t_l = s_l + s_{l+4}`, then `(t₀ + t₂) + (t₁ + t₃)`.
+/// - The largest ratio `r_i²/‖a_i‖²` is taken lane by lane, then across the lanes. MAXPD
+///   keeps the running value on a NaN, as the portable `if v > best` does. A maximum is exact
+///   in any order.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -625,11 +630,11 @@ const COMBINATION_VECTORS: usize = 12;
 
 /// `x ← x + Aᵀc` for `f64` in the order of [`crate::linalg::add_combination`]: each entry
 /// summed over the rows with a nonzero coefficient in increasing order, `x_k ← a_ik c_i + x_k`
-/// (multiply, then add). Blocks of up to 48 entries of `x` stay in `ymm` accumulators while
-/// the used rows (found by bit scans over masks of nonzero coefficients) stream past, one
-/// broadcast of `c_i` and, per four entries, a multiply with the row as its memory operand and
-/// an add; the last `n mod 4` entries through masked loads and stores (lanes past `n` are
-/// neither read nor written).
+/// (multiply, then add). Blocks of up to 48 entries of `x` stay in `ymm` accumulators. The
+/// used rows stream past; bit scans over masks of nonzero coefficients find them. Each row
+/// costs one broadcast of `c_i` and, per four entries, a multiply with the row as its memory
+/// operand and an add. The last `n mod 4` entries go through masked loads and stores. Lanes
+/// past `n` are neither read nor written.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -762,10 +767,10 @@ unsafe fn used_rows_f64(c: &[f64]) -> u64 {
     bits
 }
 
-/// `r_j = b_j − a_jᵀx` for the `m` rows of the `f32` window and `r_j = 0` for `m ≤ j < p`,
-/// each product summed as [`crate::linalg::dot`] does: its four interleaved partial sums are
-/// the four lanes of one `xmm` accumulator (multiply, then add), combined as
-/// `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products added in order.
+/// `r_j = b_j − a_jᵀx` for the `m` rows of the `f32` window, and `r_j = 0` for `m ≤ j < p`.
+/// Each product is summed as [`crate::linalg::dot`] does. Its four interleaved partial sums
+/// are the four lanes of one `xmm` accumulator (multiply, then add). They are combined as
+/// `(s₀ + s₂) + (s₁ + s₃)`, then the remaining products are added in order.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -806,18 +811,19 @@ const PANEL: usize = 8;
 /// `G = A Aᵀ` (`p × p`) and `r = b − A x` for `f64`, in the order of the portable kernels
 /// (every Gram entry summed in order of `k`).
 ///
-/// With AVX-512F the Gram matrix is built GEMM-style: for each block of eight rows `J`, the
-/// rows are packed transposed into `at` (`n × 8`, small enough to stay in L1), then every
-/// 8 × 8 tile `G[I, J]` with `I ≤ J` (eight `zmm` accumulators), whose other factor is
-/// broadcast straight from the rows of `A`; `G[J, I]` is written as the transposed tile.
+/// With AVX-512F the Gram matrix is built GEMM-style, one block of eight rows `J` at a time.
+/// The block's rows are packed transposed into `at` (`n × 8`, small enough to stay in L1).
+/// Then every 8 × 8 tile `G[I, J]` with `I ≤ J` is computed in eight `zmm` accumulators. Its
+/// other factor is broadcast straight from the rows of `A`. `G[J, I]` is written as the
+/// transposed tile.
 ///
-/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`), then the
+/// With AVX2 the whole window is packed transposed into `at` (`n × p`, stride `p`). Then the
 /// upper triangle of each block of four rows is computed along its diagonals (see
-/// [`gram_avx2`]): per `k` one load of `at[k, i₀..i₀+4]` shared by up to twelve
-/// diagonals and, per diagonal, a multiply with the transposed window as its memory operand
-/// and an add, each entry of the upper triangle once (128 vectors for 30 rows, where row
-/// strips from the diagonal blocks need 142 and a broadcast per row). The blocks below the
-/// diagonal are mirror images, transposed 4 × 4 at a time.
+/// [`gram_avx2`]). Per `k`, one load of `at[k, i₀..i₀+4]` is shared by up to twelve
+/// diagonals. Per diagonal, a multiply takes the transposed window as its memory operand,
+/// then an add follows. Each entry of the upper triangle is computed once: 128 vectors for 30
+/// rows, where row strips from the diagonal blocks need 142 and a broadcast per row. The
+/// blocks below the diagonal are mirror images, transposed 4 × 4 at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2, and AVX-512F if `avx512f`.
@@ -869,9 +875,9 @@ unsafe fn gram_and_residual_f64(
     // leaves unspecified; columns `≥ m` of the other rows are exact zeros, as the panels are
     // zero there, and mirror images only ever come from rows below `m`.
 }
-/// Prefetches `data` into L1 (one hint per 64-byte line) before a panel's tiles compute, for
-/// rows long enough (`n ≥ 32`) that a window may not be in cache: the hints are cheap next to
-/// the loads they save when the window comes from L3 or memory.
+/// Prefetches `data` into L1 (one hint per 64-byte line) before a panel's tiles compute.
+/// This is done for rows long enough (`n ≥ 32`) that a window may not be in cache. The hints
+/// are cheap next to the loads they save when the window comes from L3 or memory.
 #[inline(always)]
 fn prefetch_spread(data: &[f64], n: usize) {
     if n < 32 {
@@ -893,11 +899,13 @@ fn row_ptr(a: &[f64], n: usize, m: usize, i: usize) -> *const f64 {
 }
 
 /// `dst[k·stride + l] = a[(bj + l)·n + k]` for `l < 8`: rows `bj..bj+8` of `A` transposed,
-/// zero for rows `≥ m`, through 4 × 4 blocks in registers; from the same loads, the residuals
-/// `r_j = b_j − a_jᵀx` of those rows, summed as [`crate::linalg::dot`] does (four interleaved
-/// partial sums, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order). `stride` 8
-/// packs one panel; `stride = p` with `dst` at column `bj` builds the whole transposed window,
-/// one panel of columns at a time.
+/// zero for rows `≥ m`, through 4 × 4 blocks in registers.
+///
+/// The same loads give the residuals `r_j = b_j − a_jᵀx` of those rows. They are summed as
+/// [`crate::linalg::dot`] does: four interleaved partial sums, combined as
+/// `(s₀ + s₂) + (s₁ + s₃)`, then the remainder in order. `stride` 8 packs one panel.
+/// `stride = p` with `dst` at column `bj` builds the whole transposed window, one panel of
+/// columns at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2; `a` holds `m × n`, `b` `m`, `x` `n` and `resid` `bj + 8`
@@ -1099,23 +1107,27 @@ unsafe fn gram_panel_avx512(
 }
 
 /// `G = A Aᵀ` for `f64` from the transposed window `at` (`n × p`, stride `p`, zero in the
-/// columns `≥ m`), per block of four rows `i₀..i₀+4` (`i₀ < m`, a multiple of 4) along the
-/// diagonals: the vector `Σ_k at[k, i₀..i₀+4] · at[k, i₀+d..i₀+d+4]` holds
-/// `G[i₀ + l, i₀ + l + d]` in lane `l`, one load of `at[k, i₀..]` per `k` shared by up to
-/// twelve diagonals whose factors are the multiplies' memory operands (see
-/// [`gram_diagonals`]), and every entry of the upper triangle is computed once. Four
-/// diagonals transposed are four row pieces `G[i₀ + l, i₀ + l + d₀..+4]`, stored unaligned.
-/// Diagonals `d ≥ m − i₀` only reach columns `≥ m` and are stored as zeros without computing.
-/// A row piece that runs past column `p − 1` spills into the first columns of the next row,
-/// and a vector reaching past `at`'s row reads the next one (the last row's from the slack
-/// past `at`, `linalg::TRANSPOSED_SLACK`): those lanes only ever land left of a diagonal block
-/// or in the lower-left of one, written again below. The last block of a window with
-/// `m > p − 4` is computed as row strips instead (its spill would leave the matrix).
+/// columns `≥ m`).
 ///
-/// Then, per block, the lower-left of the diagonal 4 × 4 block and the 4 × 4 blocks left of
-/// it come from the transposes of the blocks above (the same products, commuted, summed in the
-/// same order: the same bits). Every entry is summed in order of `k` from `+0` (multiply, then
-/// add); columns `≥ m` of rows `< m` are exact zeros; rows `≥ m` are left unspecified.
+/// The work goes per block of four rows `i₀..i₀+4` (`i₀ < m`, a multiple of 4), along the
+/// diagonals. The vector `Σ_k at[k, i₀..i₀+4] · at[k, i₀+d..i₀+d+4]` holds
+/// `G[i₀ + l, i₀ + l + d]` in lane `l`. One load of `at[k, i₀..]` per `k` is shared by up to
+/// twelve diagonals; their factors are the multiplies' memory operands (see
+/// [`gram_diagonals`]). Every entry of the upper triangle is computed once. Four diagonals
+/// transposed are four row pieces `G[i₀ + l, i₀ + l + d₀..+4]`, stored unaligned. Diagonals
+/// `d ≥ m − i₀` only reach columns `≥ m`; they are stored as zeros without computing.
+///
+/// A row piece that runs past column `p − 1` spills into the first columns of the next row.
+/// A vector reaching past `at`'s row reads the next one; the last row's reads the slack past
+/// `at` (`linalg::TRANSPOSED_SLACK`). Those lanes only ever land left of a diagonal block or
+/// in its lower-left, and are written again below. The last block of a window with
+/// `m > p − 4` is computed as row strips instead, since its spill would leave the matrix.
+///
+/// Then, per block, the lower-left of the diagonal 4 × 4 block comes from the transposes of
+/// the blocks above, and so do the 4 × 4 blocks left of it. These are the same products,
+/// commuted and summed in the same order: the same bits. Every entry is summed in order of
+/// `k` from `+0` (multiply, then add). Columns `≥ m` of rows `< m` are exact zeros. Rows
+/// `≥ m` are left unspecified.
 ///
 /// # Safety
 /// The CPU must support AVX2; `at` holds `n · p + linalg::TRANSPOSED_SLACK` entries and `gram`
@@ -1237,11 +1249,13 @@ unsafe fn gram_avx2_stride<const P: usize>(
     }
 }
 
-/// Diagonals `d₀..d₀ + 4G` of a block of four rows (of the last group only the first `L`,
-/// if `L > 0`; the others come out as zeros), stored as `G` row pieces: with `base` at
-/// `at + i₀`, lane `l` of diagonal `d` is `Σ_k at[k·p + i₀ + l] · at[k·p + i₀ + l + d]`, summed in
-/// order of `k` (multiply, then add, from `+0`), and `out[l·p + l + 4q + δ]` (with `out` at
-/// `G[i₀, i₀ + d₀]`) receives diagonal `d₀ + 4q + δ` of lane `l`.
+/// Diagonals `d₀..d₀ + 4G` of a block of four rows, stored as `G` row pieces.
+///
+/// Of the last group only the first `L` are computed if `L > 0`; the others come out as
+/// zeros. With `base` at `at + i₀`, lane `l` of diagonal `d` is
+/// `Σ_k at[k·p + i₀ + l] · at[k·p + i₀ + l + d]`. It is summed in order of `k` (multiply,
+/// then add, from `+0`). `out[l·p + l + 4q + δ]`, with `out` at `G[i₀, i₀ + d₀]`, receives
+/// diagonal `d₀ + 4q + δ` of lane `l`.
 ///
 /// # Safety
 /// The CPU must support AVX2; `base` is readable at `k·p + d₀ + 4G + 2` for `k < n`, `out`
@@ -1362,10 +1376,12 @@ unsafe fn gram_strip_avx2<const V: usize, const P: usize>(
 }
 
 /// `G = A Aᵀ` for `f32` from the transposed window `at` (`n × p`, stride `p`, zero in the
-/// padding columns): for each block pair `I ≤ J` of eight rows, an 8 × 8 tile (eight `ymm`
-/// accumulators, one per row of `I`), each entry summed in order of `k` (multiply, then add)
-/// as `gram_transposed` does, stored with its mirror image `G[J, I]` (the same products in
-/// the same order: the same bits).
+/// padding columns).
+///
+/// Each block pair `I ≤ J` of eight rows is an 8 × 8 tile in eight `ymm` accumulators, one
+/// per row of `I`. Each entry is summed in order of `k` (multiply, then add), as
+/// `gram_transposed` does. The tile is stored with its mirror image `G[J, I]`: the same
+/// products in the same order, so the same bits.
 ///
 /// # Safety
 /// The CPU must support AVX2; `at` holds `n · p` entries and `gram` `p · p`, `p` a multiple
@@ -1491,9 +1507,9 @@ fn transpose4(r: [__m256d; 4]) -> [__m256d; 4] {
 }
 
 /// The greedy loop of [`crate::greedy::iterate_portable`] for `f64` with the window held in
-/// AVX-512 registers (`p = 8C ≤ 32`): residual, squares, ratios, weights and prefix sums stay
-/// in `C` registers each across the iterations, so an iteration is one dependency chain of
-/// vector operations with a single memory read (the Gram row) and no branch on the data
+/// AVX-512 registers (`p = 8C ≤ 32`). Residual, squares, ratios, weights and prefix sums stay
+/// in `C` registers each across the iterations. So an iteration is one dependency chain of
+/// vector operations. It has a single memory read (the Gram row) and no branch on the data
 /// except the choice itself. Same operations, same order, same bits as the portable loop.
 ///
 /// # Safety
@@ -1755,12 +1771,11 @@ mod tests {
         unsafe { f[w.len() / LANES - 1](w, target) }
     }
 
-    /// Every kernel set draws the row the portable loop draws (`greedy::draw_row`: the first
-    /// positive weight in lane-major order whose running sum passes the target, else the last
-    /// positive weight), including a row whose weight is zero although its running sum passes
-    /// the target by round-off, as a candidate of a threshold that underflowed to zero would:
-    /// drawing among candidates instead of positive weights (the AVX-512 loop's former
-    /// shortcut) fails here.
+    /// Every kernel set draws the row the portable loop draws (`greedy::draw_row`). That is
+    /// the first positive weight in lane-major order whose running sum passes the target, else
+    /// the last positive weight. Here a row of weight zero passes the target by round-off, as
+    /// a candidate of a threshold that underflowed to zero would. Drawing among candidates
+    /// instead of positive weights (the AVX-512 loop's former shortcut) fails here.
     #[test]
     fn every_kernel_draws_the_portable_row() {
         if !std::is_x86_feature_detected!("avx2") {
@@ -1961,10 +1976,10 @@ mod tests {
     }
 
     /// The AVX2 packing and Gram kernels against the portable ones (`transpose_padded`,
-    /// `gram_transposed`, `residual_rows`), bit for bit, for every window height up to 41 and
-    /// widths around the multiples of 4: rows `< m` of `G` in full and the `p` residuals, with
-    /// stale NaNs in the scratch (and in the slack past `at`, which the diagonals read) and
-    /// sentinels past `G` and `r`, which must not be written.
+    /// `gram_transposed`, `residual_rows`), bit for bit. Window heights go up to 41, widths
+    /// around the multiples of 4. Compared: rows `< m` of `G` in full and the `p` residuals.
+    /// Stale NaNs fill the scratch and the slack past `at`, which the diagonals read.
+    /// Sentinels past `G` and `r` must not be written.
     #[test]
     fn avx2_gram_and_residual_are_the_portable_bits() {
         use crate::linalg::{TRANSPOSED_SLACK, gram_transposed, residual_rows, transpose_padded};

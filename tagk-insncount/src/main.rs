@@ -1,24 +1,24 @@
-//! `tagk-insncount ESTIMATOR N UPDATES`: builds `ESTIMATOR` (`tagk`, `tagk-f32`, `rls-low`,
-//! `kf-low`) for dimension `N` and windows of `m = 30` rows, feeds it `UPDATES` windows of the
-//! Table III stream (tagk-core's `SyntheticWindows`, seed `SEED + N`, a pool of 16 windows
-//! cycled so that warm starts behave as in use) and prints one line:
+//! `tagk-insncount ESTIMATOR N UPDATES` builds `ESTIMATOR` (`tagk`, `tagk-f32`, `rls-low`,
+//! `kf-low`) for dimension `N` and windows of `m = 30` rows. It feeds it `UPDATES` windows of
+//! the Table III stream: tagk-core's `SyntheticWindows`, seed `SEED + N`, a pool of 16 windows
+//! cycled so that warm starts behave as in use. It prints one line:
 //!
 //! ```text
 //! ESTIMATOR n=N m=30 updates=UPDATES fingerprint=HASH sum=SUM
 //! ```
 //!
 //! `HASH` folds the bit pattern of the last estimate (FNV-1a over the `f64` bits, `f32`
-//! widened exactly); every update starts from the previous estimate, so two machines print
-//! the same line when they computed the same bits all along. The program does nothing else, so the difference of the
-//! instructions two runs with different `UPDATES` execute, divided by the difference of
-//! `UPDATES`, is the cost of one update, start-up and window generation cancelling: that is
-//! what `run.sh` beside this crate measures with callgrind (x86-64) and a QEMU plugin
-//! (aarch64).
+//! widened exactly). Every update starts from the previous estimate. So two machines print the
+//! same line when they computed the same bits all along. The program does nothing else. Take
+//! the difference of the instructions two runs with different `UPDATES` execute, divided by
+//! the difference of `UPDATES`. That is the cost of one update, with start-up and window
+//! generation cancelling. `run.sh` beside this crate measures it with callgrind (x86-64) and a
+//! QEMU plugin (aarch64).
 //!
 //! `tagk-insncount time ESTIMATOR N` prints instead the median time per update (µs) over 31
-//! batches of 200 updates, after 2000 to warm up: a wall-clock figure, which moves with the
-//! machine's load (`TAGK_KERNELS=avx2` or `portable` times those kernels on a CPU that has
-//! better ones).
+//! batches of 200 updates, after 2000 to warm up. It is a wall-clock figure, which moves with
+//! the machine's load. `TAGK_KERNELS=avx2` or `portable` times those kernels on a CPU that has
+//! better ones.
 
 use std::process::ExitCode;
 use std::time::Instant;

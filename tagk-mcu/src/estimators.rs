@@ -12,12 +12,12 @@
 //! [`compact_covariance_buffer_len`] or [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len)); [`McuEstimator`] is the
 //! borrowed-slice form the harness uses.
 //!
-//! RLS and the Kalman filter get the **compact** buffer here
-//! ([`compact_covariance_buffer_len`], `n² + 3n + 2mn + m² + 3m` scalars, about half of
-//! [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len)): the covariance is updated in place and there is no
-//! information-form fallback, so a window that would need it (one that pins a direction far
-//! below the rounding level of the prior, `p₀ ‖a‖² / d ≳ 10¹²`: KF-low's first window on
-//! quadrotor data is one) is refused with a typed
+//! RLS and the Kalman filter get the **compact** buffer here:
+//! [`compact_covariance_buffer_len`], `n² + 3n + 2mn + m² + 3m` scalars, about half of
+//! [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len). The covariance is updated
+//! in place and there is no information-form fallback. A window that would need it pins a
+//! direction far below the rounding level of the prior (`p₀ ‖a‖² / d ≳ 10¹²`); KF-low's first
+//! window on quadrotor data is one. Such a window is refused with a typed
 //! [`EstimatorError::NumericalFailure`] and changes nothing. It fires on none of the Table III
 //! updates, whose bits are those of the full buffer. Build [`Rls`] / [`KalmanFilter`] in a
 //! [`covariance_buffer_len`](tagk_baselines::covariance_buffer_len) buffer to keep the fallback.

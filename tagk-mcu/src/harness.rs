@@ -4,9 +4,9 @@
 //! One [`Case`] runs as follows, identically on the host and on a microcontroller:
 //!
 //! 1. [`SyntheticWindows`] draws a pool of [`Case::POOL`] windows from ChaCha8 seeded with
-//!    [`SEED`]` + n` (the same data for every estimator and both precisions at a given `n`):
-//!    entries of `A` uniform in `[−1, 1)`, `b = A θ* + v` with `θ*` uniform in `[−1, 1)ⁿ` and
-//!    `v` uniform in `[−NOISE, NOISE)`, computed in `f64` and rounded to the case's scalar.
+//!    [`SEED`]` + n`: the same data for every estimator and both precisions at a given `n`.
+//!    Entries of `A` are uniform in `[−1, 1)`. `b = A θ* + v`, with `θ*` uniform in `[−1, 1)ⁿ`
+//!    and `v` uniform in `[−NOISE, NOISE)`, computed in `f64` and rounded to the case's scalar.
 //! 2. **Verification:** the estimator (initial estimate 0) takes each pool window once; every
 //!    estimate's bit pattern is folded into a [`Checksum`], which [`CaseReport::verify`]
 //!    compares with a reference run's. IEEE-754 arithmetic without fused multiply-adds gives
