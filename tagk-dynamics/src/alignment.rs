@@ -1,9 +1,9 @@
 //! Time offsets between the sensor streams of one flight log, measured without any model.
 //!
-//! A log often joins streams from several sources: the pose (position and attitude) from a
-//! motion-capture system, the angular rate and acceleration from the IMU, the velocity from a
-//! state estimator, the rotor speeds or the wrench from the motor controllers. Each arrives
-//! with its own latency; a few milliseconds between them show up in a diagnosis as a lag that
+//! A log often joins streams from several sources. The pose (position and attitude) comes from
+//! a motion-capture system; the angular rate and acceleration from the IMU; the velocity from a
+//! state estimator; the rotor speeds or the wrench from the motor controllers. Each arrives
+//! with its own latency. A few milliseconds between them show up in a diagnosis as a lag that
 //! is not there, or hide one that is. Three of them measure a quantity that the pose also
 //! gives, so their offset against the pose follows from the data alone:
 //!
@@ -19,13 +19,13 @@
 //! offset to any stream, [`Sensor::Pose`] (position and attitude) included.
 //!
 //! **Estimate.** For a lag of `k` samples the cost is the variance of `x(tᵢ) − y(tᵢ₋ₖ)` over
-//! the samples where both exist (the variance, not the mean square, so that a sensor bias does
-//! not pull the estimate); the best whole lag in `±max_delay` is refined between samples by the
-//! parabola through its neighbours. A delay `d > 0` means the sensor is **late**: its sample at
-//! `t` shows the motion at `t − d`. The 95 % confidence interval comes from the spread of the
+//! the samples where both exist. It is the variance, not the mean square, so that a sensor bias
+//! does not pull the estimate. The best whole lag in `±max_delay` is refined between samples by
+//! the parabola through its neighbours. A delay `d > 0` means the sensor is **late**: its sample
+//! at `t` shows the motion at `t − d`. The 95 % confidence interval comes from the spread of the
 //! same estimate on [`BLOCKS`] consecutive blocks of the log (Student's `t` with `BLOCKS − 1`
-//! degrees of freedom), which holds for coloured noise where a formula for white noise would
-//! not. The rule is in `docs/CONVENTIONS.md` §7.2.
+//! degrees of freedom). It holds for coloured noise, where a formula for white noise would not.
+//! The rule is in `docs/CONVENTIONS.md` §7.2.
 
 use std::borrow::Cow;
 use std::cell::OnceCell;
@@ -319,10 +319,10 @@ fn segment_ids(sampling: &Sampling, n: usize, edge: usize) -> Vec<Option<u32>> {
 }
 
 /// Variance of `x(i) − y(i − k)` for every lag `k` in `−max_lag..=max_lag` (at index
-/// `k + max_lag`) over `i ∈ range` where `i − k` is a sample of the same segment (`seg`:
-/// never across a gap, never at a segment's filtered edge); infinite for a lag without such
-/// a sample. One pass over the samples for all lags; each lag's sums add up its terms in the
-/// order of `i`, as a pass per lag would.
+/// `k + max_lag`). It runs over `i ∈ range` where `i − k` is a sample of the same segment
+/// (`seg`): never across a gap, never at a segment's filtered edge. A lag without such a sample
+/// gets infinity. One pass over the samples serves all lags. Each lag's sums add up its terms in
+/// the order of `i`, as a pass per lag would.
 fn lag_costs(
     x: &[[f64; 3]],
     y: &[[f64; 3]],
@@ -390,11 +390,12 @@ fn best_lag(
 /// Measures the offset of one sensor stream against the pose, searching `±max_delay` \[s\].
 ///
 /// # Errors
-/// [`AlignmentError::NotLogged`] when the log lacks the quantity, [`AlignmentError::NeedsModel`]
-/// for [`Sensor::Actuators`], [`AlignmentError::TooShort`] for fewer than
-/// `BLOCKS × 50` samples, [`AlignmentError::NoMinimum`] when the whole log's cost has no
-/// minimum inside the range, [`AlignmentError::BadShift`] for a `max_delay` that is not a
-/// positive finite number of seconds.
+/// - [`AlignmentError::NotLogged`] when the log lacks the quantity.
+/// - [`AlignmentError::NeedsModel`] for [`Sensor::Actuators`].
+/// - [`AlignmentError::TooShort`] for fewer than `BLOCKS × 50` samples.
+/// - [`AlignmentError::NoMinimum`] when the whole log's cost has no minimum inside the range.
+/// - [`AlignmentError::BadShift`] for a `max_delay` that is not a positive finite number of
+///   seconds.
 pub fn estimate_delay(
     log: &FlightLog,
     sensor: Sensor,
@@ -632,9 +633,9 @@ pub fn shift(log: &FlightLog, sensor: Sensor, delay: f64) -> Result<FlightLog, A
 mod tests {
     use super::*;
 
-    /// A log whose motion is a sum of sines (rich enough to time), sampled at `rate` \[Hz\],
-    /// with the gyro, accelerometer and velocity late by the given delays \[s\] (exactly, by
-    /// evaluating the closed form at `t − d`), plus white noise of σ `noise` on each.
+    /// A log whose motion is a sum of sines (rich enough to time), sampled at `rate` \[Hz\]. The
+    /// gyro, accelerometer and velocity are late by the given delays \[s\], exactly: the closed
+    /// form is evaluated at `t − d`. White noise of σ `noise` is added to each.
     fn synthetic(rate: f64, seconds: f64, delays: [f64; 3], noise: f64, seed: u64) -> FlightLog {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);

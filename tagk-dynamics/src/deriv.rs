@@ -1,15 +1,15 @@
 //! Smoothing differentiator for logs without accelerations (used by the diagnosis) and for
 //! derived columns of mapped logs (velocity from position, see [`crate::log_input`]).
 //!
-//! **Savitzky–Golay derivative** (local polynomial least squares): at each sample `i` a
+//! **Savitzky–Golay derivative** (local polynomial least squares). At each sample `i` a
 //! quadratic `p(s) = c₀ + c₁ s + c₂ s²`, `s = t − tᵢ`, is fitted by least squares to the
-//! `2h + 1` samples around `i` (the window shrinks at the ends of the log, keeping at least 3
-//! samples), and the derivative is `c₁`. On uniform sampling this is exactly the classic
-//! Savitzky–Golay first-derivative filter of order 2; on non-uniform time stamps it stays a
-//! true local least-squares fit. It is exact for any quadratic signal, and its noise gain is
-//! `σ_ẋ ≈ σ_x · √(3 / (h (h+1)(2h+1))) / Δt`, i.e. much lower than a central difference.
-//! The default half-width [`DEFAULT_HALF_WIDTH`] = 5 (11 samples, 0.1 s at 100 Hz) keeps
-//! the lag-free bandwidth at about 4 Hz.
+//! `2h + 1` samples around `i`. The window shrinks at the ends of the log, keeping at least 3
+//! samples. The derivative is `c₁`. On uniform sampling this is exactly the classic
+//! Savitzky–Golay first-derivative filter of order 2. On non-uniform time stamps it stays a
+//! true local least-squares fit. It is exact for any quadratic signal. Its noise gain is
+//! `σ_ẋ ≈ σ_x · √(3 / (h (h+1)(2h+1))) / Δt`, much lower than a central difference's. The
+//! default half-width [`DEFAULT_HALF_WIDTH`] = 5 (11 samples, 0.1 s at 100 Hz) keeps the
+//! lag-free bandwidth at about 4 Hz.
 
 /// Default half-width `h` of the Savitzky–Golay window (11 samples).
 pub const DEFAULT_HALF_WIDTH: usize = 5;
@@ -77,9 +77,9 @@ pub fn savitzky_golay_smooth(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
 }
 
 /// The least-squares quadratics `c₀ + c₁ s + c₂ s²`, `s = t − tᵢ`, of `N` signals through the
-/// samples within `h` of sample `i` (at least 3: the window shifts inward at the ends of the
-/// log), as the normal equations `[[s0 s1 s2][s1 s2 s3][s2 s3 s4]] c = y` solved by Cramer's
-/// rule: the time moments `s` and the determinant are shared by the signals.
+/// samples within `h` of sample `i`. At least 3 samples are used: the window shifts inward at
+/// the ends of the log. The normal equations `[[s0 s1 s2][s1 s2 s3][s2 s3 s4]] c = y` are solved
+/// by Cramer's rule. The time moments `s` and the determinant are shared by the signals.
 struct LocalQuadratics<const N: usize> {
     /// `s0..s4`: sums of the scaled time offsets' powers over the window.
     s: [f64; 5],

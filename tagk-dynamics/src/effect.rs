@@ -1,6 +1,6 @@
 //! The vocabulary of physical effects: one name per effect that a rigid-body model of a
-//! multirotor leaves out, shared by the simulator (which can put an effect into its plant) and
-//! the diagnosis (which can fit it to a flight log). `tagk simulate --effect NAME` and
+//! multirotor leaves out. The simulator shares it (it can put an effect into its plant), and so
+//! does the diagnosis (it can fit an effect to a flight log). `tagk simulate --effect NAME` and
 //! `tagk diagnose --with NAME` accept the same names.
 //!
 //! Forces are in the body frame \[N\], torques about the body origin \[N m\], velocities
@@ -94,12 +94,16 @@ impl EffectKind {
         }
     }
 
-    /// The physical family the effect belongs to: the three drag laws (`linear-drag`,
-    /// `quadratic-drag`, `rotor-drag`) are one family, `drag`, since a log near hover cannot
-    /// tell them apart; `motor-lag` and `time-delay` are one family, `timing`, since to first
-    /// order in frequency a first-order lag τ is a delay τ (they part only where the lag's
-    /// amplitude roll-off rises above the noise); every other effect is a family of its own,
-    /// named like it. (A `wind` fit includes a drag: [`EffectKind::includes_drag`].)
+    /// The physical family the effect belongs to.
+    ///
+    /// - The three drag laws (`linear-drag`, `quadratic-drag`, `rotor-drag`) are one family,
+    ///   `drag`, since a log near hover cannot tell them apart.
+    /// - `motor-lag` and `time-delay` are one family, `timing`. To first order in frequency a
+    ///   first-order lag τ is a delay τ. They part only where the lag's amplitude roll-off rises
+    ///   above the noise.
+    /// - Every other effect is a family of its own, named like it.
+    ///
+    /// A `wind` fit includes a drag: [`EffectKind::includes_drag`].
     pub const fn family(self) -> &'static str {
         match self {
             EffectKind::LinearDrag | EffectKind::QuadraticDrag | EffectKind::RotorDrag => "drag",

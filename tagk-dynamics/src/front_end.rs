@@ -37,9 +37,9 @@ pub const fn is_actuated(channel: usize) -> bool {
 }
 
 /// `κ_stop`: an iterative estimator stops a window's iterations once the window's residual
-/// norm is at most this many times its noise floor (the expected norm of the residual at the
-/// true parameters, `σ √rows` for rows of noise `σ`). 3 is about the 99.9 % point of the
-/// noise's norm on large windows: projecting further would fit the noise.
+/// norm is at most this many times its noise floor. The floor is the expected norm of the
+/// residual at the true parameters: `σ √rows` for rows of noise `σ`. 3 is about the 99.9 %
+/// point of the noise's norm on large windows; projecting further would fit the noise.
 pub const STOP_MULTIPLE: f64 = 3.0;
 
 /// The column scales `d` of a prior guess `prior` of θ (docs/CONVENTIONS.md §1) for a body of

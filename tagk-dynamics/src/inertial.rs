@@ -12,8 +12,8 @@ use crate::math::parallel_axis;
 /// Inertial parameters of one rigid body,
 /// `θ = [m, h_x, h_y, h_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]` (SI units).
 ///
-/// `m` is the mass \[kg\], `h = m c` the first mass moment \[kg m\] with `c` the centre of mass in
-/// the body frame \[m\], and `I` the rotational inertia about the body-frame **origin**,
+/// `m` is the mass \[kg\]. `h = m c` is the first mass moment \[kg m\], with `c` the centre of
+/// mass in the body frame \[m\]. `I` is the rotational inertia about the body-frame **origin**,
 /// expressed in body axes \[kg m²\] (Pinocchio's `toDynamicParameters` order). The vector is
 /// stored as is: an estimate may be physically inconsistent, and the checks
 /// ([`is_physically_consistent`](Self::is_physically_consistent),
@@ -386,13 +386,13 @@ impl InertialParams {
     /// pseudo-inertia: `J = V diag(λ) Vᵀ ↦ V diag(max(λ, ε)) Vᵀ`, then back to θ.
     ///
     /// This is the nearest matrix to `J` in the Frobenius norm among symmetric matrices with
-    /// all eigenvalues `≥ ε`, so the result is consistent (strictly, for `ε > 0`) and close to
-    /// the estimate in the pseudo-inertia metric (not in the Euclidean θ metric). A θ that
-    /// already has `λ_min(J) ≥ ε` is returned unchanged. `min_eigenvalue` is `ε` (units of
-    /// `J`; it is clamped to `≥ 0`). Pick it well below the body's smallest second moment,
-    /// e.g. `1e-9` for a Crazyflie (its `Σ` eigenvalues are ≈ 1.6e-6 … 1.5e-5 kg m²).
-    /// Non-finite θ cannot be projected and is returned unchanged (and still fails
-    /// [`is_physically_consistent`](Self::is_physically_consistent)).
+    /// all eigenvalues `≥ ε`. So the result is consistent (strictly, for `ε > 0`). It is close to
+    /// the estimate in the pseudo-inertia metric, not in the Euclidean θ metric. A θ that already
+    /// has `λ_min(J) ≥ ε` is returned unchanged. `min_eigenvalue` is `ε` (units of `J`; it is
+    /// clamped to `≥ 0`). Pick it well below the body's smallest second moment: e.g. `1e-9` for a
+    /// Crazyflie, whose `Σ` eigenvalues are ≈ 1.6e-6 … 1.5e-5 kg m². Non-finite θ cannot be
+    /// projected and is returned unchanged; it still fails
+    /// [`is_physically_consistent`](Self::is_physically_consistent).
     pub fn project_to_consistent(&self, min_eigenvalue: f64) -> Self {
         if !self.is_finite() {
             return *self;

@@ -161,11 +161,12 @@ impl QuadrotorModel {
     }
 }
 
-/// The body wrench (body frame, about the origin) of four rotors thrusting along body `+z`:
-/// force `(0, 0, ΣT_i)` \[N\], torque `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i Q_i)` \[N m\], with
-/// `r_i` the hub positions \[m\], `s_i` the spin directions (sign of each reaction torque about
-/// body `+z`), `T_i` the thrusts \[N\] and `Q_i ≥ 0` the magnitudes of the rotors' reaction
-/// torques \[N m\]. The one formula behind [`QuadrotorModel::wrench_from_thrusts`] and
+/// The body wrench (body frame, about the origin) of four rotors thrusting along body `+z`.
+/// The force is `(0, 0, ΣT_i)` \[N\]. The torque is `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i Q_i)`
+/// \[N m\]. Here `r_i` are the hub positions \[m\], `s_i` the spin directions (the sign of each
+/// reaction torque about body `+z`), `T_i` the thrusts \[N\] and `Q_i ≥ 0` the magnitudes of
+/// the rotors' reaction torques \[N m\]. This is the one formula behind
+/// [`QuadrotorModel::wrench_from_thrusts`] and
 /// [`Vehicle::wrench_from_rotor_speeds`](crate::vehicle::Vehicle::wrench_from_rotor_speeds).
 pub fn rotor_wrench(
     rotor_positions: &[Vector3<f64>; 4],

@@ -195,10 +195,11 @@ impl ForwardDynamics {
         })
     }
 
-    /// `I_C⁻¹ v` by the two triangular solves `L y = v`, `Lᵀ x = y`, written out for 3 × 3 in
-    /// nalgebra's order of operations (`Cholesky::solve`: the forward solve column by column,
-    /// the backward one as `(y_i − Σ_(j>i) L_ji x_j) / L_ii` with the sum taken from `j = i + 1`
-    /// up), so the bits are those of `Cholesky::solve` (tested) at a fraction of its cost.
+    /// `I_C⁻¹ v` by the two triangular solves `L y = v`, `Lᵀ x = y`, written out for 3 × 3. They
+    /// follow nalgebra's order of operations (`Cholesky::solve`). The forward solve goes column by
+    /// column. The backward one computes `(y_i − Σ_(j>i) L_ji x_j) / L_ii`, the sum taken from
+    /// `j = i + 1` up. So the bits are those of `Cholesky::solve` (tested), at a fraction of its
+    /// cost.
     fn solve_inertia_com(&self, v: &Vector3<f64>) -> Vector3<f64> {
         let [l00, l10, l11, l20, l21, l22] = self.chol;
         let y0 = v.x / l00;

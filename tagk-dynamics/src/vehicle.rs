@@ -1,13 +1,12 @@
 //! Vehicle descriptions: what turns a log's rotor speeds into the body wrench.
 //!
 //! A [`Vehicle`] holds the rotor layout (hub positions in the body frame, spin directions),
-//! the thrust curve and reaction torque of the rotors, the largest rotor speed, and optional
-//! priors (motor time constant, mass, inertia) plus the airframe radius the diagnosis uses to
-//! flag an implausible centre of mass. It is read from a small TOML file
-//! ([`Vehicle::from_path`], [`Vehicle::from_toml_str`]) or taken from the built-in presets
-//! ([`Vehicle::preset`], [`PRESETS`]); [`Vehicle::to_toml_string`] writes one back as a
-//! commented template (the format is described key by key in the repository's
-//! `docs/VEHICLE.md`).
+//! the thrust curve and reaction torque of the rotors, and the largest rotor speed. It may also
+//! hold priors (motor time constant, mass, inertia) and the airframe radius the diagnosis uses
+//! to flag an implausible centre of mass. It is read from a small TOML file
+//! ([`Vehicle::from_path`], [`Vehicle::from_toml_str`]), or taken from the built-in presets
+//! ([`Vehicle::preset`], [`PRESETS`]). [`Vehicle::to_toml_string`] writes one back as a
+//! commented template. The repository's `docs/VEHICLE.md` describes the format key by key.
 //!
 //! With a vehicle, a flight log that holds the rotor speeds `w1..w4` but not the wrench
 //! `fx..tz` gets its wrench from [`FlightLog::compute_wrench_from_rotor_speeds`]:

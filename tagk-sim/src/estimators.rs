@@ -32,11 +32,11 @@ pub struct EstimatorSpec {
     /// `ī = tr(I₀)/3` (see `spec_scales`). The paper's estimators work in SI units
     /// (`false`).
     pub scaled: bool,
-    /// Noise-aware stopping of the Kaczmarz variants, as a multiple `κ` of the expected
-    /// noise floor of the window's residual: iterations stop once
-    /// `‖b − A x‖₂ ≤ κ · m₀ σ_a √(Σ w_i)` (tagk-core's [`FrontEnd`](tagk_core::FrontEnd)
-    /// with row noise `m₀ σ_a`, the force rows' share of accelerometer noise, and the row
-    /// weights `w_i`). `0` (the default) never stops early.
+    /// Noise-aware stopping of the Kaczmarz variants, as a multiple `κ` of the expected noise
+    /// floor of the window's residual. Iterations stop once `‖b − A x‖₂ ≤ κ · m₀ σ_a √(Σ w_i)`.
+    /// This is tagk-core's [`FrontEnd`](tagk_core::FrontEnd) with row noise `m₀ σ_a` (the force
+    /// rows' share of accelerometer noise) and the row weights `w_i`. `0` (the default) never
+    /// stops early.
     pub noise_tolerance: f64,
     /// Weight of the lateral force rows (rows 0 and 1 of every frame), 1 by default. Their
     /// measurement is identically zero for a quadrotor (`b_x = b_y = 0`) and their regressor
@@ -58,11 +58,11 @@ pub struct EstimatorSpec {
     /// [`EstimatorSpec::event_multiple`], whose event detection restarts the mean.
     #[serde(default)]
     pub average_horizon: usize,
-    /// Nuisance columns for a constant body force: the estimator's unknowns are θ plus a
-    /// body-frame force `d` \[N\] on the three force rows of every frame (an accelerometer
-    /// bias `b_a` shows in the data as `d = −m b_a`; so does an unmodelled constant force),
-    /// estimated alongside θ from a prior of zero and never handed to the controller. Its
-    /// column scale (with [`EstimatorSpec::scaled`]) is `m₀ · 1 m/s²`. `false`: θ alone.
+    /// Nuisance columns for a constant body force. The estimator's unknowns are θ plus a
+    /// body-frame force `d` \[N\] on the three force rows of every frame. An accelerometer bias
+    /// `b_a` shows in the data as `d = −m b_a`; so does an unmodelled constant force. `d` is
+    /// estimated alongside θ from a prior of zero and never handed to the controller. Its column
+    /// scale (with [`EstimatorSpec::scaled`]) is `m₀ · 1 m/s²`. `false`: θ alone.
     #[serde(default)]
     pub force_bias: bool,
 }
@@ -75,12 +75,13 @@ pub(crate) const FORCE_BIAS_PARAMS: usize = 3;
 const ROWS_PER_FRAME: usize = 6;
 
 /// The column scales `D` of [`EstimatorSpec::scaled`] for nominal parameters `nominal` (the order
-/// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\]:
-/// [`tagk_dynamics::front_end::column_scales`], typical magnitudes of each parameter, so that
-/// every column of `A D` has the units of the measurement (the first moment's prior is zero, so
-/// its scale is the largest the safety gate admits, `m₀ L`); all ones unless the spec is
-/// scaled; then the nuisance force's scales, `m₀ · 1 m/s²` (1 unscaled), with
-/// [`EstimatorSpec::force_bias`].
+/// of θ, docs/CONVENTIONS.md §1) and arm length `arm` \[m\].
+///
+/// They are [`tagk_dynamics::front_end::column_scales`]: typical magnitudes of each parameter,
+/// so that every column of `A D` has the units of the measurement. The first moment's prior is
+/// zero, so its scale is the largest the safety gate admits, `m₀ L`. All are ones unless the
+/// spec is scaled. With [`EstimatorSpec::force_bias`] the nuisance force's scales follow:
+/// `m₀ · 1 m/s²` (1 unscaled).
 pub(crate) fn spec_scales(spec: &EstimatorSpec, nominal: &[f64; 10], arm: f64) -> Vec<f64> {
     let mut scales = if spec.scaled {
         tagk_dynamics::front_end::column_scales(
@@ -99,9 +100,9 @@ pub(crate) fn spec_scales(spec: &EstimatorSpec, nominal: &[f64; 10], arm: f64) -
 }
 
 /// The tagk-core front end of `spec` for a body of nominal mass `mass` \[kg\] whose accelerometer
-/// noise is `sigma_accel` `[m/s²]`: the row noise is the force rows' `m σ_a` \[N\], the stop
-/// multiple [`EstimatorSpec::noise_tolerance`], the event multiple
-/// [`EstimatorSpec::event_multiple`] with one frame (6 rows) per block.
+/// noise is `sigma_accel` `[m/s²]`. The row noise is the force rows' `m σ_a` \[N\]. The stop
+/// multiple is [`EstimatorSpec::noise_tolerance`]. The event multiple is
+/// [`EstimatorSpec::event_multiple`], with one frame (6 rows) per block.
 pub(crate) fn front_end_config(
     spec: &EstimatorSpec,
     mass: f64,
@@ -339,12 +340,15 @@ pub fn tuned(kind: EstimatorKind) -> EstimatorSpec {
 }
 
 /// Noise floors at which the `realistic` profile's tuned TAG-K restarts its window on an
-/// event ([`EstimatorSpec::event_multiple`]). Tuned on seed 7 (not an evaluation seed), 100
-/// trials per level, against the tuned TAG-K without events: aborts 3 % → 0 % (none) and
-/// 5 % → 1 % (high), position error over all trials 1.64 → 0.85 cm and 2.00 → 0.94 cm,
-/// (t+1) 3.5e-3 → 2.5e-3 and 3.0e-3 → 2.2e-3; 3σ and 10σ do about as well. Lateral row
-/// weights 0.1 and 0.3 instead of 0 make it worse at both levels (aborts 14–62 %: the
-/// lateral rows carry the accelerometer bias), so the row stays on the actuated rows.
+/// event ([`EstimatorSpec::event_multiple`]). They were tuned on seed 7 (not an evaluation
+/// seed), 100 trials per level, against the tuned TAG-K without events:
+/// - aborts 3 % → 0 % (none) and 5 % → 1 % (high);
+/// - position error over all trials 1.64 → 0.85 cm and 2.00 → 0.94 cm;
+/// - (t+1) 3.5e-3 → 2.5e-3 and 3.0e-3 → 2.2e-3.
+///
+/// 3σ and 10σ do about as well. Lateral row weights 0.1 and 0.3 instead of 0 make it worse
+/// at both levels (aborts 14–62 %), because the lateral rows carry the accelerometer bias. So
+/// the row weights stay on the actuated rows.
 pub const REALISTIC_EVENT_MULTIPLE: f64 = 5.0;
 
 /// The tuned TAG-K of the `realistic` profile's Table II: [`tagk_tuned`] with event-aware

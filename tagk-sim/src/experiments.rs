@@ -348,9 +348,12 @@ pub struct SingleTrialReport {
     pub sweep: ExperimentReport,
 }
 
-/// Runs Fig. 3 at `noise`: (a) the 3-D path of every estimator on one figure-8 trial with
-/// payload events (and aborts) marked, (b) the parameter error over time averaged over trials
-/// (default 100; events at 5 s and 13 s), (c) the CDF of position error.
+/// Runs Fig. 3 at `noise`:
+/// - (a) the 3-D path of every estimator on one figure-8 trial, with payload events (and
+///   aborts) marked;
+/// - (b) the parameter error over time, averaged over trials (default 100; events at 5 s and
+///   13 s);
+/// - (c) the CDF of position error.
 ///
 /// # Errors
 /// Configuration, I/O or plotting errors.

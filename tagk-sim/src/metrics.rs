@@ -12,9 +12,9 @@ pub const SUCCESS_THRESHOLD: f64 = 0.05;
 pub const SUCCESS_DELAY_STEPS: usize = 10;
 /// Tracking error a trial must be under, [`SETTLED_DELAY_STEPS`] control steps after each
 /// payload event, to count as **settled** \[m\] (1 cm): Table II's success rule. A controller
-/// that never adapts keeps a steady offset of about 2.7 cm after an attach; the oracle, with
+/// that never adapts keeps a steady offset of about 2.7 cm after an attach. The oracle, with
 /// the true parameters from the event on, tracks at 0.03–0.25 cm (40-trial probes, none and
-/// high noise), so 1 cm separates them and leaves an estimator room for its noise.
+/// high noise). So 1 cm separates them and leaves an estimator room for its noise.
 pub const SETTLED_THRESHOLD: f64 = 0.01;
 /// Control steps after a payload event at which "settled" is judged (100 = 2 s, five 2.5 Hz
 /// estimator updates: time to adapt, too short for a non-adapting controller to pass).

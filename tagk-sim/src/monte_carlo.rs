@@ -2,12 +2,11 @@
 //!
 //! A sweep flies `trials` closed-loop trials for every (noise level, estimator) cell. Trial
 //! `i` of noise level `j` gets the seed `trial_seed(seed, j, i)` and the trajectory
-//! `TrajectoryKind::ALL[i % 5]`, the same for every estimator (paired comparison). Trials
-//! run in parallel with rayon in chunks; each chunk's trials are folded into the cell
-//! aggregates — and handed to the [`SweepObserver`] — **in trial order**, so every number
-//! except wall-clock update times is identical at any thread count, and memory stays bounded
-//! by the chunk size (plus one position error per trial for the CDFs and whatever the
-//! observers keep).
+//! `TrajectoryKind::ALL[i % 5]`, the same for every estimator (paired comparison). Trials run
+//! in parallel with rayon, in chunks. Each chunk's trials are folded into the cell aggregates,
+//! and handed to the [`SweepObserver`], **in trial order**. So every number except wall-clock
+//! update times is identical at any thread count. Memory stays bounded by the chunk size, plus
+//! one position error per trial for the CDFs and whatever the observers keep.
 //!
 //! Observers add what an experiment needs beyond the aggregates: [`ErrorCurves`] (the mean
 //! parameter error on the control-step grid), [`Traces`] (full per-step traces of the first

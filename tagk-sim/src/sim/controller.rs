@@ -9,23 +9,23 @@ use crate::SimError;
 use crate::trajectory::ReferenceSample;
 
 /// Relative change `‖P_{k+1} − P_k‖_F / ‖P_{k+1}‖_F` at which the warm-started Riccati
-/// iteration of a redesign stops: the gain is then accurate to about this relative level,
-/// far below what the closed loop can notice, at a fraction of the iterations of the
-/// `1e-11` default.
+/// iteration of a redesign stops. The gain is then accurate to about this relative level. That
+/// is far below what the closed loop can notice, at a fraction of the iterations of the `1e-11`
+/// default.
 pub const REDESIGN_TOLERANCE: f64 = 1e-8;
 
-/// LQR trajectory-tracking controller: the hover LQR of `tagk-control` around a reference
-/// that carries the path's feedforward. The reference attitude tilts body `z` along the
-/// desired specific force `a_ref − g_w` with body `x` towards the reference heading `ψ`, and
-/// the collective thrust gets the feedforward `m̂ (‖a_ref − g_w‖ − g) / 4` per rotor; rotor
-/// thrusts are clipped to `[0, T_max]` and converted to speeds `ω = sqrt(T / k_f)`.
+/// LQR trajectory-tracking controller: the hover LQR of `tagk-control` around a reference that
+/// carries the path's feedforward. The reference attitude tilts body `z` along the desired
+/// specific force `a_ref − g_w`, with body `x` towards the reference heading `ψ`. The
+/// collective thrust gets the feedforward `m̂ (‖a_ref − g_w‖ − g) / 4` per rotor. Rotor thrusts
+/// are clipped to `[0, T_max]` and converted to speeds `ω = sqrt(T / k_f)`.
 ///
 /// **Heading.** The LQR is designed at hover with yaw 0. The hover dynamics do not depend on
-/// the yaw, so for a heading `ψ ≠ 0` the controller works in the heading frame (world rotated by
-/// `−ψ` about `+z`): measured state and reference are rotated into it, where the reference
-/// heading is 0 and the design applies unchanged. A turning heading (`ψ̇ ≠ 0`) adds the
-/// reference body rate `R_refᵀ (0, 0, ψ̇)`. With `ψ = ψ̇ = 0` nothing is rotated (the
-/// computation is bit-identical to a controller without headings).
+/// the yaw. So for a heading `ψ ≠ 0` the controller works in the heading frame: the world
+/// rotated by `−ψ` about `+z`. Measured state and reference are rotated into it, where the
+/// reference heading is 0 and the design applies unchanged. A turning heading (`ψ̇ ≠ 0`) adds
+/// the reference body rate `R_refᵀ (0, 0, ψ̇)`. With `ψ = ψ̇ = 0` nothing is rotated; the
+/// computation is bit-identical to a controller without headings.
 #[derive(Debug, Clone)]
 pub struct Controller {
     lqr: Lqr,
@@ -135,11 +135,11 @@ impl Controller {
     }
 }
 
-/// Saturation with attitude priority: when some rotor thrust leaves `[0, hi]` \[N\], all four
-/// are shifted by the same amount (changing only the collective thrust, not the torques)
-/// as far as that brings them inside; whatever still exceeds is clipped per rotor. Clipping
+/// Saturation with attitude priority. When some rotor thrust leaves `[0, hi]` \[N\], all four
+/// are shifted by the same amount, as far as that brings them inside. This changes only the
+/// collective thrust, not the torques. Whatever still exceeds is clipped per rotor. Clipping
 /// each rotor independently instead would turn a collective demand beyond the limits into
-/// spurious torques and tip the vehicle over while it recovers from a payload drop.
+/// spurious torques. That would tip the vehicle over while it recovers from a payload drop.
 pub fn prioritise_attitude(thrusts: [f64; 4], hi: f64) -> [f64; 4] {
     let max = thrusts.iter().copied().fold(f64::MIN, f64::max);
     let min = thrusts.iter().copied().fold(f64::MAX, f64::min);
