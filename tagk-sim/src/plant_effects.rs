@@ -21,11 +21,11 @@
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //!
-//! The effects act on the **plant only**. The measured wrench `b` the estimator sees is
-//! always computed from the measured rotor speeds (the commanded ones plus the sensing
-//! profile's rotor-speed noise, [`crate::Sensing`]) with the nominal `k_f`, `k_m` through the
-//! mixer, so every effect shows up as a model mismatch `b − Y θ ≠ 0` that a diagnosis tool can
-//! look for.
+//! The effects act on the **plant only**. The measured wrench `b` the estimator sees is always
+//! computed from the measured rotor speeds, with the nominal `k_f`, `k_m` through the mixer.
+//! The measured speeds are the commanded ones plus the sensing profile's rotor-speed noise
+//! ([`crate::Sensing`]). So every effect shows up as a model mismatch `b − Y θ ≠ 0` that a
+//! diagnosis tool can look for.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -34,17 +34,19 @@ use tagk_dynamics::{EffectKind, Wrench};
 
 use crate::SimError;
 
-/// Linear rotor drag (blade flapping and induced drag) at each rotor hub: rotor `i` at hub
-/// `rᵢ` (body frame, the vehicle's rotor layout) spinning at `ωᵢ` makes the in-plane force
-/// `Hᵢ = −K ωᵢ v_hub,i` with `v_hub,i = v_b + Ω × rᵢ` the air-relative velocity of its hub,
-/// body frame [m/s] (`v_b = Rᵀ (v − v_wind)` that of the body origin, `Ω` the body rate
-/// [rad/s]), and the moment `rᵢ × Hᵢ` about the origin. The net force `Σ Hᵢ =
-/// −K (Σ ωᵢ) v_b − K Σ ωᵢ (Ω × rᵢ)` is the body-origin form `−K (Σ ωᵢ) v_b` to first order (the
-/// second term vanishes at `Ω = 0`); the moments are what the body-origin form leaves out: a
-/// yaw torque from differential rotor speeds times the in-plane velocity, roll and pitch
-/// torques from the vertical component, and a damping of the body rate. With equal rotor
-/// speeds, `Ω = 0` and a symmetric layout (`Σ rᵢ = 0`) the moments cancel
-/// ([`RotorDrag::wrench`]).
+/// Linear rotor drag (blade flapping and induced drag) at each rotor hub.
+///
+/// Rotor `i` at hub `rᵢ` (body frame, the vehicle's rotor layout) spins at `ωᵢ`. It makes the
+/// in-plane force `Hᵢ = −K ωᵢ v_hub,i`, with `v_hub,i = v_b + Ω × rᵢ` the air-relative velocity
+/// of its hub, body frame \[m/s\]. Here `v_b = Rᵀ (v − v_wind)` is that of the body origin and
+/// `Ω` the body rate \[rad/s\]. The moment about the origin is `rᵢ × Hᵢ`.
+///
+/// The net force is `Σ Hᵢ = −K (Σ ωᵢ) v_b − K Σ ωᵢ (Ω × rᵢ)`. To first order it is the
+/// body-origin form `−K (Σ ωᵢ) v_b`: the second term vanishes at `Ω = 0`. The moments are what
+/// the body-origin form leaves out. They are a yaw torque from differential rotor speeds times
+/// the in-plane velocity, roll and pitch torques from the vertical component, and a damping of
+/// the body rate. With equal rotor speeds, `Ω = 0` and a symmetric layout (`Σ rᵢ = 0`) the
+/// moments cancel ([`RotorDrag::wrench`]).
 ///
 /// Model and Crazyflie coefficients: J. Förster, "System identification of the Crazyflie 2.0
 /// nano quadrocopter", ETH Zürich, 2015 (`K = diag(9.1785, 9.1785, 10.311)·10⁻⁷ kg/rad`,
@@ -69,10 +71,10 @@ impl RotorDrag {
         }
     }
 
-    /// The drag wrench of the four rotors, body frame, about the origin: force `Σ Hᵢ` \[N\]
-    /// and torque `Σ rᵢ × Hᵢ` \[N m\], with `Hᵢ = −K ωᵢ (v_air_b + Ω × rᵢ)`, for the
-    /// air-relative body-frame velocity of the origin `v_air_b` \[m/s\], body rate `body_rate`
-    /// \[rad/s\], actual rotor speeds `rotor_speeds` \[rad/s\] and hub positions
+    /// The drag wrench of the four rotors, body frame, about the origin: force `Σ Hᵢ` \[N\] and
+    /// torque `Σ rᵢ × Hᵢ` \[N m\], with `Hᵢ = −K ωᵢ (v_air_b + Ω × rᵢ)`. The inputs are the
+    /// air-relative body-frame velocity of the origin `v_air_b` \[m/s\], the body rate `body_rate`
+    /// \[rad/s\], the actual rotor speeds `rotor_speeds` \[rad/s\] and the hub positions
     /// `rotor_positions` (body frame) \[m\].
     pub fn wrench(
         &self,
@@ -134,10 +136,10 @@ impl Default for LinearDrag {
 /// Quadratic parasitic (bluff-body) drag per body axis: `f_b,i = −½ ρ (C_d A)_i |v_i| v_i`
 /// with `v_b` the air-relative body-frame velocity [m/s].
 ///
-/// Standard form of pressure drag (S. F. Hoerner, "Fluid-Dynamic Drag", 1965); the Crazyflie
-/// numbers take `C_d ≈ 1` for its frame and a frontal area of about `3·10⁻³ m²` sideways and
-/// `6·10⁻³ m²` from above (92 mm × 92 mm frame, mostly open), so it is small next to rotor
-/// drag below 1 m/s — as Faessler et al. (2018) observe for quadrotors at low speed.
+/// Standard form of pressure drag (S. F. Hoerner, "Fluid-Dynamic Drag", 1965). The Crazyflie
+/// numbers take `C_d ≈ 1` for its frame, and a frontal area of about `3·10⁻³ m²` sideways and
+/// `6·10⁻³ m²` from above (92 mm × 92 mm frame, mostly open). So it is small next to rotor
+/// drag below 1 m/s, as Faessler et al. (2018) observe for quadrotors at low speed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct QuadraticDrag {
     /// `C_d A` per body axis \[m²\].
@@ -305,11 +307,11 @@ impl Default for BodyBias {
     }
 }
 
-/// Time delay (the vocabulary's `time-delay`) between the wrench stream and the motion
-/// stream of the flight log: the logged wrench and rotor speeds at time `t` are the ones
-/// commanded at `t − delay` (commands are held over each control interval), while the
-/// motion columns are those of `t`. It models two log streams stamped with misaligned clocks;
-/// the vehicle itself (plant, controller, onboard estimator) is not affected.
+/// Time delay (the vocabulary's `time-delay`) between the wrench stream and the motion stream
+/// of the flight log. The logged wrench and rotor speeds at time `t` are the ones commanded at
+/// `t − delay`; commands are held over each control interval. The motion columns are those of
+/// `t`. It models two log streams stamped with misaligned clocks. The vehicle itself (plant,
+/// controller, onboard estimator) is not affected.
 ///
 /// Default: one period of the simulator's 50 Hz control loop, 0.02 s — the smallest
 /// misalignment a logger sampling at the control rate produces (a chosen magnitude, not a
@@ -498,12 +500,12 @@ impl PlantEffects {
             _ => None,
         }
     }
-    /// The wrench of the aerodynamic effects and the bias (body frame, about the origin:
-    /// force \[N\], torque \[N m\]) at world velocity `velocity` \[m/s\], attitude `attitude`,
-    /// body rate `body_rate` \[rad/s\], actual rotor speeds `rotor_speeds` \[rad/s\] of the
-    /// rotors at `rotor_positions` (body frame \[m\]). The drag effects act on the
-    /// air-relative velocity (`wind` subtracted); rotor drag at each hub with its moments
-    /// ([`RotorDrag::wrench`]), which is also the drag a `wind` without any drag effect uses.
+    /// The wrench of the aerodynamic effects and the bias, body frame, about the origin: force
+    /// \[N\], torque \[N m\]. The inputs are the world velocity `velocity` \[m/s\], the attitude
+    /// `attitude`, the body rate `body_rate` \[rad/s\], and the actual rotor speeds `rotor_speeds`
+    /// \[rad/s\] of the rotors at `rotor_positions` (body frame \[m\]). The drag effects act on the
+    /// air-relative velocity (`wind` subtracted). Rotor drag acts at each hub with its moments
+    /// ([`RotorDrag::wrench`]); a `wind` without any drag effect uses it too.
     pub fn extra_wrench(
         &self,
         velocity: &Vector3<f64>,
@@ -624,10 +626,12 @@ mod tests {
         assert!(w.torque.norm() > 1e-6);
     }
 
-    /// Closed forms and symmetry: equal speeds at `Ω = 0` give the body-origin force
-    /// `−K (Σω) v` and no moment (the hubs sum to zero); at `Ω = 0` with differential speeds
-    /// the yaw torque is `k_x v_x Σ yᵢωᵢ − k_y v_y Σ xᵢωᵢ`, roll `−k_z v_z Σ yᵢωᵢ`, pitch
-    /// `k_z v_z Σ xᵢωᵢ`; at `v = 0` the torque dissipates, `τ·Ω = −Σ ωᵢ (Ω×rᵢ)ᵀ K (Ω×rᵢ) < 0`.
+    /// Closed forms and symmetry.
+    /// - Equal speeds at `Ω = 0` give the body-origin force `−K (Σω) v` and no moment (the hubs
+    ///   sum to zero).
+    /// - At `Ω = 0` with differential speeds, the yaw torque is `k_x v_x Σ yᵢωᵢ − k_y v_y Σ xᵢωᵢ`,
+    ///   roll `−k_z v_z Σ yᵢωᵢ`, pitch `k_z v_z Σ xᵢωᵢ`.
+    /// - At `v = 0` the torque dissipates: `τ·Ω = −Σ ωᵢ (Ω×rᵢ)ᵀ K (Ω×rᵢ) < 0`.
     #[test]
     fn rotor_drag_moments_follow_their_closed_forms() {
         let d = RotorDrag::crazyflie();

@@ -95,11 +95,12 @@ pub enum LogRate {
     /// readings).
     #[default]
     Control,
-    /// One sample per physics step (every RK4 step, 500 Hz at the default 2 ms), stamped at
-    /// the step's end: instantaneous IMU-style samples of the state (gyro, accelerometer and
-    /// velocity with fresh noise each, on a random stream of their own, so the flight itself is
-    /// that of [`LogRate::Control`]); no `ω̇` columns (an IMU does not measure it); rotor speeds
-    /// and wrench are the control interval's measured values, held over its steps.
+    /// One sample per physics step (every RK4 step, 500 Hz at the default 2 ms), stamped at the
+    /// step's end. These are instantaneous IMU-style samples of the state: gyro, accelerometer and
+    /// velocity, each with fresh noise. That noise comes from a random stream of its own, so the
+    /// flight itself is that of [`LogRate::Control`]. There are no `ω̇` columns: an IMU does not
+    /// measure it. Rotor speeds and wrench are the control interval's measured values, held over
+    /// its steps.
     Physics,
 }
 
@@ -248,42 +249,42 @@ pub fn tracking_weights() -> LqrWeights {
 }
 
 /// What the flight stack around the LQR adds to the paper's bare state feedback, and the
-/// pre-flight check of a payload: all off in [`FlightStack::paper`] (the paper's setting,
-/// bit-identical to the simulator before this existed), on in [`FlightStack::realistic`]
-/// (the `realistic` experiment profile, issue #14).
+/// pre-flight check of a payload. All are off in [`FlightStack::paper`]: the paper's setting,
+/// bit-identical to the simulator before this existed. All are on in
+/// [`FlightStack::realistic`], the `realistic` experiment profile (issue #14).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FlightStack {
-    /// Integral action on the position error \[1/s\]: the controller tracks the reference
-    /// shifted by `−k_i ∫ (p̂ − p_ref) dt` (measured position `p̂`), so that a constant force
-    /// the model lacks (a thrust-coefficient error, an accelerometer-free body force) leaves
-    /// no steady offset; the LQR's position gain times `k_i` is the integral gain. `0`: off.
+    /// Integral action on the position error \[1/s\]. The controller tracks the reference shifted
+    /// by `−k_i ∫ (p̂ − p_ref) dt` (measured position `p̂`). So a constant force the model lacks
+    /// leaves no steady offset: a thrust-coefficient error, or an accelerometer-free body force.
+    /// The LQR's position gain times `k_i` is the integral gain. `0`: off.
     pub position_integral_gain: f64,
     /// Anti-windup: the largest shift `k_i |∫ e dt|` per axis \[m\].
     pub position_integral_limit: f64,
-    /// The largest fraction of the **true** rotors' maximum thrust (the nominal maximum times
-    /// the plant's thrust gain) that a protocol payload may need to hover; heavier draws are
-    /// redrawn (a flight stack does not take off with a payload it cannot manoeuvre). `1`:
-    /// hover feasible at full thrust, the paper's check.
+    /// The largest fraction of the **true** rotors' maximum thrust that a protocol payload may
+    /// need to hover. The true maximum is the nominal maximum times the plant's thrust gain.
+    /// Heavier draws are redrawn: a flight stack does not take off with a payload it cannot
+    /// manoeuvre. `1`: hover feasible at full thrust, the paper's check.
     pub hover_thrust_limit: f64,
-    /// The controller takes only the mass and first moment from an estimate and completes
-    /// the inertia as the nominal inertia plus that of a point mass carrying the change
-    /// (`Δm = m̂ − m₀` at `Δh / Δm`; the nominal inertia when `Δm ≤ 0`), instead of the
-    /// estimator's own inertia columns, which smooth flight barely excites. With the
-    /// `realistic` profile's gyro noise alone (no other ingredient, tuning seed 7, 60 trials)
-    /// the KF's inertia is off by 150 % of the truth on average and the tuned TAG-K's by
-    /// 64–75 %; a controller designed on the KF's loses 40 % of the flights, on the completion
-    /// 7 % (success 13 % → 80 %). The estimate itself (and every parameter-error column) is
-    /// unchanged; the protocol's payloads are point masses, so for them the completion is
-    /// exact. `false`: the estimate as it is (the paper).
+    /// The controller takes only the mass and first moment from an estimate. It completes the
+    /// inertia as the nominal inertia plus that of a point mass carrying the change
+    /// (`Δm = m̂ − m₀` at `Δh / Δm`; the nominal inertia when `Δm ≤ 0`). It does not use the
+    /// estimator's own inertia columns, which smooth flight barely excites. Take the `realistic`
+    /// profile's gyro noise alone (no other ingredient, tuning seed 7, 60 trials). The KF's
+    /// inertia is then off by 150 % of the truth on average, and the tuned TAG-K's by 64–75 %. A
+    /// controller designed on the KF's loses 40 % of the flights; on the completion, 7 % (success
+    /// 13 % → 80 %). The estimate itself (and every parameter-error column) is unchanged. The
+    /// protocol's payloads are point masses, so for them the completion is exact. `false`: the
+    /// estimate as it is (the paper).
     #[serde(default)]
     pub point_mass_inertia: bool,
-    /// The measured rotor speeds are the motors' own (eRPM telemetry reads the motor), so
-    /// with a motor lag they are the lagging speeds at the frame's time rather than the
-    /// commanded ones. `false`: the commanded speeds (the paper's and the diagnosis
-    /// examples' logs, where a motor lag shows as a lag between wrench and motion). In the
-    /// `realistic` profile the commanded speeds lead the motion by the 10 ms lag, which the
-    /// estimators read as torque: aborts fall from 80 % to 58 % (tuned TAG-K) and from 92 % to
-    /// 55 % (KF-low) with telemetry (no noise level, tuning seed 7, 60 trials).
+    /// The measured rotor speeds are the motors' own (eRPM telemetry reads the motor). So with a
+    /// motor lag they are the lagging speeds at the frame's time, not the commanded ones. `false`:
+    /// the commanded speeds. The paper's and the diagnosis examples' logs use those, and there a
+    /// motor lag shows as a lag between wrench and motion. In the `realistic` profile the
+    /// commanded speeds lead the motion by the 10 ms lag, which the estimators read as torque.
+    /// With telemetry, aborts fall from 80 % to 58 % (tuned TAG-K) and from 92 % to 55 %
+    /// (KF-low); no noise level, tuning seed 7, 60 trials.
     #[serde(default)]
     pub motor_telemetry: bool,
     /// Rotor-speed telemetry readings averaged per control interval (`1`: one reading, the
@@ -418,24 +419,25 @@ impl FlightStack {
 }
 
 /// Integral gain `k_i` of the `realistic` profile's position loop \[1/s\] (a chosen figure,
-/// issue #14). Without integral action the −5 % thrust coefficient leaves the oracle's
-/// vehicle about 0.75 cm below the path (mean tracking error 1–3 s after the attach, 200-trial
-/// probe, tuning seed 7), at the 1 cm success threshold's doorstep. `k_i = 0.2` leaves 0.29 cm,
-/// `0.5` 0.14 cm, `1.0` 0.12 cm; but at `1.0` the integrator alone adapts to a payload within
-/// the 2 s of the success rule (`nominal` succeeds in 94–100 %) and the rule no longer tells
-/// adapting from not adapting; at `0.5` `nominal` keeps 2.2 cm at 1–3 s and succeeds in 0 %.
+/// issue #14). Without integral action, the −5 % thrust coefficient leaves the oracle's
+/// vehicle about 0.75 cm below the path. That is the mean tracking error 1–3 s after the
+/// attach (200-trial probe, tuning seed 7), at the 1 cm success threshold's doorstep.
+/// `k_i = 0.2` leaves 0.29 cm, `0.5` 0.14 cm, `1.0` 0.12 cm. But at `1.0` the integrator alone
+/// adapts to a payload within the 2 s of the success rule (`nominal` succeeds in 94–100 %).
+/// The rule then no longer tells adapting from not adapting. At `0.5`, `nominal` keeps 2.2 cm
+/// at 1–3 s and succeeds in 0 %.
 pub const REALISTIC_POSITION_INTEGRAL_GAIN: f64 = 0.5;
 /// Anti-windup limit of the `realistic` profile's position integral \[m\] per axis (a chosen
 /// figure: about twice the steady offset a non-adapting controller keeps after an attach).
 pub const REALISTIC_POSITION_INTEGRAL_LIMIT: f64 = 0.05;
 /// Hover-thrust limit of the `realistic` profile's payloads: a payload must hover within
 /// 95 % of the true rotors' maximum thrust (a chosen margin). Why: the protocol's payloads
-/// (30–50 % of the vehicle's mass, off-centre) need up to 100 % of the *nominal* maximum
-/// thrust of one rotor to hover; with the profile's −5 % thrust coefficient the real rotors
-/// cannot lift the heaviest, and every one of the oracle's aborts in the old `realistic`
-/// table was such a payload (hover at 95–100 % of the nominal maximum, 15 of 100 trials,
-/// thrust error alone, tuning seed 7). At 0.97 the oracle aborts 0 of 200 (tuning seed 7,
-/// none and high noise), at 0.95 as well, with a little more margin for manoeuvres.
+/// (30–50 % of the vehicle's mass, off-centre) need up to 100 % of the *nominal* maximum thrust
+/// of one rotor to hover. With the profile's −5 % thrust coefficient the real rotors cannot
+/// lift the heaviest. Every one of the oracle's aborts in the old `realistic` table was such a
+/// payload: hover at 95–100 % of the nominal maximum, 15 of 100 trials, thrust error alone,
+/// tuning seed 7. At 0.97 the oracle aborts 0 of 200 (tuning seed 7, none and high noise).
+/// At 0.95 it does as well, with a little more margin for manoeuvres.
 pub const REALISTIC_HOVER_THRUST_LIMIT: f64 = 0.95;
 /// Rotor-speed telemetry readings the `realistic` profile's flight stack averages per 20 ms
 /// control interval (1 kHz ESC telemetry, e.g. bidirectional DShot at a 1 kHz motor update
@@ -531,11 +533,11 @@ impl Default for SimConfig {
     }
 }
 
-/// Largest memory a flight may plan to keep \[bytes\] (2 GiB): the recorded log, the trace
-/// and the per-step tracking error grow with the duration, and a request above the budget is
-/// refused up front by [`SimConfig::validate`] ([`SimError::OverMemoryBudget`]) instead of
-/// aborting the process on a failed allocation. At 50 Hz with the log recorded, it allows
-/// about 48 hours of flight (control-rate log) or about 5 hours (physics-rate log).
+/// Largest memory a flight may plan to keep \[bytes\] (2 GiB). The recorded log, the trace and
+/// the per-step tracking error grow with the duration. A request above the budget is refused
+/// up front by [`SimConfig::validate`] ([`SimError::OverMemoryBudget`]), instead of aborting
+/// the process on a failed allocation. At 50 Hz with the log recorded, it allows about 48
+/// hours of flight (control-rate log) or about 5 hours (physics-rate log).
 pub const MEMORY_BUDGET_BYTES: u64 = 2 << 30;
 
 /// Bytes one flight-log sample takes in memory (every signal of
@@ -595,11 +597,11 @@ impl SimConfig {
         steps.saturating_mul(per_step)
     }
 
-    /// The reference path this configuration flies (shape from [`SimConfig::trajectory`]; size,
-    /// centre, phase and the helix's climb drawn from [`SimConfig::seed`] exactly as
-    /// [`simulate`](crate::simulate) draws them, so it equals
-    /// [`SimOutput::trajectory`](crate::SimOutput::trajectory)), without flying: e.g. to choose
-    /// the altitude of a low flight from the climb of its helix (the altitude draws nothing).
+    /// The reference path this configuration flies, without flying. The shape comes from
+    /// [`SimConfig::trajectory`]. Size, centre, phase and the helix's climb are drawn from
+    /// [`SimConfig::seed`] exactly as [`simulate`](crate::simulate) draws them. So it equals
+    /// [`SimOutput::trajectory`](crate::SimOutput::trajectory). Use it, e.g., to choose the
+    /// altitude of a low flight from the climb of its helix (the altitude draws nothing).
     ///
     /// # Errors
     /// As [`Trajectory::random`](crate::Trajectory::random): a duration that is not positive

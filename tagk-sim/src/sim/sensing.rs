@@ -20,10 +20,10 @@ pub const BMI088_ACCEL_NOISE_DENSITY_G: f64 = 175e-6;
 /// Accelerometer filter bandwidth of the Crazyflie's in-flight setting \[Hz\] (OSR4 at a
 /// 1600 Hz output rate, "145 Hz cut-off according to datasheet" in `sensors_bmi088_bmp388.c`).
 pub const CRAZYFLIE_ACCEL_BANDWIDTH: f64 = 145.0;
-/// Factor by which propeller vibration raises the IMU's in-flight noise above the data sheet's
-/// at-rest white noise (a chosen figure: the Crazyflie's motors sit on the IMU's circuit board;
-/// its own Kalman filter assumes a far more conservative 0.1 rad/s of gyro noise,
-/// `measNoiseGyro_rollpitch` in `kalman_core.c`).
+/// Factor by which propeller vibration raises the IMU's in-flight noise above the data
+/// sheet's at-rest white noise (a chosen figure). The Crazyflie's motors sit on the IMU's
+/// circuit board. Its own Kalman filter assumes a far more conservative 0.1 rad/s of gyro
+/// noise (`measNoiseGyro_rollpitch` in `kalman_core.c`).
 pub const PROPELLER_VIBRATION_FACTOR: f64 = 3.0;
 /// BMI088 gyroscope zero-rate offset drift with temperature \[deg/s/K\] (data sheet: TCO
 /// 0.015 deg/s/K).
@@ -37,20 +37,20 @@ pub const BMI088_ACCEL_OFFSET_G: f64 = 20e-3;
 /// sub-millimetre 3-D accuracy for small markers in a room-sized volume; a chosen figure at
 /// the upper end of that range, for a small quadrotor's few markers).
 pub const MOCAP_POSITION_NOISE: f64 = 0.5e-3;
-/// Motion-capture attitude noise, σ per axis \[rad\] (0.2 deg: 0.5 mm marker noise over the
-/// Crazyflie's ≈ 10 cm marker baseline gives ≈ 5 mrad per marker, averaged over 4 markers; a
-/// chosen figure; two independent marker pairs: 5/√2 ≈ 3.5 mrad).
+/// Motion-capture attitude noise, σ per axis \[rad\] (0.2 deg; a chosen figure). 0.5 mm
+/// marker noise over the Crazyflie's ≈ 10 cm marker baseline gives ≈ 5 mrad per marker.
+/// Averaged over 4 markers, as two independent marker pairs, that is 5/√2 ≈ 3.5 mrad.
 pub const MOCAP_ATTITUDE_NOISE: f64 = 3.5e-3;
 /// Relative thrust-coefficient error of the `realistic` experiment profile (−5 %: half the
 /// battery-sag and propeller-wear range that Förster 2015 measured on the Crazyflie's thrust
 /// map, for a map identified on the same battery; a chosen figure).
 pub const REALISTIC_THRUST_GAIN_ERROR: f64 = -0.05;
-/// Motor time constant of the `realistic` experiment profile \[s\] (0.01 s: the fast end of
-/// small-quadrotor motors; the Crazyflie's coreless motors are slower, about 0.02 s,
-/// [`MotorLag::crazyflie`](crate::plant_effects::MotorLag::crazyflie). The simulator's LQR is
-/// designed without actuator dynamics and loses 7 of 20 of even the oracle's flights at 0.02 s
-/// in this profile (1 of 20 at 0.01 s, as without lag; low noise, 20-trial probe): a table at
-/// 0.02 s would measure the controller, not the estimators. A chosen figure.)
+/// Motor time constant of the `realistic` experiment profile \[s\]: 0.01 s, the fast end of
+/// small-quadrotor motors (a chosen figure). The Crazyflie's coreless motors are slower, about
+/// 0.02 s ([`MotorLag::crazyflie`](crate::plant_effects::MotorLag::crazyflie)). The
+/// simulator's LQR is designed without actuator dynamics. At 0.02 s it loses 7 of 20 of even
+/// the oracle's flights in this profile; at 0.01 s, 1 of 20, as without lag (low noise,
+/// 20-trial probe). A table at 0.02 s would measure the controller, not the estimators.
 pub const REALISTIC_MOTOR_LAG: f64 = 0.01;
 /// Standard gravity \[m/s²\] (to convert the data sheet's `g` units).
 const STANDARD_GRAVITY: f64 = 9.806_65;

@@ -59,10 +59,10 @@ fn biased(v: Vector3<f64>, bias: &Vector3<f64>) -> Vector3<f64> {
     }
 }
 
-/// The sensors of one flight: motion capture (exact position and attitude), noisy velocity,
-/// accelerometer and rate gyro (their white noise all drawn from one random stream, in a fixed
-/// order), constant gyro and accelerometer biases (drawn once from a stream of their own), and
-/// the rotor-speed reading (its noise from a third stream).
+/// The sensors of one flight. Motion capture gives exact position and attitude. Velocity,
+/// accelerometer and rate gyro are noisy; their white noise is all drawn from one random stream,
+/// in a fixed order. Gyro and accelerometer biases are constant, drawn once from a stream of
+/// their own. The rotor-speed reading takes its noise from a third stream.
 #[derive(Debug, Clone)]
 pub(crate) struct Sensors {
     rng: ChaCha8Rng,
@@ -86,12 +86,16 @@ pub(crate) struct Sensors {
 }
 
 impl Sensors {
-    /// Sensors with the noise of `noise` and the profile `sensing` (σ's of both combined in
-    /// quadrature, [`Sensing::combined`]); white noise from `rng`, the biases from `bias_rng`
-    /// (always 6 standard normal draws, gyro x, y, z then accelerometer x, y, z, scaled by the
-    /// profile's σ's: a seed fixes the bias direction whatever the σ), the rotor-speed noise
-    /// from `rotor_rng`, the physics-rate log's noise from `imu_rng`. Draws the first gyro
-    /// reading of the body rate `initial_rate`.
+    /// Sensors with the noise of `noise` and the profile `sensing`: σ's of both combined in
+    /// quadrature ([`Sensing::combined`]).
+    /// - White noise comes from `rng`.
+    /// - The biases come from `bias_rng`: always 6 standard normal draws (gyro x, y, z, then
+    ///   accelerometer x, y, z), scaled by the profile's σ's. A seed fixes the bias direction
+    ///   whatever the σ.
+    /// - The rotor-speed noise comes from `rotor_rng`, the physics-rate log's noise from
+    ///   `imu_rng`.
+    ///
+    /// Draws the first gyro reading of the body rate `initial_rate`.
     // One independent, named random stream per sensor (so that adding one leaves the others'
     // draws unchanged), plus the noise level, the profile and the initial rate.
     #[allow(clippy::too_many_arguments)]
@@ -194,9 +198,9 @@ impl Sensors {
     }
 
     /// An instantaneous IMU-style sample for the physics-rate log, from the true body rate
-    /// `rate`, proper acceleration `proper` and world velocity `velocity`: gyro, accelerometer
-    /// (each with its bias) and velocity, each plus fresh noise from the IMU stream (draws 3
-    /// each, gyro, accelerometer, velocity; none for a zero σ).
+    /// `rate`, proper acceleration `proper` and world velocity `velocity`. Gyro and accelerometer
+    /// carry their bias. Gyro, accelerometer and velocity each get fresh noise from the IMU
+    /// stream: 3 draws each, in that order, none for a zero σ.
     pub(crate) fn imu_sample(
         &mut self,
         rate: Vector3<f64>,
@@ -241,9 +245,9 @@ mod tests {
         )
     }
 
-    /// Every per-sample noise has the profile's σ (sample std within 3 % over 20 000
-    /// samples per axis, where the standard error of a std is 0.5 %), and the per-sample
-    /// mean is the flight's constant bias (within 5 standard errors).
+    /// Every per-sample noise has the profile's σ: the sample std is within 3 % over 20 000
+    /// samples per axis, where the standard error of a std is 0.5 %. The per-sample mean is the
+    /// flight's constant bias, within 5 standard errors.
     #[test]
     fn realistic_noise_has_the_stated_sigma_around_a_constant_bias() {
         let s = Sensing::realistic();
