@@ -28,7 +28,7 @@ pub use diagnose::{
     FailureWindow, FloorSource, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE,
     MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter, PartialResidual, RegimeStat, Step,
     StepChannel, Unavailable, Whiteness, consistency_margin, consistent_within_tolerance, diagnose,
-    discover, discover_from,
+    discover, discover_from, residual_autocorrelation, whiteness_limit,
 };
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility,
