@@ -3,7 +3,6 @@
 use serde::{Deserialize, Serialize};
 use tagk_diagnose::{BuiltinOptions, Coefficient, EffectKind, FittedEffect, Report};
 use tagk_dynamics::InertialParams;
-use tagk_dynamics::nalgebra::SymmetricEigen;
 use tagk_sim::SensingProfile;
 
 use super::ground_truth::{ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth};
@@ -355,7 +354,8 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
             let m = params.mass();
             if m.is_nan() || m <= 0.0 {
                 out.push(format!("mass {m:.4e} kg not positive"));
-            } else if let Some((lambda, lambda_se)) = second_moment_eigen(&params, &se)
+            } else if let Some((lambda, lambda_se)) =
+                tagk_diagnose::second_moment_eigen(&params, &se)
                 && lambda < -IMPLAUSIBLE_PSEUDO_INERTIA * lambda_se
             {
                 out.push(format!(
@@ -369,35 +369,6 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
         )),
     }
     out
-}
-
-/// The smallest eigenvalue `λ` of `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] for the parameters
-/// `theta` (`m > 0`) and its standard error from the parameters' standard errors `se`
-/// (`InertialParams` order, independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
-/// `½ tr(I) 1 − I` is the pseudo-inertia's upper-left block.
-fn second_moment_eigen(theta: &InertialParams, se: &[f64]) -> Option<(f64, f64)> {
-    let m = theta.mass();
-    let h = theta.first_moment();
-    let sigma = theta.pseudo_inertia().fixed_view::<3, 3>(0, 0) - h * h.transpose() / m;
-    let eig = SymmetricEigen::new(sigma);
-    let k = eig.eigenvalues.imin();
-    let lambda = eig.eigenvalues[k];
-    let v = eig.eigenvectors.column(k).into_owned();
-    let vh = v.dot(&h);
-    let gradient = [
-        vh * vh / (m * m),
-        -2.0 * vh * v.x / m,
-        -2.0 * vh * v.y / m,
-        -2.0 * vh * v.z / m,
-        0.5 - v.x * v.x,
-        -2.0 * v.x * v.y,
-        0.5 - v.y * v.y,
-        -2.0 * v.x * v.z,
-        -2.0 * v.y * v.z,
-        0.5 - v.z * v.z,
-    ];
-    let var: f64 = gradient.iter().zip(se).map(|(g, s)| (g * s).powi(2)).sum();
-    lambda.is_finite().then_some((lambda, var.sqrt()))
 }
 
 /// The score of a diagnosis `outcome` against its flight's `truth` (see [`FlightScore`]'s

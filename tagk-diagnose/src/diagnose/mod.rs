@@ -31,8 +31,9 @@ pub use parameters::Parameter;
 pub use ranking::{Candidate, CandidateStatus, Unavailable};
 pub use residual::{FailureWindow, RegimeStat, Whiteness, residual_autocorrelation};
 pub use sanity::{
-    CONSISTENCY_TOLERANCE, MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE,
-    consistency_margin, consistent_within_tolerance,
+    CONSISTENCY_TOLERANCE, INCONSISTENCY_STANDARD_ERRORS, MAX_CONSTANT_FORCE_OF_THRUST,
+    MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, consistency_margin, consistent_within_tolerance,
+    second_moment_eigen,
 };
 pub use select::{MAX_INFLATION, MIN_GAIN};
 pub use stepwise::{Discovery, Step, StepChannel, discover, discover_from};
