@@ -89,9 +89,15 @@ fn a_slice_of_the_benchmark_runs_end_to_end_deterministically() {
         assert!(score.mass_true > 0.0 && score.mass_identifiable > 0.0);
         assert!(score.mass_estimate.is_finite() && score.mass_error.is_finite());
         assert!(score.inertia_error.iter().all(|x| x.is_finite()));
+        // Right: the expected verdict, or either verdict in the gray zone.
         assert_eq!(
             score.adequate_right,
             score.adequate_reported == score.adequate_expected
+                || (score.adequate_expected_by_effects && score.adequate_gray)
+        );
+        assert_eq!(
+            score.adequate_expected,
+            score.adequate_expected_by_effects && score.at_true_noise
         );
         assert!(!score.stopped.is_empty());
     }

@@ -2,7 +2,9 @@
 //! alone: the noise per channel, each true effect's strength over it, the coefficients.
 
 use serde::{Deserialize, Serialize};
-use tagk_diagnose::{DiagnoseOptions, EffectKind, resolution_of};
+use tagk_diagnose::{
+    DiagnoseOptions, EffectKind, residual_autocorrelation, resolution_of, whiteness_limit,
+};
 use tagk_dynamics::nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::{
     InertialParams, newton_euler, proper_acceleration, write_rigid_body_regressor,
@@ -34,6 +36,13 @@ pub struct TrueEffect {
     pub max_strength: f64,
     /// `max_strength ≥ D` ([`super::BenchmarkOptions::detectable`]).
     pub detectable: bool,
+    /// The largest over the channels of the `Σ ρ_k²` this effect alone, missing from a model,
+    /// adds to a white residual of unit noise (dimensionless): at lag `k` the residual's
+    /// autocorrelation is `s² ρ_k / (1 + s²)`, `s` the channel's strength and `ρ_k` the
+    /// autocorrelation of the effect's projected wrench at the whiteness test's lags
+    /// (`tagk_diagnose::residual_autocorrelation`). Set against
+    /// [`GroundTruth::whiteness_limit`].
+    pub whiteness: f64,
 }
 
 /// What kind of reported number an [`ExpectedCoefficient`] is compared with.
@@ -104,6 +113,9 @@ pub struct GroundTruth {
     /// `true` for a flight at a constant heading (no yaw rate): a force fixed in the world and
     /// one fixed in the body are then the same in the data.
     pub constant_heading: bool,
+    /// The diagnosis' whiteness limit for this log's length (`tagk_diagnose::whiteness_limit`):
+    /// the largest `Σ ρ_k²` of an adequate channel's residual.
+    pub whiteness_limit: f64,
 }
 
 /// The least-squares projection onto the rigid-body regressor's columns of stacked,
@@ -159,16 +171,49 @@ impl RigidProjection {
     /// # Panics
     /// When `wrench` has not one row per sample of the regressors.
     pub fn strength(&self, wrench: &[[f64; 6]]) -> [f64; 6] {
+        let e = self.residual(wrench);
+        let n = e.len();
+        std::array::from_fn(|c| {
+            let sum: f64 = e.iter().map(|x| x[c].powi(2)).sum();
+            (sum / n.max(1) as f64).sqrt()
+        })
+    }
+
+    /// Per sample and channel: what `wrench` (one `[fx..tz]` per sample of the regressors
+    /// \[N, N m\]) keeps after removing its weighted least-squares projection on the
+    /// rigid-body columns, over the channel's σ (dimensionless).
+    ///
+    /// # Panics
+    /// When `wrench` has not one row per sample of the regressors.
+    pub fn residual(&self, wrench: &[[f64; 6]]) -> Vec<[f64; 6]> {
         let n = self.basis.nrows() / 6;
         assert_eq!(wrench.len(), n, "one wrench per regressor sample");
         let v = DVector::from_fn(6 * n, |r, _| wrench[r / 6][r % 6] * self.weights[r % 6]);
         let e = &v - &self.basis * (self.basis.transpose() * &v);
-        let mut out = [0.0; 6];
-        for (c, o) in out.iter_mut().enumerate() {
-            let sum: f64 = (0..n).map(|i| e[6 * i + c].powi(2)).sum();
-            *o = (sum / n.max(1) as f64).sqrt();
-        }
-        out
+        (0..n)
+            .map(|i| std::array::from_fn(|c| e[6 * i + c]))
+            .collect()
+    }
+
+    /// The largest over the channels of the `Σ ρ_k²` that `wrench`, missing from a model,
+    /// adds to a white residual of the channels' noise ([`TrueEffect::whiteness`]).
+    ///
+    /// # Panics
+    /// When `wrench` has not one row per sample of the regressors.
+    pub fn whiteness(&self, wrench: &[[f64; 6]]) -> f64 {
+        let e = self.residual(wrench);
+        let n = e.len().max(1) as f64;
+        (0..6)
+            .map(|c| {
+                let x: Vec<f64> = e.iter().map(|v| v[c]).collect();
+                let s2 = x.iter().map(|v| v * v).sum::<f64>() / n;
+                let share = s2 / (1.0 + s2);
+                residual_autocorrelation(&x)
+                    .iter()
+                    .map(|rho| (share * rho).powi(2))
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
     }
 }
 
@@ -285,6 +330,7 @@ impl GroundTruth {
                     strength,
                     max_strength,
                     detectable: max_strength >= detectable,
+                    whiteness: projection.whiteness(w),
                 }
             })
             .collect();
@@ -314,6 +360,7 @@ impl GroundTruth {
             params: theta0.to_array(),
             detectable_threshold: detectable,
             constant_heading: spec.yaw_rate == 0.0,
+            whiteness_limit: whiteness_limit(n),
         })
     }
 }

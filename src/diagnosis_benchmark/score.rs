@@ -3,7 +3,6 @@
 use serde::{Deserialize, Serialize};
 use tagk_diagnose::{BuiltinOptions, Coefficient, EffectKind, FittedEffect, Report};
 use tagk_dynamics::InertialParams;
-use tagk_dynamics::nalgebra::SymmetricEigen;
 use tagk_sim::SensingProfile;
 
 use super::ground_truth::{ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth};
@@ -79,6 +78,10 @@ pub struct DiagnosisOutcome {
     pub parameters: Vec<Coefficient>,
     /// `Report::adequate`.
     pub adequate: bool,
+    /// The final model's held-out residual RMS per channel `fx..tz` \[N, N m\]
+    /// (`Report::final_diagnosis().held_out_rms`): a measurement, which the scorer sets
+    /// against the true noise.
+    pub held_out_rms: [f64; 6],
     /// `Report::stopped`: why the staircase stopped.
     pub stopped: String,
 }
@@ -92,6 +95,7 @@ impl DiagnosisOutcome {
             fitted: last.effects.clone(),
             parameters: last.parameters.clone(),
             adequate: report.adequate,
+            held_out_rms: last.held_out_rms,
             stopped: report.stopped.clone(),
         }
     }
@@ -110,6 +114,9 @@ pub struct EffectScore {
     pub channel_strength: [f64; 6],
     /// Detectable (strength ≥ `D`).
     pub detectable: bool,
+    /// The `Σ ρ_k²` it alone adds to a white residual when missing
+    /// ([`super::TrueEffect::whiteness`]).
+    pub whiteness: f64,
     /// Found: its own name, or a stand-in ([`STAND_INS`]), is in the final model.
     pub found: bool,
     /// Found in its family: an effect of the same `EffectKind::family()` is in the final model
@@ -178,17 +185,34 @@ pub struct FlightScore {
     pub inertia_error: [f64; 3],
     /// `Report::adequate`.
     pub adequate_reported: bool,
-    /// Every detectable true effect is in the final model — by name or stand-in, a drag law
-    /// also by another drag law (the laws cannot always be told apart in a log, and a model
-    /// with another one is at the noise too): what `adequate` should say.
+    /// What `adequate` should say: every detectable true effect is in the final model (by
+    /// name or stand-in, a drag law also by another drag law: the laws cannot always be told
+    /// apart in a log) *and* the final model is at the true noise ([`Self::at_true_noise`]).
     pub adequate_expected: bool,
-    /// `adequate` may also say "not adequate" with every detectable effect found: a missing
-    /// effect below the detectability threshold but above [`adequacy_gray_zone`] of the noise
-    /// raises the residual beyond the adequacy factor (the gray zone of the two thresholds).
+    /// The final model's held-out residual RMS is within the diagnosis' adequacy factor
+    /// (`tagk_diagnose::ADEQUACY_FACTOR`) of the true noise on every channel (the true
+    /// model's residual on the logged signals, at least the resolution:
+    /// [`super::GroundTruth::noise`]). A model of the right effects whose form differs from
+    /// the plant's (a stand-in, another drag law) can leave more than that, most of all on
+    /// a noise-free log: "adequate" is then a false claim.
+    pub at_true_noise: bool,
+    /// The expectation before the final model's residual was set against the true noise
+    /// (every detectable effect accounted for alone), kept for comparison.
+    pub adequate_expected_by_effects: bool,
+    /// `adequate` right under [`Self::adequate_expected_by_effects`], as scored before: "not
+    /// adequate" also right when a missing effect's strength alone lies in the gray zone.
+    pub adequate_right_by_effects: bool,
+    /// With every detectable effect accounted for, either verdict is right: an effect below
+    /// the detectability threshold is missing that either criterion of adequacy can see — a
+    /// strength above [`adequacy_gray_zone`] raises the residual beyond the adequacy factor
+    /// (the gray zone of the two thresholds), or its autocorrelation makes the residual's
+    /// `Σ ρ_k²` exceed the whiteness limit ([`EffectScore::whiteness`]; a slow effect such as
+    /// a ground effect does at a fifth of the noise on a long log).
     pub adequate_gray: bool,
     /// The same by name ([`EffectScore::found`]).
     pub adequate_expected_by_name: bool,
-    /// `adequate_reported == adequate_expected`.
+    /// `adequate_reported == adequate_expected`, or any verdict in the gray zone
+    /// ([`Self::adequate_gray`]).
     pub adequate_right: bool,
     /// This benchmark's own implausibility findings on the final model (empty: plausible).
     pub implausible: Vec<String>,
@@ -330,7 +354,8 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
             let m = params.mass();
             if m.is_nan() || m <= 0.0 {
                 out.push(format!("mass {m:.4e} kg not positive"));
-            } else if let Some((lambda, lambda_se)) = second_moment_eigen(&params, &se)
+            } else if let Some((lambda, lambda_se)) =
+                tagk_diagnose::second_moment_eigen(&params, &se)
                 && lambda < -IMPLAUSIBLE_PSEUDO_INERTIA * lambda_se
             {
                 out.push(format!(
@@ -344,35 +369,6 @@ fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
         )),
     }
     out
-}
-
-/// The smallest eigenvalue `λ` of `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] for the parameters
-/// `theta` (`m > 0`) and its standard error from the parameters' standard errors `se`
-/// (`InertialParams` order, independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
-/// `½ tr(I) 1 − I` is the pseudo-inertia's upper-left block.
-fn second_moment_eigen(theta: &InertialParams, se: &[f64]) -> Option<(f64, f64)> {
-    let m = theta.mass();
-    let h = theta.first_moment();
-    let sigma = theta.pseudo_inertia().fixed_view::<3, 3>(0, 0) - h * h.transpose() / m;
-    let eig = SymmetricEigen::new(sigma);
-    let k = eig.eigenvalues.imin();
-    let lambda = eig.eigenvalues[k];
-    let v = eig.eigenvectors.column(k).into_owned();
-    let vh = v.dot(&h);
-    let gradient = [
-        vh * vh / (m * m),
-        -2.0 * vh * v.x / m,
-        -2.0 * vh * v.y / m,
-        -2.0 * vh * v.z / m,
-        0.5 - v.x * v.x,
-        -2.0 * v.x * v.y,
-        0.5 - v.y * v.y,
-        -2.0 * v.x * v.z,
-        -2.0 * v.y * v.z,
-        0.5 - v.z * v.z,
-    ];
-    let var: f64 = gradient.iter().zip(se).map(|(g, s)| (g * s).powi(2)).sum();
-    lambda.is_finite().then_some((lambda, var.sqrt()))
 }
 
 /// The score of a diagnosis `outcome` against its flight's `truth` (see [`FlightScore`]'s
@@ -412,6 +408,7 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                 strength: t.max_strength,
                 channel_strength: t.strength,
                 detectable: t.detectable,
+                whiteness: t.whiteness,
                 found: exact.is_some(),
                 found_in_family: family.is_some() || exact.is_some(),
                 reported_as: exact.or(family),
@@ -458,10 +455,18 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
     });
     // Found by name or stand-in, or a drag law found in its family.
     let accounted = |e: &EffectScore| e.found || (e.family == DRAG_FAMILY && e.found_in_family);
-    let adequate_expected = effects.iter().all(|e| !e.detectable || accounted(e));
-    let adequate_gray = effects
+    let adequate_expected_by_effects = effects.iter().all(|e| !e.detectable || accounted(e));
+    let factor = crate::diagnose::ADEQUACY_FACTOR;
+    let at_true_noise = (0..6).all(|c| outcome.held_out_rms[c] <= factor * truth.noise[c]);
+    let adequate_expected = adequate_expected_by_effects && at_true_noise;
+    // The gray zone of the rule before the true noise was used: the strength alone.
+    let strength_gray = effects
         .iter()
         .any(|e| !accounted(e) && e.strength >= adequacy_gray_zone());
+    // The gray zone: an effect not accounted for that either criterion of adequacy can see.
+    let adequate_gray = effects.iter().any(|e| {
+        !accounted(e) && (e.strength >= adequacy_gray_zone() || e.whiteness > truth.whiteness_limit)
+    });
     let adequate_expected_by_name = effects.iter().all(|e| !e.detectable || e.found);
     FlightScore {
         sensing: truth.sensing,
@@ -483,8 +488,13 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         adequate_reported: outcome.adequate,
         adequate_expected,
         adequate_expected_by_name,
+        // In the gray zone either verdict is right (every detectable effect accounted for).
         adequate_right: outcome.adequate == adequate_expected
-            || (adequate_expected && !outcome.adequate && adequate_gray),
+            || (adequate_expected_by_effects && adequate_gray),
+        at_true_noise,
+        adequate_expected_by_effects,
+        adequate_right_by_effects: outcome.adequate == adequate_expected_by_effects
+            || (adequate_expected_by_effects && !outcome.adequate && strength_gray),
         adequate_gray,
         implausible: implausibilities(outcome),
         diagnosis_implausible: outcome

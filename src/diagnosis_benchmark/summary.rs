@@ -160,6 +160,7 @@ struct Counts {
     implausible: (usize, usize),
     diagnosis_implausible: (usize, usize),
     adequate_wrong: (usize, usize),
+    adequate_wrong_by_effects: (usize, usize),
 }
 
 impl Counts {
@@ -199,6 +200,8 @@ impl Counts {
             c.diagnosis_implausible.0 += usize::from(!s.diagnosis_implausible.is_empty());
             c.adequate_wrong.1 += 1;
             c.adequate_wrong.0 += usize::from(!s.adequate_right);
+            c.adequate_wrong_by_effects.1 += 1;
+            c.adequate_wrong_by_effects.0 += usize::from(!s.adequate_right_by_effects);
         }
         c
     }
@@ -269,6 +272,12 @@ impl Summary {
                 c.adequate_wrong,
                 "≤ 2 %",
                 Some(|r| r <= 0.02),
+            ),
+            row(
+                "'adequate' wrong, judged by the effects found alone",
+                c.adequate_wrong_by_effects,
+                "—",
+                None,
             ),
             row(
                 "detectable effects found in their family",

@@ -19,6 +19,7 @@ fn true_effect(name: &str, strength: f64, detectable: bool) -> TrueEffect {
         strength: [strength, 0.0, 0.0, 0.0, 0.0, 0.0],
         max_strength: strength,
         detectable,
+        whiteness: 0.0,
     }
 }
 
@@ -63,6 +64,7 @@ fn truth() -> GroundTruth {
         params: p,
         detectable_threshold: 1.0,
         constant_heading: false,
+        whiteness_limit: 0.02,
     }
 }
 
@@ -109,6 +111,7 @@ fn exact_outcome() -> DiagnosisOutcome {
             .map(|j| Coefficient::new("p", "", p[j], Some(1e-9)))
             .collect(),
         adequate: true,
+        held_out_rms: [1e-3, 1e-3, 1e-3, 1e-5, 1e-5, 1e-5],
         stopped: "at the floor".into(),
     }
 }
@@ -199,6 +202,37 @@ fn not_adequate_is_right_in_the_gray_zone() {
     t.effects[1].max_strength = 0.3;
     let s = score_flight(&t, &outcome);
     assert!(!s.adequate_gray && !s.adequate_right);
+    // A weak but slow effect that makes the residual's autocorrelation exceed the whiteness
+    // limit is in the gray zone too; "adequate" is then right as well.
+    t.effects[1].whiteness = 0.03;
+    let s = score_flight(&t, &outcome);
+    assert!(s.adequate_gray && s.adequate_right);
+    outcome.adequate = true;
+    let s = score_flight(&t, &outcome);
+    assert!(s.adequate_right);
+    t.effects[1].whiteness = 0.01;
+    outcome.adequate = false;
+    let s = score_flight(&t, &outcome);
+    assert!(!s.adequate_gray && !s.adequate_right);
+}
+
+/// A final model of the right effects whose held-out residual is beyond the adequacy factor
+/// of the true noise (a form that differs from the plant's) is rightly "not adequate", and
+/// "adequate" is then wrong; the rule by the effects alone said the opposite.
+#[test]
+fn adequate_is_judged_against_the_true_noise() {
+    let mut outcome = exact_outcome();
+    outcome.held_out_rms[5] = 1.3e-5;
+    let s = score_flight(&truth(), &outcome);
+    assert!(s.adequate_expected_by_effects && !s.at_true_noise);
+    assert!(!s.adequate_expected && !s.adequate_right && s.adequate_right_by_effects);
+    outcome.adequate = false;
+    let s = score_flight(&truth(), &outcome);
+    assert!(s.adequate_right && !s.adequate_right_by_effects);
+    // Within the factor: at the noise.
+    outcome.held_out_rms[5] = 1.19e-5;
+    let s = score_flight(&truth(), &outcome);
+    assert!(s.at_true_noise && s.adequate_expected && !s.adequate_right);
 }
 
 #[test]
@@ -389,4 +423,46 @@ fn draws_are_seeded_and_respect_the_physics() {
         "{sensing:?}"
     );
     assert!((160..240).contains(&yaw_zero), "{yaw_zero}");
+}
+
+/// The `Σ ρ_k²` a missing effect adds (`RigidProjection::whiteness`, from its own
+/// autocorrelation) against the one measured on white noise plus that effect.
+#[test]
+fn a_missing_effects_whiteness_matches_a_noisy_residuals() {
+    use rand::RngExt;
+    use rand_chacha::rand_core::SeedableRng;
+    let n = 4000;
+    let ys = regressors(n);
+    let noise = [1e-3, 1e-3, 1e-3, 1e-5, 1e-5, 1e-5];
+    let projection = RigidProjection::new(&ys, false, noise);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let mut gauss = || {
+        // Box–Muller.
+        let (u, v): (f64, f64) = (rng.random(), rng.random());
+        (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    for amplitude in [5e-4, 1.5e-3] {
+        // A slow force along x (a ground effect's kind of signal).
+        let effect: Vec<[f64; 6]> = (0..n)
+            .map(|k| {
+                let t = k as f64 * 0.02;
+                [amplitude * (0.23 * t).sin(), 0.0, 0.0, 0.0, 0.0, 0.0]
+            })
+            .collect();
+        let predicted = projection.whiteness(&effect);
+        let x: Vec<f64> = projection
+            .residual(&effect)
+            .iter()
+            .map(|r| r[0] + gauss())
+            .collect();
+        let rho = tagk_diagnose::residual_autocorrelation(&x);
+        let measured: f64 = rho.iter().map(|r| r * r).sum();
+        // White noise alone has Σ ρ² ≈ K / n.
+        let white = rho.len() as f64 / n as f64;
+        assert!(
+            (measured - white - predicted).abs() < 0.1 * predicted + 2.0 * white,
+            "amplitude {amplitude}: measured {measured}, predicted {predicted} + {white}"
+        );
+        assert!(predicted > 0.02, "{predicted}");
+    }
 }

@@ -29,10 +29,11 @@ use crate::stats;
 pub use noise::{FLOOR_RESOLUTION, FloorSource, NoiseFloor};
 pub use parameters::Parameter;
 pub use ranking::{Candidate, CandidateStatus, Unavailable};
-pub use residual::{FailureWindow, RegimeStat, Whiteness};
+pub use residual::{FailureWindow, RegimeStat, Whiteness, residual_autocorrelation};
 pub use sanity::{
-    CONSISTENCY_TOLERANCE, MAX_CONSTANT_FORCE_OF_THRUST, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE,
-    consistency_margin, consistent_within_tolerance,
+    CONSISTENCY_TOLERANCE, INCONSISTENCY_STANDARD_ERRORS, MAX_CONSTANT_FORCE_OF_THRUST,
+    MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, consistency_margin, consistent_within_tolerance,
+    second_moment_eigen,
 };
 pub use select::{MAX_INFLATION, MIN_GAIN};
 pub use stepwise::{Discovery, Step, StepChannel, discover, discover_from};
@@ -50,6 +51,14 @@ pub const ADEQUACY_FACTOR: f64 = 1.2;
 /// a model error of about a seventh of the noise variance; a long log's tiny correlations are
 /// not a missing effect).
 pub const ADEQUATE_AUTOCORRELATION: f64 = 0.02;
+
+/// The largest `Σ ρ_k²` of an adequate channel's residual of `n` samples (lags
+/// `1..=min(20, n/4)`, [`residual_autocorrelation`]): the Ljung–Box bound
+/// `χ²_K(0.999) / n` for `K` lags, at least [`ADEQUATE_AUTOCORRELATION`] (dimensionless).
+pub fn whiteness_limit(n: usize) -> f64 {
+    let max_lag = residual::whiteness_lags(n);
+    (stats::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64).max(ADEQUATE_AUTOCORRELATION)
+}
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone)]
@@ -390,9 +399,7 @@ fn adequacy(
     held_out: &[f64; 6],
     floor: &NoiseFloor,
 ) -> Vec<ChannelAdequacy> {
-    let max_lag = residual::whiteness_lags(n);
-    let limit = (stats::chi2_quantile(1e-3, max_lag as f64) / n.max(1) as f64)
-        .max(ADEQUATE_AUTOCORRELATION);
+    let limit = whiteness_limit(n);
     (0..6)
         .map(|c| {
             let noise = floor.rms[c];

@@ -156,6 +156,14 @@ pub(crate) fn whiteness_lags(n: usize) -> usize {
     WHITENESS_LAGS.min(n / 4).max(1)
 }
 
+/// The autocorrelation of a residual series at the whiteness test's lags
+/// `1..=min(20, n/4)` (dimensionless; about the series' mean): what [`Whiteness`] reports
+/// and the adequacy test sums the squares of.
+pub fn residual_autocorrelation(r: &[f64]) -> Vec<f64> {
+    let rho = stats::autocorrelation(r, whiteness_lags(r.len()));
+    rho[1..].to_vec()
+}
+
 /// Residual autocorrelation per channel at lags `1..=min(20, n/4)` against the 95 % band (a
 /// channel at the rounding level counts as white).
 fn whiteness(residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<Whiteness> {
@@ -164,9 +172,7 @@ fn whiteness(residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<Whiteness> {
     let band = 1.96 / (n as f64).sqrt();
     (0..6)
         .map(|c| {
-            let r = channel(residual, c);
-            let rho = stats::autocorrelation(&r, max_lag);
-            let ac: Vec<f64> = rho[1..].to_vec();
+            let ac = residual_autocorrelation(&channel(residual, c));
             let outside = ac.iter().filter(|x| x.abs() > band).count();
             // At 5 % per lag, 4 or more of 20 lags outside happens by chance 1.6 % of the time.
             let allowed = ((0.1 * max_lag as f64).ceil() as usize).max(3);

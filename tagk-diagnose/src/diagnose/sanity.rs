@@ -8,7 +8,7 @@
 //! | `mass-positive` | the refit mass is not positive |
 //! | `mass-change` | the refit mass differs from the current fit's by more than [`MAX_MASS_CHANGE`] |
 //! | `com-outside` | the refit centre of mass lies outside the airframe (more than 2 standard errors beyond the arm length horizontally, or beyond [`crate::DiagnoseOptions::com_vertical_limit`] from the rotor plane), farther out than the current fit's |
-//! | `consistency-lost` | the refit's pseudo-inertia is not positive definite beyond the tolerance ([`CONSISTENCY_TOLERANCE`]) and the current fit's is within it |
+//! | `consistency-lost` | the refit's pseudo-inertia is not positive definite beyond the tolerance ([`CONSISTENCY_TOLERANCE`]) and significantly ([`INCONSISTENCY_STANDARD_ERRORS`]), and the current fit's is within the tolerance |
 //! | `force-of-thrust-order` | a fitted constant force (unit `N`, not a start-of-log nuisance) exceeds [`MAX_CONSTANT_FORCE_OF_THRUST`] of the mean thrust |
 //!
 //! **Consistency with a tolerance.** The pseudo-inertia `J = [[Σ, h], [hᵀ, m]]` (`Σ` the
@@ -21,7 +21,7 @@
 //! [`crate::Effect::plausibility`]; a scanned parameter at the end of its range is refused by
 //! the search as out of the range the data support.
 
-use nalgebra::{Matrix4, Vector3};
+use nalgebra::{Matrix4, SymmetricEigen, Vector3};
 use tagk_dynamics::InertialParams;
 
 /// Largest relative change of the mass a candidate's refit may make (25 %): a payload is
@@ -34,6 +34,11 @@ pub const MAX_CONSTANT_FORCE_OF_THRUST: f64 = 0.25;
 
 /// Tolerance of the consistency margin (module docs): 5 % of the mean second moment.
 pub const CONSISTENCY_TOLERANCE: f64 = 0.05;
+
+/// A refit's pseudo-inertia counts as inconsistent only when the smallest eigenvalue of its
+/// second moment about the centre of mass ([`second_moment_eigen`]) lies more than this many
+/// standard errors below zero (3: as a drag coefficient is significantly negative).
+pub const INCONSISTENCY_STANDARD_ERRORS: f64 = 3.0;
 
 /// Largest difference between the fitted mass and the vehicle file's before the report says
 /// so (25 %): a payload, or a wrong thrust coefficient.
@@ -110,6 +115,35 @@ pub(crate) fn com_excess(
     )
 }
 
+/// The smallest eigenvalue `λ` of `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] for the parameters
+/// `theta` (`m > 0`) and its standard error from the parameters' standard errors `se`
+/// (`InertialParams` order, independent; `∂λ/∂θ = vᵀ (∂Σ_c/∂θ) v` at its unit eigenvector `v`).
+/// `½ tr(I) 1 − I` is the pseudo-inertia's upper-left block.
+pub fn second_moment_eigen(theta: &InertialParams, se: &[f64]) -> Option<(f64, f64)> {
+    let m = theta.mass();
+    let h = theta.first_moment();
+    let sigma = theta.pseudo_inertia().fixed_view::<3, 3>(0, 0) - h * h.transpose() / m;
+    let eig = SymmetricEigen::new(sigma);
+    let k = eig.eigenvalues.imin();
+    let lambda = eig.eigenvalues[k];
+    let v = eig.eigenvectors.column(k).into_owned();
+    let vh = v.dot(&h);
+    let gradient = [
+        vh * vh / (m * m),
+        -2.0 * vh * v.x / m,
+        -2.0 * vh * v.y / m,
+        -2.0 * vh * v.z / m,
+        0.5 - v.x * v.x,
+        -2.0 * v.x * v.y,
+        0.5 - v.y * v.y,
+        -2.0 * v.x * v.z,
+        -2.0 * v.y * v.z,
+        0.5 - v.z * v.z,
+    ];
+    let var: f64 = gradient.iter().zip(se).map(|(g, s)| (g * s).powi(2)).sum();
+    lambda.is_finite().then_some((lambda, var.sqrt()))
+}
+
 /// The first rule a refit θ (`theta_se` its standard errors) breaks against the current
 /// fit's rigid body `current`, if any; `coefficients` are the candidate's own (name, unit,
 /// value), `mean_thrust` the mean measured thrust \[N\].
@@ -154,7 +188,14 @@ pub(crate) fn rigid_violation(
             ),
         });
     }
-    if consistent_within_tolerance(current) && !consistent_within_tolerance(theta) {
+    // Lost only when the data show it: beyond the tolerance and significantly (an inertia the
+    // flight barely excites, or one beside a large unexplained torque, is uncertain enough to
+    // cross the limit by chance).
+    if consistent_within_tolerance(current)
+        && !consistent_within_tolerance(theta)
+        && second_moment_eigen(theta, theta_se)
+            .is_none_or(|(lambda, se)| lambda < -INCONSISTENCY_STANDARD_ERRORS * se)
+    {
         return Some(Violation {
             rule: "consistency-lost".into(),
             note: format!(
@@ -201,6 +242,34 @@ mod tests {
         assert!(consistent_within_tolerance(&slight));
         a[9] = plate.to_array()[9] * 1.4;
         assert!(!consistent_within_tolerance(&InertialParams::from_array(a)));
+    }
+
+    /// The eigenvalue's gradient against central finite differences of the eigenvalue
+    /// itself: each parameter's standard error alone gives `|∂λ/∂θ_j| se_j`.
+    #[test]
+    fn the_second_moments_standard_error_matches_finite_differences() {
+        let theta: [f64; 10] = [
+            0.035, 1e-5, -2e-5, -3e-5, 1.7e-5, 1e-7, 1.8e-5, -2e-7, 3e-7, 2.9e-5,
+        ];
+        let lambda = |a: [f64; 10]| {
+            let p = InertialParams::from_array(a);
+            second_moment_eigen(&p, &[0.0; 10]).unwrap().0
+        };
+        for j in 0..10 {
+            let step = 1e-6 * theta[j].abs().max(1e-9);
+            let (mut up, mut down) = (theta, theta);
+            up[j] += step;
+            down[j] -= step;
+            let numeric = (lambda(up) - lambda(down)) / (2.0 * step);
+            let mut se = [0.0; 10];
+            se[j] = 1.0;
+            let (_, analytic) =
+                second_moment_eigen(&InertialParams::from_array(theta), &se).unwrap();
+            assert!(
+                (analytic - numeric.abs()).abs() <= 1e-5 * numeric.abs().max(1e-3),
+                "parameter {j}: {analytic} against {numeric}"
+            );
+        }
     }
 
     /// A centre of mass 4 cm below the rotor plane of a Crazyflie-sized airframe is outside;

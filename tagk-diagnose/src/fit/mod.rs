@@ -428,7 +428,11 @@ fn fit(
                 target,
                 &w,
                 &mut params,
-                pass > 0,
+                // The first two passes scan the whole grid: the first pass's weights are the
+                // measurement scale, under which a noise-dominated channel (a small
+                // quadrotor's torques) can outweigh the channel that carries the parameter
+                // (the thrust, for a delay); the second pass's are the residual's, the noise.
+                pass > 1,
                 &resolution,
             );
             if params == round {
@@ -568,8 +572,8 @@ fn scan_parameters(
 ) {
     for (k, e) in model.effects().iter().enumerate() {
         let Some(spec) = e.scan() else { continue };
-        // After the first weighting pass a parameter only moves near where it was: the scan
-        // covers the two grid values on each side of it (and it).
+        // After the first two weighting passes a parameter only moves near where it was: the
+        // scan covers the two grid values on each side of it (and it).
         let grid = match params[k] {
             Some(p) if near_previous => local_grid(&spec.grid, p),
             _ => spec.grid.clone(),
