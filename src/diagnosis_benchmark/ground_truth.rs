@@ -430,12 +430,20 @@ fn expected_coefficients(
             .map_or(([0.0; 3], [0.0; 3]), |b| (b.force, b.torque));
         let w = accel_bias_wrench(&theta, &b_a);
         // The constant body force (the plant's and the accelerometer offset's `m b_a`) is
-        // the accelerometer offset's columns in the diagnosis.
+        // the accelerometer offset's columns in the diagnosis. At a constant heading a wind's
+        // world-fixed force is body-fixed too, and the body force carries an unknown share of
+        // it: ambiguous whenever `accel-bias` is fitted (skipped, counted as ambiguous).
+        let world_force_in_body = spec.yaw_rate == 0.0 && e.wind.is_some();
+        let unless = if world_force_in_body {
+            vec![ACCEL_BIAS.to_string()]
+        } else {
+            Vec::new()
+        };
         group(
             ACCEL_BIAS,
             Coefficient,
             &[("f_x", f[0] + w[0]), ("f_y", f[1] + w[1])],
-            &[],
+            &unless,
         );
         group(
             EffectKind::BodyBias.name(),

@@ -79,7 +79,9 @@
 //! Not compared, as ambiguous: a drag law's coefficients when the final model also holds a
 //! `wind`, and the wind's when it also holds a drag law (their drag columns are the same);
 //! the wind's drag unless the flight's drag law is rotor drag (the diagnosis' wind with rotor
-//! speeds is a rotor drag); the motor lag's fixed gain and start transients (no truth); a
+//! speeds is a rotor drag); the `accel-bias` force of a flight with a wind at a constant
+//! heading (the wind's world-fixed force is then body-fixed too, and the body force carries a
+//! share of it); the motor lag's fixed gain and start transients (no truth); a
 //! diagnosis effect of another name than the truth's (e.g. a rotor drag fitted to a linear
 //! drag). The relative error of a coefficient is taken against the norm of its group (the
 //! three drag coefficients, the bias force, the bias torque, the wind velocity), so that a

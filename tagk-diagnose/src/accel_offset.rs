@@ -156,7 +156,10 @@ pub fn remove_vertical_offset(
     let se = [0, 1, 2].map(|j| covariance[(j, j)].max(0.0).sqrt());
     let z = b.z;
     let (removed_z, note) = if z.abs() <= OFFSET_Z * se[2] {
-        (0.0, "vertical offset within its noise: nothing removed".to_string())
+        (
+            0.0,
+            "vertical offset within its noise: nothing removed".to_string(),
+        )
     } else if b.norm() > MAX_OFFSET {
         (
             0.0,
@@ -177,11 +180,14 @@ pub fn remove_vertical_offset(
                 }
             }
         }
+        let g = tagk_dynamics::GRAVITY_WORLD.norm();
         (
             z,
             format!(
-                "vertical offset removed before the fit (left in, it would scale the mass by {:+.2} %)",
-                -100.0 * z / tagk_dynamics::GRAVITY_WORLD.norm()
+                "vertical offset removed before the fit (left in, it would scale the mass by {:+.2} %; \
+                 its standard error adds ±{:.2} % to the mass's)",
+                -100.0 * z / g,
+                100.0 * se[2] / g
             ),
         )
     };
@@ -317,7 +323,11 @@ mod tests {
         let (log, found) = remove_vertical_offset("", flight(b, 50.0, 30.0, 0.1, 0.01, 6));
         let found = found.expect("measured");
         assert_eq!(found.removed_z, 0.0);
-        assert!(found.note.contains("cannot be told apart"), "{}", found.note);
+        assert!(
+            found.note.contains("cannot be told apart"),
+            "{}",
+            found.note
+        );
         assert!((measure(&log).expect("measured").0.z - 2.0).abs() < 0.02);
     }
 }
