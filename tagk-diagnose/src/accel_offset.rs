@@ -6,7 +6,7 @@
 //! the mass. A horizontal offset then shows as a constant body force (`accel-bias`). The
 //! vertical one does not: in near-level flight `m b_z` is the weight again, and the fit
 //! returns the mass scaled by about `1 − b_z / g`. The specific force along the body `z` axis
-//! barely varies on a gentle flight (a few hundredths of `g`, below the accelerometer's
+//! barely varies on a gentle flight (less than 1 % of `g`, below the accelerometer's
 //! noise), so the wrench rows cannot tell `b_z` from the mass.
 //!
 //! **How.** The velocity (motion capture, or an estimator with an absolute reference) does not
@@ -25,7 +25,8 @@
 //! accelerometer noise.
 //!
 //! **What is done.** A vertical offset beyond [`OFFSET_Z`] standard errors, and at most
-//! [`MAX_OFFSET`], is removed from the log's acceleration (`a_log − R e_z b_z`). The
+//! [`MAX_OFFSET`], is removed from the log's acceleration (`a_log − R e_z b_z`), unless the
+//! caller only measures (`tagk diagnose --no-align`, [`crate::AlignOptions::auto`] off). The
 //! horizontal offsets stay: the fit sees them (`accel-bias`) and reports them as a sensor
 //! error. A larger "offset" says the velocity and the acceleration disagree (a frame, a
 //! unit): it is reported and not removed.
@@ -143,12 +144,14 @@ pub fn measure(log: &FlightLog) -> Option<(Vector3<f64>, Matrix3<f64>, usize)> {
     finite.then_some((b, covariance, windows.len()))
 }
 
-/// Measures the offset of the log named `name` ([`measure`]) and removes its vertical part
-/// from the log's acceleration when it is significant and plausible (module docs). Returns
-/// the log and what was found (`None`: nothing could be measured).
+/// Measures the offset of the log named `name` ([`measure`]) and, with `remove`, removes its
+/// vertical part from the log's acceleration when it is significant and plausible (module
+/// docs; without `remove` it is measured and reported only). Returns the log and what was
+/// found (`None`: nothing could be measured).
 pub fn remove_vertical_offset(
     name: &str,
     mut log: FlightLog,
+    remove: bool,
 ) -> (FlightLog, Option<AccelerometerOffset>) {
     let Some((b, covariance, windows)) = measure(&log) else {
         return (log, None);
@@ -159,6 +162,12 @@ pub fn remove_vertical_offset(
         (
             0.0,
             "vertical offset within its noise: nothing removed".to_string(),
+        )
+    } else if !remove {
+        (
+            0.0,
+            "vertical offset kept (--no-align: measured and reported only); it scales the mass"
+                .to_string(),
         )
     } else if b.norm() > MAX_OFFSET {
         (
@@ -294,7 +303,7 @@ mod tests {
     #[test]
     fn the_vertical_offset_is_removed_and_the_horizontal_kept() {
         let b = Vector3::new(0.12, -0.2, 0.3);
-        let (log, found) = remove_vertical_offset("", flight(b, 50.0, 30.0, 0.1, 0.01, 3));
+        let (log, found) = remove_vertical_offset("", flight(b, 50.0, 30.0, 0.1, 0.01, 3), true);
         let found = found.expect("measured");
         assert!((found.removed_z - 0.3).abs() < 0.01, "{found:?}");
         let (again, cov, _) = measure(&log).expect("measured");
@@ -307,7 +316,7 @@ mod tests {
     #[test]
     fn nothing_is_removed_without_an_offset_or_a_measurement() {
         let (_, found) =
-            remove_vertical_offset("", flight(Vector3::zeros(), 50.0, 30.0, 0.1, 0.01, 5));
+            remove_vertical_offset("", flight(Vector3::zeros(), 50.0, 30.0, 0.1, 0.01, 5), true);
         assert_eq!(found.expect("measured").removed_z, 0.0);
         let mut log = flight(Vector3::new(0.0, 0.0, 0.3), 50.0, 30.0, 0.1, 0.01, 5);
         log.accel = None;
@@ -316,11 +325,20 @@ mod tests {
         assert!(measure(&short).is_none());
     }
 
+    /// Asked to measure only, the offset is reported and the log left as it was.
+    #[test]
+    fn measured_only_leaves_the_log_alone() {
+        let log = flight(Vector3::new(0.1, 0.0, 0.3), 50.0, 30.0, 0.1, 0.01, 4);
+        let (kept, found) = remove_vertical_offset("", log.clone(), false);
+        assert_eq!(found.expect("measured").removed_z, 0.0);
+        assert_eq!(kept.accel, log.accel);
+    }
+
     /// An "offset" beyond [`MAX_OFFSET`] is reported, not removed.
     #[test]
     fn an_implausible_offset_is_not_removed() {
         let b = Vector3::new(0.0, 0.0, 2.0);
-        let (log, found) = remove_vertical_offset("", flight(b, 50.0, 30.0, 0.1, 0.01, 6));
+        let (log, found) = remove_vertical_offset("", flight(b, 50.0, 30.0, 0.1, 0.01, 6), true);
         let found = found.expect("measured");
         assert_eq!(found.removed_z, 0.0);
         assert!(

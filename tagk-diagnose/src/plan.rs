@@ -749,7 +749,8 @@ impl DiagnosisPlan {
         };
         let (log, streams) = align_streams_owned(log, &self.align).map_err(error)?;
         let scale_checks = self.check_scales(label, &log)?;
-        let (log, accelerometer_offset) = crate::accel_offset::remove_vertical_offset(label, log);
+        let (log, accelerometer_offset) =
+            crate::accel_offset::remove_vertical_offset(label, log, self.align.auto);
         Ok(Conditioned {
             log,
             streams,
