@@ -216,9 +216,9 @@ mod tests {
     use super::*;
     use crate::log::LogSample;
 
-    /// A synthetic flight at `rate` Hz for `seconds`: a tilting, yawing attitude, a world
-    /// acceleration `p̈(t)` with its exact velocity, an accelerometer reading `p̈ + R b` plus
-    /// white noise of `sigma_a`, a velocity with white noise of `sigma_v` (deterministic
+    /// A synthetic flight at `rate` Hz for `seconds`, with a tilting, yawing attitude and a
+    /// world acceleration `p̈(t)` of exact velocity. The accelerometer reads `p̈ + R b` plus
+    /// white noise of `sigma_a`; the velocity has white noise of `sigma_v` (deterministic
     /// noise from `seed`).
     fn flight(
         b: Vector3<f64>,
@@ -270,9 +270,9 @@ mod tests {
         log
     }
 
-    /// A known body-frame offset is recovered within its interval, on every axis, and the
-    /// standard errors are honest: over 40 noisy flights the truth lies within 1.96 standard
-    /// errors on about 95 % of the axes (at least 100 of 120).
+    /// A known body-frame offset is recovered on every axis, with honest standard errors.
+    /// Over 40 noisy flights the truth lies within 1.96 standard errors on about 95 % of the
+    /// axes (at least 100 of 120).
     #[test]
     fn a_known_offset_is_recovered_with_honest_errors() {
         let b = Vector3::new(0.12, -0.2, 0.3);
