@@ -181,3 +181,41 @@ fn with_ideal_sensors_the_noise_is_the_floor_for_every_effect() {
         assert!(own.max_strength > 0.1, "{kind}: {own:?}");
     }
 }
+
+/// The accelerometer's offset the diagnosis measures against the velocity
+/// (`tagk_diagnose::accel_offset::measure`) is the simulator's bias: on the first realistic
+/// (uncalibrated) flights of the default seed, each axis within 4 of its standard errors of
+/// the truth, and the vertical one to better than 0.2 % of g (what the mass needs).
+#[test]
+fn the_accelerometer_offset_against_the_velocity_is_the_simulators_bias() {
+    let options = BenchmarkOptions::default();
+    let mut checked = 0;
+    for index in 0..60 {
+        let spec = draw_flight(&options, index).unwrap();
+        if spec.sensing != tagk::sim::SensingProfile::Realistic {
+            continue;
+        }
+        let output = tagk::sim::simulate(&spec.sim_config()).unwrap();
+        if output.metrics.aborted {
+            continue;
+        }
+        let truth = output.truth.as_ref().unwrap().accel_bias;
+        let (b, covariance, _) =
+            tagk::diagnose::accel_offset::measure(&output.log).expect("measured");
+        for j in 0..3 {
+            let se = covariance[(j, j)].sqrt();
+            assert!(
+                (b[j] - truth[j]).abs() <= 4.0 * se,
+                "flight {index}, axis {j}: {} against {} (se {se})",
+                b[j],
+                truth[j]
+            );
+        }
+        assert!((b[2] - truth[2]).abs() < 0.002 * 9.81, "flight {index}");
+        checked += 1;
+        if checked == 5 {
+            break;
+        }
+    }
+    assert_eq!(checked, 5);
+}

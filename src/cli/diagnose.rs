@@ -86,7 +86,8 @@ pub struct DiagnoseArgs {
     /// Only report the time offset of each sensor stream (gyro, accelerometer, velocity)
     /// against the pose. By default the IMU is the clock: a significant gyro offset (its 95 %
     /// interval excludes zero and it is at least half a sampling period) moves the pose and
-    /// the velocity onto it before the fit (docs/CONVENTIONS.md §7.2).
+    /// the velocity onto it before the fit (docs/CONVENTIONS.md §7.2). The accelerometer's
+    /// vertical offset against the velocity is then also reported only, not removed (§7.1).
     #[arg(long)]
     pub no_align: bool,
     /// Shift a stream by a known time offset in seconds, positive when the stream is late

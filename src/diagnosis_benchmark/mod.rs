@@ -52,7 +52,10 @@
 //! absorbed what it can ([`RigidProjection`]), whether it is detectable (largest channel
 //! strength ≥ `D`, [`BenchmarkOptions::detectable`]), and the coefficients the diagnosis should
 //! report. An uncalibrated accelerometer's bias is a true effect of its own ([`ACCEL_BIAS`]),
-//! which the final-model effects of [`STAND_INS`] may stand for. [`score_flight`] compares one
+//! which the final-model effects of [`STAND_INS`] may stand for. Its vertical part is not: the
+//! diagnosis measures it against the velocity and removes it before the fit
+//! (`tagk_diagnose::accel_offset`), so the truth is the horizontal part `b_a = (b_x, b_y, 0)`
+//! ([`identifiable_offset`]) and the mass to find is the true mass. [`score_flight`] compares one
 //! diagnosis with it ([`FlightScore`]) and [`Summary::of`] aggregates the flights into the
 //! issue's targets ([`Summary::markdown`]).
 //!
@@ -69,14 +72,16 @@
 //! | `motor-lag` `τ` | `motor-lag`: scanned `tau` = `τ` \[s\] |
 //! | `time-delay` `d` (the simulator's log late) | `time-delay`: scanned `delay` = `−d` \[s\] (the diagnosis counts an early actuator log positive) |
 //! | `ground-effect` | `ground-effect`: `c_ge` = `1 + ε` (`ε` the thrust gain's, 0 without) |
-//! | `body-bias` `F`, `τ_b`; accelerometer bias `b_a` | `body-bias`: `bias_fx, bias_fy` = `F + m b_a` \[N\], `bias_tx..tz` = `τ_b + h × b_a` \[N m\] |
+//! | `body-bias` `F`, `τ_b`; accelerometer bias `b_a` (horizontal part) | `accel-bias`: `f_x, f_y` = `F + m b_a` \[N\]; `body-bias`: `bias_tx..tz` = `τ_b + h × b_a` \[N m\] |
 //! | `wind` `v_w` | `wind`: derived `v_wx, v_wy` = `v_w` \[m/s\]; with rotor drag also `k_x, k_y, k_z` = `K`, `kv_wx, kv_wy` = `K_x v_w` |
-//! | `thrust-gain` `ε` (known mass); accelerometer bias | `thrust-gain`: `kappa` = `(1 + ε) Σ a_z (a_z + b_az) / Σ a_z² − 1` |
+//! | `thrust-gain` `ε` (known mass); accelerometer bias | `thrust-gain`: `kappa` = `(1 + ε) Σ a_z (a_z + b_az) / Σ a_z² − 1`, with `b_az` the vertical offset the fit sees (0: removed before it), so `ε` |
 //!
 //! Not compared, as ambiguous: a drag law's coefficients when the final model also holds a
 //! `wind`, and the wind's when it also holds a drag law (their drag columns are the same);
 //! the wind's drag unless the flight's drag law is rotor drag (the diagnosis' wind with rotor
-//! speeds is a rotor drag); the motor lag's fixed gain and start transients (no truth); a
+//! speeds is a rotor drag); the `accel-bias` force of a flight with a wind at a constant
+//! heading (the wind's world-fixed force is then body-fixed too, and the body force carries a
+//! share of it); the motor lag's fixed gain and start transients (no truth); a
 //! diagnosis effect of another name than the truth's (e.g. a rotor drag fitted to a linear
 //! drag). The relative error of a coefficient is taken against the norm of its group (the
 //! three drag coefficients, the bias force, the bias torque, the wind velocity), so that a
@@ -109,6 +114,7 @@ use tagk_sim::{
 
 pub use ground_truth::{
     ACCEL_BIAS, CoefficientKind, ExpectedCoefficient, GroundTruth, RigidProjection, TrueEffect,
+    identifiable_offset,
 };
 pub use score::{
     CONSTANT_HEADING_STAND_INS, CoefficientScore, DiagnosisOutcome, EffectScore, FlightScore,

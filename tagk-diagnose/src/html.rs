@@ -947,6 +947,19 @@ pub fn render(report: &Report) -> String {
             )
         );
     }
+    if !report.accelerometer_offsets.is_empty() {
+        // The terminal's lines.
+        let lines: Vec<String> = report
+            .accelerometer_offsets
+            .iter()
+            .map(crate::accel_offset::AccelerometerOffset::text)
+            .collect();
+        let _ = write!(
+            html,
+            "<h2 id=\"accelerometer-offset\">Accelerometer offset</h2><pre>{}</pre>",
+            text(&lines.join("\n"))
+        );
+    }
     if !report.sampling.is_empty() {
         // Every log's findings in the terminal's words, a regular one's rate included.
         let lines: Vec<String> = report

@@ -3,6 +3,7 @@
 // indices than with zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod accel_offset;
 mod deriv;
 mod diagnose;
 pub mod effects;
@@ -22,6 +23,7 @@ mod signals;
 mod stats;
 pub mod streams;
 
+pub use accel_offset::AccelerometerOffset;
 pub use diagnose::{
     ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate, CandidateStatus,
     ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, FLOOR_RESOLUTION,

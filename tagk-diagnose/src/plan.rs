@@ -749,9 +749,12 @@ impl DiagnosisPlan {
         };
         let (log, streams) = align_streams_owned(log, &self.align).map_err(error)?;
         let scale_checks = self.check_scales(label, &log)?;
+        let (log, accelerometer_offset) =
+            crate::accel_offset::remove_vertical_offset(label, log, self.align.auto);
         Ok(Conditioned {
             log,
             streams,
+            accelerometer_offset,
             sampling,
             glitches,
             excluded,
@@ -800,6 +803,7 @@ impl DiagnosisPlan {
         let mut findings = c.scale_checks;
         findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
         report.streams = c.streams;
+        report.accelerometer_offsets = c.accelerometer_offset.into_iter().collect();
         report.sampling = vec![c.sampling];
         report.inputs = inputs;
         report.scale_checks = findings;
@@ -825,6 +829,7 @@ impl DiagnosisPlan {
         let plan = self.resolve_flight(&flights[0])?;
         let mut parts = Vec::new();
         let mut streams = Vec::new();
+        let mut offsets = Vec::new();
         let mut sampling = Vec::new();
         let mut inputs = Vec::new();
         let mut findings = Vec::new();
@@ -837,6 +842,7 @@ impl DiagnosisPlan {
             from_rotor_speeds |= !log.has_wrench() || log.rotor_speeds.is_some();
             let c = self.condition(&name, log, in_file, in_file)?;
             let (log, timing) = (c.log, c.streams);
+            offsets.extend(c.accelerometer_offset);
             sampling.push(c.sampling);
             findings.extend(c.scale_checks);
             glitches.extend(c.glitches);
@@ -881,6 +887,7 @@ impl DiagnosisPlan {
         let mut report = run_logs(parts, &plan.base, &plan.with, &plan.options)?;
         findings.extend(self.check_fit("", &report, from_rotor_speeds)?);
         report.streams = streams;
+        report.accelerometer_offsets = offsets;
         report.sampling = sampling;
         report.inputs = inputs;
         report.scale_checks = findings;
@@ -938,6 +945,8 @@ struct Conditioned {
     log: FlightLog,
     /// The timing of each sensor stream against the pose, and the offsets removed.
     streams: Vec<StreamAlignment>,
+    /// The accelerometer's offset against the velocity, and its vertical part removed.
+    accelerometer_offset: Option<crate::accel_offset::AccelerometerOffset>,
     /// How the log is sampled.
     sampling: SamplingFindings,
     /// The glitches found and excluded.

@@ -134,6 +134,10 @@ pub struct Report {
     /// fit ([`crate::streams::align_streams`]; filled in by the caller that aligned the log,
     /// empty otherwise).
     pub streams: Vec<crate::streams::StreamAlignment>,
+    /// The accelerometer's offset of each flight, measured against its velocity before the
+    /// fit, and the vertical part removed ([`crate::accel_offset`]; filled in by the caller
+    /// that conditioned the log, empty otherwise or when it could not be measured).
+    pub accelerometer_offsets: Vec<crate::accel_offset::AccelerometerOffset>,
     /// How each log is sampled — median step, gaps (where, how long), irregular steps — and
     /// what was done about it (split at the gaps, resampled); one entry per log, filled in by
     /// the caller that read the log ([`crate::sampling::SamplingFindings`]), empty otherwise.
@@ -330,6 +334,7 @@ fn loop_from(
         logs: Vec::new(),
         next: None,
         streams: Vec::new(),
+        accelerometer_offsets: Vec::new(),
         sampling: Vec::new(),
         inputs: Vec::new(),
         scale_checks: Vec::new(),
@@ -730,6 +735,10 @@ pub fn report_table(r: &Report) -> String {
     if !r.streams.is_empty() {
         s.push_str(&crate::streams::streams_table(&r.streams));
         s.push('\n');
+    }
+    for offset in &r.accelerometer_offsets {
+        s.push_str(&offset.text());
+        s.push_str("\n\n");
     }
     if let (Some(a), Some(ch)) = (&r.after, &r.change) {
         s.push_str(&format!("=== model with {} ===\n", r.with.join(", ")));

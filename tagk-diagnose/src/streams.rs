@@ -13,7 +13,8 @@ use crate::log::FlightLog;
 /// How [`align_streams`] treats the streams of a log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AlignOptions {
-    /// Remove every significant measured offset ([`DelayEstimate::significant`]): on by
+    /// Remove every significant measured offset ([`DelayEstimate::significant`]), and the
+    /// accelerometer's vertical offset against the velocity ([`crate::accel_offset`]): on by
     /// default. Off: measure and report only.
     pub auto: bool,
     /// Offsets given by the user \[s\] (positive: the sensor is late), applied as given and

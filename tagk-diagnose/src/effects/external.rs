@@ -59,7 +59,9 @@ pub const ACCEL_BIAS: &str = "accel-bias";
 /// regression multiplies the measured acceleration by the mass, so the logged wrench differs
 /// from the model by `m b_a`, a constant body-frame force: columns `f_x`, `f_y` \[N\] (the
 /// force `m b_a`; `b_a = f / m`). The vertical part is not here: in near-level flight `m b_z`
-/// is the weight again and scales the mass (the identifiable mass is `m (1 + b_z / g)`). A
+/// is the weight again, and the wrench rows return the mass scaled by about `1 − b_z / g`.
+/// [`crate::DiagnosisPlan`] measures it against the velocity and removes it before the fit
+/// ([`crate::accel_offset`]). A
 /// physical constant force (a cable) looks the same; it is reported as what it most often is,
 /// a sensor offset.
 #[derive(Debug, Clone, Copy, Default)]
