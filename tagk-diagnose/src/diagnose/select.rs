@@ -670,12 +670,13 @@ impl<'s> Context<'s> {
 }
 
 /// Relative resolution of each end of a refined profile interval
-/// ([`Context::refined_interval`]): 1e-3 of its distance from the minimum.
-pub const INTERVAL_TOLERANCE: f64 = 1e-3;
+/// ([`Context::refined_interval`]): 1 % of its distance from the minimum.
+pub const INTERVAL_TOLERANCE: f64 = 1e-2;
 
 /// Relative resolution of the minimum of a refined profile interval
-/// ([`Context::refined_interval`]): 1e-5 of its value, far finer than any interval's width.
-pub const MINIMUM_TOLERANCE: f64 = 1e-5;
+/// ([`Context::refined_interval`]): 1e-4 of its value, finer than the narrowest interval of a
+/// noise-free log (a few 1e-3 of a lag's time constant).
+pub const MINIMUM_TOLERANCE: f64 = 1e-4;
 
 /// The members' fitted columns and known part.
 struct MemberDesign {

@@ -185,12 +185,25 @@ struct RotorLag {
     wrench: Vec<[f64; 4]>,
     /// Per rotor `r`, the mixer's column `r` times `y_r(t) e^{−(t − t₀)/τ}` (`y_r` the lagged
     /// speed from rest): the cross term of a start offset `d_r` of rotor `r`, whose
-    /// coefficient is `2 d_r` \[N, N m per rad/s\].
+    /// coefficient is `2 d_r` \[N, N m per rad/s\]. Only while the transient lasts (above
+    /// 1e-12 of its start): 0 after.
     start_rotor: Vec<[[f64; 4]; 4]>,
     /// `e^{−2(t − t₀)/τ}` sampled as the channels are (`fz` at the middle, the torques as
     /// interval means): the square of the start offsets, one coefficient per channel
-    /// (`Σ_r M_cr d_r²`).
+    /// (`Σ_r M_cr d_r²`). As long as [`RotorLag::start_rotor`].
     start_square: Vec<[f64; 2]>,
+}
+
+impl RotorLag {
+    /// Column `pick(sample)` of the start transient at the `m` samples: its values while it
+    /// lasts, then 0 (zeroed memory: a long log's tail costs nothing to build).
+    fn start_column<T>(&self, of: &[T], m: usize, pick: impl Fn(&T) -> f64) -> Vec<f64> {
+        let mut v = vec![0.0; m];
+        for (x, y) in v.iter_mut().zip(of) {
+            *x = pick(y);
+        }
+        v
+    }
 }
 
 /// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
@@ -211,8 +224,8 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
     let m = n.div_ceil(stride.max(1));
     let mut out = RotorLag {
         wrench: Vec::with_capacity(m),
-        start_rotor: vec![[[0.0; 4]; 4]; m],
-        start_square: vec![[0.0; 2]; m],
+        start_rotor: vec![[[0.0; 4]; 4]; 1],
+        start_square: vec![[0.0; 2]; 1],
     };
     if n == 0 {
         return Some(out);
@@ -269,12 +282,14 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
             out.wrench.push([ym[0], ya[1], ya[2], ya[3]]);
             // Once the transient is below 1e-12 of its start, its columns stay 0.
             if z >= 1e-12 {
-                for r in 0..4 {
+                debug_assert_eq!(out.start_rotor.len(), slot);
+                out.start_rotor.push(std::array::from_fn(|r| {
                     let at_mid = (u[r] + a_half * e[r]) * z * a_half;
                     let mean = z * (u[r] * m1 + e[r] * m2);
-                    out.start_rotor[slot][r] = through(r, at_mid, mean);
-                }
-                out.start_square[slot] = [(z * a_half).powi(2), z * z * m2];
+                    through(r, at_mid, mean)
+                }));
+                out.start_square
+                    .push([(z * a_half).powi(2), z * z * m2]);
             }
         }
         end = std::array::from_fn(|r| u[r] + a_full * e[r]);
@@ -370,10 +385,11 @@ impl Effect for MotorLag {
         match &rotors {
             // Per rotor the cross term (coefficient 2 d_r), per channel the squares.
             Some(lagged) => {
+                let m = lagged.wrench.len();
                 for r in 0..4 {
                     let mut data: [Option<Vec<f64>>; 6] = Default::default();
                     for (c, d) in data.iter_mut().enumerate().skip(2) {
-                        *d = Some(lagged.start_rotor.iter().map(|v| v[r][c - 2]).collect());
+                        *d = Some(lagged.start_column(&lagged.start_rotor, m, |v| v[r][c - 2]));
                     }
                     cols.push(EffectColumn {
                         name: format!("start_w{}", r + 1),
@@ -388,7 +404,7 @@ impl Effect for MotorLag {
                         &format!("start_sq_{}", CHANNEL_NAMES[c]),
                         unit(c),
                         c,
-                        lagged.start_square.iter().map(|v| v[which]).collect(),
+                        lagged.start_column(&lagged.start_square, m, |v| v[which]),
                     ));
                 }
             }
