@@ -31,8 +31,8 @@ use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
     ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
-    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score,
-    rigid_design, scan_criterion, sampled_effect_design, scan_window, whitened_residual,
+    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score, rigid_design,
+    sampled_effect_design, scan_criterion, scan_window, whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -532,15 +532,13 @@ impl<'s> Context<'s> {
     ) -> f64 {
         trial[k].param = Some(g);
         match fast {
-            Some(scan) => sampled_effect_design(
-                trial[k].effect.as_ref(),
-                self.s,
-                Some(g),
-                scan.stride(),
-            )
-            .map_or(f64::INFINITY, |d| {
-                scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full * scan.stride() as f64
-            }),
+            Some(scan) => {
+                sampled_effect_design(trial[k].effect.as_ref(), self.s, Some(g), scan.stride())
+                    .map_or(f64::INFINITY, |d| {
+                        scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+                            * scan.stride() as f64
+                    })
+            }
             None => match crate::effects::check_lengths(
                 &crate::effects::effect_columns(trial[k].effect.as_ref(), self.s, Some(g)),
                 self.s.len(),
@@ -659,9 +657,7 @@ impl<'s> Context<'s> {
             }
             0.5 * (inside + out)
         };
-        let below = profile
-            .iter()
-            .rposition(|p| p.0 < x_best && p.1 > limit);
+        let below = profile.iter().rposition(|p| p.0 < x_best && p.1 > limit);
         let above = profile.iter().position(|p| p.0 > x_best && p.1 > limit);
         let lo = end(below, profile[0].0);
         let hi = end(above, profile[profile.len() - 1].0);

@@ -8,12 +8,14 @@ use crate::effects::{Effect, EffectColumn, Plausibility, ScanSpec};
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// First-order actuator dynamics: the delivered thrust and torques follow the logged command
-/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz`, with `y` the exact response
-/// to the piecewise-constant command sampled in the middle of each sample interval (see
-/// [`first_order_lag`]); the coefficient is ≈ 1 for that sampling, between `e^{−Δt/2τ}` and
-/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible. Four nuisance
-/// columns `e^{−(t − t₀)/τ}` (one per channel) absorb the unknown actuator state at the start
-/// of the log.
+/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz` (its gain fixed at 1), with `y`
+/// the exact response to the piecewise-constant command held over each sample interval (see
+/// [`first_order_lag`]). With rotor speeds the lag acts on each rotor speed and the wrench
+/// follows through the squares ([`lagged_rotors`]): the thrust at the interval's middle, the
+/// torques as its mean; eight nuisance columns (per rotor `ω_r e^{−(t − t₀)/τ}` through the
+/// mixer, per channel `e^{−2(t − t₀)/τ}`) absorb the motors' unknown speeds at the start of
+/// the log exactly. Without rotor speeds the lag acts on the wrench, and four nuisance columns
+/// `e^{−(t − t₀)/τ}` (one per channel) absorb its unknown state at the start.
 #[derive(Debug, Clone)]
 pub(crate) struct MotorLag {
     /// Time constants scanned \[s\].
@@ -235,7 +237,12 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
         if tau > 0.0 {
             let x = dt / tau;
             let a = (-x).exp();
-            [(-0.5 * x).exp(), a, (1.0 - a) / x, (1.0 - a * a) / (2.0 * x)]
+            [
+                (-0.5 * x).exp(),
+                a,
+                (1.0 - a) / x,
+                (1.0 - a * a) / (2.0 * x),
+            ]
         } else {
             [0.0; 4]
         }
@@ -288,8 +295,7 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
                     let mean = z * (u[r] * m1 + e[r] * m2);
                     through(r, at_mid, mean)
                 }));
-                out.start_square
-                    .push([(z * a_half).powi(2), z * z * m2]);
+                out.start_square.push([(z * a_half).powi(2), z * z * m2]);
             }
         }
         end = std::array::from_fn(|r| u[r] + a_full * e[r]);
@@ -745,13 +751,10 @@ mod tests {
     fn the_rotor_lag_with_its_start_columns_is_the_integrated_lag() {
         use nalgebra::{DMatrix, DVector};
         let m = mixer();
-        let mut log = crate::testdata::synthetic_log(
-            &crate::testdata::crazyflie(),
-            300,
-            0.0,
-            1,
-            &|_, _| [0.0; 6],
-        );
+        let mut log =
+            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
+                [0.0; 6]
+            });
         let speeds: Vec<[f64; 4]> = (0..log.len())
             .map(|k| {
                 std::array::from_fn(|r| {
