@@ -370,7 +370,8 @@ fn explain(c: &Candidate) -> String {
 
 /// The 95 % profile interval of each scanned effect of a fitted model (`None` for an effect
 /// without a scan): the in-sample error in units of the noise `sigma` over the effect's
-/// grid, the other effects at their fitted parameters.
+/// grid, the other effects at their fitted parameters, resolved finer than the interval
+/// itself ([`Context::refined_interval`]).
 pub(crate) fn scanned_intervals(
     model: &Model,
     s: &Signals,
@@ -396,10 +397,11 @@ pub(crate) fn scanned_intervals(
             let score = ctx.score(&ctx.engine(), &members);
             let scale = score.effect_scale(e.as_ref(), s.len() as f64);
             // The fit chose its value under its own channel weights: the interval includes it.
-            scan.interval(scale).map(|[lo, hi]| {
-                let v = fit.params[k].unwrap_or(lo);
-                [lo.min(v), hi.max(v)]
-            })
+            ctx.refined_interval(&engine, &members, 0, &scan, scale)
+                .map(|[lo, hi]| {
+                    let v = fit.params[k].unwrap_or(lo);
+                    [lo.min(v), hi.max(v)]
+                })
         })
         .collect()
 }

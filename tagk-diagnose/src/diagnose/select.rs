@@ -31,8 +31,8 @@ use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
     ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
-    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score,
-    residual_score_span, rigid_design, sampled_effect_design, scan_window, whitened_residual,
+    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score, rigid_design,
+    sampled_effect_design, scan_criterion, scan_window, whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -490,15 +490,63 @@ impl<'s> Context<'s> {
             return ev.sse_full;
         }
         let residual = engine.residual_unweighted(&cols, d.offset(), &ev.beta);
-        let (norm, logdet) =
-            residual_score_span(self.s, &residual, engine.span(), &filt, &self.noise);
-        norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
+        scan_criterion(self.s, &residual, engine.span(), &filt, &self.noise)
     }
 
     /// The held-out RMS per channel (N, N m) of a score.
     pub fn held_out_rms(&self, score: &Score) -> [f64; 6] {
         let n = self.s.len().max(1) as f64;
         std::array::from_fn(|c| (score.cv_ch[c] / n).sqrt() / self.w[c])
+    }
+
+    /// The engine a scan of member `k` of `members` reads: every `n / 10 000`-th sample of
+    /// `engine` for one member without any filter (the fast path), else `None` (`engine`
+    /// itself: a filter runs over every sample).
+    fn scan_engine<'e>(
+        &self,
+        engine: &GramEngine<'e>,
+        members: &[Member],
+        k: usize,
+    ) -> Option<GramEngine<'e>> {
+        let spec = members[k].effect.scan()?;
+        let fast = members.len() == 1
+            && self.filters.is_empty()
+            && !filters(
+                self.s,
+                members[k].effect.as_ref(),
+                spec.grid.first().copied(),
+            );
+        fast.then(|| engine.for_scan())
+    }
+
+    /// The in-sample criterion of the model plus `trial` with member `k` at `g`: on the scan
+    /// engine `fast` when given ([`Self::scan_engine`]), else on `engine`; infinite where a
+    /// user's effect has columns of the wrong length.
+    fn scan_value(
+        &self,
+        engine: &GramEngine<'_>,
+        fast: Option<&GramEngine<'_>>,
+        trial: &mut [Member],
+        k: usize,
+        g: f64,
+    ) -> f64 {
+        trial[k].param = Some(g);
+        match fast {
+            Some(scan) => {
+                sampled_effect_design(trial[k].effect.as_ref(), self.s, Some(g), scan.stride())
+                    .map_or(f64::INFINITY, |d| {
+                        scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
+                            * scan.stride() as f64
+                    })
+            }
+            None => match crate::effects::check_lengths(
+                &crate::effects::effect_columns(trial[k].effect.as_ref(), self.s, Some(g)),
+                self.s.len(),
+            ) {
+                Ok(()) => self.fit_score(engine, trial),
+                Err(_) => f64::INFINITY,
+            },
+        }
     }
 
     /// Scans member `k`'s parameter with the other members fixed: the in-sample score over
@@ -508,43 +556,13 @@ impl<'s> Context<'s> {
             return ScanResult::default();
         };
         let mut trial = members.to_vec();
-        // The fast path, a scan of one member without any filter: every `n / 10 000`-th
-        // sample; otherwise every sample (a filter runs over all of them).
-        let fast = members.len() == 1
-            && self.filters.is_empty()
-            && !filters(
-                self.s,
-                members[k].effect.as_ref(),
-                spec.grid.first().copied(),
-            );
-        let scan_engine = fast.then(|| engine.for_scan());
+        let fast = self.scan_engine(engine, members, k);
         let mut profile: Vec<(f64, f64)> = Vec::new();
-        let mut eval = |g: f64, profile: &mut Vec<(f64, f64)>| -> f64 {
-            trial[k].param = Some(g);
-            let v = match &scan_engine {
-                Some(scan) => sampled_effect_design(
-                    members[k].effect.as_ref(),
-                    self.s,
-                    Some(g),
-                    scan.stride(),
-                )
-                .map_or(f64::INFINITY, |d| {
-                    scan.evaluate_sampled(&d.cols, d.offset.as_ref()).sse_full
-                        * scan.stride() as f64
-                }),
-                // A user's effect whose columns have the wrong length at this value is skipped.
-                None => match crate::effects::check_lengths(
-                    &crate::effects::effect_columns(members[k].effect.as_ref(), self.s, Some(g)),
-                    self.s.len(),
-                ) {
-                    Ok(()) => self.fit_score(engine, &trial),
-                    Err(_) => f64::INFINITY,
-                },
-            };
+        let (best, _) = crate::fit::scan_min(&spec.grid, |g| {
+            let v = self.scan_value(engine, fast.as_ref(), &mut trial, k, g);
             profile.push((g, v));
             v
-        };
-        let (best, _) = crate::fit::scan_min(&spec.grid, |g| eval(g, &mut profile));
+        });
         profile.sort_by(|a, b| a.0.total_cmp(&b.0));
         profile.dedup_by(|a, b| a.0 == b.0);
         let (lo, hi) = grid_range(&spec.grid);
@@ -555,7 +573,106 @@ impl<'s> Context<'s> {
             at_end,
         }
     }
+
+    /// The 95 % profile interval of member `k`'s scanned parameter from its `scan`, resolved
+    /// finer than the interval itself: the minimum refined by golden sections to
+    /// [`MINIMUM_TOLERANCE`] of the value, then each end found by bisection on the criterion
+    /// (the first value tried beyond it brackets it) to [`INTERVAL_TOLERANCE`] of its
+    /// distance from the minimum. A grid's spacing (28 % between a lag's values) or a scan's last bracket
+    /// (about 1 %) would otherwise set the interval, however much narrower the evidence is.
+    /// `scale` as in [`ScanResult::interval`]; an end of the range where the profile never
+    /// rises that far is the interval's end.
+    pub fn refined_interval(
+        &self,
+        engine: &GramEngine<'_>,
+        members: &[Member],
+        k: usize,
+        scan: &ScanResult,
+        scale: f64,
+    ) -> Option<[f64; 2]> {
+        let best = scan.best?;
+        if scan.profile.len() < 3 {
+            return scan.interval(scale);
+        }
+        let mut trial = members.to_vec();
+        let fast = self.scan_engine(engine, members, k);
+        let mut f = |g: f64| self.scan_value(engine, fast.as_ref(), &mut trial, k, g);
+        let profile = &scan.profile;
+        let at = profile
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+            .map(|(i, _)| i)?;
+        let (mut x_best, mut f_best) = profile[at];
+        if !f_best.is_finite() {
+            return None;
+        }
+        // The minimum between the neighbours of the best value tried.
+        let (mut a, mut b) = (
+            profile[at.saturating_sub(1)].0,
+            profile[(at + 1).min(profile.len() - 1)].0,
+        );
+        let r = 0.5 * (5f64.sqrt() - 1.0);
+        let tol = MINIMUM_TOLERANCE * x_best.abs().max(f64::MIN_POSITIVE);
+        let (mut x1, mut x2) = (b - r * (b - a), a + r * (b - a));
+        let (mut f1, mut f2) = (f(x1), f(x2));
+        for _ in 0..60 {
+            if b - a <= tol {
+                break;
+            }
+            if f1 < f2 {
+                b = x2;
+                (x2, f2) = (x1, f1);
+                x1 = b - r * (b - a);
+                f1 = f(x1);
+            } else {
+                a = x1;
+                (x1, f1) = (x2, f2);
+                x2 = a + r * (b - a);
+                f2 = f(x2);
+            }
+        }
+        for (x, v) in [(x1, f1), (x2, f2)] {
+            if v < f_best {
+                (x_best, f_best) = (x, v);
+            }
+        }
+        let limit = f_best + stats::CHI2_1_95 * scale;
+        // Each end: bisection between the last value within the limit and the first beyond.
+        let mut end = |outside: Option<usize>, range_end: f64| -> f64 {
+            let Some(i) = outside else {
+                return range_end;
+            };
+            let (mut inside, mut out) = (x_best, profile[i].0);
+            for _ in 0..60 {
+                if (out - inside).abs() <= INTERVAL_TOLERANCE * (out - x_best).abs() {
+                    break;
+                }
+                let mid = 0.5 * (inside + out);
+                if f(mid) > limit {
+                    out = mid;
+                } else {
+                    inside = mid;
+                }
+            }
+            0.5 * (inside + out)
+        };
+        let below = profile.iter().rposition(|p| p.0 < x_best && p.1 > limit);
+        let above = profile.iter().position(|p| p.0 > x_best && p.1 > limit);
+        let lo = end(below, profile[0].0);
+        let hi = end(above, profile[profile.len() - 1].0);
+        Some([lo.min(best).min(x_best), hi.max(best).max(x_best)])
+    }
 }
+
+/// Relative resolution of each end of a refined profile interval
+/// ([`Context::refined_interval`]): 1 % of its distance from the minimum.
+pub const INTERVAL_TOLERANCE: f64 = 1e-2;
+
+/// Relative resolution of the minimum of a refined profile interval
+/// ([`Context::refined_interval`]): 1e-4 of its value, finer than the narrowest interval of a
+/// noise-free log (a few 1e-3 of a lag's time constant).
+pub const MINIMUM_TOLERANCE: f64 = 1e-4;
 
 /// The members' fitted columns and known part.
 struct MemberDesign {

@@ -8,12 +8,14 @@ use crate::effects::{Effect, EffectColumn, Plausibility, ScanSpec};
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// First-order actuator dynamics: the delivered thrust and torques follow the logged command
-/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz`, with `y` the exact response
-/// to the piecewise-constant command sampled in the middle of each sample interval (see
-/// [`first_order_lag`]); the coefficient is ≈ 1 for that sampling, between `e^{−Δt/2τ}` and
-/// `e^{Δt/2τ}` for others, so gains in `[0.4, 2.5]` are accepted as plausible. Four nuisance
-/// columns `e^{−(t − t₀)/τ}` (one per channel) absorb the unknown actuator state at the start
-/// of the log.
+/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz` (its gain fixed at 1), with `y`
+/// the exact response to the piecewise-constant command held over each sample interval (see
+/// [`first_order_lag`]). With rotor speeds the lag acts on each rotor speed and the wrench
+/// follows through the squares ([`lagged_rotors`]): the thrust at the interval's middle, the
+/// torques as its mean; eight nuisance columns (per rotor `ω_r e^{−(t − t₀)/τ}` through the
+/// mixer, per channel `e^{−2(t − t₀)/τ}`) absorb the motors' unknown speeds at the start of
+/// the log exactly. Without rotor speeds the lag acts on the wrench, and four nuisance columns
+/// `e^{−(t − t₀)/τ}` (one per channel) absorb its unknown state at the start.
 #[derive(Debug, Clone)]
 pub(crate) struct MotorLag {
     /// Time constants scanned \[s\].
@@ -176,66 +178,130 @@ fn sampled_first_order_lag(
     y
 }
 
+/// A rotor-speed lag on a log with rotor speeds ([`lagged_rotors`]), at the samples
+/// `0, stride, 2 stride, …`: the delivered `[fz, tx, ty, tz]` and the start-of-log transient's
+/// columns.
+struct RotorLag {
+    /// The delivered wrench `M lag_τ(ω)²` from rest on the first command: `fz` at the
+    /// interval's middle, the torques as interval means \[N, N m\].
+    wrench: Vec<[f64; 4]>,
+    /// Per rotor `r`, the mixer's column `r` times `y_r(t) e^{−(t − t₀)/τ}` (`y_r` the lagged
+    /// speed from rest): the cross term of a start offset `d_r` of rotor `r`, whose
+    /// coefficient is `2 d_r` \[N, N m per rad/s\]. Only while the transient lasts (above
+    /// 1e-12 of its start): 0 after.
+    start_rotor: Vec<[[f64; 4]; 4]>,
+    /// `e^{−2(t − t₀)/τ}` sampled as the channels are (`fz` at the middle, the torques as
+    /// interval means): the square of the start offsets, one coefficient per channel
+    /// (`Σ_r M_cr d_r²`). As long as [`RotorLag::start_rotor`].
+    start_square: Vec<[f64; 2]>,
+}
+
+impl RotorLag {
+    /// Column `pick(sample)` of the start transient at the `m` samples: its values while it
+    /// lasts, then 0 (zeroed memory: a long log's tail costs nothing to build).
+    fn start_column<T>(&self, of: &[T], m: usize, pick: impl Fn(&T) -> f64) -> Vec<f64> {
+        let mut v = vec![0.0; m];
+        for (x, y) in v.iter_mut().zip(of) {
+            *x = pick(y);
+        }
+        v
+    }
+}
+
 /// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
 /// through the squares: with the mixer identified from the log ([`Signals::rotor_mixer`];
 /// without one the lag is applied to the wrench directly, `None`), the delivered wrench is
-/// `M lag_τ(ω)²`. Returns `[fz, tx, ty, tz]` at the samples `0, stride, 2 stride, …` (the
-/// lag runs over every sample).
-fn lagged_wrench_from_rotors(s: &Signals, tau: f64, stride: usize) -> Option<Vec<[f64; 4]>> {
+/// `M lag_τ(ω)²`. The lagged speeds start at rest on the first command; the motors' unknown
+/// speeds when the log starts add `d_r e^{−(t − t₀)/τ}` to rotor `r`, hence
+/// `2 d_r y_r e^{−(t − t₀)/τ} + d_r² e^{−2(t − t₀)/τ}` to its square: both kept as columns
+/// ([`RotorLag`]), so the start is exact for any offsets. Each sample is the exact response
+/// to the command held over its interval `[t_k − Δt/2, t_k + Δt/2)`: the thrust at the
+/// middle (what an accelerometer sample sees), the torques as the interval mean (what a
+/// differenced gyro, the logged angular acceleration, sees). At the samples
+/// `0, stride, 2 stride, …` (the lag runs over every sample).
+fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
     let w = s.rotor_speeds()?;
     let mixer = s.rotor_mixer()?;
-    // Per rotor: ω² at the interval midpoint (what an accelerometer sample sees) and the
-    // interval mean of ω² (what a differenced gyro — the logged angular acceleration — sees).
     let n = s.len();
     let m = n.div_ceil(stride.max(1));
-    let mut mid = vec![[0.0; 4]; m];
-    let mut mean = vec![[0.0; 4]; m];
-    let mut factors = (f64::NAN, (0.0, 0.0, 0.0, 0.0));
+    let mut out = RotorLag {
+        wrench: Vec::with_capacity(m),
+        start_rotor: vec![[[0.0; 4]; 4]; 1],
+        start_square: vec![[0.0; 2]; 1],
+    };
+    if n == 0 {
+        return Some(out);
+    }
+    // Per step x = Δt/τ: e^{−x/2}, e^{−x}, and the interval means of e^{−σ/τ} and e^{−2σ/τ}.
+    let factors = |dt: f64| -> [f64; 4] {
+        if tau > 0.0 {
+            let x = dt / tau;
+            let a = (-x).exp();
+            [
+                (-0.5 * x).exp(),
+                a,
+                (1.0 - a) / x,
+                (1.0 - a * a) / (2.0 * x),
+            ]
+        } else {
+            [0.0; 4]
+        }
+    };
+    // Rotor r's column through the mixer: fz from the middle value, torques from the mean.
+    let through = |r: usize, mid: f64, mean: f64| -> [f64; 4] {
+        std::array::from_fn(|c| mixer.matrix[c][r] * if c == 0 { mid } else { mean })
+    };
     let mut end = w[0];
-    mid[0] = end.map(|x| x * x);
-    mean[0] = mid[0];
+    // The transient e^{−(t − t₀)/τ} at the start of the current interval: 1 at the middle of
+    // the first (its length that of the first step).
+    let first = factors(if n > 1 { s.t[1] - s.t[0] } else { 0.0 });
+    let mut z = if first[0] > 0.0 { 1.0 / first[0] } else { 0.0 };
+    out.wrench.push({
+        let sq = end.map(|x| x * x);
+        mixer.apply(&sq)
+    });
+    for r in 0..4 {
+        out.start_rotor[0][r] = through(r, end[r], end[r] * z * first[2]);
+    }
+    out.start_square[0] = [1.0, z * z * first[3]];
+    z *= first[1];
+    let mut step = (f64::NAN, [0.0; 4]);
     let mut sampled = Sampled::new(stride);
     for i in 1..n {
         let dt = s.t[i] - s.t[i - 1];
         // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
-        if !same_step(dt, factors.0) {
-            factors = (
-                dt,
-                if tau > 0.0 {
-                    let x = dt / tau;
-                    (
-                        (-0.5 * x).exp(),
-                        (-x).exp(),
-                        (1.0 - (-x).exp()) / x,
-                        (1.0 - (-2.0 * x).exp()) / (2.0 * x),
-                    )
-                } else {
-                    (0.0, 0.0, 0.0, 0.0)
-                },
-            );
+        if !same_step(dt, step.0) {
+            step = (dt, factors(dt));
         }
-        let (a_half, a_full, m1, m2) = factors.1;
+        let [a_half, a_full, m1, m2] = step.1;
         let u = w[i];
         let e: [f64; 4] = std::array::from_fn(|r| end[r] - u[r]);
         if let Some(slot) = sampled.next() {
+            let mut mid = [0.0; 4];
+            let mut mean = [0.0; 4];
             for r in 0..4 {
                 let ym = u[r] + a_half * e[r];
-                mid[slot][r] = ym * ym;
-                mean[slot][r] = u[r] * u[r] + 2.0 * u[r] * e[r] * m1 + e[r] * e[r] * m2;
+                mid[r] = ym * ym;
+                mean[r] = u[r] * u[r] + 2.0 * u[r] * e[r] * m1 + e[r] * e[r] * m2;
+            }
+            let ym = mixer.apply(&mid);
+            let ya = mixer.apply(&mean);
+            out.wrench.push([ym[0], ya[1], ya[2], ya[3]]);
+            // Once the transient is below 1e-12 of its start, its columns stay 0.
+            if z >= 1e-12 {
+                debug_assert_eq!(out.start_rotor.len(), slot);
+                out.start_rotor.push(std::array::from_fn(|r| {
+                    let at_mid = (u[r] + a_half * e[r]) * z * a_half;
+                    let mean = z * (u[r] * m1 + e[r] * m2);
+                    through(r, at_mid, mean)
+                }));
+                out.start_square.push([(z * a_half).powi(2), z * z * m2]);
             }
         }
         end = std::array::from_fn(|r| u[r] + a_full * e[r]);
+        z *= a_full;
     }
-    Some(
-        mid.iter()
-            .zip(&mean)
-            .map(|(mid, mean)| {
-                let ym = mixer.apply(mid);
-                let ya = mixer.apply(mean);
-                [ym[0], ya[1], ya[2], ya[3]]
-            })
-            .collect(),
-    )
+    Some(out)
 }
 
 /// The inverse of the first-order lag of [`first_order_lag`] (with `interval_mean`, of the
@@ -291,10 +357,12 @@ impl Effect for MotorLag {
         let tau = self.tau(p);
         let b = s.wrench();
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
-        if let Some(lagged) = lagged_wrench_from_rotors(s, tau, stride) {
+        let rotors = lagged_rotors(s, tau, stride);
+        if let Some(lagged) = &rotors {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
                 *d = Some(
                     lagged
+                        .wrench
                         .iter()
                         .zip(b.iter().step_by(stride))
                         .map(|(y, b)| y[c - 2] - b[c])
@@ -318,16 +386,46 @@ impl Effect for MotorLag {
             data,
             fixed: Some(1.0),
         }];
-        // The actuators' state when the log starts is unknown: its effect decays like
-        // e^{−(t − t₀)/τ}, a nuisance column per channel.
-        let decay = start_decay(&s.t, tau, stride);
-        for c in 2..6 {
-            cols.push(EffectColumn::on(
-                &format!("start_{}", CHANNEL_NAMES[c]),
-                if c == 2 { "N" } else { "N m" },
-                c,
-                decay.clone(),
-            ));
+        // The actuators' state when the log starts is unknown: nuisance columns of its decay.
+        let unit = |c: usize| if c == 2 { "N" } else { "N m" };
+        match &rotors {
+            // Per rotor the cross term (coefficient 2 d_r), per channel the squares.
+            Some(lagged) => {
+                let m = lagged.wrench.len();
+                for r in 0..4 {
+                    let mut data: [Option<Vec<f64>>; 6] = Default::default();
+                    for (c, d) in data.iter_mut().enumerate().skip(2) {
+                        *d = Some(lagged.start_column(&lagged.start_rotor, m, |v| v[r][c - 2]));
+                    }
+                    cols.push(EffectColumn {
+                        name: format!("start_w{}", r + 1),
+                        unit: "rad/s".into(),
+                        data,
+                        fixed: None,
+                    });
+                }
+                for c in 2..6 {
+                    let which = usize::from(interval_mean(s, c));
+                    cols.push(EffectColumn::on(
+                        &format!("start_sq_{}", CHANNEL_NAMES[c]),
+                        unit(c),
+                        c,
+                        lagged.start_column(&lagged.start_square, m, |v| v[which]),
+                    ));
+                }
+            }
+            // A lag of the wrench itself: its decay e^{−(t − t₀)/τ}, one column per channel.
+            None => {
+                let decay = start_decay(&s.t, tau, stride);
+                for c in 2..6 {
+                    cols.push(EffectColumn::on(
+                        &format!("start_{}", CHANNEL_NAMES[c]),
+                        unit(c),
+                        c,
+                        decay.clone(),
+                    ));
+                }
+            }
         }
         cols
     }
@@ -575,6 +673,135 @@ mod tests {
             end = u[k] + (end - u[k]) * (-x).exp();
         }
         y
+    }
+
+    /// A Crazyflie-like rotor mixer `[fz, tx, ty, tz] = M ω²`.
+    fn mixer() -> [[f64; 4]; 4] {
+        let (kf, km, l) = (2.88e-8, 7.24e-10, 0.0325 / std::f64::consts::SQRT_2);
+        [
+            [kf, kf, kf, kf],
+            [-kf * l, -kf * l, kf * l, kf * l],
+            [-kf * l, kf * l, kf * l, -kf * l],
+            [-km, km, -km, km],
+        ]
+    }
+
+    /// The rotor-speed lag integrated independently: `τ ω̇ = u − ω` by RK4 at 400 steps per
+    /// sample interval (`[t_k − Δt/2, t_k + Δt/2)`, the command `u_k` held), starting from
+    /// `u_0 + d` at the first interval's start. Returns per sample `[fz, tx, ty, tz]`: `M ω²`
+    /// at the interval's middle for `fz`, the interval mean of `M ω²` (Simpson) for the
+    /// torques.
+    fn integrated_rotor_lag(
+        t: &[f64],
+        u: &[[f64; 4]],
+        d: [f64; 4],
+        tau: f64,
+        m: &[[f64; 4]; 4],
+    ) -> Vec<[f64; 4]> {
+        const STEPS: usize = 400;
+        let apply = |w: &[f64; 4]| -> [f64; 4] {
+            std::array::from_fn(|c| (0..4).map(|r| m[c][r] * w[r] * w[r]).sum())
+        };
+        let mut w: [f64; 4] = std::array::from_fn(|r| u[0][r] + d[r]);
+        let mut out = Vec::with_capacity(t.len());
+        for k in 0..t.len() {
+            let dt = if k == 0 { t[1] - t[0] } else { t[k] - t[k - 1] };
+            let h = dt / STEPS as f64;
+            let mut mean = [0.0; 4];
+            let mut mid = [0.0; 4];
+            for j in 0..=STEPS {
+                let v = apply(&w);
+                let weight = if j == 0 || j == STEPS {
+                    1.0
+                } else if j % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                for c in 0..4 {
+                    mean[c] += weight * v[c] / (3.0 * STEPS as f64);
+                }
+                if j == STEPS / 2 {
+                    mid = v;
+                }
+                if j == STEPS {
+                    break;
+                }
+                let f = |x: f64, r: usize| (u[k][r] - x) / tau;
+                w = std::array::from_fn(|r| {
+                    let k1 = f(w[r], r);
+                    let k2 = f(w[r] + 0.5 * h * k1, r);
+                    let k3 = f(w[r] + 0.5 * h * k2, r);
+                    let k4 = f(w[r] + h * k3, r);
+                    w[r] + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+                });
+            }
+            out.push([mid[0], mean[1], mean[2], mean[3]]);
+        }
+        out
+    }
+
+    /// The lag of each rotor speed seen through the squares, against an independent
+    /// integration: on a log with rotor speeds, the delivered `[fz, tx, ty, tz]` minus the
+    /// logged one is the lag's column plus a least-squares combination of its start columns,
+    /// to 1e-7 of the lag's largest wrench, for motors that start 5–10 % off their first
+    /// command, at time constants from under a step to several steps. The start columns are
+    /// needed: without them the first samples miss by far more.
+    #[test]
+    fn the_rotor_lag_with_its_start_columns_is_the_integrated_lag() {
+        use nalgebra::{DMatrix, DVector};
+        let m = mixer();
+        let mut log =
+            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
+                [0.0; 6]
+            });
+        let speeds: Vec<[f64; 4]> = (0..log.len())
+            .map(|k| {
+                std::array::from_fn(|r| {
+                    let x = k as f64;
+                    let step = if (k / 37 + r) % 3 == 0 { 150.0 } else { 0.0 };
+                    2000.0 + 300.0 * (0.05 * x + r as f64).sin() + step
+                })
+            })
+            .collect();
+        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
+            let sq = w.map(|x| x * x);
+            for c in 0..4 {
+                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
+            }
+        }
+        log.rotor_speeds = Some(speeds.clone());
+        let s = Signals::from_log(&log).unwrap();
+        assert!(s.rotor_mixer().is_some());
+        let d = [-180.0, 120.0, 200.0, -100.0];
+        for tau in [0.004, 0.02, 0.06] {
+            let truth = integrated_rotor_lag(&s.t, &speeds, d, tau, &m);
+            let cols = MotorLag::default().columns(&s, Some(tau));
+            let b = s.wrench();
+            let n = s.len();
+            // Target: delivered − logged − the lag's fixed column, channels fz..tz stacked.
+            let target = DVector::from_fn(4 * n, |i, _| {
+                let (c, k) = (i / n, i % n);
+                truth[k][c] - b[k][c + 2] - cols[0].data[c + 2].as_ref().unwrap()[k]
+            });
+            let start: Vec<&EffectColumn> = cols[1..].iter().collect();
+            assert!(start.iter().all(|c| crate::fit::is_start_nuisance(&c.name)));
+            let x = DMatrix::from_fn(4 * n, start.len(), |i, j| {
+                let (c, k) = (i / n, i % n);
+                start[j].data[c + 2].as_ref().map_or(0.0, |v| v[k])
+            });
+            // Columns scaled to unit norm for the solve.
+            let norms: Vec<f64> = x.column_iter().map(|c| c.norm().max(1e-300)).collect();
+            let xs = DMatrix::from_fn(x.nrows(), x.ncols(), |i, j| x[(i, j)] / norms[j]);
+            let beta = xs.clone().svd(true, true).solve(&target, 1e-14).unwrap();
+            let residual = &target - &xs * &beta;
+            let scale = (0..4 * n)
+                .map(|i| (truth[i % n][i / n] - b[i % n][i / n + 2]).abs())
+                .fold(0.0, f64::max);
+            let worst = residual.amax();
+            assert!(worst < 1e-7 * scale, "tau {tau}: {worst:e} of {scale:e}");
+            assert!(target.amax() > 1e-3 * scale, "tau {tau}: the start matters");
+        }
     }
 
     /// The inverse lag undoes the forward lag (at the middle and as an interval mean) to

@@ -19,6 +19,16 @@
 //! `L⁻¹ r`, the error of predicting `b` itself; with `σ_b = 0` that of `r` plus the cost of
 //! predicting `b` through the inverse of the lag. Neither limit drifts: a longer lag
 //! smooths the wrench's noise but pays for it in `K` and `g₀`.
+//!
+//! **Estimating a filter's parameter.** The score above compares models. A lag's time
+//! constant is estimated on `Σ (W r)² / K` alone ([`crate::fit::scan_criterion`]): the
+//! errors-in-variables profile over the true wrench (the innovations of `r` under its own
+//! covariance `σ_b² L Lᵀ + σ_m² I`). For every time constant its expectation is the number of
+//! innovations plus the model's own mismatch, so it is least at the true one. The
+//! log-determinant term is not: it is the density of `b` given the motion; the density of
+//! the motion given `b` has `n ln K` alone. The two differ by the Jacobian `−2 n ln g₀`, which
+//! pulls the estimate towards short lags where the motion sensors dominate (all of a
+//! noise-free log's resolution).
 
 use crate::signals::Signals;
 

@@ -154,6 +154,23 @@ pub(crate) fn residual_score_span(
     (norm, logdet)
 }
 
+/// The criterion a scanned parameter is estimated on when a filter of the target is in the
+/// model (a motor lag's time constant): the innovations' sum of squares of the residual `r`
+/// over `span` ([`residual_score_span`]), in units of each channel's noise variance, summed
+/// over the channels, **without** the log-determinant term. Its expectation is the number of
+/// innovations plus the model's own mismatch, whatever the parameter, so it is least at the
+/// true value ([`likelihood`] module docs: estimating a filter's parameter).
+pub(crate) fn scan_criterion(
+    s: &Signals,
+    r: &[[f64; 6]],
+    span: std::ops::Range<usize>,
+    filt: &[(crate::EffectRef, Option<f64>)],
+    noise: &NoiseModel,
+) -> f64 {
+    let (norm, _) = residual_score_span(s, r, span, filt, noise);
+    norm.iter().sum()
+}
+
 /// The whitened residual of a residual `r` of the (filtered) target, unweighted
 /// ([`likelihood::whitened`]: white with each channel's noise variance at the true model;
 /// `r` itself on channels without a filter).
@@ -630,8 +647,7 @@ fn scan_parameters(
             let engine = window.as_ref().unwrap_or(&full);
             scan_min(&grid, |g| {
                 let (r, filt) = residual_at(engine, g);
-                let (norm, logdet) = residual_score_span(s, &r, engine.span(), &filt, &noise);
-                norm.iter().sum::<f64>() + logdet.iter().sum::<f64>()
+                scan_criterion(s, &r, engine.span(), &filt, &noise)
             })
             .0
         } else {
