@@ -215,13 +215,15 @@ fn one_glitch_of_30_n_in_fz_is_excluded_and_named() {
     let (out, json, html) = glitch_report(&dir, "30");
     assert!(out.contains("glitches: 1 sample excluded"), "{out}");
     assert!(
-        out.contains("fz = 30 N at t = 5.990 s (sample 299"),
+        out.contains("fz = 30 N at glitch.csv:301 (t = 5.990 s, sample 299;"),
         "{out}"
     );
     assert_eq!(json["glitches"][0]["channel"], "fz");
     assert_eq!(json["glitches"][0]["sample"], 299);
+    assert_eq!(json["glitches"][0]["line"], 301);
+    assert_eq!(json["glitches"][0]["file"], "glitch.csv");
     assert!(html.contains("id=\"glitch-list\""));
-    assert!(html.contains("fz = 30 N at t = 5.990 s"));
+    assert!(html.contains("fz = 30 N at glitch.csv:301 (t = 5.990 s"));
     // The mass is the clean log's, within its interval.
     let clean = clean.run().unwrap();
     let m = |p: &serde_json::Value| p["before"]["parameters"][0]["value"].as_f64().unwrap();
@@ -238,8 +240,8 @@ fn one_glitch_of_30_n_in_fz_is_excluded_and_named() {
 fn one_glitch_of_1e300_in_fz_is_excluded_and_named() {
     let dir = tmpdir("glitch300");
     let (out, json, html) = glitch_report(&dir, "1e300");
-    assert!(out.contains("fz = 1.000e300 N at t = 5.990 s"), "{out}");
-    assert!(html.contains("fz = 1.000e300 N"));
+    assert!(out.contains("fz = 1.000e300 N at glitch.csv:301"), "{out}");
+    assert!(html.contains("fz = 1.000e300 N at glitch.csv:301"));
     let m = json["before"]["parameters"][0]["value"].as_f64().unwrap();
     assert!((0.03..0.04).contains(&m), "mass {m}");
     let floor = json["noise_floor"]["rms"][2].as_f64().unwrap();

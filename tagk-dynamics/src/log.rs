@@ -663,9 +663,20 @@ impl FlightLog {
     /// [`FlightLog::from_csv_reader`] wrapped in [`LogError::InFile`] (so that the message
     /// names the file as well as the line and column).
     pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
+        Self::from_csv_path_with_lines(path).map(|(log, _)| log)
+    }
+
+    /// [`FlightLog::from_csv_path`], with the CSV line (1-based; the header is line 1) each
+    /// sample was read from: a report can then name the line a user opens.
+    ///
+    /// # Errors
+    /// As [`FlightLog::from_csv_path`].
+    pub fn from_csv_path_with_lines(
+        path: impl AsRef<Path>,
+    ) -> Result<(Self, Vec<usize>), LogError> {
         let path = path.as_ref();
         let file = open_log_file(path)?;
-        Self::from_csv_reader(std::io::BufReader::new(file))
+        Self::read_csv(std::io::BufReader::new(file))
             .map_err(|e| LogError::in_file(path.display().to_string(), e))
     }
 
@@ -678,6 +689,11 @@ impl FlightLog {
     /// # Errors
     /// A [`LogError`] naming the line and column of the first problem.
     pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
+        Self::read_csv(reader).map(|(log, _)| log)
+    }
+
+    /// [`FlightLog::from_csv_reader`], with the CSV line of each sample.
+    fn read_csv<R: Read>(reader: R) -> Result<(Self, Vec<usize>), LogError> {
         let mut rows = NumericRows::new(reader)?;
         let header = rows.header.clone();
         let idx = |name: &str| header.iter().position(|h| h == name);
@@ -735,7 +751,9 @@ impl FlightLog {
             ..FlightLog::default()
         };
         let mut values = vec![0.0; header.len()];
+        let mut lines = Vec::new();
         while let Some(line) = rows.next_into(&mut values)? {
+            lines.push(line);
             let v = |k: usize| values[req[k]];
             let t = v(0);
             if let Some(&prev) = log.t.last()
@@ -783,7 +801,7 @@ impl FlightLog {
                 needed: MIN_ROWS,
             });
         }
-        Ok(log)
+        Ok((log, lines))
     }
 
     /// Checks what writing needs: equal signal lengths and strictly increasing time (a log

@@ -1140,6 +1140,11 @@ pub struct MergeReport {
     /// Warnings in plain words (many samples dropped, renormalised quaternions, a mapped
     /// optional quantity that no stream has, a stream that provides nothing).
     pub warnings: Vec<String>,
+    /// The primary stream's CSV line (1-based; the header is line 1) of each sample of the
+    /// merged log. Quantities of another stream are interpolated onto these samples: their
+    /// own lines are not these. Not serialised (one number per sample).
+    #[serde(skip)]
+    pub lines: Vec<usize>,
 }
 
 impl MergeReport {
@@ -1237,6 +1242,8 @@ struct Stream {
     unread: Vec<UnreadColumn>,
     /// The largest `|‖q‖ − 1|` divided out of its attitude (0 without).
     renormalised: f64,
+    /// The CSV line of each sample (1-based; the header is line 1).
+    lines: Vec<usize>,
 }
 
 fn file_name(path: &Path) -> String {
@@ -1444,6 +1451,7 @@ impl ColumnMapping {
             found,
             unread,
             renormalised,
+            lines,
         };
         self.convert_frames(&mut s);
         if self.accel == AccelColumns::WorldSpecificForce
@@ -2091,6 +2099,7 @@ pub fn read_streams(
     for (name, v) in &streams[0].extra {
         log.add_extra(name, kept.iter().map(|&i| v[i]).collect());
     }
+    report.lines = kept.iter().map(|&i| streams[0].lines[i]).collect();
     log.validate().map_err(|e| match e {
         LogError::TooShort { .. } => e,
         other => LogError::in_file(
