@@ -247,7 +247,8 @@ pub fn screen_located(name: &str, log: &FlightLog, source: Option<&SampleSource>
     let segments = log.sampling().segments();
     let mut out = Vec::new();
     let mut channel = |column: &str, x: &dyn Fn(usize) -> f64| {
-        for run in screen_channel(&segments, n, x) {
+        let x: Vec<f64> = (0..n).map(x).collect();
+        for run in screen_channel(&segments, &x) {
             out.push(run.glitch(name, column, log, source));
         }
     };
@@ -365,12 +366,13 @@ fn threshold(r: &[f64]) -> Option<f64> {
     Some((GLITCH_SIGMAS * sigma).max(GLITCH_PERCENTILE_FACTOR * q99))
 }
 
-/// The runs of at most [`MAX_GLITCH_RUN`] residuals above their `threshold` whose
-/// neighbours are both screened and at most half of theirs (module docs).
-fn isolated_runs(r: &[f64], threshold: &[f64]) -> Vec<Range<usize>> {
+/// The runs of at most [`MAX_GLITCH_RUN`] residuals above their threshold whose
+/// neighbours are both screened and at most half of theirs (module docs). `limit(i, f)` is
+/// `f` times sample `i`'s threshold.
+fn isolated_runs(r: &[f64], limit: &dyn Fn(usize, f64) -> f64) -> Vec<Range<usize>> {
     let n = r.len();
-    let above = |i: usize| r[i].abs() > threshold[i];
-    let quiet = |i: usize| !r[i].is_nan() && r[i].abs() <= 0.5 * threshold[i];
+    let above = |i: usize| r[i].abs() > limit(i, 1.0);
+    let quiet = |i: usize| !r[i].is_nan() && r[i].abs() <= limit(i, 0.5);
     let mut out = Vec::new();
     let mut i = 0;
     while i < n {
@@ -399,43 +401,61 @@ fn in_sigmas(r: f64, threshold: f64) -> f64 {
     }
 }
 
-/// The glitches of one channel `x` of a log of `n` samples split in `segments` (module docs).
-fn screen_channel(segments: &[Range<usize>], n: usize, x: &dyn Fn(usize) -> f64) -> Vec<Run> {
+/// The glitches of one channel `x` of a log split in `segments` (module docs).
+fn screen_channel(segments: &[Range<usize>], x: &[f64]) -> Vec<Run> {
     let h = GLITCH_MEDIAN_HALF_WIDTH;
+    let n = x.len();
     let mut r = vec![f64::NAN; n];
     let mut median = vec![f64::NAN; n];
-    let mut step = vec![0.0; n];
-    let mut window = [0.0; 2 * GLITCH_MEDIAN_HALF_WIDTH + 1];
-    let mut steps = [0.0; 2 * GLITCH_MEDIAN_HALF_WIDTH];
+    // The running median: the window kept sorted, one sample out and one in per step.
+    let mut window: Vec<f64> = Vec::with_capacity(2 * h + 1);
+    let position = |w: &[f64], v: f64| w.partition_point(|y| y.total_cmp(&v).is_lt());
     for seg in segments.iter().filter(|s| s.len() > 2 * h) {
+        window.clear();
+        window.extend_from_slice(&x[seg.start..seg.start + 2 * h + 1]);
+        window.sort_unstable_by(f64::total_cmp);
         for i in seg.start + h..seg.end - h {
-            for (k, w) in window.iter_mut().enumerate() {
-                *w = x(i - h + k);
+            median[i] = window[h];
+            r[i] = x[i] - median[i];
+            if i + h + 1 < seg.end {
+                let out = position(&window, x[i - h]);
+                window.remove(out);
+                let v = x[i + h + 1];
+                window.insert(position(&window, v), v);
             }
-            for (k, d) in steps.iter_mut().enumerate() {
-                *d = (window[k + 1] - window[k]).abs();
-            }
-            median[i] = *window.select_nth_unstable_by(h, f64::total_cmp).1;
-            step[i] = *steps.select_nth_unstable_by(h, f64::total_cmp).1;
-            r[i] = x(i) - median[i];
         }
     }
     let Some(global) = threshold(&r) else {
         return Vec::new();
     };
-    // The local threshold: the global one, or the window's step size (module docs).
-    let local: Vec<f64> = step.iter().map(|s| global.max(GLITCH_SIGMAS * s)).collect();
-    isolated_runs(&r, &local)
+    // The local threshold: the global one, or the window's median step (module docs),
+    // computed only where the global one is passed.
+    let local = |i: usize| {
+        let mut steps = [0.0; 2 * GLITCH_MEDIAN_HALF_WIDTH];
+        for (k, d) in steps.iter_mut().enumerate() {
+            *d = (x[i - h + k + 1] - x[i - h + k]).abs();
+        }
+        global.max(GLITCH_SIGMAS * *steps.select_nth_unstable_by(h, f64::total_cmp).1)
+    };
+    let limit = |i: usize, scale: f64| {
+        // Not screened (NaN) or within the global threshold: no need of the local one.
+        if r[i].is_nan() || r[i].abs() <= scale * global {
+            scale * global
+        } else {
+            scale * local(i)
+        }
+    };
+    isolated_runs(&r, &limit)
         .into_iter()
         .map(|samples| {
             let worst = samples
                 .clone()
-                .max_by(|&a, &b| (r[a] / local[a]).abs().total_cmp(&(r[b] / local[b]).abs()))
+                .max_by(|&a, &b| (r[a] / local(a)).abs().total_cmp(&(r[b] / local(b)).abs()))
                 .unwrap_or(samples.start);
             Run {
-                value: x(worst),
+                value: x[worst],
                 expected: median[worst],
-                robust_sigmas: in_sigmas(r[worst], local[worst]),
+                robust_sigmas: in_sigmas(r[worst], local(worst)),
                 samples,
             }
         })
@@ -465,7 +485,7 @@ fn screen_attitude(log: &FlightLog, segments: &[Range<usize>]) -> Vec<Run> {
         return Vec::new();
     };
     // Steps off, each with its neighbours quiet; a pair close together encloses a run.
-    let steps = isolated_runs(&e, &vec![t; n]);
+    let steps = isolated_runs(&e, &|_, f| f * t);
     let mut out = Vec::new();
     let mut k = 0;
     while k < steps.len() {
