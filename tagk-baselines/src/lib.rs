@@ -44,7 +44,11 @@
 //! [`compact_covariance_buffer_len`]`(n, m)` = `n² + 3n + 2mn + m² + 3m` scalars, **without the
 //! fallback**: the windows it would redo are then refused with
 //! [`EstimatorError::NumericalFailure`] (the
-//! state is kept), all others give the same bits ([`Rls::has_information_fallback`]). With [`Backend::Faer`], faer additionally keeps
+//! state is kept), all others give the same bits ([`Rls::has_information_fallback`]). Both
+//! lengths are `const fn`s that saturate at `usize::MAX` where they overflow (no buffer is
+//! that long: the constructors refuse it with [`ConfigError::TooLarge`]);
+//! [`checked_covariance_buffer_len`] and [`checked_compact_covariance_buffer_len`] return
+//! `None` there. With [`Backend::Faer`], faer additionally keeps
 //! per-thread packing buffers (sized by the L3 cache) that it allocates on first use in a
 //! thread; the constructor runs one dummy update so they exist for the constructing thread (an
 //! estimator moved to another thread triggers that one-time allocation there on its first
@@ -74,7 +78,10 @@ mod kind;
 mod rls;
 
 pub use config::{Backend, KalmanConfig, PAPER_P0, RlsConfig, WindupGuard};
-pub use filter::{compact_covariance_buffer_len, covariance_buffer_len};
+pub use filter::{
+    checked_compact_covariance_buffer_len, checked_covariance_buffer_len,
+    compact_covariance_buffer_len, covariance_buffer_len,
+};
 pub use kalman::KalmanFilter;
 pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;
