@@ -2,8 +2,8 @@
 //! one bad rotor speed and an attitude jump the gyro does not show gets each named by the
 //! file and line the user opens (terminal, JSON, HTML); a merged log names the line of its
 //! time base's stream and says plainly when a channel's line is not known; a quaternion's
-//! sign flip is no glitch; and valid logs give none (the false-alarm count over 50
-//! realistic flights of different seeds, release only).
+//! sign flip is no glitch; and valid logs give none, nor a scale finding (the false-alarm
+//! count over 50 realistic flights of different seeds, release only).
 
 mod common;
 
@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use tagk::diagnose::FlightLog;
 use tagk::diagnose::glitches::screen;
+use tagk::diagnose::scales::check_log;
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tagk-glitch-{name}-{}", std::process::id()));
@@ -199,14 +200,18 @@ fn a_merged_log_names_the_time_base_line_and_says_when_a_line_is_not_known() {
     );
 }
 
-/// The glitches `screen` finds on a log in memory (none expected), with the log's label.
+/// The glitches `screen` finds on a log in memory and the scale checks' findings without a
+/// vehicle or a mass (none expected), with the log's label.
 fn count(label: &str, log: &FlightLog, found: &mut Vec<String>) -> usize {
     let g = screen("", log);
     found.extend(g.iter().map(|g| format!("{label}: {}", g.text())));
+    let f = check_log("", log, None);
+    found.extend(f.iter().map(|f| format!("{label}: {}", f.text())));
     log.len()
 }
 
-/// The false-alarm measurement: 50 realistic simulated flights (seeds 100..150, the README's
+/// The false-alarm measurement of the glitch screen and the scale checks (the gyro's among
+/// them): 50 realistic simulated flights (seeds 100..150, the README's
 /// effects, 20 s each), the README's realistic example and the shipped foreign flight.
 /// Release only (about 15 s).
 #[test]
@@ -214,7 +219,7 @@ fn count(label: &str, log: &FlightLog, found: &mut Vec<String>) -> usize {
     debug_assertions,
     ignore = "release only: cargo test --release --test glitch_screen"
 )]
-fn valid_realistic_logs_give_no_glitch() {
+fn valid_realistic_logs_give_no_glitch_and_no_scale_finding() {
     let dir = tmpdir("valid");
     let mut found = Vec::new();
     let (mut flights, mut samples) = (0, 0);
@@ -287,7 +292,7 @@ fn valid_realistic_logs_give_no_glitch() {
     assert!(!out.contains("glitches:"), "{out}");
     flights += 1;
     println!(
-        "{flights} valid flights, {samples} samples screened in memory: {} glitches",
+        "{flights} valid flights, {samples} samples: {} glitches or scale findings",
         found.len()
     );
     assert!(found.is_empty(), "{}", found.join("\n"));

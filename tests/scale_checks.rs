@@ -76,6 +76,40 @@ fn a_gyro_in_rad_s_read_as_deg_s_is_named() {
     assert_eq!(report.scale_checks[0].severity, Severity::Accepted);
 }
 
+/// Without a vehicle file, on the README's realistic example (whose gyro noise hid the
+/// attitude's rate from a comparison of rates: correlation 0.24): a gyro in rad/s mapped as
+/// deg/s, and one in deg/s mapped as rad/s, are named by the gyro's rotation over windows.
+#[test]
+fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
+    let dir = tmpdir("gyro-realistic");
+    let log = simulate(
+        &dir,
+        &[
+            "--effect",
+            "linear-drag",
+            "--effect",
+            "motor-lag",
+            "--sensing",
+            "realistic",
+            "--yaw-rate",
+            "0.3",
+        ],
+    );
+    assert_eq!(check_log("", &log, None), []);
+    for (factor, cause) in [
+        (1f64.to_radians(), "rad/s mapped as deg/s"),
+        (1f64.to_degrees(), "deg/s mapped as rad/s"),
+    ] {
+        let mut wrong = log.clone();
+        for w in &mut wrong.omega {
+            *w = w.map(|x| x * factor);
+        }
+        let (check, message) = scale_error(wrong);
+        assert_eq!(check, "gyro");
+        assert!(message.contains(cause), "{message}");
+    }
+}
+
 #[test]
 fn an_accelerometer_in_g_read_as_m_s2_is_named_and_accepted_on_request() {
     let dir = tmpdir("accel");
