@@ -110,6 +110,29 @@ fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
     }
 }
 
+/// A log in the project's own format whose `ax..az` hold the world-frame specific force
+/// (`p̈ − g`, +9.81 m/s² on z at hover), as a public benchmark stores them, is refused with
+/// the cause before the fit, as a mapped log is by its reader.
+#[test]
+fn a_native_log_with_the_specific_force_in_ax_az_is_refused() {
+    let dir = tmpdir("native-sf");
+    let mut log = simulate(&dir, &["--sensing", "realistic", "--seed", "8"]);
+    for a in log.accel.as_mut().unwrap() {
+        a[2] += 9.80665;
+    }
+    log.write_csv_path(dir.join("sf.csv")).unwrap();
+    let (ok, _, err) = diagnose(&dir, &["sf.csv", "--quiet"]);
+    assert!(!ok);
+    assert!(err.contains("error (specific-force)"), "{err}");
+    assert!(
+        err.contains("most likely the world-frame specific force"),
+        "{err}"
+    );
+    assert!(err.contains("accel = \"specific-force\""), "{err}");
+    // The valid log reads.
+    assert!(FlightLog::from_csv_path(dir.join("flight.csv")).is_ok());
+}
+
 #[test]
 fn an_accelerometer_in_g_read_as_m_s2_is_named_and_accepted_on_request() {
     let dir = tmpdir("accel");

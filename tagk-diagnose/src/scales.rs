@@ -8,6 +8,7 @@
 //! | `gyro` | the gyro `ω` integrated over windows of [`GYRO_ROTATION_WINDOW`] with the attitude's rotation over them | deg/s ↔ rad/s (57.3), a flipped sign |
 //! | `velocity` | the velocity with the position's derivative | mm/s, cm/s, km/h, ft/s ↔ m/s |
 //! | `accelerometer` | the logged `p̈` with the velocity's derivative | g ↔ m/s² (9.81) |
+//! | `specific-force` | the logged `p̈`'s mean on z with the velocity's change over the log, `Δv_z / T` (off by more than `g/2`) | the world-frame specific force in `ax..az` |
 //! | `thrust` | the mass `fz` implies (`fz` on the proper acceleration `a_z`) with the known or vehicle mass | a thrust or mass in the wrong unit |
 //! | `yaw-torque` | the fitted yaw inertia `I_zz`: negative by [`SIGN_Z`] standard errors with a wrench from the vehicle's rotors | rotor spins swapped |
 //! | `mass` | the fitted mass with the vehicle file's | the accelerations' or the wrench's unit |
@@ -46,6 +47,7 @@ use std::ops::Range;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde::Serialize;
 use tagk_dynamics::GRAVITY_WORLD;
+use tagk_dynamics::log::accel_looks_like_specific_force;
 use tagk_dynamics::vehicle::Vehicle;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3, savitzky_golay_smooth};
@@ -109,8 +111,8 @@ pub enum Severity {
 pub struct ScaleFinding {
     /// The log (its file; empty for a log in memory).
     pub log: String,
-    /// The check: `gyro`, `velocity`, `accelerometer`, `thrust`, `yaw-torque`, `mass`,
-    /// `inertia`.
+    /// The check: `gyro`, `velocity`, `accelerometer`, `specific-force`, `thrust`,
+    /// `yaw-torque`, `mass`, `inertia`.
     pub check: String,
     /// The gain or ratio found (1 when consistent).
     pub ratio: f64,
@@ -550,6 +552,27 @@ pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFin
             |g| format!("the logged acceleration is {g} the velocity's derivative"),
             ACCEL_CAUSES,
         ));
+    }
+    // The logged p̈'s mean against the velocity's change: the specific force has g more.
+    if let Some(a) = &log.accel
+        && let Some((mean_z, from_velocity)) =
+            accel_looks_like_specific_force(a, &log.t, &log.velocity)
+    {
+        out.push(ScaleFinding {
+            log: name.to_string(),
+            check: "specific-force".into(),
+            ratio: (mean_z - from_velocity) / GRAVITY_WORLD.norm(),
+            std_error: None,
+            severity: Severity::Error,
+            message: format!(
+                "the logged acceleration ax, ay, az (p̈) averages {mean_z:.2} m/s² on z over the \
+                 log, while the velocity's change accounts for {from_velocity:.2} m/s²: a \
+                 flight's p̈ cannot average that, so these are most likely the world-frame \
+                 specific force (+9.81 m/s² on z at hover). Remove the columns (p̈ is then \
+                 derived from the velocity), subtract g, or read the file through a column \
+                 mapping with `[frames] accel = \"specific-force\"` (docs/COLUMN_MAPPING.md)"
+            ),
+        });
     }
     if !log.has_wrench() {
         return out;

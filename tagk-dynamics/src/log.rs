@@ -12,7 +12,7 @@
 //! | `qw,qx,qy,qz` | attitude quaternion, Hamilton, body → world | yes |
 //! | `wx,wy,wz` | body angular velocity \[rad/s\] | yes |
 //! | `fx,fy,fz`, `tx,ty,tz` | actuator wrench, body frame, about the origin \[N, N m\] | yes, unless `w1..w4` are given and a [vehicle](crate::vehicle) computes it |
-//! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] | no: derived from velocity if absent |
+//! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] (gravity removed; the diagnosis refuses columns whose mean on z is more than `g/2` from `Δv_z / T` as the specific force, [`accel_looks_like_specific_force`]) | no: derived from velocity if absent |
 //! | `dwx,dwy,dwz` | body angular acceleration \[rad/s²\] | no: derived from `w` if absent |
 //! | `w1..w4` | rotor speeds \[rad/s\] | no |
 //!
@@ -233,6 +233,30 @@ impl std::fmt::Display for Sampling {
         }
         Ok(())
     }
+}
+
+/// `ax..az` read as the world acceleration `p̈` that most likely hold the world-frame specific
+/// force: the mean of `accel` on z over the log and the mean the velocity implies, `Δv_z / T`
+/// \[m/s²\], when they differ by more than `g/2` (a flight's `p̈` averages `Δv / T`; the
+/// specific force averages `+g` more on z). `None` when they agree, or for a log too short or
+/// not sampled in time to tell.
+pub fn accel_looks_like_specific_force(
+    accel: &[[f64; 3]],
+    t: &[f64],
+    velocity: &[[f64; 3]],
+) -> Option<(f64, f64)> {
+    let n = accel.len();
+    if n < 2 || velocity.len() != n || t.len() != n {
+        return None;
+    }
+    let span = t[n - 1] - t[0];
+    if span.is_nan() || span <= 0.0 {
+        return None;
+    }
+    let mean_z = accel.iter().map(|a| a[2]).sum::<f64>() / n as f64;
+    let from_velocity = (velocity[n - 1][2] - velocity[0][2]) / span;
+    ((mean_z - from_velocity).abs() > 0.5 * crate::GRAVITY_WORLD.norm())
+        .then_some((mean_z, from_velocity))
 }
 
 /// Median of the time steps of `t` \[s\] (0 for fewer than two samples).

@@ -2119,23 +2119,12 @@ fn check_accel_is_acceleration(
     velocity: &[[f64; 3]],
     stream: &str,
 ) -> Result<(), InputError> {
-    let n = accel.len();
-    if n < 2 || velocity.len() != n {
-        return Ok(());
-    }
-    let span = t[n - 1] - t[0];
-    if span.is_nan() || span <= 0.0 {
-        return Ok(());
-    }
-    let mean_z = accel.iter().map(|a| a[2]).sum::<f64>() / n as f64;
-    let from_velocity = (velocity[n - 1][2] - velocity[0][2]) / span;
-    let g = GRAVITY_WORLD.norm();
-    if (mean_z - from_velocity).abs() > 0.5 * g {
-        return Err(InputError::AccelLooksLikeSpecificForce {
+    match crate::log::accel_looks_like_specific_force(accel, t, velocity) {
+        Some((mean_z, from_velocity)) => Err(InputError::AccelLooksLikeSpecificForce {
             stream: stream.to_string(),
             mean_z,
             from_velocity,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
