@@ -76,6 +76,63 @@ fn a_gyro_in_rad_s_read_as_deg_s_is_named() {
     assert_eq!(report.scale_checks[0].severity, Severity::Accepted);
 }
 
+/// Without a vehicle file, on the README's realistic example (whose gyro noise hid the
+/// attitude's rate from a comparison of rates: correlation 0.24): a gyro in rad/s mapped as
+/// deg/s, and one in deg/s mapped as rad/s, are named by the gyro's rotation over windows.
+#[test]
+fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
+    let dir = tmpdir("gyro-realistic");
+    let log = simulate(
+        &dir,
+        &[
+            "--effect",
+            "linear-drag",
+            "--effect",
+            "motor-lag",
+            "--sensing",
+            "realistic",
+            "--yaw-rate",
+            "0.3",
+        ],
+    );
+    assert_eq!(check_log("", &log, None), []);
+    for (factor, cause) in [
+        (1f64.to_radians(), "rad/s mapped as deg/s"),
+        (1f64.to_degrees(), "deg/s mapped as rad/s"),
+    ] {
+        let mut wrong = log.clone();
+        for w in &mut wrong.omega {
+            *w = w.map(|x| x * factor);
+        }
+        let (check, message) = scale_error(wrong);
+        assert_eq!(check, "gyro");
+        assert!(message.contains(cause), "{message}");
+    }
+}
+
+/// A log in the project's own format whose `ax..az` hold the world-frame specific force
+/// (`p̈ − g`, +9.81 m/s² on z at hover), as a public benchmark stores them, is refused with
+/// the cause before the fit, as a mapped log is by its reader.
+#[test]
+fn a_native_log_with_the_specific_force_in_ax_az_is_refused() {
+    let dir = tmpdir("native-sf");
+    let mut log = simulate(&dir, &["--sensing", "realistic", "--seed", "8"]);
+    for a in log.accel.as_mut().unwrap() {
+        a[2] += 9.80665;
+    }
+    log.write_csv_path(dir.join("sf.csv")).unwrap();
+    let (ok, _, err) = diagnose(&dir, &["sf.csv", "--quiet"]);
+    assert!(!ok);
+    assert!(err.contains("error (specific-force)"), "{err}");
+    assert!(
+        err.contains("most likely the world-frame specific force"),
+        "{err}"
+    );
+    assert!(err.contains("accel = \"specific-force\""), "{err}");
+    // The valid log reads.
+    assert!(FlightLog::from_csv_path(dir.join("flight.csv")).is_ok());
+}
+
 #[test]
 fn an_accelerometer_in_g_read_as_m_s2_is_named_and_accepted_on_request() {
     let dir = tmpdir("accel");
@@ -215,13 +272,15 @@ fn one_glitch_of_30_n_in_fz_is_excluded_and_named() {
     let (out, json, html) = glitch_report(&dir, "30");
     assert!(out.contains("glitches: 1 sample excluded"), "{out}");
     assert!(
-        out.contains("fz = 30 N at t = 5.990 s (sample 299"),
+        out.contains("fz = 30 N at glitch.csv:301 (t = 5.990 s, sample 299;"),
         "{out}"
     );
     assert_eq!(json["glitches"][0]["channel"], "fz");
     assert_eq!(json["glitches"][0]["sample"], 299);
+    assert_eq!(json["glitches"][0]["line"], 301);
+    assert_eq!(json["glitches"][0]["file"], "glitch.csv");
     assert!(html.contains("id=\"glitch-list\""));
-    assert!(html.contains("fz = 30 N at t = 5.990 s"));
+    assert!(html.contains("fz = 30 N at glitch.csv:301 (t = 5.990 s"));
     // The mass is the clean log's, within its interval.
     let clean = clean.run().unwrap();
     let m = |p: &serde_json::Value| p["before"]["parameters"][0]["value"].as_f64().unwrap();
@@ -238,8 +297,8 @@ fn one_glitch_of_30_n_in_fz_is_excluded_and_named() {
 fn one_glitch_of_1e300_in_fz_is_excluded_and_named() {
     let dir = tmpdir("glitch300");
     let (out, json, html) = glitch_report(&dir, "1e300");
-    assert!(out.contains("fz = 1.000e300 N at t = 5.990 s"), "{out}");
-    assert!(html.contains("fz = 1.000e300 N"));
+    assert!(out.contains("fz = 1.000e300 N at glitch.csv:301"), "{out}");
+    assert!(html.contains("fz = 1.000e300 N at glitch.csv:301"));
     let m = json["before"]["parameters"][0]["value"].as_f64().unwrap();
     assert!((0.03..0.04).contains(&m), "mass {m}");
     let floor = json["noise_floor"]["rms"][2].as_f64().unwrap();

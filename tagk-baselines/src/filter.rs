@@ -51,8 +51,19 @@ use crate::Backend;
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; covariance_buffer_len(120, 30)]`.
 /// [`compact_covariance_buffer_len`] is about `n²` scalars less, without the fallback.
+/// Saturates at `usize::MAX` where the length overflows (no buffer is that long, so such sizes
+/// are refused); [`checked_covariance_buffer_len`] says so with `None`.
 pub const fn covariance_buffer_len(n: usize, m_max: usize) -> usize {
-    2 * n * n + 4 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
+    match checked_covariance_buffer_len(n, m_max) {
+        Some(len) => len,
+        None => usize::MAX,
+    }
+}
+
+/// [`covariance_buffer_len`] in checked arithmetic: `None` when the length overflows a
+/// `usize` (the constructors then return [`ConfigError::TooLarge`]).
+pub const fn checked_covariance_buffer_len(n: usize, m_max: usize) -> Option<usize> {
+    checked_buffer_len(n, m_max, true)
 }
 
 /// Length of the smallest buffer an [`Rls`](crate::Rls) or
@@ -66,21 +77,40 @@ pub const fn covariance_buffer_len(n: usize, m_max: usize) -> usize {
 /// [`EstimatorError::NumericalFailure`] and leaves the filter as it was. Every other window
 /// gives the same bits as with the full buffer. This suits memory-bound targets, such as the
 /// Cortex-M7 firmware of `tagk-mcu`. [`Backend::Faer`] needs the full buffer.
+/// It saturates at `usize::MAX` where the length overflows;
+/// [`checked_compact_covariance_buffer_len`] says so with `None`.
 pub const fn compact_covariance_buffer_len(n: usize, m_max: usize) -> usize {
-    n * n + 3 * n + 2 * m_max * n + m_max * m_max + 3 * m_max
+    match checked_compact_covariance_buffer_len(n, m_max) {
+        Some(len) => len,
+        None => usize::MAX,
+    }
+}
+
+/// [`compact_covariance_buffer_len`] in checked arithmetic: `None` when the length overflows
+/// a `usize` (the constructors then return [`ConfigError::TooLarge`]).
+pub const fn checked_compact_covariance_buffer_len(n: usize, m_max: usize) -> Option<usize> {
+    checked_buffer_len(n, m_max, false)
 }
 
 /// [`covariance_buffer_len`] (with the fallback) or [`compact_covariance_buffer_len`]
-/// (without) without overflow.
-pub(crate) fn checked_buffer_len(n: usize, m: usize, fallback: bool) -> Option<usize> {
-    let extra = usize::from(fallback);
-    let nn = n.checked_mul(n)?.checked_mul(1 + extra)?;
-    let mn = m.checked_mul(n)?.checked_mul(2)?;
-    let mm = m.checked_mul(m)?;
-    nn.checked_add(mn)?
-        .checked_add(mm)?
-        .checked_add(n.checked_mul(3 + extra)?)?
-        .checked_add(m.checked_mul(3)?)
+/// (without) in checked arithmetic: `(1 + f)n² + (3 + f)n + 2mn + m² + 3m`, `f = fallback`.
+pub(crate) const fn checked_buffer_len(n: usize, m: usize, fallback: bool) -> Option<usize> {
+    /// `?` for `Option` in a `const fn`.
+    macro_rules! ok {
+        ($e:expr) => {
+            match $e {
+                Some(v) => v,
+                None => return None,
+            }
+        };
+    }
+    let extra = fallback as usize;
+    let nn = ok!(ok!(n.checked_mul(n)).checked_mul(1 + extra));
+    let mn = ok!(ok!(m.checked_mul(n)).checked_mul(2));
+    let mm = ok!(m.checked_mul(m));
+    let sum = ok!(ok!(nn.checked_add(mn)).checked_add(mm));
+    let sum = ok!(sum.checked_add(ok!(n.checked_mul(3 + extra))));
+    sum.checked_add(ok!(m.checked_mul(3)))
 }
 
 /// The fallback threshold (see the module docs): `P⁺_kk ≤ CANCELLATION · P̃_kk` means fewer

@@ -49,6 +49,11 @@
 //! then refused with [`EstimatorError::NumericalFailure`] and the state is kept. All others
 //! give the same bits ([`Rls::has_information_fallback`]).
 //!
+//! Both lengths are `const fn`s that saturate at `usize::MAX` where they overflow. No buffer
+//! is that long: the constructors refuse it with [`ConfigError::TooLarge`].
+//! [`checked_covariance_buffer_len`] and [`checked_compact_covariance_buffer_len`] return
+//! `None` there.
+//!
 //! With [`Backend::Faer`], faer additionally keeps per-thread packing buffers, sized by the L3
 //! cache. It allocates them on first use in a thread. The constructor runs one dummy update so
 //! they exist for the constructing thread. An estimator moved to another thread triggers that
@@ -78,7 +83,10 @@ mod kind;
 mod rls;
 
 pub use config::{Backend, KalmanConfig, PAPER_P0, RlsConfig, WindupGuard};
-pub use filter::{compact_covariance_buffer_len, covariance_buffer_len};
+pub use filter::{
+    checked_compact_covariance_buffer_len, checked_covariance_buffer_len,
+    compact_covariance_buffer_len, covariance_buffer_len,
+};
 pub use kalman::KalmanFilter;
 pub use kind::{EstimatorKind, UnknownEstimator};
 pub use rls::Rls;

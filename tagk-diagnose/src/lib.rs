@@ -41,7 +41,7 @@ pub use effects::{
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
 pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
-pub use glitches::Glitch;
+pub use glitches::{Glitch, SampleSource};
 pub use log::{FlightLog, LogSample};
 pub use log_params::{
     LOG_CONSISTENCY_EFFECT_FACTOR, LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter,

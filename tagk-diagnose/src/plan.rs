@@ -16,6 +16,7 @@ use crate::diagnose::DiagnoseOptions;
 use crate::effects::{CustomEffect, Effect, EffectRef, builtin, builtin_by_name};
 use crate::error::{DiagnoseError, LogError};
 use crate::fit::Model;
+use crate::glitches::SampleSource;
 use crate::log::{FlightLog, MIN_ROWS};
 use crate::online::{OnlineOptions, online_pass_with};
 use crate::report::{Report, run_logs, run_loop};
@@ -162,6 +163,9 @@ pub struct Flight {
     /// How the streams were merged, when read through a mapping
     /// ([`tagk_dynamics::log_input::read_streams`]).
     pub merge: Option<MergeReport>,
+    /// The file and line each sample was read from, when read from files: the glitches
+    /// name them ([`crate::glitches`]).
+    pub source: Option<SampleSource>,
 }
 
 /// One input of a plan: a flight in memory, or the files of one.
@@ -327,6 +331,7 @@ impl DiagnosisPlan {
             name: name.into(),
             log,
             merge: None,
+            source: None,
         })));
         self
     }
@@ -623,11 +628,16 @@ impl DiagnosisPlan {
             let flight = match input {
                 Input::Flight(flight) => *flight,
                 Input::File(path) => match &self.columns {
-                    None => Flight {
-                        name: path.display().to_string(),
-                        log: FlightLog::from_csv_path(&path)?,
-                        merge: None,
-                    },
+                    None => {
+                        let name = path.display().to_string();
+                        let (log, lines) = FlightLog::from_csv_path_with_lines(&path)?;
+                        Flight {
+                            source: Some(SampleSource::of_file(name.clone(), lines)),
+                            name,
+                            log,
+                            merge: None,
+                        }
+                    }
                     Some(_) => self.read_streams(std::slice::from_ref(&path))?,
                 },
                 Input::Streams(paths) => self.read_streams(&paths)?,
@@ -644,16 +654,31 @@ impl DiagnosisPlan {
         let options = ReadOptions {
             vehicle: self.vehicle.as_ref(),
         };
-        let (log, merge) = read_streams(paths, mapping, &options)?;
+        let (log, mut merge) = read_streams(paths, mapping, &options)?;
         let name = paths
             .iter()
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", ");
+        // The primary stream by the path given (the merge names streams by file name).
+        let file = paths
+            .iter()
+            .find(|p| {
+                p.file_name()
+                    .is_some_and(|f| f.to_string_lossy() == merge.primary)
+            })
+            .map_or_else(|| merge.primary.clone(), |p| p.display().to_string());
+        let source = SampleSource {
+            file,
+            lines: std::mem::take(&mut merge.lines),
+            primary: merge.primary.clone(),
+            sources: merge.sources.clone(),
+        };
         Ok(Flight {
             name,
             log,
             merge: Some(merge),
+            source: Some(source),
         })
     }
 
@@ -729,19 +754,21 @@ impl DiagnosisPlan {
 
     /// A flight's log ready to fit, and what was found on the way: the wrench from the rotor
     /// speeds if the log has none ([`log_with_wrench`]), the sampling findings (named
-    /// `label`), the glitches excluded ([`crate::glitches`]), the resampling, the stream
-    /// alignment and the scale checks ([`DiagnosisPlan::check_scales`]). The wrench's errors
-    /// pass through `wrench_error`, the resampling's and the alignment's through `error`.
+    /// `label`), the glitches excluded ([`crate::glitches`], located by `source`), the
+    /// resampling, the stream alignment and the scale checks ([`DiagnosisPlan::check_scales`]).
+    /// The wrench's errors pass through `wrench_error`, the resampling's and the alignment's
+    /// through `error`.
     fn condition(
         &self,
         label: &str,
         log: FlightLog,
+        source: Option<&SampleSource>,
         wrench_error: impl FnOnce(DiagnoseError) -> DiagnoseError,
         error: impl Fn(DiagnoseError) -> DiagnoseError,
     ) -> Result<Conditioned, DiagnoseError> {
         let log = log_with_wrench(log, self.vehicle.as_ref()).map_err(wrench_error)?;
         let sampling = SamplingFindings::of(label, &log, self.resample);
-        let glitches = crate::glitches::screen(label, &log);
+        let glitches = crate::glitches::screen_located(label, &log, source);
         let (log, excluded) = crate::glitches::exclude(log, &glitches);
         let log = match self.resample {
             Some(dt) => log.resample_linear(dt).map_err(|e| error(e.into()))?,
@@ -797,7 +824,7 @@ impl DiagnosisPlan {
             name => in_file(name, e),
         };
         let from_rotor_speeds = !flight.log.has_wrench() || flight.log.rotor_speeds.is_some();
-        let c = self.condition("", flight.log, wrench_error, |e| e)?;
+        let c = self.condition("", flight.log, flight.source.as_ref(), wrench_error, |e| e)?;
         let (s, _) = Signals::from_owned_log_split(c.log)?;
         let mut report = run_loop(&s, &plan.base, &plan.with, &plan.options)?;
         let mut findings = c.scale_checks;
@@ -836,11 +863,17 @@ impl DiagnosisPlan {
         let mut glitches = Vec::new();
         let mut excluded = 0;
         let mut from_rotor_speeds = false;
-        for Flight { name, log, merge } in flights {
+        for Flight {
+            name,
+            log,
+            merge,
+            source,
+        } in flights
+        {
             inputs.extend(merge);
             let in_file = |e: DiagnoseError| in_file(&name, e);
             from_rotor_speeds |= !log.has_wrench() || log.rotor_speeds.is_some();
-            let c = self.condition(&name, log, in_file, in_file)?;
+            let c = self.condition(&name, log, source.as_ref(), in_file, in_file)?;
             let (log, timing) = (c.log, c.streams);
             offsets.extend(c.accelerometer_offset);
             sampling.push(c.sampling);

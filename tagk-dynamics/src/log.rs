@@ -12,7 +12,7 @@
 //! | `qw,qx,qy,qz` | attitude quaternion, Hamilton, body → world | yes |
 //! | `wx,wy,wz` | body angular velocity \[rad/s\] | yes |
 //! | `fx,fy,fz`, `tx,ty,tz` | actuator wrench, body frame, about the origin \[N, N m\] | yes, unless `w1..w4` are given and a [vehicle](crate::vehicle) computes it |
-//! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] | no: derived from velocity if absent |
+//! | `ax,ay,az` | world linear acceleration `p̈` \[m/s²\] (gravity removed; the diagnosis refuses columns whose mean on z is more than `g/2` from `Δv_z / T` as the specific force, [`accel_looks_like_specific_force`]) | no: derived from velocity if absent |
 //! | `dwx,dwy,dwz` | body angular acceleration \[rad/s²\] | no: derived from `w` if absent |
 //! | `w1..w4` | rotor speeds \[rad/s\] | no |
 //!
@@ -233,6 +233,30 @@ impl std::fmt::Display for Sampling {
         }
         Ok(())
     }
+}
+
+/// `ax..az` read as the world acceleration `p̈` that most likely hold the world-frame specific
+/// force: the mean of `accel` on z over the log and the mean the velocity implies, `Δv_z / T`
+/// \[m/s²\], when they differ by more than `g/2` (a flight's `p̈` averages `Δv / T`; the
+/// specific force averages `+g` more on z). `None` when they agree, or for a log too short or
+/// not sampled in time to tell.
+pub fn accel_looks_like_specific_force(
+    accel: &[[f64; 3]],
+    t: &[f64],
+    velocity: &[[f64; 3]],
+) -> Option<(f64, f64)> {
+    let n = accel.len();
+    if n < 2 || velocity.len() != n || t.len() != n {
+        return None;
+    }
+    let span = t[n - 1] - t[0];
+    if span.is_nan() || span <= 0.0 {
+        return None;
+    }
+    let mean_z = accel.iter().map(|a| a[2]).sum::<f64>() / n as f64;
+    let from_velocity = (velocity[n - 1][2] - velocity[0][2]) / span;
+    ((mean_z - from_velocity).abs() > 0.5 * crate::GRAVITY_WORLD.norm())
+        .then_some((mean_z, from_velocity))
 }
 
 /// Median of the time steps of `t` \[s\] (0 for fewer than two samples).
@@ -663,9 +687,20 @@ impl FlightLog {
     /// [`FlightLog::from_csv_reader`] wrapped in [`LogError::InFile`] (so that the message
     /// names the file as well as the line and column).
     pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
+        Self::from_csv_path_with_lines(path).map(|(log, _)| log)
+    }
+
+    /// [`FlightLog::from_csv_path`], with the CSV line (1-based; the header is line 1) each
+    /// sample was read from: a report can then name the line a user opens.
+    ///
+    /// # Errors
+    /// As [`FlightLog::from_csv_path`].
+    pub fn from_csv_path_with_lines(
+        path: impl AsRef<Path>,
+    ) -> Result<(Self, Vec<usize>), LogError> {
         let path = path.as_ref();
         let file = open_log_file(path)?;
-        Self::from_csv_reader(std::io::BufReader::new(file))
+        Self::read_csv(std::io::BufReader::new(file))
             .map_err(|e| LogError::in_file(path.display().to_string(), e))
     }
 
@@ -678,6 +713,11 @@ impl FlightLog {
     /// # Errors
     /// A [`LogError`] naming the line and column of the first problem.
     pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
+        Self::read_csv(reader).map(|(log, _)| log)
+    }
+
+    /// [`FlightLog::from_csv_reader`], with the CSV line of each sample.
+    fn read_csv<R: Read>(reader: R) -> Result<(Self, Vec<usize>), LogError> {
         let mut rows = NumericRows::new(reader)?;
         let header = rows.header.clone();
         let idx = |name: &str| header.iter().position(|h| h == name);
@@ -735,7 +775,9 @@ impl FlightLog {
             ..FlightLog::default()
         };
         let mut values = vec![0.0; header.len()];
+        let mut lines = Vec::new();
         while let Some(line) = rows.next_into(&mut values)? {
+            lines.push(line);
             let v = |k: usize| values[req[k]];
             let t = v(0);
             if let Some(&prev) = log.t.last()
@@ -783,7 +825,7 @@ impl FlightLog {
                 needed: MIN_ROWS,
             });
         }
-        Ok(log)
+        Ok((log, lines))
     }
 
     /// Checks what writing needs: equal signal lengths and strictly increasing time (a log

@@ -1140,6 +1140,11 @@ pub struct MergeReport {
     /// Warnings in plain words (many samples dropped, renormalised quaternions, a mapped
     /// optional quantity that no stream has, a stream that provides nothing).
     pub warnings: Vec<String>,
+    /// The primary stream's CSV line (1-based; the header is line 1) of each sample of the
+    /// merged log. Quantities of another stream are interpolated onto these samples: their
+    /// own lines are not these. Not serialised (one number per sample).
+    #[serde(skip)]
+    pub lines: Vec<usize>,
 }
 
 impl MergeReport {
@@ -1237,6 +1242,8 @@ struct Stream {
     unread: Vec<UnreadColumn>,
     /// The largest `|‖q‖ − 1|` divided out of its attitude (0 without).
     renormalised: f64,
+    /// The CSV line of each sample (1-based; the header is line 1).
+    lines: Vec<usize>,
 }
 
 fn file_name(path: &Path) -> String {
@@ -1444,6 +1451,7 @@ impl ColumnMapping {
             found,
             unread,
             renormalised,
+            lines,
         };
         self.convert_frames(&mut s);
         if self.accel == AccelColumns::WorldSpecificForce
@@ -2091,6 +2099,7 @@ pub fn read_streams(
     for (name, v) in &streams[0].extra {
         log.add_extra(name, kept.iter().map(|&i| v[i]).collect());
     }
+    report.lines = kept.iter().map(|&i| streams[0].lines[i]).collect();
     log.validate().map_err(|e| match e {
         LogError::TooShort { .. } => e,
         other => LogError::in_file(
@@ -2110,23 +2119,12 @@ fn check_accel_is_acceleration(
     velocity: &[[f64; 3]],
     stream: &str,
 ) -> Result<(), InputError> {
-    let n = accel.len();
-    if n < 2 || velocity.len() != n {
-        return Ok(());
-    }
-    let span = t[n - 1] - t[0];
-    if span.is_nan() || span <= 0.0 {
-        return Ok(());
-    }
-    let mean_z = accel.iter().map(|a| a[2]).sum::<f64>() / n as f64;
-    let from_velocity = (velocity[n - 1][2] - velocity[0][2]) / span;
-    let g = GRAVITY_WORLD.norm();
-    if (mean_z - from_velocity).abs() > 0.5 * g {
-        return Err(InputError::AccelLooksLikeSpecificForce {
+    match crate::log::accel_looks_like_specific_force(accel, t, velocity) {
+        Some((mean_z, from_velocity)) => Err(InputError::AccelLooksLikeSpecificForce {
             stream: stream.to_string(),
             mean_z,
             from_velocity,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }

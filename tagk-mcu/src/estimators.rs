@@ -30,7 +30,8 @@ use tagk_core::{
 
 /// Scalars of storage the estimator `kind` needs for dimension `n` and windows of up to `m`
 /// rows ([`compact_covariance_buffer_len`]: no information-form fallback, see the
-/// [module docs](self); or [`kaczmarz_buffer_len`]).
+/// [module docs](self); or [`kaczmarz_buffer_len`]). Saturates at `usize::MAX` where the
+/// length overflows, as they do.
 pub const fn buffer_len(kind: EstimatorKind, n: usize, m: usize) -> usize {
     if kind.is_kaczmarz() {
         kaczmarz_buffer_len(n, m)
@@ -41,10 +42,12 @@ pub const fn buffer_len(kind: EstimatorKind, n: usize, m: usize) -> usize {
 
 /// Bytes of RAM one estimator `kind` occupies with scalars of type `T`: its buffer plus the
 /// estimator value itself (configuration, sizes, TAG-K's random generator). The window `A`,
-/// `b` (`(m n + m)` scalars, shared by all) is not included.
+/// `b` (`(m n + m)` scalars, shared by all) is not included. Saturates at `usize::MAX`
+/// where the size overflows.
 pub const fn state_bytes<T: Real>(kind: EstimatorKind, n: usize, m: usize) -> usize {
-    buffer_len(kind, n, m) * core::mem::size_of::<T>()
-        + match kind {
+    buffer_len(kind, n, m)
+        .saturating_mul(core::mem::size_of::<T>())
+        .saturating_add(match kind {
             EstimatorKind::RlsLow | EstimatorKind::RlsHigh => {
                 core::mem::size_of::<Rls<T, &'static mut [T]>>()
             }
@@ -52,7 +55,7 @@ pub const fn state_bytes<T: Real>(kind: EstimatorKind, n: usize, m: usize) -> us
                 core::mem::size_of::<KalmanFilter<T, &'static mut [T]>>()
             }
             _ => core::mem::size_of::<TagK<T, &'static mut [T]>>(),
-        }
+        })
 }
 
 /// One of the Table III estimators over a borrowed buffer, behind [`OnlineEstimator`].

@@ -25,6 +25,7 @@ pub use harness::{
 // tagk-core, RLS and the Kalman filter from tagk-baselines (its portable `no_std` kernel).
 pub use tagk_baselines::{
     EstimatorKind, KalmanConfig, KalmanFilter, Rls, RlsConfig, WindupGuard,
+    checked_compact_covariance_buffer_len, checked_covariance_buffer_len,
     compact_covariance_buffer_len, covariance_buffer_len,
 };
 pub use tagk_core::{
