@@ -95,6 +95,8 @@ fn the_readme_realistic_example_names_the_drag_the_lag_and_the_sensor_offset() {
         (mass - CRAZYFLIE_MASS).abs() <= 0.01 * CRAZYFLIE_MASS,
         "mass {mass}\n{text}"
     );
+    // The final model holds the plant's effects and the sensor's offset: it is at its noise.
+    assert_eq!(json["adequate"].as_bool(), Some(true), "{text}");
     for (j, truth) in [(4, CRAZYFLIE_INERTIA[0]), (6, CRAZYFLIE_INERTIA[2])] {
         let value = last[j]["value"].as_f64().unwrap();
         assert!(
