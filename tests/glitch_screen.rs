@@ -162,22 +162,10 @@ fn a_merged_log_names_the_time_base_line_and_says_when_a_line_is_not_known() {
     let out = common::tagk_in(
         &dir,
         &[
-            "diagnose",
-            "--columns",
-            "map.toml",
-            "--vehicle",
-            "crazyflie-2.1",
-            "--stream",
-            "imu.csv",
-            "--stream",
-            "motors.csv",
-            "--stream",
-            "mocap.csv",
-            "--json",
-            "d.json",
-            "--max-steps",
-            "0",
-        ],
+            common::FOREIGN_FLIGHT,
+            &["--json", "d.json", "--max-steps", "0"],
+        ]
+        .concat(),
     );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("d.json")).unwrap()).unwrap();
@@ -228,22 +216,11 @@ fn valid_realistic_logs_give_no_glitch_and_no_scale_finding() {
         common::tagk_in(
             &dir,
             &[
-                "simulate",
-                "--duration",
-                "20",
-                "--effect",
-                "linear-drag",
-                "--effect",
-                "motor-lag",
-                "--sensing",
-                "realistic",
-                "--yaw-rate",
-                "0.3",
-                "--seed",
-                &seed,
-                "-o",
-                "flight.csv",
-            ],
+                &["simulate", "--duration", "20"][..],
+                common::README_REALISTIC,
+                &["--seed", &seed, "-o", "flight.csv"],
+            ]
+            .concat(),
         );
         let log = FlightLog::from_csv_path(dir.join("flight.csv")).unwrap();
         samples += count(&format!("seed {seed}"), &log, &mut found);
@@ -253,18 +230,11 @@ fn valid_realistic_logs_give_no_glitch_and_no_scale_finding() {
     common::tagk_in(
         &dir,
         &[
-            "simulate",
-            "--effect",
-            "linear-drag",
-            "--effect",
-            "motor-lag",
-            "--sensing",
-            "realistic",
-            "--yaw-rate",
-            "0.3",
-            "-o",
-            "readme.csv",
-        ],
+            &["simulate"][..],
+            common::README_REALISTIC,
+            &["-o", "readme.csv"],
+        ]
+        .concat(),
     );
     let log = FlightLog::from_csv_path(dir.join("readme.csv")).unwrap();
     samples += count("README", &log, &mut found);
@@ -273,21 +243,7 @@ fn valid_realistic_logs_give_no_glitch_and_no_scale_finding() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/data/foreign-flight");
     let out = common::tagk_in(
         &src,
-        &[
-            "diagnose",
-            "--columns",
-            "map.toml",
-            "--vehicle",
-            "crazyflie-2.1",
-            "--stream",
-            "imu.csv",
-            "--stream",
-            "motors.csv",
-            "--stream",
-            "mocap.csv",
-            "--max-steps",
-            "0",
-        ],
+        &[common::FOREIGN_FLIGHT, &["--max-steps", "0"]].concat(),
     );
     assert!(!out.contains("glitches:"), "{out}");
     flights += 1;

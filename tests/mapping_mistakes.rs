@@ -3,6 +3,8 @@
 //! `tagk diagnose` refuses with a message naming the cause on its standard error, or warns in
 //! the terminal, the JSON and the HTML report.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -49,19 +51,7 @@ fn rewrite_motors(dir: &Path, f: impl Fn(usize, Vec<f64>) -> Option<Vec<f64>>) {
 
 /// `tagk diagnose` on the three streams in `dir` with `extra` arguments.
 fn diagnose(dir: &Path, extra: &[&str]) -> Output {
-    let mut args = vec![
-        "diagnose",
-        "--columns",
-        "map.toml",
-        "--vehicle",
-        "crazyflie-2.1",
-        "--stream",
-        "imu.csv",
-        "--stream",
-        "motors.csv",
-        "--stream",
-        "mocap.csv",
-    ];
+    let mut args = common::FOREIGN_FLIGHT.to_vec();
     args.extend(extra);
     Command::new(env!("CARGO_BIN_EXE_tagk"))
         .args(&args)

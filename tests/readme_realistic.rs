@@ -27,18 +27,11 @@ fn the_readme_realistic_example_names_the_drag_the_lag_and_the_sensor_offset() {
     common::tagk_in(
         &dir,
         &[
-            "simulate",
-            "--effect",
-            "linear-drag",
-            "--effect",
-            "motor-lag",
-            "--sensing",
-            "realistic",
-            "--yaw-rate",
-            "0.3",
-            "-o",
-            "flight.csv",
-        ],
+            &["simulate"][..],
+            common::README_REALISTIC,
+            &["-o", "flight.csv"],
+        ]
+        .concat(),
     );
     let text = common::tagk_in(&dir, &["diagnose", "flight.csv", "--json", "d.json"]);
     let json: serde_json::Value =

@@ -82,19 +82,7 @@ fn a_gyro_in_rad_s_read_as_deg_s_is_named() {
 #[test]
 fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
     let dir = tmpdir("gyro-realistic");
-    let log = simulate(
-        &dir,
-        &[
-            "--effect",
-            "linear-drag",
-            "--effect",
-            "motor-lag",
-            "--sensing",
-            "realistic",
-            "--yaw-rate",
-            "0.3",
-        ],
-    );
+    let log = simulate(&dir, common::README_REALISTIC);
     assert_eq!(check_log("", &log, None), []);
     for (factor, cause) in [
         (1f64.to_radians(), "rad/s mapped as deg/s"),
@@ -311,18 +299,7 @@ fn realistic_logs_raise_no_scale_finding_and_no_glitch() {
     for seed in ["1", "2", "5"] {
         let log = simulate(
             &dir,
-            &[
-                "--effect",
-                "linear-drag",
-                "--effect",
-                "motor-lag",
-                "--sensing",
-                "realistic",
-                "--yaw-rate",
-                "0.3",
-                "--seed",
-                seed,
-            ],
+            &[common::README_REALISTIC, &["--seed", seed]].concat(),
         );
         assert_eq!(screen("", &log), [], "seed {seed}");
         let findings = check_log("", &log, Some(0.035));

@@ -1,5 +1,8 @@
 //! Helpers shared by the root package's integration tests.
 
+// Each test crate includes this module and uses only some of it.
+#![allow(dead_code)]
+
 use std::path::Path;
 use std::process::Command;
 
@@ -18,3 +21,32 @@ pub fn tagk_in(dir: &Path, args: &[&str]) -> String {
     );
     String::from_utf8(out.stdout).unwrap()
 }
+
+/// The README's realistic example: the plant's effects and the sensing, as `tagk simulate`
+/// arguments (README, "On the README's realistic example").
+pub const README_REALISTIC: &[&str] = &[
+    "--effect",
+    "linear-drag",
+    "--effect",
+    "motor-lag",
+    "--sensing",
+    "realistic",
+    "--yaw-rate",
+    "0.3",
+];
+
+/// `tagk diagnose` of the shipped foreign flight (`examples/data/foreign-flight`): its
+/// mapping, the vehicle and its three streams.
+pub const FOREIGN_FLIGHT: &[&str] = &[
+    "diagnose",
+    "--columns",
+    "map.toml",
+    "--vehicle",
+    "crazyflie-2.1",
+    "--stream",
+    "imu.csv",
+    "--stream",
+    "motors.csv",
+    "--stream",
+    "mocap.csv",
+];
