@@ -1,6 +1,6 @@
 //! Several logs of one vehicle: each log's own parameters under the joint model, against the
-//! other logs'. A log of another vehicle state (a payload, another battery, a velocity logged
-//! in mm/s) is so named and left out instead of blended into one mass.
+//! other logs'. This names a log of another vehicle state (a payload, another battery, a
+//! velocity logged in mm/s) and leaves it out instead of blending it into one mass.
 //!
 //! The final joint model is fitted on each log alone ([`crate::fit_model`]). Its mass (when
 //! fitted) and every effect coefficient with a standard error are compared across the logs.
