@@ -152,9 +152,9 @@ pub const MAX_MOTOR_LAG: f64 = 0.06;
 
 /// The LQR weights every benchmark flight is flown with: `tagk_control::LqrWeights::crazyflie`
 /// (Bryson's rule) with the roll and pitch tolerance doubled to 0.2 rad and the rotor-thrust
-/// tolerance cut to 2.5 mN (`R_ii = 1.6e5`). It is a gentler attitude loop, as a flight
-/// controller tuned to slow motors has. It has a stiffer height loop (5 mm, 2.5 cm/s), so that
-/// a thrust gain the controller does not know cannot drop the vehicle. The simulator's LQR
+/// tolerance cut to 2.5 mN (`R_ii = 1.6e5`). These weights make a gentler attitude loop, as a
+/// flight controller tuned to slow motors has. They make a stiffer height loop (5 mm,
+/// 2.5 cm/s), so that a thrust gain the controller does not know cannot drop the vehicle. The simulator's LQR
 /// knows no actuator dynamics. Its default tracking design (`tagk_sim::sim::tracking_weights`)
 /// loses every flight to a motor lag of 25 ms or more (`LqrWeights::crazyflie` from 40 ms).
 /// In 20 benchmark draws per case (oracle controller), with these weights (and
