@@ -18,10 +18,10 @@ use crate::dynamics::vehicle::Vehicle;
 pub struct DiagnoseArgs {
     /// Flight log(s) (CSV: columns, units and frames as in docs/CONVENTIONS.md §6 of the tagk
     /// repository). With --columns each is read through the column mapping. Several logs of
-    /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients), and
-    /// each log's own staircase and parameters are compared with the joint ones: a log whose
-    /// mass or effect coefficients differ beyond their intervals (another vehicle state) is
-    /// named and left out of the joint fit. The same data twice is refused.
+    /// one vehicle are diagnosed jointly (one set of parameters and effect coefficients). Each
+    /// log's own staircase and parameters are compared with the joint ones. A log whose mass or
+    /// effect coefficients differ beyond their intervals (another vehicle state) is named and left
+    /// out of the joint fit. The same data twice is refused.
     #[arg(value_name = "LOG", required_unless_present_any = ["stream", "columns"])]
     pub logs: Vec<PathBuf>,
     /// Column mapping (TOML, docs/COLUMN_MAPPING.md): column names, units, quaternion order,
@@ -214,20 +214,22 @@ impl DiagnoseArgs {
     }
 
     /// The command line that reproduces the final model of a report ([`Self::command_args`]),
-    /// safe to paste into a POSIX shell: every argument with a character outside
-    /// `[A-Za-z0-9_./=,:@%+-]` (a file name with a space, `;` or `$(…)`, a `--custom`
-    /// specification with `*`) is single-quoted ([`shell_join`]).
+    /// safe to paste into a POSIX shell. Every argument with a character outside
+    /// `[A-Za-z0-9_./=,:@%+-]` is single-quoted ([`shell_join`]): a file name with a space, `;`
+    /// or `$(…)`, a `--custom` specification with `*`.
     pub fn command_for(&self, effects: &[String]) -> String {
         shell_join(self.command_args(effects))
     }
 }
 
 impl DiagnoseArgs {
-    /// The command to run after this report, and why: with the effects the stepwise search
-    /// added, the same command with `--with` all of them (before/after on the same log);
-    /// otherwise, without `--report`, the same command with `--report` (the residual plots);
-    /// otherwise with `--online` (does TAG-K converge to the fit?); then the model on a second
-    /// flight (a joint diagnosis of several logs).
+    /// The command to run after this report, and why:
+    ///
+    /// - with the effects the stepwise search added, the same command with `--with` all of them
+    ///   (before/after on the same log);
+    /// - otherwise, without `--report`, the same command with `--report` (the residual plots);
+    /// - otherwise with `--online` (does TAG-K converge to the fit?);
+    /// - then the model on a second flight (a joint diagnosis of several logs).
     pub fn next_step(&self, report: &Report) -> NextStep {
         let effects = &report.final_model.effects;
         let report_dir = self.report.as_ref().map_or_else(
@@ -456,8 +458,8 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
 }
 
 /// Checks the `--json` and `--report` destinations before any work, so that a typo in them
-/// costs no fit: the JSON file's directory must exist and the file must not be a directory;
-/// the report directory is created (with its parents) and its `index.html` must not be a
+/// costs no fit. The JSON file's directory must exist and the file must not be a directory.
+/// The report directory is created (with its parents) and its `index.html` must not be a
 /// directory.
 ///
 /// # Errors

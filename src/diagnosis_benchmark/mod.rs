@@ -37,26 +37,35 @@
 //! | `wind` | U\[0.2, 1.5\] m/s, horizontal, random direction | indoor drafts to a light breeze (`Wind::crazyflie`: 0.3 m/s) |
 //! | `thrust-gain` | `ε = ±U[0.05, 0.15]` | battery sag and propeller wear (Förster 2015 measured ~10 %, `ThrustGain::crazyflie`) |
 //!
-//! Physical compatibility: at most one drag law per flight; a `wind` acts through a drag, so
-//! it always comes with one of the drag laws (the pair takes two of the flight's effect slots,
-//! and a flight with one slot never draws wind); `thrust-gain` only on flights diagnosed with
-//! the known mass; `ground-effect` brings the flight down to a few centimetres. Not avoided,
-//! measured: at a yaw rate of zero the heading is constant, and a force fixed in the body (a
-//! bias, an uncalibrated accelerometer) is then a force fixed in the world (a wind's).
+//! Physical compatibility:
+//!
+//! - at most one drag law per flight;
+//! - a `wind` acts through a drag, so it always comes with one of the drag laws (the pair
+//!   takes two of the flight's effect slots, and a flight with one slot never draws wind);
+//! - `thrust-gain` only on flights diagnosed with the known mass;
+//! - `ground-effect` brings the flight down to a few centimetres.
+//!
+//! Not avoided, measured: at a yaw rate of zero the heading is constant. A force fixed in the
+//! body (a bias, an uncalibrated accelerometer) is then a force fixed in the world (a wind's).
 //!
 //! # Scoring
 //!
-//! [`GroundTruth::of_flight`] turns the simulator's truth into what the score needs: the noise
-//! per channel (the true model's residual on the logged signals, `b − Y θ + Σ w_e`, floored at
-//! the diagnosis' stated resolution), each true effect's strength after the rigid body
-//! absorbed what it can ([`RigidProjection`]), whether it is detectable (largest channel
-//! strength ≥ `D`, [`BenchmarkOptions::detectable`]), and the coefficients the diagnosis should
-//! report. An uncalibrated accelerometer's bias is a true effect of its own ([`ACCEL_BIAS`]),
-//! which the final-model effects of [`STAND_INS`] may stand for. Its vertical part is not: the
-//! diagnosis measures it against the velocity and removes it before the fit
-//! (`tagk_diagnose::accel_offset`), so the truth is the horizontal part `b_a = (b_x, b_y, 0)`
-//! ([`identifiable_offset`]) and the mass to find is the true mass. [`score_flight`] compares one
-//! diagnosis with it ([`FlightScore`]) and [`Summary::of`] aggregates the flights into the
+//! [`GroundTruth::of_flight`] turns the simulator's truth into what the score needs:
+//!
+//! - the noise per channel: the true model's residual on the logged signals,
+//!   `b − Y θ + Σ w_e`, floored at the diagnosis' stated resolution;
+//! - each true effect's strength after the rigid body absorbed what it can
+//!   ([`RigidProjection`]);
+//! - whether it is detectable (largest channel strength ≥ `D`,
+//!   [`BenchmarkOptions::detectable`]);
+//! - the coefficients the diagnosis should report.
+//!
+//! An uncalibrated accelerometer's bias is a true effect of its own ([`ACCEL_BIAS`]), which the
+//! final-model effects of [`STAND_INS`] may stand for. Its vertical part is not. The diagnosis
+//! measures it against the velocity and removes it before the fit
+//! (`tagk_diagnose::accel_offset`). So the truth is the horizontal part `b_a = (b_x, b_y, 0)`
+//! ([`identifiable_offset`]), and the mass to find is the true mass. [`score_flight`] compares
+//! one diagnosis with it ([`FlightScore`]). [`Summary::of`] aggregates the flights into the
 //! issue's targets ([`Summary::markdown`]).
 //!
 //! # Coefficients
@@ -76,16 +85,21 @@
 //! | `wind` `v_w` | `wind`: derived `v_wx, v_wy` = `v_w` \[m/s\]; with rotor drag also `k_x, k_y, k_z` = `K`, `kv_wx, kv_wy` = `K_x v_w` |
 //! | `thrust-gain` `ε` (known mass); accelerometer bias | `thrust-gain`: `kappa` = `(1 + ε) Σ a_z (a_z + b_az) / Σ a_z² − 1`, with `b_az` the vertical offset the fit sees (0: removed before it), so `ε` |
 //!
-//! Not compared, as ambiguous: a drag law's coefficients when the final model also holds a
-//! `wind`, and the wind's when it also holds a drag law (their drag columns are the same);
-//! the wind's drag unless the flight's drag law is rotor drag (the diagnosis' wind with rotor
-//! speeds is a rotor drag); the `accel-bias` force of a flight with a wind at a constant
-//! heading (the wind's world-fixed force is then body-fixed too, and the body force carries a
-//! share of it); the motor lag's fixed gain and start transients (no truth); a
-//! diagnosis effect of another name than the truth's (e.g. a rotor drag fitted to a linear
-//! drag). The relative error of a coefficient is taken against the norm of its group (the
-//! three drag coefficients, the bias force, the bias torque, the wind velocity), so that a
-//! small component of a vector is judged against the vector.
+//! Not compared, as ambiguous:
+//!
+//! - a drag law's coefficients when the final model also holds a `wind`, and the wind's when
+//!   it also holds a drag law (their drag columns are the same);
+//! - the wind's drag unless the flight's drag law is rotor drag (the diagnosis' wind with
+//!   rotor speeds is a rotor drag);
+//! - the `accel-bias` force of a flight with a wind at a constant heading (the wind's
+//!   world-fixed force is then body-fixed too, and the body force carries a share of it);
+//! - the motor lag's fixed gain and start transients (no truth);
+//! - a diagnosis effect of another name than the truth's (e.g. a rotor drag fitted to a
+//!   linear drag).
+//!
+//! The relative error of a coefficient is taken against the norm of its group (the three drag
+//! coefficients, the bias force, the bias torque, the wind velocity). So a small component of
+//! a vector is judged against the vector.
 //!
 //! The diagnosis runs through [`run_diagnosis`], the one place to switch to a new entry point.
 
@@ -138,15 +152,15 @@ pub const MAX_MOTOR_LAG: f64 = 0.06;
 
 /// The LQR weights every benchmark flight is flown with: `tagk_control::LqrWeights::crazyflie`
 /// (Bryson's rule) with the roll and pitch tolerance doubled to 0.2 rad and the rotor-thrust
-/// tolerance cut to 2.5 mN (`R_ii = 1.6e5`), a gentler attitude loop as a flight controller
-/// tuned to slow motors has, and a stiffer height loop (5 mm, 2.5 cm/s) so that a thrust
-/// gain the controller does not know cannot drop the vehicle. The simulator's LQR knows no
-/// actuator dynamics: its default tracking design (`tagk_sim::sim::tracking_weights`) loses
-/// every flight to a motor lag of 25 ms or more (`LqrWeights::crazyflie` from 40 ms). With
-/// these weights (and [`benchmark_flight_stack`]) no flight aborted with a lag up to 70 ms,
-/// 13 of 20 at 75 ms, none at 70 ms with a thrust gain of +15 %, at a mean tracking error of
-/// 0.4–0.6 cm (20 benchmark draws per case, oracle controller): the benchmark measures the
-/// diagnosis, not the controller.
+/// tolerance cut to 2.5 mN (`R_ii = 1.6e5`). These weights make a gentler attitude loop, as a
+/// flight controller tuned to slow motors has. They make a stiffer height loop (5 mm,
+/// 2.5 cm/s), so that a thrust gain the controller does not know cannot drop the vehicle. The simulator's LQR
+/// knows no actuator dynamics. Its default tracking design (`tagk_sim::sim::tracking_weights`)
+/// loses every flight to a motor lag of 25 ms or more (`LqrWeights::crazyflie` from 40 ms).
+/// In 20 benchmark draws per case (oracle controller), with these weights (and
+/// [`benchmark_flight_stack`]), no flight aborted with a lag up to 70 ms, 13 of 20 at 75 ms,
+/// none at 70 ms with a thrust gain of +15 %. The mean tracking error was 0.4–0.6 cm. The
+/// benchmark measures the diagnosis, not the controller.
 pub fn benchmark_weights() -> tagk_control::LqrWeights {
     tagk_control::LqrWeights::from_diagonals(
         [
@@ -158,9 +172,8 @@ pub fn benchmark_weights() -> tagk_control::LqrWeights {
 
 /// The flight stack of every benchmark flight: the paper's (the log is the same kind: commanded
 /// rotor speeds, one telemetry reading) plus integral action on the position error (gain
-/// 1 /s, shift up to 1 m per axis), so that a constant force the oracle does not know (a
-/// thrust gain of ±15 % against the gentle [`benchmark_weights`], a body bias, a wind) leaves
-/// no offset.
+/// 1 /s, shift up to 1 m per axis). So a constant force the oracle does not know leaves no
+/// offset: a thrust gain of ±15 % against the gentle [`benchmark_weights`], a body bias, a wind.
 pub fn benchmark_flight_stack() -> tagk_sim::FlightStack {
     tagk_sim::FlightStack {
         position_integral_gain: 1.0,
@@ -287,8 +300,8 @@ const DRAG_LAWS: [EffectKind; 3] = [
 ];
 
 /// Which effects flight `count` slots draw: without replacement from the vocabulary, at most
-/// one drag law, `thrust-gain` only with a known mass, a `wind` with a drag law (drawn with it
-/// when none was drawn yet and a slot is left).
+/// one drag law, `thrust-gain` only with a known mass. A `wind` comes with a drag law (drawn
+/// with it when none was drawn yet and a slot is left).
 fn draw_kinds(rng: &mut ChaCha8Rng, count: usize, known_mass: bool) -> Vec<EffectKind> {
     let mut pool: Vec<EffectKind> = EffectKind::ALL
         .into_iter()
@@ -433,8 +446,8 @@ pub fn draw_flight(options: &BenchmarkOptions, index: usize) -> Result<FlightSpe
 }
 
 /// The payload: a point mass of U\[5, 25\] % of the vehicle's mass at U\[0, 30\] % of
-/// `L_arm` in a direction uniform on the sphere, attached at t = 0 and kept; redrawn (at most
-/// 100 times, then none) until the loaded vehicle hovers within 80 % of the true rotors'
+/// `L_arm` in a direction uniform on the sphere, attached at t = 0 and kept. It is redrawn (at
+/// most 100 times, then none) until the loaded vehicle hovers within 80 % of the true rotors'
 /// maximum thrust.
 fn draw_payload(rng: &mut ChaCha8Rng, effects: &PlantEffects) -> Payload {
     let vehicle = SimConfig::default().vehicle;

@@ -23,10 +23,10 @@ pub const STAND_INS: &[(&str, &str)] = &[
     (BODY_BIAS, ACCEL_BIAS),
 ];
 
-/// Stand-ins that hold only at a constant heading (a flight without a yaw rate): a force fixed
-/// in the world and one fixed in the body are then the same in the data, so a wind (a drag and
-/// a world force) and a constant body force with a drag explain a log alike. `(truth, stands
-/// for it)`; a wind's stand-in also needs a drag law in the final model.
+/// Stand-ins that hold only at a constant heading (a flight without a yaw rate). A force fixed
+/// in the world and one fixed in the body are then the same in the data. So a wind (a drag and
+/// a world force) and a constant body force with a drag explain a log alike. Each entry is
+/// `(truth, stands for it)`; a wind's stand-in also needs a drag law in the final model.
 pub const CONSTANT_HEADING_STAND_INS: &[(&str, &str)] =
     &[(WIND, ACCEL_BIAS), (ACCEL_BIAS, WIND), (BODY_BIAS, WIND)];
 
@@ -55,14 +55,14 @@ pub fn adequacy_gray_zone() -> f64 {
 pub const MASS_TOLERANCE: f64 = 0.02;
 
 /// A fitted pseudo-inertia is "clearly" not positive definite when the smallest eigenvalue
-/// `λ` of the second moment of the mass about the fitted centre of mass,
+/// `λ` of the second moment of the mass about the fitted centre of mass lies more than
+/// `IMPLAUSIBLE_PSEUDO_INERTIA` standard errors below zero. That second moment is
 /// `Σ_c = ½ tr(I) 1 − I − h hᵀ/m` \[kg m²\] (positive definite together with `m > 0` iff the
-/// pseudo-inertia is), lies more than `IMPLAUSIBLE_PSEUDO_INERTIA` standard errors below zero,
-/// the standard error from the fitted parameters' own (first-order propagation through `λ`,
-/// the parameters taken as independent): the rule a drag coefficient meets, on the body's
-/// mass distribution. A thin body's smallest second moment is small (the Crazyflie's is about
-/// 11 % of its largest), so an inertia barely excited by the flight can come out slightly
-/// negative within its noise; that is not counted.
+/// pseudo-inertia is). The standard error comes from the fitted parameters' own (first-order
+/// propagation through `λ`, the parameters taken as independent). This is the rule a drag
+/// coefficient meets, on the body's mass distribution. A thin body's smallest second moment is
+/// small (the Crazyflie's is about 11 % of its largest). So an inertia barely excited by the
+/// flight can come out slightly negative within its noise; that is not counted.
 pub const IMPLAUSIBLE_PSEUDO_INERTIA: f64 = 3.0;
 
 /// What the scorer reads of a diagnosis report: the final model, its fitted coefficients and
@@ -185,9 +185,10 @@ pub struct FlightScore {
     pub inertia_error: [f64; 3],
     /// `Report::adequate`.
     pub adequate_reported: bool,
-    /// What `adequate` should say: every detectable true effect is in the final model (by
-    /// name or stand-in, a drag law also by another drag law: the laws cannot always be told
-    /// apart in a log) *and* the final model is at the true noise ([`Self::at_true_noise`]).
+    /// What `adequate` should say: every detectable true effect is in the final model *and* the
+    /// final model is at the true noise ([`Self::at_true_noise`]). An effect counts by name or
+    /// stand-in, a drag law also by another drag law (the laws cannot always be told apart in a
+    /// log).
     pub adequate_expected: bool,
     /// The final model's held-out residual RMS is within the diagnosis' adequacy factor
     /// (`tagk_diagnose::ADEQUACY_FACTOR`) of the true noise on every channel (the true
@@ -202,12 +203,14 @@ pub struct FlightScore {
     /// `adequate` right under [`Self::adequate_expected_by_effects`], as scored before: "not
     /// adequate" also right when a missing effect's strength alone lies in the gray zone.
     pub adequate_right_by_effects: bool,
-    /// With every detectable effect accounted for, either verdict is right: an effect below
-    /// the detectability threshold is missing that either criterion of adequacy can see — a
-    /// strength above [`adequacy_gray_zone`] raises the residual beyond the adequacy factor
-    /// (the gray zone of the two thresholds), or its autocorrelation makes the residual's
-    /// `Σ ρ_k²` exceed the whiteness limit ([`EffectScore::whiteness`]; a slow effect such as
-    /// a ground effect does at a fifth of the noise on a long log).
+    /// With every detectable effect accounted for, either verdict is right. Here an effect below
+    /// the detectability threshold is missing that either criterion of adequacy can see:
+    ///
+    /// - a strength above [`adequacy_gray_zone`] raises the residual beyond the adequacy factor
+    ///   (the gray zone of the two thresholds);
+    /// - or its autocorrelation makes the residual's `Σ ρ_k²` exceed the whiteness limit
+    ///   ([`EffectScore::whiteness`]). A slow effect such as a ground effect does at a fifth of
+    ///   the noise on a long log.
     pub adequate_gray: bool,
     /// The same by name ([`EffectScore::found`]).
     pub adequate_expected_by_name: bool,
@@ -287,11 +290,14 @@ fn reported(
 }
 
 /// This benchmark's implausibility checks of a final model (independent of the diagnosis'
-/// own): a drag coefficient (of a drag law, of a wind's drag, the ground-effect gain)
-/// significantly negative (below −3 standard errors; below 0 without one); a motor lag at the
-/// upper end of its scan range or a delay at either end (the default grids of
-/// `tagk_diagnose::BuiltinOptions`); a mass that is not positive; a pseudo-inertia clearly
-/// not positive definite ([`IMPLAUSIBLE_PSEUDO_INERTIA`]).
+/// own):
+///
+/// - a drag coefficient (of a drag law, of a wind's drag, the ground-effect gain)
+///   significantly negative (below −3 standard errors; below 0 without one);
+/// - a motor lag at the upper end of its scan range or a delay at either end (the default
+///   grids of `tagk_diagnose::BuiltinOptions`);
+/// - a mass that is not positive;
+/// - a pseudo-inertia clearly not positive definite ([`IMPLAUSIBLE_PSEUDO_INERTIA`]).
 fn implausibilities(outcome: &DiagnosisOutcome) -> Vec<String> {
     let mut out = Vec::new();
     let grids = BuiltinOptions::default();

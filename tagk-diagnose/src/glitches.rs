@@ -1,6 +1,6 @@
 //! Glitches: isolated samples, or short runs of them, that jump off their neighbours (a
-//! spike, a few corrupted rows, an attitude jump the gyro does not show), found by a robust
-//! screen and excluded from the fit so that a few bad rows cannot move a parameter.
+//! spike, a few corrupted rows, an attitude jump the gyro does not show). They are found by a
+//! robust screen and excluded from the fit, so that a few bad rows cannot move a parameter.
 //!
 //! **The screen** (docs/CONVENTIONS.md §7.3). Each screened channel — the wrench `fx..tz`,
 //! the position, the velocity, the gyro, the rotor speeds and the accelerations when logged —
@@ -12,31 +12,30 @@
 //! glitch when
 //!
 //! - each of its residuals exceeds the threshold `T = max(GLITCH_SIGMAS · σ,
-//!   GLITCH_PERCENTILE_FACTOR · q₉₉)`: far beyond the channel's noise (for Gaussian noise
-//!   `10 σ` is never reached; the percentile keeps a quantised channel, whose median residual
-//!   may be zero, from counting one quantum as a glitch), and
-//!   A smooth log without noise has `σ = 0`: the threshold is then at least
-//!   `GLITCH_SIGMAS` times the window's median step `median|xⱼ − xⱼ₋₁|` (the signal's own
-//!   local change; about `σ` for white noise), and
+//!   GLITCH_PERCENTILE_FACTOR · q₉₉)`: far beyond the channel's noise. For Gaussian noise
+//!   `10 σ` is never reached. The percentile keeps a quantised channel, whose median residual
+//!   may be zero, from counting one quantum as a glitch. A smooth log without noise has
+//!   `σ = 0`: the threshold is then at least `GLITCH_SIGMAS` times the window's median step
+//!   `median|xⱼ − xⱼ₋₁|` (the signal's own local change; about `σ` for white noise); and
 //! - the samples just before and after it have residuals of at most `T / 2`: the run stands
 //!   alone. A smooth peak, which a median clips too, falls off gradually (its neighbour keeps
 //!   three quarters of its residual) and is not a glitch.
 //!
-//! **The attitude** is screened against the gyro: over each step the rotation between the
-//! logged quaternions is compared with the rotation the gyro shows (`q̂ᵢ = qᵢ₋₁ ⊗ exp(ω̄ Δt / 2)`
-//! with `ω̄` the mean of the two samples' rates), `eᵢ = angle(q̂ᵢ⁻¹ ⊗ qᵢ)`, with the same
-//! threshold on `e`. A quaternion's sign is no rotation (`q` and `−q` are one attitude), so a
-//! sign flip is not a glitch. Two such steps at most [`MAX_GLITCH_RUN`] samples apart enclose
-//! a run of bad attitudes; a lone one is a jump that stays (a reset of the attitude estimate),
-//! reported at its first sample.
+//! **The attitude** is screened against the gyro. Over each step the rotation between the
+//! logged quaternions is compared with the rotation the gyro shows,
+//! `q̂ᵢ = qᵢ₋₁ ⊗ exp(ω̄ Δt / 2)` with `ω̄` the mean of the two samples' rates. The error is
+//! `eᵢ = angle(q̂ᵢ⁻¹ ⊗ qᵢ)`, with the same threshold on `e`. A quaternion's sign is no rotation
+//! (`q` and `−q` are one attitude), so a sign flip is not a glitch. Two such steps at most
+//! [`MAX_GLITCH_RUN`] samples apart enclose a run of bad attitudes. A lone one is a jump that
+//! stays (a reset of the attitude estimate), reported at its first sample.
 //!
 //! Samples within `h` of a log's ends or of a gap in the time stamps are not screened (their
 //! median has no window); the attitude is not screened across a gap.
 //!
-//! **Where.** With the lines the samples were read from ([`SampleSource`]) a glitch names its
-//! file and line (`flight.csv:301`); a sample of a merged log whose channel comes from another
-//! stream, interpolated onto the time base, and a log in memory have no line, and the
-//! report says so.
+//! **Where.** With the lines the samples were read from ([`SampleSource`]), a glitch names its
+//! file and line (`flight.csv:301`). A sample of a merged log whose channel comes from another
+//! stream, interpolated onto the time base, has no line. Nor does a log in memory. The report
+//! says so.
 //!
 //! **The exclusion.** A glitch's samples and the [`GLITCH_EXCLUSION_HALF_WIDTH`] samples on
 //! each side (the widest window a derivative or smoothing of the diagnosis reads) are removed

@@ -1,20 +1,23 @@
 //! Several logs of one vehicle: each log's own parameters under the joint model, against the
-//! other logs', so that a log of another vehicle state (a payload, another battery, a
-//! velocity logged in mm/s) is named and left out instead of blended into one mass.
+//! other logs'. This names a log of another vehicle state (a payload, another battery, a
+//! velocity logged in mm/s) and leaves it out instead of blending it into one mass.
 //!
 //! The final joint model is fitted on each log alone ([`crate::fit_model`]). Its mass (when
-//! fitted) and every effect coefficient with a standard error — of the effects that describe
-//! the vehicle, not of the wind, the thrust gain (a battery's charge) or a sensor error, which
-//! change from flight to flight — are compared across the logs:
-//! a log's value is **inconsistent** when it lies further from the reference than
-//! [`LOG_CONSISTENCY_Z`] combined standard errors *and* by more than
-//! [`LOG_CONSISTENCY_RELATIVE`] of the reference's magnitude for the mass, or a factor
-//! [`LOG_CONSISTENCY_EFFECT_FACTOR`] for an effect coefficient, on the linear scale or — where
-//! both values are significant and of one sign — as a ratio on the log scale (where a unit
-//! error shows: a drag coefficient 1000× off with ±40 % on each log). The reference is the
-//! median of every log's value, with the median log's standard error (with three logs or
-//! more, one odd log cannot move it); with two logs it is the other log's value, so both are
-//! flagged and neither can be preferred.
+//! fitted) and every effect coefficient with a standard error are compared across the logs.
+//! Only the effects that describe the vehicle count. The wind, the thrust gain (a battery's
+//! charge) and a sensor error change from flight to flight and are left out.
+//!
+//! A log's value is **inconsistent** when it lies further from the reference than
+//! [`LOG_CONSISTENCY_Z`] combined standard errors *and* by more than a margin:
+//!
+//! - [`LOG_CONSISTENCY_RELATIVE`] of the reference's magnitude for the mass;
+//! - a factor [`LOG_CONSISTENCY_EFFECT_FACTOR`] for an effect coefficient.
+//!
+//! The margin holds on the linear scale or — where both values are significant and of one
+//! sign — as a ratio on the log scale. There a unit error shows: a drag coefficient 1000× off
+//! with ±40 % on each log. The reference is the median of every log's value, with the median
+//! log's standard error. With three logs or more, one odd log cannot move it. With two logs
+//! it is the other log's value, so both are flagged and neither can be preferred.
 //!
 //! A flagged log is **left out of the joint fit** (its verdict says so and `agrees` is
 //! false); the joint diagnosis is run again on the others. When no log is left (two logs that
@@ -31,9 +34,9 @@ use crate::fit::{Model, Z_95, fit_model};
 use crate::signals::Signals;
 
 /// How many combined standard errors (`√(se_log² + se_ref²)`) a log's parameter may lie from
-/// the reference before it is inconsistent: 3.29, the two-sided 99.9 % quantile (several
+/// the reference before it is inconsistent: 3.29, the two-sided 99.9 % quantile. Several
 /// parameters of several logs are compared, so the 95 % quantile would flag a log of a
-/// consistent set every few diagnoses).
+/// consistent set every few diagnoses.
 pub const LOG_CONSISTENCY_Z: f64 = 3.290_526_731_491_926;
 
 /// The smallest relative difference from the reference (a fraction of its magnitude) that
@@ -119,10 +122,10 @@ pub(crate) struct Estimate {
     se: f64,
 }
 
-/// The parameters of `model` fitted on one log alone: the mass (when fitted) and every
-/// coefficient with a standard error of the effects that describe the vehicle (not the
-/// per-segment start transients, not per-log nuisances, not the wind, the thrust gain or a
-/// sensor error). Empty when the model cannot be fitted on this log alone.
+/// The parameters of `model` fitted on one log alone. These are the mass (when fitted) and
+/// every coefficient with a standard error of the effects that describe the vehicle. Left out
+/// are the per-segment start transients, per-log nuisances, the wind, the thrust gain and a
+/// sensor error. Empty when the model cannot be fitted on this log alone.
 pub(crate) fn estimates(model: &Model, s: &Signals) -> Vec<Estimate> {
     let Ok(fit) = fit_model(model, s, None) else {
         return Vec::new();
@@ -172,9 +175,9 @@ fn is_vehicle_property(effect: &str) -> bool {
 
 /// Whether `value ± se` is inconsistent with `reference ± se_ref`: further than
 /// [`LOG_CONSISTENCY_Z`] combined standard errors and by more than `relative` of the
-/// reference, either on the linear scale, or — where both 95 % intervals exclude zero on the
-/// same side — as a ratio on the log scale (the scale on which a unit error, 1000× for mm/s,
-/// shows: relative standard errors add there).
+/// reference. This holds either on the linear scale, or — where both 95 % intervals exclude
+/// zero on the same side — as a ratio on the log scale. That is the scale on which a unit
+/// error (1000× for mm/s) shows: relative standard errors add there.
 fn inconsistent_with(value: f64, se: f64, reference: f64, se_ref: f64, relative: f64) -> bool {
     let gap = (value - reference).abs();
     let linear = gap > LOG_CONSISTENCY_Z * se.hypot(se_ref) && gap > relative * reference.abs();

@@ -15,31 +15,34 @@
 //! | `inertia` | the fitted `I_xx, I_yy, I_zz` with the vehicle file's | the gyro's unit, the arm length |
 //!
 //! **The gyro's gain** is measured on rotations, where its noise averages out
-//! ([`gyro_rotation_gain`]): over each window of [`GYRO_ROTATION_WINDOW`] the gyro integrated
+//! ([`gyro_rotation_gain`]). Over each window of [`GYRO_ROTATION_WINDOW`], the gyro integrated
 //! in the window's first body frame is regressed on the rotation vector between the window's
-//! two attitudes, each averaged over the windows shifted by up to [`GYRO_ENDPOINT_SMOOTHING`];
-//! the windows do not overlap (one independent value each). The README's realistic example,
-//! whose gyro noise hid the attitude's rate from a comparison of rates (correlation 0.24),
-//! gives a correlation of 0.99 this way.
+//! two attitudes. Each is averaged over the windows shifted by up to
+//! [`GYRO_ENDPOINT_SMOOTHING`]. The windows do not overlap (one independent value each). The
+//! README's realistic example, whose gyro noise hid the attitude's rate from a comparison of
+//! rates (correlation 0.24), gives a correlation of 0.99 this way.
 //!
-//! **The gain** of the other pairs. Both signals of a pair go through the same filters: the derivative's
-//! Savitzky–Golay window, then a smoothing over [`COMPARISON_WINDOW`]; then their changes over
-//! half that window are compared (a bias or a slow drift cancels), pooled over the axes and
-//! the segments between gaps, the filters' edges left out. Noise on the twin biases the
-//! regression of the measured signal on it (`Sxy/Sxx`) low, noise on the measured signal
-//! biases the inverse regression (`Syy/Sxy`) high: the true gain lies between them, each
-//! widened by its standard error (the residual's, with the samples counted per smoothing
-//! window, as neighbouring filtered samples are not independent). A pair with little motion
-//! or much noise has a wide bracket and is not judged. A fit's parameter is compared through
-//! its standard error.
+//! **The gain** of the other pairs. Both signals of a pair go through the same filters: the
+//! derivative's Savitzky–Golay window, then a smoothing over [`COMPARISON_WINDOW`]. Then their
+//! changes over half that window are compared (a bias or a slow drift cancels). They are pooled
+//! over the axes and the segments between gaps, the filters' edges left out. Noise on the twin
+//! biases the regression of the measured signal on it (`Sxy/Sxx`) low. Noise on the measured
+//! signal biases the inverse regression (`Syy/Sxy`) high. The true gain lies between them,
+//! each widened by its standard error. That is the residual's, with the samples counted per
+//! smoothing window, as neighbouring filtered samples are not independent. A pair with little
+//! motion or much noise has a wide bracket and is not judged. A fit's parameter is compared
+//! through its standard error.
 //!
-//! **The verdicts.** With `z` = [`CHECK_Z`] standard errors: an **error** when the gain's
-//! bracket (or a parameter's `± z·se`) lies wholly outside `[1/ERROR_FACTOR, ERROR_FACTOR]` (a factor of 2
-//! and more: a unit, not a calibration) or below zero (a flipped sign); a
-//! **warning** when it lies wholly outside `[1/WARNING_FACTOR, WARNING_FACTOR]`.
+//! **The verdicts.** With `z` = [`CHECK_Z`] standard errors:
+//!
+//! - an **error** when the gain's bracket (or a parameter's `± z·se`) lies wholly outside
+//!   `[1/ERROR_FACTOR, ERROR_FACTOR]` (a factor of 2 and more: a unit, not a calibration) or
+//!   below zero (a flipped sign);
+//! - a **warning** when it lies wholly outside `[1/WARNING_FACTOR, WARNING_FACTOR]`.
+//!
 //! The inertia, less well determined by a flight, uses [`INERTIA_ERROR_FACTOR`] and the
 //! warning at [`ERROR_FACTOR`]. An error stops the diagnosis ([`DiagnoseError::ScaleMismatch`])
-//! unless accepted (`--accept-scales`, [`crate::DiagnosisPlan::accept_scales`]): it is then
+//! unless accepted (`--accept-scales`, [`crate::DiagnosisPlan::accept_scales`]). It is then
 //! reported like a warning.
 
 use std::ops::Range;
@@ -74,9 +77,9 @@ pub const WARNING_FACTOR: f64 = 1.5;
 /// from [`ERROR_FACTOR`] on).
 pub const INERTIA_ERROR_FACTOR: f64 = 4.0;
 
-/// The window the gyro is integrated over and compared with the attitude's rotation \[s\]:
-/// the gyro's white noise averages out as `1/√T` against the rotation, and a flight's
-/// rotation over a second stays small enough for its rotation vector to be the integral.
+/// The window the gyro is integrated over and compared with the attitude's rotation \[s\].
+/// The gyro's white noise averages out as `1/√T` against the rotation. A flight's rotation
+/// over a second stays small enough for its rotation vector to be the integral.
 pub const GYRO_ROTATION_WINDOW: f64 = 1.0;
 
 /// The shifts each window of the gyro's rotation is averaged over, on each side \[s\].
@@ -319,11 +322,11 @@ fn gain_of(sxx: f64, syy: f64, sxy: f64, n: usize, width: usize) -> Option<Gain>
 }
 
 /// The gain of the gyro against the attitude over windows of [`GYRO_ROTATION_WINDOW`]
-/// (module docs): in each window `[a, b]` of a segment, the gyro integrated in the frame of
-/// the window's first attitude, `Σ ½ (Rₐᵀ Rᵢ ωᵢ + Rₐᵀ Rᵢ₊₁ ωᵢ₊₁) Δtᵢ`, against the rotation
-/// vector of `qₐ⁻¹ ⊗ q_b`, per axis, each pair averaged over the windows shifted by up to
-/// [`GYRO_ENDPOINT_SMOOTHING`] (the attitude's fast jitter at the window's ends, and a small
-/// offset between the streams, average out). The windows do not overlap: each is one
+/// (module docs). In each window `[a, b]` of a segment, the gyro integrated in the frame of
+/// the window's first attitude, `Σ ½ (Rₐᵀ Rᵢ ωᵢ + Rₐᵀ Rᵢ₊₁ ωᵢ₊₁) Δtᵢ`, is set against the
+/// rotation vector of `qₐ⁻¹ ⊗ q_b`, per axis. Each pair is averaged over the windows shifted
+/// by up to [`GYRO_ENDPOINT_SMOOTHING`]. The attitude's fast jitter at the window's ends, and
+/// a small offset between the streams, average out. The windows do not overlap: each is one
 /// independent value.
 fn gyro_rotation_gain(log: &FlightLog, segments: &[Range<usize>], dt: f64) -> Option<Gain> {
     let len = ((GYRO_ROTATION_WINDOW / dt).round() as usize).max(2);
@@ -621,9 +624,9 @@ pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFin
     out
 }
 
-/// The checks of a fit against the vehicle file: the fitted mass (when it was fitted) and
-/// inertia against the vehicle's priors, and a negative yaw inertia against its rotor spins
-/// (`vehicle_wrench`: the log has rotor speeds, or its wrench came from them).
+/// The checks of a fit against the vehicle file. The fitted mass (when it was fitted) and
+/// inertia are checked against the vehicle's priors. A negative yaw inertia is checked against
+/// its rotor spins (`vehicle_wrench`: the log has rotor speeds, or its wrench came from them).
 pub fn check_fit(
     name: &str,
     report: &Report,

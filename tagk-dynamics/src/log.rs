@@ -236,10 +236,10 @@ impl std::fmt::Display for Sampling {
 }
 
 /// `ax..az` read as the world acceleration `p̈` that most likely hold the world-frame specific
-/// force: the mean of `accel` on z over the log and the mean the velocity implies, `Δv_z / T`
-/// \[m/s²\], when they differ by more than `g/2` (a flight's `p̈` averages `Δv / T`; the
-/// specific force averages `+g` more on z). `None` when they agree, or for a log too short or
-/// not sampled in time to tell.
+/// force. Returned are the mean of `accel` on z over the log and the mean the velocity implies,
+/// `Δv_z / T` \[m/s²\], when they differ by more than `g/2`. A flight's `p̈` averages `Δv / T`;
+/// the specific force averages `+g` more on z. `None` when they agree, or for a log too short
+/// or not sampled in time to tell.
 pub fn accel_looks_like_specific_force(
     accel: &[[f64; 3]],
     t: &[f64],
@@ -474,10 +474,11 @@ impl FlightLog {
     /// Segments shorter than `dt` keep their first sample only.
     ///
     /// # Errors
-    /// [`LogError::InvalidResampleStep`] for a step that is not positive and finite, or so
-    /// small that the grid would have more than [`MAX_RESAMPLED_ROWS`] rows; the errors of
-    /// the writer's check (equal signal lengths, strictly increasing time, rotor speeds for a
-    /// log without a wrench) for a log that is not a log.
+    ///
+    /// - [`LogError::InvalidResampleStep`] for a step that is not positive and finite, or so
+    ///   small that the grid would have more than [`MAX_RESAMPLED_ROWS`] rows;
+    /// - the errors of the writer's check (equal signal lengths, strictly increasing time, rotor
+    ///   speeds for a log without a wrench) for a log that is not a log.
     pub fn resample_linear(&self, dt: f64) -> Result<FlightLog, LogError> {
         self.check_writable()?;
         let span = match (self.t.first(), self.t.last()) {
@@ -1180,10 +1181,10 @@ fn push_opt<T: Copy>(v: &mut Option<Vec<T>>, x: Option<T>, first: bool) {
 /// and every cell a finite number. Errors name the 1-based line (the header is line 1) and the
 /// column.
 ///
-/// Rows are read as raw bytes into one reused record: only the header is trimmed by the CSV
-/// reader; a cell is checked for UTF-8, trimmed of (Unicode) white space and parsed in one pass,
-/// so a row costs no allocation. The results and errors are those of reading each row as a
-/// trimmed `csv::StringRecord` (`csv::Trim::All`), which this reader replaced.
+/// Rows are read as raw bytes into one reused record. Only the header is trimmed by the CSV
+/// reader. A cell is checked for UTF-8, trimmed of (Unicode) white space and parsed in one
+/// pass, so a row costs no allocation. The results and errors are those of reading each row as
+/// a trimmed `csv::StringRecord` (`csv::Trim::All`), which this reader replaced.
 pub(crate) struct NumericRows<R: Read> {
     rdr: csv::Reader<LineCounter<R>>,
     record: csv::ByteRecord,
@@ -1197,10 +1198,10 @@ pub(crate) struct NumericRows<R: Read> {
 }
 
 /// A reader that notes where its input's lines break, so that a row's 1-based line is
-/// counted from its byte offset: the CSV reader's own line count misses the blank lines and
+/// counted from its byte offset. The CSV reader's own line count misses the blank lines and
 /// counts a CRLF file one line short (and a CR-only file not at all). A line ends at `\n`,
 /// or at a `\r` not followed by `\n`. The CSV reader's offset of a row is where the line
-/// ends before it begin (the `\n` of a CRLF, blank lines): the row's line is the one after
+/// ends before it begin (the `\n` of a CRLF, blank lines). The row's line is the one after
 /// them. Only the line ends not yet passed by the rows read are kept (at most the CSV
 /// reader's buffer ahead).
 pub(crate) struct LineCounter<R> {
@@ -1442,8 +1443,8 @@ fn trim_cell(cell: &str) -> &str {
 }
 
 /// The error of a row that is not valid UTF-8, worded as the CSV reader words it when it reads
-/// the row as a trimmed `csv::StringRecord` (the field's index and the byte up to which it is
-/// valid counted after ASCII trimming), or `None` if the row is valid UTF-8.
+/// the row as a trimmed `csv::StringRecord`. There the field's index and the byte up to which
+/// it is valid are counted after ASCII trimming. `None` if the row is valid UTF-8.
 fn utf8_error(record: &csv::ByteRecord, line: usize) -> Option<LogError> {
     let mut trimmed = record.clone();
     trimmed.trim();

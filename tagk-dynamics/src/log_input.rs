@@ -1,6 +1,7 @@
 //! Foreign flight logs in: a **column mapping** (renames, units, quaternion order, frames) and
-//! **several streams** (one CSV file per topic, each with its own time column and rate) merged
-//! onto one time base, giving a [`FlightLog`] in the project's format (see [`crate::log`]).
+//! **several streams** (one CSV file per topic, each with its own time column and rate). The
+//! streams are merged onto one time base, giving a [`FlightLog`] in the project's format (see
+//! [`crate::log`]).
 //!
 //! # The mapping file (TOML)
 //!
@@ -115,23 +116,28 @@
 //!
 //! The time base is the primary stream's time stamps (after its unit and offset). Each quantity
 //! (position, velocity, attitude, angular velocity, wrench, rotor speeds, …) is taken from the
-//! primary stream if it has it, else from the first other stream that has it, and linearly
-//! interpolated onto the time base (quaternions: normalised linear interpolation, after
-//! flipping the later sample onto the earlier one's hemisphere). A **gap** of a stream is a
-//! step longer than [`GAP_FACTOR`] times its median step; a primary sample that falls inside a
-//! gap of a stream it interpolates, or outside that stream's time range, is **dropped** (never
-//! interpolated over) and counted in the [`MergeReport`]. Gaps of the primary stream itself
-//! are reported too (the diagnosis splits the log at every gap, [`FlightLog::sampling`]).
+//! primary stream if it has it, else from the first other stream that has it. It is linearly
+//! interpolated onto the time base. Quaternions use normalised linear interpolation, after
+//! flipping the later sample onto the earlier one's hemisphere. A **gap** of a stream is a
+//! step longer than [`GAP_FACTOR`] times its median step. A primary sample may fall inside a
+//! gap of a stream it interpolates, or outside that stream's time range. It is then
+//! **dropped** (never interpolated over) and counted in the [`MergeReport`]. Gaps of the
+//! primary stream itself are reported too (the diagnosis splits the log at every gap,
+//! [`FlightLog::sampling`]).
 //!
 //! Each stream's rate (one over its median step), span, offset, overlap with the time base and
 //! the samples dropped because of it are in the [`MergeReport`] ([`StreamSummary`]). A stream
-//! that provides a quantity is refused ([`InputError::StreamTooSparse`]) with fewer than
-//! [`MIN_STREAM_SAMPLES`] samples, or, unless it provides only position and velocity, a
-//! median step above [`MAX_STREAM_STEP`] (below 10 Hz); and
-//! ([`InputError::StreamOverlap`]) when its time range overlaps less than
-//! [`MIN_STREAM_OVERLAP`] of the time base's span (an implausible offset, a wrong time unit, a
-//! stream of another flight). More than [`DROPPED_WARNING_FRACTION`] of the time base dropped
-//! because of one stream is a warning.
+//! that provides a quantity is refused:
+//!
+//! - with fewer than [`MIN_STREAM_SAMPLES`] samples, or with a median step above
+//!   [`MAX_STREAM_STEP`] (below 10 Hz) unless it provides only position and velocity
+//!   ([`InputError::StreamTooSparse`]);
+//! - when its time range overlaps less than [`MIN_STREAM_OVERLAP`] of the time base's span (an
+//!   implausible offset, a wrong time unit, a stream of another flight)
+//!   ([`InputError::StreamOverlap`]).
+//!
+//! More than [`DROPPED_WARNING_FRACTION`] of the time base dropped because of one stream is a
+//! warning.
 //!
 //! Derived columns: a stream with position but no velocity gets its velocity by the
 //! Savitzky–Golay derivative ([`crate::deriv`], half-width [`crate::deriv::DEFAULT_HALF_WIDTH`])
@@ -366,7 +372,7 @@ impl Group {
 pub const MIN_STREAM_SAMPLES: usize = 10;
 
 /// Longest median step \[s\] of a stream that provides the attitude, the angular velocity or
-/// acceleration, the wrench, the rotor speeds or an acceleration: a stream below 10 Hz cannot
+/// acceleration, the wrench, the rotor speeds or an acceleration. A stream below 10 Hz cannot
 /// support the fit of a quadrotor's dynamics (position and velocity may be slower).
 pub const MAX_STREAM_STEP: f64 = 0.1;
 
@@ -1264,8 +1270,8 @@ fn factor_of(units: &BTreeMap<String, f64>, column: &str, group: Option<Group>) 
 }
 
 impl ColumnMapping {
-    /// Reads one stream file with this mapping: only the columns it uses are parsed strictly
-    /// (a bad cell names file, line and column); the others are read leniently and offered as
+    /// Reads one stream file with this mapping. Only the columns it uses are parsed strictly
+    /// (a bad cell names file, line and column). The others are read leniently and offered as
     /// extra signals only when every cell is a finite number.
     fn read_stream(&self, path: &Path) -> Result<Stream, InputError> {
         let name = file_name(path);
@@ -1495,9 +1501,12 @@ impl ColumnMapping {
         }
     }
 
-    /// Checks the mapping against the streams read: every `[streams."NAME"]` and `primary`
-    /// names a stream; every `[columns]` key has a column in some stream (a whole optional
-    /// quantity that no stream has is a warning); every extra column's unit names a column.
+    /// Checks the mapping against the streams read:
+    ///
+    /// - every `[streams."NAME"]` and `primary` names a stream;
+    /// - every `[columns]` key has a column in some stream (a whole optional quantity that no
+    ///   stream has is a warning);
+    /// - every extra column's unit names a column.
     fn check_against(
         &self,
         streams: &[Stream],
@@ -1648,11 +1657,11 @@ pub fn convert_attitude(q: [f64; 4], world: WorldFrame, body: BodyFrame) -> [f64
     o.map(|x| x * norm)
 }
 
-/// The world acceleration `p̈ = R f + g_w` \[m/s²\] (project frames) of each sample from the
-/// attitude `(w, x, y, z)` (body → world; normalised here, so a norm within the log's tolerance
-/// does not scale the result) and the accelerometer's specific force `f` (body frame)
-/// \[m/s²\]: the inverse of [`crate::proper_acceleration`], with the same [`GRAVITY_WORLD`],
-/// so the regressor's `Rᵀ (p̈ − g_w)` gives back `f`.
+/// The world acceleration `p̈ = R f + g_w` \[m/s²\] (project frames) of each sample. It is
+/// computed from the attitude `(w, x, y, z)` (body → world) and the accelerometer's specific
+/// force `f` (body frame) \[m/s²\]. The attitude is normalised here, so a norm within the log's
+/// tolerance does not scale the result. This is the inverse of [`crate::proper_acceleration`],
+/// with the same [`GRAVITY_WORLD`], so the regressor's `Rᵀ (p̈ − g_w)` gives back `f`.
 pub fn world_acceleration(attitude: &[[f64; 4]], specific_force: &[[f64; 3]]) -> Vec<[f64; 3]> {
     attitude
         .iter()
@@ -2111,7 +2120,7 @@ pub fn read_streams(
 }
 
 /// Refuses `ax..az` read as the world acceleration `p̈` whose mean on z is more than `g/2`
-/// away from what the velocity's change over the log implies (`Δv_z / T`): a flight's `p̈`
+/// away from what the velocity's change over the log implies (`Δv_z / T`). A flight's `p̈`
 /// averages `Δv / T`, so such columns are most likely the world-frame specific force.
 fn check_accel_is_acceleration(
     accel: &[[f64; 3]],

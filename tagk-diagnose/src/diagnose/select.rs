@@ -9,13 +9,16 @@
 //! quantity: its residual is mapped back by the inverse filter ([`crate::Effect::unfilter`]),
 //! so that smoothing the wrench's own noise is not mistaken for a better fit.
 //!
-//! **A member of a set is kept** when, within the set, (1) it is significant: dropping it
-//! raises the in-sample score by more than the χ² quantile of its degrees of freedom at the
-//! family-wise level (Bonferroni over the candidates), the score scaled by the residual's
-//! variance and its autocorrelation factor; (2) it gains on held-out data at least
-//! [`MIN_GAIN`] of one channel's noise variance per sample; (3) its coefficients and the
-//! rigid body stay physical; (4) its scanned parameter, if any, lies inside its range;
-//! (5) the data can tell it apart from the other members (variance inflation).
+//! **A member of a set is kept** when, within the set:
+//!
+//! 1. it is significant: dropping it raises the in-sample score by more than the χ² quantile
+//!    of its degrees of freedom at the family-wise level (Bonferroni over the candidates). The
+//!    score is scaled by the residual's variance and its autocorrelation factor;
+//! 2. it gains on held-out data at least [`MIN_GAIN`] of one channel's noise variance per
+//!    sample;
+//! 3. its coefficients and the rigid body stay physical;
+//! 4. its scanned parameter, if any, lies inside its range;
+//! 5. the data can tell it apart from the other members (variance inflation).
 //!
 //! **The search.** Every candidate alone; every pair and triple of the most promising ones;
 //! a set is admissible when every member is kept; the admissible set with the largest
@@ -39,7 +42,7 @@ use crate::stats;
 use tagk_dynamics::InertialParams;
 
 /// Smallest held-out gain a member must add to its set, as a fraction of one channel's noise
-/// variance per sample (5 %): below it an effect changes no prediction a flight-dynamics
+/// variance per sample (5 %). Below it an effect changes no prediction a flight-dynamics
 /// model cares about, however significant it is on a long log.
 pub const MIN_GAIN: f64 = 0.05;
 
@@ -136,8 +139,8 @@ impl Score {
 
     /// The standard error of coefficient `j`: its variance `cov_diag_j` scaled by the
     /// residual variance of the channels that carry its information, each weighted by its
-    /// share (a channel far from its noise — an unmodelled effect there — does not widen the
-    /// interval of a coefficient it does not carry).
+    /// share. A channel far from its noise (an unmodelled effect there) does not widen the
+    /// interval of a coefficient it does not carry.
     pub fn std_error(&self, j: usize, n: f64) -> f64 {
         let scales = self.channel_scales(n);
         let info = &self.ev.gram_diag_ch[j];
@@ -575,13 +578,13 @@ impl<'s> Context<'s> {
     }
 
     /// The 95 % profile interval of member `k`'s scanned parameter from its `scan`, resolved
-    /// finer than the interval itself: the minimum refined by golden sections to
-    /// [`MINIMUM_TOLERANCE`] of the value, then each end found by bisection on the criterion
-    /// (the first value tried beyond it brackets it) to [`INTERVAL_TOLERANCE`] of its
-    /// distance from the minimum. A grid's spacing (28 % between a lag's values) or a scan's last bracket
+    /// finer than the interval itself. The minimum is refined by golden sections to
+    /// [`MINIMUM_TOLERANCE`] of the value. Then each end is found by bisection on the criterion
+    /// (the first value tried beyond it brackets it) to [`INTERVAL_TOLERANCE`] of its distance
+    /// from the minimum. A grid's spacing (28 % between a lag's values) or a scan's last bracket
     /// (about 1 %) would otherwise set the interval, however much narrower the evidence is.
-    /// `scale` as in [`ScanResult::interval`]; an end of the range where the profile never
-    /// rises that far is the interval's end.
+    /// `scale` as in [`ScanResult::interval`]. An end of the range where the profile never rises
+    /// that far is the interval's end.
     pub fn refined_interval(
         &self,
         engine: &GramEngine<'_>,
@@ -733,8 +736,8 @@ pub(crate) struct ScanResult {
 impl ScanResult {
     /// The 95 % profile interval: the values whose in-sample score lies within
     /// `χ²₁(0.95) · scale` of the best (`scale` = the residual variance times its
-    /// autocorrelation factor), by linear interpolation between the values tried; an end of
-    /// the range where the profile never rises that far is the interval's end.
+    /// autocorrelation factor), by linear interpolation between the values tried. An end of the
+    /// range where the profile never rises that far is the interval's end.
     pub fn interval(&self, scale: f64) -> Option<[f64; 2]> {
         let best = self.best?;
         let min = self
@@ -1352,9 +1355,9 @@ pub(crate) fn comparison_margin(gain: f64) -> f64 {
     (2.0 * g.sqrt()).max(0.01 * g)
 }
 
-/// The prior cost of an effect when the data cannot choose between sets: a sensor offset is
-/// the commonest cause of what it explains (0.5), a wind is two effects — a drag and a
-/// world-fixed force (2), every other effect one (1).
+/// The prior cost of an effect when the data cannot choose between sets. A sensor offset is
+/// the commonest cause of what it explains (0.5). A wind is two effects — a drag and a
+/// world-fixed force (2). Every other effect is one (1).
 fn prior_cost(m: &Member) -> f64 {
     use tagk_dynamics::EffectKind;
     if crate::effects::is_sensor_effect(m.name()) {

@@ -8,14 +8,15 @@ use crate::effects::{Effect, EffectColumn, Plausibility, ScanSpec};
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// First-order actuator dynamics: the delivered thrust and torques follow the logged command
-/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz` (its gain fixed at 1), with `y`
-/// the exact response to the piecewise-constant command held over each sample interval (see
-/// [`first_order_lag`]). With rotor speeds the lag acts on each rotor speed and the wrench
-/// follows through the squares ([`lagged_rotors`]): the thrust at the interval's middle, the
-/// torques as its mean; eight nuisance columns (per rotor `ω_r e^{−(t − t₀)/τ}` through the
-/// mixer, per channel `e^{−2(t − t₀)/τ}`) absorb the motors' unknown speeds at the start of
-/// the log exactly. Without rotor speeds the lag acts on the wrench, and four nuisance columns
-/// `e^{−(t − t₀)/τ}` (one per channel) absorb its unknown state at the start.
+/// through `τ ẏ = u − y`. Column: `y − b` on `fz, tx, ty, tz` (its gain fixed at 1). Here `y`
+/// is the exact response to the piecewise-constant command held over each sample interval
+/// (see [`first_order_lag`]). With rotor speeds the lag acts on each rotor speed, and the
+/// wrench follows through the squares ([`lagged_rotors`]). The thrust is taken at the
+/// interval's middle, the torques as its mean. Eight nuisance columns absorb the motors'
+/// unknown speeds at the start of the log exactly: per rotor `ω_r e^{−(t − t₀)/τ}` through the
+/// mixer, per channel `e^{−2(t − t₀)/τ}`. Without rotor speeds the lag acts on the wrench.
+/// Four nuisance columns `e^{−(t − t₀)/τ}` (one per channel) then absorb its unknown state at
+/// the start.
 #[derive(Debug, Clone)]
 pub(crate) struct MotorLag {
     /// Time constants scanned \[s\].
@@ -30,9 +31,9 @@ impl MotorLag {
 }
 
 /// `true` when channel `channel`'s lagged response is the interval mean of the lag's state
-/// rather than its value at the interval's middle: with rotor speeds and a rotor mixer the
-/// torques are the interval means of the lagged rotors (what a differenced gyro sees), the
-/// thrust its value at the middle; without, every channel is lagged at the middle
+/// rather than its value at the interval's middle. With rotor speeds and a rotor mixer, the
+/// torques are the interval means of the lagged rotors (what a differenced gyro sees). The
+/// thrust is then its value at the middle. Without, every channel is lagged at the middle
 /// ([`MotorLag::sampled_columns`]).
 fn interval_mean(s: &Signals, channel: Channel) -> bool {
     // No rotor speeds, no mixer.
@@ -64,9 +65,9 @@ impl Default for MotorLag {
 }
 
 /// `true` when two sampling steps \[s\] agree to 1e-9 relative: the exponential factors of
-/// the previous step are reused (the time stamps of a uniformly sampled log differ in their
-/// last bits, and the exponentials dominate a scan's cost; the error this makes, below 1e-9
-/// relative, is far below any log's resolution).
+/// the previous step are then reused. The time stamps of a uniformly sampled log differ in
+/// their last bits, and the exponentials dominate a scan's cost. The error this makes, below
+/// 1e-9 relative, is far below any log's resolution.
 fn same_step(dt: f64, previous: f64) -> bool {
     (dt - previous).abs() <= 1e-9 * dt.abs()
 }
@@ -132,9 +133,9 @@ fn start_decay(t: &[f64], tau: f64, stride: usize) -> Vec<f64> {
 }
 
 /// Response of the first-order lag `τ ẏ = u − y` (time constant `tau` \[s\]) to a command
-/// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)` and sampled at
-/// its middle `t_k` (the convention of logs whose rows describe one control interval):
-/// with `Y_k` the state at the end of interval `k`,
+/// `u` held constant over each sample interval `[t_k − Δt/2, t_k + Δt/2)`. It is sampled at
+/// its middle `t_k` (the convention of logs whose rows describe one control interval).
+/// With `Y_k` the state at the end of interval `k`,
 /// `y_k = u_k + e^{−Δt/2τ} (Y_{k−1} − u_k)`, `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`,
 /// starting at rest on the first command (`Y_0 = u_0`).
 #[cfg(test)]
@@ -209,14 +210,14 @@ impl RotorLag {
 }
 
 /// With rotor speeds in the log, the lag acts on each rotor speed and the wrench follows
-/// through the squares: with the mixer identified from the log ([`Signals::rotor_mixer`];
-/// without one the lag is applied to the wrench directly, `None`), the delivered wrench is
-/// `M lag_τ(ω)²`. The lagged speeds start at rest on the first command; the motors' unknown
-/// speeds when the log starts add `d_r e^{−(t − t₀)/τ}` to rotor `r`, hence
-/// `2 d_r y_r e^{−(t − t₀)/τ} + d_r² e^{−2(t − t₀)/τ}` to its square: both kept as columns
+/// through the squares. The mixer is identified from the log ([`Signals::rotor_mixer`]).
+/// Without one this is `None`, and the lag is applied to the wrench directly. The delivered
+/// wrench is `M lag_τ(ω)²`. The lagged speeds start at rest on the first command. The motors'
+/// unknown speeds when the log starts add `d_r e^{−(t − t₀)/τ}` to rotor `r`. Hence they add
+/// `2 d_r y_r e^{−(t − t₀)/τ} + d_r² e^{−2(t − t₀)/τ}` to its square. Both are kept as columns
 /// ([`RotorLag`]), so the start is exact for any offsets. Each sample is the exact response
-/// to the command held over its interval `[t_k − Δt/2, t_k + Δt/2)`: the thrust at the
-/// middle (what an accelerometer sample sees), the torques as the interval mean (what a
+/// to the command held over its interval `[t_k − Δt/2, t_k + Δt/2)`. The thrust is taken at
+/// the middle (what an accelerometer sample sees). The torques are the interval mean (what a
 /// differenced gyro, the logged angular acceleration, sees). At the samples
 /// `0, stride, 2 stride, …` (the lag runs over every sample).
 fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
@@ -304,14 +305,14 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
     Some(out)
 }
 
-/// The inverse of the first-order lag of [`first_order_lag`] (with `interval_mean`, of the
-/// interval mean of the lag's state instead of its value at the interval's middle), applied in
-/// place to `y` sampled at `t`: the command `u` whose lagged response is `y`. With `Y` the
-/// state at the end of interval `k` and `g` the factor of the sampled output
+/// The inverse of the first-order lag of [`first_order_lag`], applied in place to `y` sampled
+/// at `t`: the command `u` whose lagged response is `y`. With `interval_mean`, it inverts the
+/// interval mean of the lag's state instead of its value at the interval's middle. Let `Y` be
+/// the state at the end of interval `k` and `g` the factor of the sampled output
 /// (`y_k = u_k + g (Y_{k−1} − u_k)`: `g = e^{−Δt/2τ}` at the middle, `(1 − e^{−Δt/τ}) τ/Δt`
-/// for the interval mean), `u_k = (y_k − g Y_{k−1}) / (1 − g)` and
-/// `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`, from `u_0 = y_0`; stable (its pole
-/// `(e^{−Δt/τ} − g)/(1 − g)` lies in `(−1, 0]`).
+/// for the interval mean). Then `u_k = (y_k − g Y_{k−1}) / (1 − g)` and
+/// `Y_k = u_k + e^{−Δt/τ} (Y_{k−1} − u_k)`, from `u_0 = y_0`. It is stable: its pole
+/// `(e^{−Δt/τ} − g)/(1 − g)` lies in `(−1, 0]`.
 pub(crate) fn inverse_first_order_lag(t: &[f64], y: &mut [f64], tau: f64, interval_mean: bool) {
     if y.is_empty() || tau <= 0.0 {
         return;
@@ -607,11 +608,12 @@ impl Effect for TimeDelay {
 /// Thrust-gain error: the delivered collective thrust is `(1 + κ)` times the logged one
 /// (a wrong thrust coefficient, battery sag). Column `[0, 0, f_z, 0, 0, 0]`: identifiable only
 /// with a known mass, which anchors `f_z`. The rotor torques scale alike, but there a common
-/// factor is the inertia's scale, and where the measured torques are mostly rotor-speed noise
-/// (a small quadrotor: 20 rad/s of noise against torques of 1e-4 N m) a `κ` on them regresses
-/// that noise onto itself and drifts towards −1 with a vanishing inertia (measured: κ = −0.70
-/// on a log without any thrust error); so `κ` acts on the thrust alone. In a joint fit of
-/// several logs each log gets its own `κ` (a battery's charge differs from flight to flight).
+/// factor is the inertia's scale. The measured torques may be mostly rotor-speed noise (a
+/// small quadrotor: 20 rad/s of noise against torques of 1e-4 N m). Then a `κ` on them
+/// regresses that noise onto itself and drifts towards −1 with a vanishing inertia (measured:
+/// κ = −0.70 on a log without any thrust error). So `κ` acts on the thrust alone. In a joint
+/// fit of several logs each log gets its own `κ` (a battery's charge differs from flight to
+/// flight).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct ThrustGain;
 
@@ -742,11 +744,11 @@ mod tests {
     }
 
     /// The lag of each rotor speed seen through the squares, against an independent
-    /// integration: on a log with rotor speeds, the delivered `[fz, tx, ty, tz]` minus the
-    /// logged one is the lag's column plus a least-squares combination of its start columns,
-    /// to 1e-7 of the lag's largest wrench, for motors that start 5–10 % off their first
-    /// command, at time constants from under a step to several steps. The start columns are
-    /// needed: without them the first samples miss by far more.
+    /// integration. On a log with rotor speeds, the delivered `[fz, tx, ty, tz]` minus the
+    /// logged one is the lag's column plus a least-squares combination of its start columns.
+    /// This holds to 1e-7 of the lag's largest wrench, for motors that start 5–10 % off their
+    /// first command, at time constants from under a step to several steps. The start columns
+    /// are needed: without them the first samples miss by far more.
     #[test]
     fn the_rotor_lag_with_its_start_columns_is_the_integrated_lag() {
         use nalgebra::{DMatrix, DVector};

@@ -3,7 +3,7 @@
 //! wrench, so that a diagnosis of the log can be judged against the physics that made it.
 //!
 //! Every quantity here is computed from the plant's state and the commands after the flight
-//! step that produced the sample; nothing is drawn from any random stream, so a flight with
+//! step that produced the sample. Nothing is drawn from any random stream, so a flight with
 //! the truth recorded logs the same bits as one without.
 //!
 //! **The decomposition.** With `W(ω)` the nominal mixer's wrench of rotor speeds `ω`
@@ -14,12 +14,12 @@
 //! Y(a, ω, ω̇) θ = W(ω_logged) + Σ_e w_e
 //! ```
 //!
-//! where `ω_logged` are the noise-free rotor speeds the logged actuator columns stand for (the
-//! commanded speeds of the interval whose actuator sample the log holds, or the motors' own
-//! with `FlightStack::motor_telemetry`), and each effect's wrench `w_e` (body frame, about
-//! the origin, `[fx, fy, fz, tx, ty, tz]` in N and N m) is the part of the acting wrench that
-//! effect adds, in the sign convention of the diagnosis (`b = Y θ − Σ w_e`: what acts on the
-//! body beyond the logged actuator wrench):
+//! where `ω_logged` are the noise-free rotor speeds the logged actuator columns stand for. These
+//! are the commanded speeds of the interval whose actuator sample the log holds, or the
+//! motors' own with `FlightStack::motor_telemetry`. Each effect's wrench `w_e` (body frame,
+//! about the origin, `[fx, fy, fz, tx, ty, tz]` in N and N m) is the part of the acting wrench
+//! that effect adds. It is in the sign convention of the diagnosis (`b = Y θ − Σ w_e`: what
+//! acts on the body beyond the logged actuator wrench):
 //!
 //! | effect | `w_e` |
 //! |---|---|
@@ -37,13 +37,13 @@
 //! gain's and the ground effect's shares split the plant's product `(1 + ε) T_IGE/T_OGE`.
 //!
 //! **As the log samples it.** A control-rate log sample holds the accelerometer at the
-//! interval's midpoint but `ω̇` as the gyro's change across the whole 20 ms interval: the
-//! torque rows of `Y(a, ω, logged ω̇) θ` are the interval's **mean** torque, not the midpoint's
-//! (they differ by far more than the noise when a motor lag shapes the torque within the
-//! interval). [`TruthSample::logged_wrench`], [`TruthSample::logged_effect_wrenches`] and
-//! [`TruthSample::logged_angular_acceleration`] are the truth on the log's terms: forces at
-//! the midpoint, torques and `ω̇` averaged over the interval (Simpson's rule over the physics
-//! steps). The plain fields are the instant's.
+//! interval's midpoint but `ω̇` as the gyro's change across the whole 20 ms interval. So the
+//! torque rows of `Y(a, ω, logged ω̇) θ` are the interval's **mean** torque, not the midpoint's.
+//! They differ by far more than the noise when a motor lag shapes the torque within the
+//! interval. [`TruthSample::logged_wrench`], [`TruthSample::logged_effect_wrenches`] and
+//! [`TruthSample::logged_angular_acceleration`] are the truth on the log's terms. Forces are
+//! taken at the midpoint, torques and `ω̇` averaged over the interval (Simpson's rule over the
+//! physics steps). The plain fields are the instant's.
 //!
 //! The sensors' errors are not effects of the plant: the flight's constant accelerometer and
 //! gyro biases are given ([`FlightTruth::accel_bias`], [`FlightTruth::gyro_bias`]); white
@@ -72,10 +72,10 @@ pub struct TruthSample {
     /// True angular acceleration `ω̇`, body frame \[rad/s²\] (instantaneous, at the sample's
     /// state).
     pub angular_acceleration: [f64; 3],
-    /// The noise-free counterpart of the log's `dwx..dwz`, body frame \[rad/s²\]: for a
-    /// control-rate sample the true body rate's change across the control interval over its
-    /// length (the interval mean of `ω̇`, which the differenced gyro measures); for a
-    /// physics-rate sample (no `ω̇` logged) [`TruthSample::angular_acceleration`].
+    /// The noise-free counterpart of the log's `dwx..dwz`, body frame \[rad/s²\]. For a
+    /// control-rate sample it is the true body rate's change across the control interval over its
+    /// length (the interval mean of `ω̇`, which the differenced gyro measures). For a
+    /// physics-rate sample (no `ω̇` logged) it is [`TruthSample::angular_acceleration`].
     pub logged_angular_acceleration: [f64; 3],
     /// The total non-gravitational wrench acting on the body, `Y(a, ω, ω̇) θ`, body frame, about
     /// the origin: `[fx, fy, fz]` \[N\], `[tx, ty, tz]` \[N m\].
@@ -86,9 +86,9 @@ pub struct TruthSample {
     /// that `Y(a, ω, logged ω̇) θ` equals it to second order in the interval; for a
     /// physics-rate sample the wrench itself \[N, N m\].
     pub logged_wrench: [f64; 6],
-    /// The noise-free actuator wrench the log's `fx..tz` stand for: the nominal mixer's wrench
-    /// of the noise-free read-back rotor speeds of the interval whose actuator sample the log
-    /// holds (with a `time-delay`, an earlier one); body frame, about the origin \[N, N m\].
+    /// The noise-free actuator wrench the log's `fx..tz` stand for, body frame, about the origin
+    /// \[N, N m\]. It is the nominal mixer's wrench of the noise-free read-back rotor speeds of the
+    /// interval whose actuator sample the log holds (with a `time-delay`, an earlier one).
     /// The logged wrench is this plus the rotor-speed noise.
     pub logged_actuator_wrench: [f64; 6],
     /// Each effect's wrench `w_e` (module docs), in the order of [`FlightTruth::effects`];
@@ -202,10 +202,10 @@ impl TruthParts {
 }
 
 impl TruthSample {
-    /// The truth of a log sample at time `t` \[s\] of a body with parameters `params`: the
-    /// state and accelerations at the sample, the logged actuator wrench, the wrenches at the
-    /// sample and, for a control-rate sample, their means over the control interval with the
-    /// interval mean of `ω̇` (the change of the body rate over the interval's length).
+    /// The truth of a log sample at time `t` \[s\] of a body with parameters `params`. It holds the
+    /// state and accelerations at the sample, the logged actuator wrench and the wrenches at the
+    /// sample. For a control-rate sample it also holds their means over the control interval, with
+    /// the interval mean of `ω̇` (the change of the body rate over the interval's length).
     pub(crate) fn new(
         t: f64,
         params: InertialParams,
