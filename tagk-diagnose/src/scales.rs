@@ -15,7 +15,7 @@
 //! | `inertia` | the fitted `I_xx, I_yy, I_zz` with the vehicle file's | the gyro's unit, the arm length |
 //!
 //! **The gyro's gain** is measured on rotations, where its noise averages out
-//! ([`gyro_rotation_gain`]). Over each window of [`GYRO_ROTATION_WINDOW`], the gyro integrated
+//! (`gyro_rotation_gain`). Over each window of [`GYRO_ROTATION_WINDOW`], the gyro integrated
 //! in the window's first body frame is regressed on the rotation vector between the window's
 //! two attitudes. Each is averaged over the windows shifted by up to
 //! [`GYRO_ENDPOINT_SMOOTHING`]. The windows do not overlap (one independent value each). The
