@@ -31,7 +31,7 @@
 //! error. A larger "offset" says the velocity and the acceleration disagree (a frame, a
 //! unit): it is reported and not removed.
 
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::log::FlightLog;
@@ -97,8 +97,7 @@ pub fn measure(log: &FlightLog) -> Option<(Vector3<f64>, Matrix3<f64>, usize)> {
         return None;
     }
     let rotation = |i: usize| {
-        let [w, x, y, z] = log.attitude[i];
-        UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z))
+        tagk_dynamics::log::attitude_quaternion(&log.attitude[i])
             .to_rotation_matrix()
             .into_inner()
     };
@@ -181,9 +180,7 @@ pub fn remove_vertical_offset(
     } else {
         if let Some(accel) = log.accel.as_mut() {
             for (a, q) in accel.iter_mut().zip(&log.attitude) {
-                let [w, x, y, qz] = *q;
-                let rotation = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, qz));
-                let shift = rotation * Vector3::new(0.0, 0.0, z);
+                let shift = tagk_dynamics::log::attitude_quaternion(q) * Vector3::new(0.0, 0.0, z);
                 for j in 0..3 {
                     a[j] -= shift[j];
                 }
@@ -215,6 +212,7 @@ pub fn remove_vertical_offset(
 mod tests {
     use super::*;
     use crate::log::LogSample;
+    use nalgebra::UnitQuaternion;
 
     /// A synthetic flight at `rate` Hz for `seconds`, with a tilting, yawing attitude and a
     /// world acceleration `p̈(t)` of exact velocity. The accelerometer reads `p̈ + R b` plus

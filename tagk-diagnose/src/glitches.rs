@@ -45,7 +45,7 @@
 use std::collections::BTreeSet;
 use std::ops::Range;
 
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use serde::Serialize;
 use tagk_dynamics::log::{
     ACCEL_COLUMNS, OMEGA_DOT_COLUMNS, REQUIRED_COLUMNS, ROTOR_SPEED_COLUMNS, WRENCH_COLUMNS,
@@ -464,8 +464,7 @@ fn screen_channel(segments: &[Range<usize>], x: &[f64]) -> Vec<Run> {
 /// The attitude's glitches: steps whose rotation the gyro does not show (module docs).
 fn screen_attitude(log: &FlightLog, segments: &[Range<usize>]) -> Vec<Run> {
     let n = log.len();
-    let unit =
-        |q: [f64; 4]| UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+    let unit = |q: [f64; 4]| tagk_dynamics::log::attitude_quaternion(&q);
     // e[i]: the step from sample i − 1 to i.
     let mut e = vec![f64::NAN; n];
     let mut logged = vec![f64::NAN; n];

@@ -47,7 +47,7 @@
 
 use std::ops::Range;
 
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use serde::Serialize;
 use tagk_dynamics::GRAVITY_WORLD;
 use tagk_dynamics::log::accel_looks_like_specific_force;
@@ -331,8 +331,7 @@ fn gain_of(sxx: f64, syy: f64, sxy: f64, n: usize, width: usize) -> Option<Gain>
 fn gyro_rotation_gain(log: &FlightLog, segments: &[Range<usize>], dt: f64) -> Option<Gain> {
     let len = ((GYRO_ROTATION_WINDOW / dt).round() as usize).max(2);
     let k = (GYRO_ENDPOINT_SMOOTHING / dt).round() as usize;
-    let unit =
-        |q: [f64; 4]| UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+    let unit = |q: [f64; 4]| tagk_dynamics::log::attitude_quaternion(&q);
     let pair = |a: usize, b: usize| {
         let qa_inv = unit(log.attitude[a]).inverse();
         let body = |i: usize| (qa_inv * unit(log.attitude[i])) * Vector3::from(log.omega[i]);
@@ -586,7 +585,7 @@ pub fn check_log(name: &str, log: &FlightLog, mass: Option<f64>) -> Vec<ScaleFin
     for r in &rows {
         for i in r.clone() {
             let q = log.attitude[i];
-            let rot = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+            let rot = tagk_dynamics::log::attitude_quaternion(&q);
             let a = rot.inverse_transform_vector(&(Vector3::from(accel[i]) - GRAVITY_WORLD));
             let f = log.wrench[i][2];
             sfa += f * a.z;

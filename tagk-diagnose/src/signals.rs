@@ -2,7 +2,7 @@
 
 use std::borrow::Cow;
 
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use tagk_dynamics::GRAVITY_WORLD;
 
 use crate::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
@@ -579,7 +579,7 @@ impl Signals {
 
 /// The rotation body → world of a logged attitude quaternion `[w, x, y, z]` (normalised).
 fn rotation_of(q: &[f64; 4]) -> Matrix3<f64> {
-    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+    tagk_dynamics::log::attitude_quaternion(q)
         .to_rotation_matrix()
         .into_inner()
 }

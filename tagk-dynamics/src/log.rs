@@ -42,6 +42,12 @@ use std::path::Path;
 
 use thiserror::Error;
 
+/// The unit quaternion of a logged attitude `[w, x, y, z]` (Hamilton, body → world),
+/// normalised. The one reading of [`FlightLog::attitude`]'s convention.
+pub fn attitude_quaternion(q: &[f64; 4]) -> nalgebra::UnitQuaternion<f64> {
+    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]))
+}
+
 /// Allowed deviation of the attitude quaternion's norm from 1 before a log is rejected.
 pub const QUATERNION_NORM_TOLERANCE: f64 = 0.01;
 
