@@ -136,10 +136,10 @@ pub fn discover_from(
         // Climb, prune, and climb again from what the pruning left (a dropped effect may
         // leave room for another: a drag law where an implausible wind was), at most twice.
         for _ in 0..2 {
-            let before = run.added.clone();
             climb(&mut run, s, opts, &floor, &mut fits)?;
+            let climbed = run.added.clone();
             prune(start, &mut run, s, opts, &floor, &mut fits)?;
-            if run.added.len() >= before.len() || run.added.is_empty() {
+            if run.added == climbed {
                 break;
             }
         }

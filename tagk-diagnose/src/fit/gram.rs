@@ -339,7 +339,7 @@ impl<'a> GramEngine<'a> {
             out
         };
         let total = sum_pieces(&|_| true, None);
-        let (beta, cov_diag) = solve_gram(&total, pp, None);
+        let (beta, cov_diag) = solve_gram(&total, pp);
         let gram_diag: Vec<f64> = (1..pp).map(|j| total[j * pp + j]).collect();
         let mut gram_diag_ch = vec![[0.0; 6]; pp - 1];
         for pi in 0..np {
@@ -368,7 +368,7 @@ impl<'a> GramEngine<'a> {
                         || (part == 0 && b > 0 && (b - 1) % folds == k)
                 };
                 let train = sum_pieces(&|pi| !excluded(pi), None);
-                let (bk, _) = solve_gram(&train, pp, Some(&total));
+                let bk = solve_fold(&train, &total, &beta, pp);
                 for c in 0..6 {
                     let test = sum_pieces(&|pi| k_of(pi) == k, Some(c));
                     let e = sse_of(&test, pp, &bk);
@@ -416,8 +416,9 @@ impl<'a> GramEngine<'a> {
     /// squares of the target (a filter of the residual, its whiteness).
     ///
     /// Columns marked in `nuisance` (base then candidate; a shorter mask is padded with
-    /// `false`) keep their all-data coefficient: a start-of-log transient cannot be learnt
-    /// from the folds that do not hold the start, and it is not a prediction.
+    /// `false`) keep their all-data coefficient: a start-of-log transient is an initial
+    /// condition, reproduced in every fold, never predicted. Other directions the fold's
+    /// training samples cannot determine keep their all-data value too (see `solve_fold`).
     pub fn held_out_residual<C: Borrow<ColData>>(
         &self,
         cand: &[C],
@@ -670,21 +671,12 @@ fn cross_tensor(
 /// Solves the normal equations of a Gram matrix laid out as `[y, x…]²`: returns β for the
 /// `x` part (pseudo-inverse via a symmetric eigendecomposition of the equilibrated matrix,
 /// eigenvalues below 1e-12 of the largest dropped).
-///
-/// With `reference` (the Gram matrix of all the data), a column whose diagonal here is below
-/// 1e-10 of its reference diagonal — a column that (almost) vanishes on these samples, like a
-/// start-of-log transient in a training set without the start — is left out (coefficient 0).
-fn solve_gram(gm: &[f64], pp: usize, reference: Option<&[f64]>) -> (Vec<f64>, Vec<f64>) {
+fn solve_gram(gm: &[f64], pp: usize) -> (Vec<f64>, Vec<f64>) {
     let p = pp - 1;
     let mut d = vec![0.0; p];
     for j in 0..p {
         let g = gm[(j + 1) * pp + j + 1];
-        let vanishes = reference.is_some_and(|r| g <= 1e-10 * r[(j + 1) * pp + j + 1]);
-        d[j] = if g > 0.0 && !vanishes {
-            1.0 / g.sqrt()
-        } else {
-            0.0
-        };
+        d[j] = if g > 0.0 { 1.0 / g.sqrt() } else { 0.0 };
     }
     let a = DMatrix::<f64>::from_fn(p, p, |i, j| gm[(i + 1) * pp + j + 1] * d[i] * d[j]);
     let rhs = DVector::<f64>::from_fn(p, |i, _| gm[(i + 1) * pp] * d[i]);
@@ -712,6 +704,58 @@ fn solve_gram(gm: &[f64], pp: usize, reference: Option<&[f64]>) -> (Vec<f64>, Ve
         (0..p).map(|j| x[j] * d[j]).collect(),
         (0..p).map(|j| diag[j] * d[j] * d[j]).collect(),
     )
+}
+
+/// The share of a direction's information that a fold's training samples must hold for the
+/// fold to predict along it ([`solve_fold`]): 5 %. Below it, the held-out samples carry 95 %
+/// or more of what the data know about that direction.
+const FOLD_INFORMATION_SHARE: f64 = 0.05;
+
+/// The coefficients a fold's training samples give (Gram matrix `train`, laid out as
+/// [`solve_gram`]'s), conditional on the all-data fit `beta` of `total` (the Gram matrix of
+/// all the samples) where the training samples cannot determine them.
+///
+/// The directions are those of the generalised eigenproblem `train v = λ total v`: λ is the
+/// share of a direction's information held by the training samples. Along a direction with
+/// λ ≥ [`FOLD_INFORMATION_SHARE`] the training samples decide. Along the others (a start-of-log
+/// transient, a motion flown only in the held-out block) the coefficient keeps its all-data
+/// value. Such a direction is not predicted: it is reproduced, in every model alike. Solving
+/// it from a few per cent of the information would extrapolate it arbitrarily far instead.
+fn solve_fold(train: &[f64], total: &[f64], beta: &[f64], pp: usize) -> Vec<f64> {
+    let p = pp - 1;
+    let d: Vec<f64> = (0..p)
+        .map(|j| {
+            let g = total[(j + 1) * pp + j + 1];
+            if g > 0.0 { 1.0 / g.sqrt() } else { 0.0 }
+        })
+        .collect();
+    let scaled =
+        |gm: &[f64]| DMatrix::<f64>::from_fn(p, p, |i, j| gm[(i + 1) * pp + j + 1] * d[i] * d[j]);
+    let (a, b) = (scaled(total), scaled(train));
+    let eig = a.symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().fold(0.0f64, |m, x| m.max(*x));
+    // W: the all-data matrix's range, whitened (Wᵀ A W = 1).
+    let kept: Vec<usize> = (0..p)
+        .filter(|&k| eig.eigenvalues[k] > lmax * 1e-12 && eig.eigenvalues[k] > 0.0)
+        .collect();
+    let w = DMatrix::<f64>::from_fn(p, kept.len(), |i, k| {
+        eig.eigenvectors[(i, kept[k])] / eig.eigenvalues[kept[k]].sqrt()
+    });
+    let c = w.transpose() * &b * &w;
+    let ceig = c.symmetric_eigen();
+    // Start from the all-data coefficients (scaled), and let the training samples move them
+    // along the directions they determine: there they satisfy the training normal equations.
+    let mut x = DVector::<f64>::from_fn(p, |j, _| if d[j] > 0.0 { beta[j] / d[j] } else { 0.0 });
+    let rhs = DVector::<f64>::from_fn(p, |i, _| train[(i + 1) * pp] * d[i]);
+    let r = rhs - &b * &x;
+    for k in 0..kept.len() {
+        let l = ceig.eigenvalues[k];
+        if l >= FOLD_INFORMATION_SHARE {
+            let v = &w * ceig.eigenvectors.column(k);
+            x += &v * (v.dot(&r) / l);
+        }
+    }
+    (0..p).map(|j| x[j] * d[j]).collect()
 }
 
 /// `yᵀy − 2 βᵀ g + βᵀ G β` from a `[y, x…]²` Gram matrix.
