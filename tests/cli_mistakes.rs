@@ -435,3 +435,58 @@ fn two_logs_of_two_vehicle_states_are_refused() {
         "{stderr}"
     );
 }
+
+/// Issue #25: a log in the project's format with text, booleans and empty cells in a column
+/// outside the format. The column is not read and is reported (terminal, JSON). The fit is
+/// the same as without it, and a custom effect naming it is told why it is missing.
+#[test]
+fn text_in_a_native_log_s_own_column_is_not_read_and_is_reported() {
+    let dir = tmpdir("native-unread");
+    let log = simulate(&dir, "good.csv", 3, &[]);
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut out = String::new();
+    for (i, l) in text.lines().enumerate() {
+        let (status, temp) = match i {
+            0 => ("status".to_string(), "temp".to_string()),
+            i if i % 3 == 0 => (String::new(), format!("{}", 20.0 + i as f64 * 1e-3)),
+            i if i % 2 == 0 => ("True".into(), format!("{}", 20.0 + i as f64 * 1e-3)),
+            _ => ("False".into(), format!("{}", 20.0 + i as f64 * 1e-3)),
+        };
+        out.push_str(&format!("{l},{status},{temp}\n"));
+    }
+    std::fs::write(dir.join("extra.csv"), out).unwrap();
+    let stdout = tagk_in(&dir, &["diagnose", "extra.csv", "--json", "extra.json"]);
+    assert!(
+        stdout.contains("not read (unmapped, not numeric): status (extra.csv, line 2: `False`)"),
+        "{stdout}"
+    );
+    // The numeric extra column is kept: no mention of it.
+    assert!(!stdout.contains("temp ("), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("extra.json")).unwrap()).unwrap();
+    let unread = &json["inputs"][0]["unread_columns"];
+    assert_eq!(unread.as_array().map(Vec::len), Some(1), "{unread}");
+    assert_eq!(unread[0]["column"], "status");
+    assert_eq!(unread[0]["line"], 2);
+    // The same fit as the file without the column.
+    tagk_in(&dir, &["diagnose", "good.csv", "--json", "good.json"]);
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("good.json")).unwrap()).unwrap();
+    assert_eq!(json["final_model"]["effects"], good["final_model"]["effects"]);
+    assert_eq!(json["steps"], good["steps"]);
+    // A custom effect naming it says why it is not there.
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(["diagnose", "extra.csv", "--quiet", "--custom", "st=status*fz@fz"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(
+            "custom effect `st`: the column `status` of extra.csv was not read as a signal: its \
+             cell on line 2 is `False`, not a number"
+        ),
+        "{stderr}"
+    );
+}

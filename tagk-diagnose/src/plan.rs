@@ -630,12 +630,19 @@ impl DiagnosisPlan {
                 Input::File(path) => match &self.columns {
                     None => {
                         let name = path.display().to_string();
-                        let (log, lines) = FlightLog::from_csv_path_with_lines(&path)?;
+                        let read = FlightLog::read_csv_path(&path)?;
+                        // Columns not read are reported as a merge of one stream reports
+                        // them (a custom effect naming one is told why it is missing).
+                        let merge = (!read.unread_columns.is_empty()).then(|| MergeReport {
+                            primary: name.clone(),
+                            unread_columns: read.unread_columns,
+                            ..MergeReport::default()
+                        });
                         Flight {
-                            source: Some(SampleSource::of_file(name.clone(), lines)),
+                            source: Some(SampleSource::of_file(name.clone(), read.lines)),
                             name,
-                            log,
-                            merge: None,
+                            log: read.log,
+                            merge,
                         }
                     }
                     Some(_) => self.read_streams(std::slice::from_ref(&path))?,

@@ -16,7 +16,9 @@
 //! | `dwx,dwy,dwz` | body angular acceleration \[rad/s²\] | no: derived from `w` if absent |
 //! | `w1..w4` | rotor speeds \[rad/s\] | no |
 //!
-//! Any other column is kept ([`FlightLog::extra`]). The simulator writes its logs with
+//! Any other column is kept ([`FlightLog::extra`]) when every cell of it is a finite number.
+//! One with text, a boolean or an empty cell is not read: [`FlightLog::read_csv_path`] lists
+//! it with its first such cell. The simulator writes its logs with
 //! [`FlightLog::write_csv`]; the diagnosis reads them with [`FlightLog::from_csv_path`].
 //!
 //! ```
@@ -90,6 +92,18 @@ pub const ACCEL_COLUMNS: [&str; 3] = ["ax", "ay", "az"];
 pub const OMEGA_DOT_COLUMNS: [&str; 3] = ["dwx", "dwy", "dwz"];
 /// The optional rotor-speed group (all or none).
 pub const ROTOR_SPEED_COLUMNS: [&str; 4] = ["w1", "w2", "w3", "w4"];
+
+/// A flight log as read from CSV ([`FlightLog::read_csv`], [`FlightLog::read_csv_path`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadLog {
+    /// The log.
+    pub log: FlightLog,
+    /// The CSV line (1-based; the header is line 1) each sample was read from.
+    pub lines: Vec<usize>,
+    /// The columns outside the format that were not read: a cell of each is not a finite
+    /// number (text, a boolean, an empty cell). The first such cell is named.
+    pub unread_columns: Vec<crate::log_input::UnreadColumn>,
+}
 
 /// A flight log in memory: one entry per sample in every signal, SI units (the [format](self)).
 ///
@@ -694,21 +708,25 @@ impl FlightLog {
     /// [`FlightLog::from_csv_reader`] wrapped in [`LogError::InFile`] (so that the message
     /// names the file as well as the line and column).
     pub fn from_csv_path(path: impl AsRef<Path>) -> Result<Self, LogError> {
-        Self::from_csv_path_with_lines(path).map(|(log, _)| log)
+        Self::read_csv_path(path).map(|read| read.log)
     }
 
-    /// [`FlightLog::from_csv_path`], with the CSV line (1-based; the header is line 1) each
-    /// sample was read from: a report can then name the line a user opens.
+    /// [`FlightLog::from_csv_path`], with the CSV line each sample was read from and the
+    /// columns not read: a report can then name the line a user opens, and say why a column
+    /// is missing.
     ///
     /// # Errors
     /// As [`FlightLog::from_csv_path`].
-    pub fn from_csv_path_with_lines(
-        path: impl AsRef<Path>,
-    ) -> Result<(Self, Vec<usize>), LogError> {
+    pub fn read_csv_path(path: impl AsRef<Path>) -> Result<ReadLog, LogError> {
         let path = path.as_ref();
         let file = open_log_file(path)?;
-        Self::read_csv(std::io::BufReader::new(file))
-            .map_err(|e| LogError::in_file(path.display().to_string(), e))
+        let name = path.display().to_string();
+        let mut read = Self::read_csv(std::io::BufReader::new(file))
+            .map_err(|e| LogError::in_file(name.clone(), e))?;
+        for c in &mut read.unread_columns {
+            c.stream.clone_from(&name);
+        }
+        Ok(read)
     }
 
     /// Reads and validates a CSV flight log (the [format](self)): one header row, then one row per
@@ -720,11 +738,15 @@ impl FlightLog {
     /// # Errors
     /// A [`LogError`] naming the line and column of the first problem.
     pub fn from_csv_reader<R: Read>(reader: R) -> Result<Self, LogError> {
-        Self::read_csv(reader).map(|(log, _)| log)
+        Self::read_csv(reader).map(|read| read.log)
     }
 
-    /// [`FlightLog::from_csv_reader`], with the CSV line of each sample.
-    fn read_csv<R: Read>(reader: R) -> Result<(Self, Vec<usize>), LogError> {
+    /// [`FlightLog::from_csv_reader`], with the CSV line of each sample and the columns not
+    /// read (their `stream` is empty).
+    ///
+    /// # Errors
+    /// As [`FlightLog::from_csv_reader`].
+    pub fn read_csv<R: Read>(reader: R) -> Result<ReadLog, LogError> {
         let mut rows = NumericRows::new(reader)?;
         let header = rows.header.clone();
         let idx = |name: &str| header.iter().position(|h| h == name);
@@ -781,6 +803,13 @@ impl FlightLog {
                 .collect(),
             ..FlightLog::default()
         };
+        // A column outside the format is read leniently: one cell that is not a finite number
+        // leaves it unread, not the file refused.
+        rows.set_lenient(
+            (0..header.len())
+                .map(|j| extra_cols.contains(&j))
+                .collect(),
+        );
         let mut values = vec![0.0; header.len()];
         let mut lines = Vec::new();
         while let Some(line) = rows.next_into(&mut values)? {
@@ -832,7 +861,24 @@ impl FlightLog {
                 needed: MIN_ROWS,
             });
         }
-        Ok((log, lines))
+        let mut unread_columns = Vec::new();
+        let extra = std::mem::take(&mut log.extra);
+        for ((name, values), &j) in extra.into_iter().zip(&extra_cols) {
+            match rows.first_bad[j].take() {
+                Some((line, value)) => unread_columns.push(crate::log_input::UnreadColumn {
+                    stream: String::new(),
+                    column: name,
+                    line,
+                    value,
+                }),
+                None => log.extra.push((name, values)),
+            }
+        }
+        Ok(ReadLog {
+            log,
+            lines,
+            unread_columns,
+        })
     }
 
     /// Checks what writing needs: equal signal lengths and strictly increasing time (a log

@@ -1164,7 +1164,9 @@ impl MergeReport {
             .iter()
             .map(|(q, s)| format!("{q} <- {s}"))
             .collect();
-        text.push_str(&format!("\nquantities: {}", sources.join(", ")));
+        if !sources.is_empty() {
+            text.push_str(&format!("\nquantities: {}", sources.join(", ")));
+        }
         if !self.derived.is_empty() {
             text.push_str(&format!("\nderived: {}", self.derived.join(", ")));
         }
