@@ -76,7 +76,7 @@ fn the_readme_realistic_example_names_the_drag_the_lag_and_the_sensor_offset() {
             .any(|w| w
                 .as_str()
                 .unwrap()
-                .starts_with("I_zz is biased towards zero")),
+                .starts_with("I_zz may be biased towards zero")),
         "{text}"
     );
     // The accelerometer's vertical offset is measured against the velocity and removed

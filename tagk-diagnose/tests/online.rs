@@ -192,7 +192,6 @@ fn with_a_known_mass_the_online_pass_still_estimates_the_mass() {
 /// half of those that have one.
 #[test]
 fn the_online_mass_ends_within_5_percent_of_the_batch_mass_on_random_flights() {
-    let started = std::time::Instant::now();
     let trajectories = [
         TrajectoryKind::Figure8,
         TrajectoryKind::Circle,
@@ -251,10 +250,4 @@ fn the_online_mass_ends_within_5_percent_of_the_batch_mass_on_random_flights() {
         }
     }
     assert_eq!(checked, 80);
-    // Budget: the whole test stays short in a debug build (about 1 s on a 2-core VM).
-    assert!(
-        started.elapsed().as_secs_f64() < 20.0,
-        "took {:?}",
-        started.elapsed()
-    );
 }
