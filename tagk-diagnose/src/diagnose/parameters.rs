@@ -347,7 +347,7 @@ mod tests {
         );
         let warnings = attenuation_warnings(&s, &fit);
         assert!(
-            warnings.iter().any(|w| w.starts_with("I_xx is biased")),
+            warnings.iter().any(|w| w.starts_with("I_xx may be biased")),
             "{warnings:?}"
         );
     }
