@@ -613,6 +613,93 @@ impl PlantEffects {
         Ok(self)
     }
 
+    /// The names of the coefficients [`PlantEffects::with_coefficients`] takes for `kind`,
+    /// in order, with their units: the fields of the effect's parameter struct.
+    pub fn coefficient_names(kind: EffectKind) -> &'static str {
+        match kind {
+            EffectKind::LinearDrag => "d_x, d_y, d_z [N s/m]",
+            EffectKind::RotorDrag => "k_x, k_y, k_z [kg/rad]",
+            EffectKind::QuadraticDrag => "CdA_x, CdA_y, CdA_z [m^2], air density [kg/m^3]",
+            EffectKind::MotorLag => "time constant [s]",
+            EffectKind::GroundEffect => "rotor radius [m]",
+            EffectKind::Wind => "v_x, v_y, v_z (world) [m/s]",
+            EffectKind::ThrustGain => "relative error [1]",
+            EffectKind::BodyBias => "f_x, f_y, f_z [N], t_x, t_y, t_z [N m] (body)",
+            EffectKind::TimeDelay => "delay [s]",
+            _ => "",
+        }
+    }
+
+    /// This set with `kind` switched on at the given coefficients, in the order of
+    /// [`PlantEffects::coefficient_names`] (SI units, the fields of the effect's parameter
+    /// struct). No coefficient: the Crazyflie default ([`PlantEffects::with`]).
+    ///
+    /// # Errors
+    /// [`SimError::UnsupportedEffect`] as [`PlantEffects::with`];
+    /// [`SimError::EffectCoefficients`] for a wrong number of coefficients;
+    /// [`SimError::InvalidParameter`] for a bad value ([`PlantEffects::validate`]).
+    pub fn with_coefficients(self, kind: EffectKind, c: &[f64]) -> Result<Self, SimError> {
+        let mut e = self.with(kind)?;
+        if c.is_empty() {
+            return Ok(e);
+        }
+        let three = |c: &[f64]| [c[0], c[1], c[2]];
+        let expected = match kind {
+            EffectKind::LinearDrag | EffectKind::RotorDrag | EffectKind::Wind => 3,
+            EffectKind::QuadraticDrag => 4,
+            EffectKind::BodyBias => 6,
+            _ => 1,
+        };
+        if c.len() != expected {
+            return Err(SimError::EffectCoefficients {
+                effect: kind,
+                expected,
+                names: Self::coefficient_names(kind),
+                got: c.len(),
+            });
+        }
+        match kind {
+            EffectKind::LinearDrag => {
+                e.linear_drag = Some(LinearDrag {
+                    coefficients: three(c),
+                })
+            }
+            EffectKind::RotorDrag => {
+                e.rotor_drag = Some(RotorDrag {
+                    coefficients: three(c),
+                })
+            }
+            EffectKind::QuadraticDrag => {
+                e.quadratic_drag = Some(QuadraticDrag {
+                    cd_area: three(c),
+                    air_density: c[3],
+                });
+            }
+            EffectKind::MotorLag => {
+                e.motor_lag = Some(MotorLag {
+                    time_constant: c[0],
+                })
+            }
+            EffectKind::GroundEffect => e.ground_effect = Some(GroundEffect { rotor_radius: c[0] }),
+            EffectKind::Wind => e.wind = Some(Wind { velocity: three(c) }),
+            EffectKind::ThrustGain => {
+                e.thrust_gain = Some(ThrustGain {
+                    relative_error: c[0],
+                })
+            }
+            EffectKind::BodyBias => {
+                e.body_bias = Some(BodyBias {
+                    force: three(c),
+                    torque: three(&c[3..]),
+                });
+            }
+            EffectKind::TimeDelay => e.time_delay = Some(TimeDelay { delay: c[0] }),
+            other => return Err(SimError::UnsupportedEffect { effect: other }),
+        }
+        e.validate()?;
+        Ok(e)
+    }
+
     /// `true` when no effect is on.
     pub fn is_ideal(&self) -> bool {
         *self == Self::none()
