@@ -139,7 +139,7 @@ impl Plant {
     }
 
     /// This plant with each of `effects` acting too (shared, e.g. from
-    /// [`SimConfig::plant_effects`](crate::SimConfig::plant_effects)).
+    /// [`SimConfig::user_effects`](crate::SimConfig::user_effects)).
     #[must_use]
     pub fn with_shared_effects(mut self, effects: &[Arc<dyn PlantEffect>]) -> Self {
         self.acting.extend(effects.iter().cloned());

@@ -4,7 +4,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use tagk_dynamics::vehicle::Vehicle;
-use tagk_dynamics::{EffectKind, QuadrotorModel, Wrench};
+use tagk_dynamics::{EffectKind, GRAVITY_WORLD, QuadrotorModel, Wrench};
 use tagk_sim::plant_effects::{
     BodyBias, EffectState, GroundEffect, LinearDrag, QuadraticDrag, RotorDrag, ThrustGain,
 };
@@ -196,14 +196,18 @@ fn a_plant_from_a_model_applies_the_drag_it_was_given() {
     let accel = log.accel.as_ref().expect("physics-rate logs hold p̈");
     let m = theta[0];
     let (mut num, mut den) = ([0.0; 3], [0.0; 3]);
-    for i in 0..log.len() {
-        let [w, x, y, z] = log.attitude[i];
+    for (((acc, att), vel), b) in accel
+        .iter()
+        .zip(&log.attitude)
+        .zip(&log.velocity)
+        .zip(&log.wrench)
+    {
+        let [w, x, y, z] = *att;
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
-        let a_proper =
-            q.inverse_transform_vector(&(Vector3::from(accel[i]) - Vector3::new(0.0, 0.0, -9.81)));
-        let v_b = q.inverse_transform_vector(&Vector3::from(log.velocity[i]));
+        let a_proper = q.inverse_transform_vector(&(Vector3::from(*acc) - GRAVITY_WORLD));
+        let v_b = q.inverse_transform_vector(&Vector3::from(*vel));
         for k in 0..3 {
-            let drag = m * a_proper[k] - log.wrench[i][k];
+            let drag = m * a_proper[k] - b[k];
             num[k] -= drag * v_b[k];
             den[k] += v_b[k] * v_b[k];
         }
