@@ -250,3 +250,100 @@ fn plant_model_refuses_bad_numbers_by_name() {
         PlantEffects::only(EffectKind::Wind).unwrap()
     );
 }
+
+/// The acting wrench of the plant before the trait, written out as it was: the thrust
+/// multiplier `(1 + ε) · ground ratio`, the rotors' wrench of the scaled thrusts, plus the
+/// closed struct's sum (rotor drag at the hubs, linear drag, quadratic drag, body bias, in this
+/// order, on the air-relative velocity).
+fn wrench_before_the_trait(
+    model: &QuadrotorModel,
+    e: &PlantEffects,
+    s: &PlantState,
+    rotor: &[f64; 4],
+) -> Wrench {
+    let mut k = 1.0;
+    if let Some(g) = &e.thrust_gain {
+        k *= 1.0 + g.relative_error;
+    }
+    if let Some(g) = &e.ground_effect {
+        k *= g.thrust_ratio(s.position.z);
+    }
+    let thrusts = rotor.map(|w| k * model.k_f * w * w);
+    let mut wrench = model.wrench_from_thrusts(&thrusts);
+    let mut f = Vector3::zeros();
+    let mut torque = Vector3::zeros();
+    let wind = e
+        .wind
+        .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity));
+    let v_air_b = s.attitude.inverse_transform_vector(&(s.velocity - wind));
+    if let Some(d) = e.acting_rotor_drag() {
+        let w = d.wrench(&v_air_b, &s.body_rate, rotor, &model.rotor_positions);
+        f += w.force;
+        torque += w.torque;
+    }
+    if let Some(d) = &e.linear_drag {
+        f -= Vector3::from(d.coefficients).component_mul(&v_air_b);
+    }
+    if let Some(d) = &e.quadratic_drag {
+        for i in 0..3 {
+            f[i] -= 0.5 * d.air_density * d.cd_area[i] * v_air_b[i].abs() * v_air_b[i];
+        }
+    }
+    if let Some(b) = &e.body_bias {
+        f += Vector3::from(b.force);
+        torque += Vector3::from(b.torque);
+    }
+    wrench.force += f;
+    wrench.torque += torque;
+    wrench
+}
+
+/// Every set of built-ins (each alone, all wrench-like ones together, with and without wind)
+/// acts through the trait with the bits of the closed struct it replaced, on states spread
+/// over attitudes, velocities, rates, heights and rotor speeds.
+#[test]
+fn built_ins_through_the_trait_give_the_wrench_of_before() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let mut sets: Vec<PlantEffects> = PlantEffects::supported()
+        .map(|k| PlantEffects::only(k).unwrap())
+        .collect();
+    let all = [
+        EffectKind::LinearDrag,
+        EffectKind::QuadraticDrag,
+        EffectKind::RotorDrag,
+        EffectKind::GroundEffect,
+        EffectKind::BodyBias,
+        EffectKind::ThrustGain,
+    ]
+    .into_iter()
+    .try_fold(PlantEffects::none(), |e, k| e.with(k))
+    .unwrap();
+    sets.push(all);
+    sets.push(all.with(EffectKind::Wind).unwrap());
+    for effects in sets {
+        let effects = PlantEffects {
+            motor_lag: None,
+            ..effects
+        };
+        for k in 0..50 {
+            let x = k as f64;
+            let s = PlantState {
+                position: Vector3::new(0.1 * x.sin(), -0.2, 0.02 + 0.03 * x),
+                velocity: Vector3::new(1.1 * (0.7 * x).cos(), -0.6 + 0.02 * x, 0.4 * x.sin()),
+                attitude: UnitQuaternion::from_euler_angles(0.3 * x.sin(), -0.2, 0.1 * x),
+                body_rate: Vector3::new(0.9 * x.cos(), -0.5, 0.3 * (1.3 * x).sin()),
+                rotor_speeds: [0.0; 4],
+            };
+            let speeds = [
+                1900.0 + 10.0 * x,
+                2100.0,
+                1800.0 + 7.0 * x,
+                2300.0 - 5.0 * x,
+            ];
+            let plant = Plant::new(model, model.params, effects, s).unwrap();
+            let now = plant.accelerations(&speeds).wrench;
+            let before = wrench_before_the_trait(&model, &effects, &s, &speeds);
+            assert_eq!(now, before, "{effects:?}, state {k}");
+        }
+    }
+}
