@@ -20,8 +20,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Simulate a Crazyflie flight (trajectory, payloads, plant effects, sensor noise) and write
-    /// it as a flight log.
+    /// Simulate a flight of the Crazyflie or a --vehicle file's quadrotor (trajectory, payloads,
+    /// plant effects, sensor noise) and write it as a flight log.
     Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (--with).

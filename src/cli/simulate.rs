@@ -6,6 +6,8 @@ use std::fmt;
 use std::path::PathBuf;
 
 use tagk_dynamics::EffectKind;
+use tagk_dynamics::QuadrotorModel;
+use tagk_dynamics::vehicle::Vehicle;
 use tagk_sim::{
     Adaptation, EstimatorKind, EstimatorSpec, LogRate, NoiseLevel, Payload, PayloadSchedule,
     PayloadShape, PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
@@ -75,6 +77,11 @@ pub struct SimulateArgs {
     /// effect vocabulary shared with tagk diagnose --with).
     #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
+    /// The vehicle to fly: a preset name (`tagk vehicle list`) or a vehicle file
+    /// (docs/VEHICLE.md) with `k_f` and the `mass` and `inertia` keys (default: the
+    /// Crazyflie 2.1). Its airframe radius is the safety gate's largest centre-of-mass offset.
+    #[arg(long)]
+    pub vehicle: Option<String>,
     /// Online estimator feeding the controller (omit: the controller keeps the nominal
     /// parameters).
     #[arg(long, value_parser = estimator_parser())]
@@ -97,7 +104,8 @@ impl SimulateArgs {
     ///
     /// # Errors
     /// [`SimError::InvalidParameter`] for a payload offset without three values;
-    /// [`SimError::UnsupportedEffect`] for an effect the simulator cannot produce.
+    /// [`SimError::UnsupportedEffect`] for an effect the simulator cannot produce;
+    /// [`SimError::Vehicle`], [`SimError::NotFlyable`] for a vehicle it cannot read or fly.
     pub fn config(&self) -> Result<SimConfig, SimError> {
         self.check_payload_flags()?;
         let payload = match self.payload {
@@ -128,6 +136,12 @@ impl SimulateArgs {
             Some(k) => Adaptation::Estimator(EstimatorSpec::new(k)),
             None => Adaptation::Nominal,
         };
+        let mut base = SimConfig::default();
+        if let Some(name) = &self.vehicle {
+            let vehicle = Vehicle::from_name_or_path(name)?;
+            base.vehicle = QuadrotorModel::from_vehicle(&vehicle)?;
+            base.gate.max_com_offset = vehicle.airframe_radius;
+        }
         Ok(SimConfig {
             trajectory: self.trajectory,
             duration: self.duration,
@@ -144,7 +158,7 @@ impl SimulateArgs {
             altitude: self.altitude,
             record_log: true,
             log_rate: self.log_rate,
-            ..SimConfig::default()
+            ..base
         })
     }
 }

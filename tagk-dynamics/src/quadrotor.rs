@@ -9,7 +9,9 @@
 //! body `+z`.
 
 use nalgebra::{Matrix4, Vector3, Vector4};
+use thiserror::Error;
 
+use crate::vehicle::{ReactionTorque, ThrustCurve, Vehicle, VehicleError};
 use crate::{InertialParams, Wrench};
 
 /// Crazyflie 2.1: offset of each motor axis from the body origin along body x and along body
@@ -161,6 +163,121 @@ impl QuadrotorModel {
     }
 }
 
+/// Why a [`Vehicle`] cannot be flown as a [`QuadrotorModel`] (the simulator's vehicle).
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum NotFlyable {
+    /// The vehicle description itself is invalid ([`Vehicle::validate`]).
+    #[error(transparent)]
+    Invalid(#[from] VehicleError),
+    /// The thrust curve is not `T = k_f ω²`: the simulator's rotors are quadratic.
+    #[error(
+        "vehicle `{vehicle}`: the simulator flies quadratic rotors T = k_f w^2 only (key `k_f`), not thrust_curve = {coefficients:?}"
+    )]
+    NonQuadraticThrust {
+        /// The vehicle's name.
+        vehicle: String,
+        /// The thrust curve's coefficients, constant term first.
+        coefficients: Vec<f64>,
+    },
+    /// A prior the simulator needs as the true value is missing.
+    #[error(
+        "vehicle `{vehicle}`: the simulator needs the key `{key}` (the {what} of the vehicle it flies)"
+    )]
+    MissingKey {
+        /// The vehicle's name.
+        vehicle: String,
+        /// The missing key (`mass` or `inertia`).
+        key: &'static str,
+        /// What it is.
+        what: &'static str,
+    },
+}
+
+impl QuadrotorModel {
+    /// The simulator's vehicle of a [`Vehicle`] description.
+    ///
+    /// - Rotor hubs and spin directions, `max_rotor_speed`: as given.
+    /// - `k_f`: the file's `k_f`, or a `thrust_curve` whose only non-zero term is `c₂ ω²`.
+    /// - `k_m`: the file's `k_m`, or `torque_ratio · k_f` \[N m/(rad/s)²\].
+    /// - Inertial parameters: mass \[kg\] and inertia about the origin \[kg m²\] from the
+    ///   `mass` and `inertia` keys, centre of mass at the origin ([`Vehicle::inertial_prior`]).
+    /// - `arm`: the largest horizontal distance of a hub from the origin \[m\].
+    ///
+    /// [`Vehicle::from_quadrotor`] goes the other way. The round trip keeps every field but
+    /// `arm`, which is computed here (the Crazyflie's `CRAZYFLIE_MOTOR_DISTANCE` is rounded).
+    ///
+    /// # Errors
+    /// [`NotFlyable::Invalid`] for an invalid description;
+    /// [`NotFlyable::NonQuadraticThrust`] for a thrust curve the simulator cannot fly;
+    /// [`NotFlyable::MissingKey`] without `mass` or `inertia`.
+    pub fn from_vehicle(vehicle: &Vehicle) -> Result<Self, NotFlyable> {
+        vehicle.validate()?;
+        let k_f = match &vehicle.thrust {
+            ThrustCurve::Quadratic { k_f } => *k_f,
+            ThrustCurve::Polynomial { coefficients } => {
+                let quadratic_only = coefficients.len() >= 3
+                    && coefficients
+                        .iter()
+                        .enumerate()
+                        .all(|(k, c)| k == 2 || *c == 0.0);
+                if !quadratic_only {
+                    return Err(NotFlyable::NonQuadraticThrust {
+                        vehicle: vehicle.name.clone(),
+                        coefficients: coefficients.clone(),
+                    });
+                }
+                coefficients[2]
+            }
+        };
+        let k_m = match vehicle.reaction_torque {
+            ReactionTorque::Coefficient { k_m } => k_m,
+            ReactionTorque::Ratio { ratio } => ratio * k_f,
+        };
+        let missing = |key, what| NotFlyable::MissingKey {
+            vehicle: vehicle.name.clone(),
+            key,
+            what,
+        };
+        if vehicle.mass.is_none() {
+            return Err(missing("mass", "mass"));
+        }
+        let params = vehicle
+            .inertial_prior()
+            .ok_or_else(|| missing("inertia", "inertia about the origin"))?;
+        let rotor_positions = vehicle.rotors.map(|r| r.position);
+        let arm = rotor_positions
+            .iter()
+            .map(|p| p.x.hypot(p.y))
+            .fold(0.0, f64::max);
+        Ok(Self {
+            params,
+            arm,
+            rotor_positions,
+            spin_directions: vehicle.rotors.map(|r| r.spin.sign()),
+            k_f,
+            k_m,
+            max_rotor_speed: vehicle.max_rotor_speed,
+        })
+    }
+
+    /// This vehicle with the true inertial parameters `params` (e.g. a fitted model's).
+    #[must_use]
+    pub fn with_params(mut self, params: InertialParams) -> Self {
+        self.params = params;
+        self
+    }
+}
+
+impl TryFrom<&Vehicle> for QuadrotorModel {
+    type Error = NotFlyable;
+
+    /// [`QuadrotorModel::from_vehicle`].
+    fn try_from(vehicle: &Vehicle) -> Result<Self, NotFlyable> {
+        Self::from_vehicle(vehicle)
+    }
+}
+
 /// The body wrench (body frame, about the origin) of four rotors thrusting along body `+z`.
 /// The force is `(0, 0, ΣT_i)` \[N\]. The torque is `Σ r_i × (0, 0, T_i) + (0, 0, Σ s_i Q_i)`
 /// \[N m\]. Here `r_i` are the hub positions \[m\], `s_i` the spin directions (the sign of each
@@ -188,4 +305,60 @@ pub fn rotor_wrench(
         torque.z += s * q;
     }
     Wrench { force, torque }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Crazyflie preset flies as the simulator's Crazyflie: every field equal, `arm` the
+    /// exact hub distance `√2 · L_arm` (the constant is rounded to 0.046 m).
+    #[test]
+    fn the_crazyflie_preset_is_the_simulators_crazyflie() {
+        let q = QuadrotorModel::from_vehicle(&Vehicle::crazyflie_2_1()).unwrap();
+        let cf = QuadrotorModel::crazyflie_2_1();
+        assert_eq!(
+            q.with_params(cf.params),
+            QuadrotorModel { arm: q.arm, ..cf }
+        );
+        assert_eq!(q.params, cf.params);
+        assert!((q.arm - 2f64.sqrt() * CRAZYFLIE_ARM_OFFSET).abs() < 1e-15);
+        assert!((q.arm - CRAZYFLIE_MOTOR_DISTANCE).abs() < 1e-4);
+    }
+
+    #[test]
+    fn torque_ratio_and_a_quadratic_only_curve_are_flown_others_are_refused() {
+        let mut v = Vehicle::crazyflie_2_1();
+        v.reaction_torque = ReactionTorque::Ratio { ratio: 0.02 };
+        v.thrust = ThrustCurve::Polynomial {
+            coefficients: vec![0.0, 0.0, 3e-8],
+        };
+        let q = QuadrotorModel::try_from(&v).unwrap();
+        assert_eq!((q.k_f, q.k_m), (3e-8, 0.02 * 3e-8));
+
+        v.thrust = ThrustCurve::Polynomial {
+            coefficients: vec![0.01, 0.0, 3e-8],
+        };
+        assert!(matches!(
+            QuadrotorModel::try_from(&v),
+            Err(NotFlyable::NonQuadraticThrust { .. })
+        ));
+        let mut v = Vehicle::crazyflie_2_1();
+        v.inertia = None;
+        assert!(matches!(
+            QuadrotorModel::try_from(&v),
+            Err(NotFlyable::MissingKey { key: "inertia", .. })
+        ));
+        v.mass = None;
+        assert!(matches!(
+            QuadrotorModel::try_from(&v),
+            Err(NotFlyable::MissingKey { key: "mass", .. })
+        ));
+        let mut v = Vehicle::crazyflie_2_1();
+        v.max_rotor_speed = -1.0;
+        assert!(matches!(
+            QuadrotorModel::try_from(&v),
+            Err(NotFlyable::Invalid(_))
+        ));
+    }
 }

@@ -2,7 +2,8 @@
 
 use tagk_control::ControlError;
 use tagk_core::{ConfigError, EstimatorError};
-use tagk_dynamics::{DynamicsError, EffectKind, LogError};
+use tagk_dynamics::quadrotor::NotFlyable;
+use tagk_dynamics::{DynamicsError, EffectKind, LogError, VehicleError};
 
 /// Everything that can go wrong when configuring or running a simulation.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +69,25 @@ pub enum SimError {
     UnsupportedEffect {
         /// The effect asked for.
         effect: EffectKind,
+    },
+    /// A vehicle description could not be read (file, TOML or value).
+    #[error("vehicle: {0}")]
+    Vehicle(#[from] VehicleError),
+    /// A vehicle description the simulator cannot fly.
+    #[error("{0}")]
+    NotFlyable(#[from] NotFlyable),
+    /// A built-in effect given the wrong number of coefficients
+    /// ([`PlantEffects::with_coefficients`](crate::PlantEffects::with_coefficients)).
+    #[error("effect `{effect}` takes {expected} coefficients ({names}) or none, got {got}")]
+    EffectCoefficients {
+        /// The effect.
+        effect: EffectKind,
+        /// How many it takes.
+        expected: usize,
+        /// Their names, in order.
+        names: &'static str,
+        /// How many were given.
+        got: usize,
     },
     /// A configuration string that names nothing known (CLI).
     #[error("unknown {what} `{value}` (expected one of: {expected})")]

@@ -8,6 +8,7 @@ pub mod metrics;
 pub mod monte_carlo;
 pub mod plant;
 pub mod plant_effects;
+pub mod plant_model;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod sim;
@@ -19,7 +20,7 @@ pub use monte_carlo::{
     CellSummary, ErrorCurves, Sweep, SweepObserver, SweepResult, Traces, trial_seed,
 };
 pub use plant::{Plant, PlantState};
-pub use plant_effects::PlantEffects;
+pub use plant_effects::{PlantEffect, PlantEffects};
 pub use sim::{
     Adaptation, Controller, ExperimentProfile, FlightStack, FlightTruth, LogRate,
     MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing,

@@ -8,10 +8,17 @@
 //! the accelerations come from `tagk_dynamics::forward_dynamics` (the one implementation of
 //! the Newton–Euler equations): `(a, ω̇) = FD(θ, w, ω)`, `p̈ = R a + g_w`, `q̇ = ½ q ⊗ (0, ω)`.
 //! The quaternion is renormalised after every step.
+//!
+//! The wrench `w` is the rotors' (each thrust scaled by the effects' thrust factors) plus the
+//! wrench of every [`PlantEffect`]: the built-ins of [`PlantEffects::acting`], then the user's
+//! own ([`Plant::with_effect`]).
+
+use std::sync::Arc;
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::{ForwardDynamics, GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench};
 
+use crate::plant_effects::{EffectState, PlantEffect, summed_wrench, thrust_factor};
 use crate::{PlantEffects, SimError};
 
 /// Full plant state.
@@ -75,6 +82,10 @@ pub struct Plant {
     /// events; every integration stage solves with them).
     dynamics: ForwardDynamics,
     effects: PlantEffects,
+    /// The effects that act as [`PlantEffect`]s: the built-ins, then the user's.
+    acting: Vec<Arc<dyn PlantEffect>>,
+    /// Time since the plant was built \[s\] (the sum of the step lengths).
+    time: f64,
     state: PlantState,
 }
 
@@ -112,9 +123,37 @@ impl Plant {
             model,
             params,
             dynamics,
+            acting: effects.acting(),
             effects,
+            time: 0.0,
             state,
         })
+    }
+
+    /// This plant with the user's effect `effect` acting too, after the built-ins and the
+    /// effects added before it (the builder of a custom physical effect).
+    #[must_use]
+    pub fn with_effect(mut self, effect: Box<dyn PlantEffect>) -> Self {
+        self.acting.push(Arc::from(effect));
+        self
+    }
+
+    /// This plant with each of `effects` acting too (shared, e.g. from
+    /// [`SimConfig::user_effects`](crate::SimConfig::user_effects)).
+    #[must_use]
+    pub fn with_shared_effects(mut self, effects: &[Arc<dyn PlantEffect>]) -> Self {
+        self.acting.extend(effects.iter().cloned());
+        self
+    }
+
+    /// Every effect that acts as a [`PlantEffect`], in the order of application.
+    pub fn acting_effects(&self) -> &[Arc<dyn PlantEffect>] {
+        &self.acting
+    }
+
+    /// Time since the plant was built \[s\] (the sum of the step lengths).
+    pub fn time(&self) -> f64 {
+        self.time
     }
 
     /// Current state.
@@ -153,17 +192,23 @@ impl Plant {
         speeds.map(|w| if w.is_nan() { 0.0 } else { w.clamp(0.0, hi) })
     }
 
-    fn wrench_at(&self, s: &PlantState, rotor: &[f64; 4]) -> Wrench {
-        let k = self.effects.thrust_multiplier(s.position.z);
+    fn wrench_at(&self, s: &PlantState, rotor: &[f64; 4], time: f64) -> Wrench {
+        let es = EffectState {
+            time,
+            position: s.position,
+            velocity: s.velocity,
+            attitude: s.attitude,
+            body_rate: s.body_rate,
+            air_velocity_body: s
+                .attitude
+                .inverse_transform_vector(&(s.velocity - self.effects.wind_velocity())),
+            rotor_speeds: *rotor,
+            rotor_positions: &self.model.rotor_positions,
+        };
+        let k = thrust_factor(&self.acting, &es);
         let thrusts = rotor.map(|w| k * self.model.k_f * w * w);
         let mut wrench = self.model.wrench_from_thrusts(&thrusts);
-        let extra = self.effects.extra_wrench(
-            &s.velocity,
-            &s.attitude,
-            &s.body_rate,
-            rotor,
-            &self.model.rotor_positions,
-        );
+        let extra = summed_wrench(&self.acting, &es);
         wrench.force += extra.force;
         wrench.torque += extra.torque;
         wrench
@@ -184,9 +229,9 @@ impl Plant {
     }
 
     /// Accelerations at state `s` under clamped command `cmd` [rad/s].
-    fn accelerations_at(&self, s: &PlantState, cmd: &[f64; 4]) -> Accelerations {
+    fn accelerations_at(&self, s: &PlantState, cmd: &[f64; 4], time: f64) -> Accelerations {
         let rotor = self.actual_rotor(s, cmd);
-        let wrench = self.wrench_at(s, &rotor);
+        let wrench = self.wrench_at(s, &rotor, time);
         // The parameters were validated on entry, so the solve succeeds for finite input;
         // a non-finite state (a diverged run) propagates as NaN and is caught by the caller.
         let (proper, angular) = self
@@ -206,11 +251,11 @@ impl Plant {
     /// (clamped to the rotor limits).
     pub fn accelerations(&self, speeds: &[f64; 4]) -> Accelerations {
         let cmd = self.clamp_speeds(speeds);
-        self.accelerations_at(&self.state, &cmd)
+        self.accelerations_at(&self.state, &cmd, self.time)
     }
 
-    fn derivative(&self, s: &PlantState, cmd: &[f64; 4]) -> Derivative {
-        let acc = self.accelerations_at(s, cmd);
+    fn derivative(&self, s: &PlantState, cmd: &[f64; 4], time: f64) -> Derivative {
+        let acc = self.accelerations_at(s, cmd, time);
         let w = s.body_rate;
         let dq = s.attitude.into_inner() * Quaternion::new(0.0, w.x, w.y, w.z) * 0.5;
         let dr = match &self.effects.motor_lag {
@@ -244,10 +289,11 @@ impl Plant {
     pub fn step(&mut self, speeds: &[f64; 4], dt: f64) {
         let cmd = self.clamp_speeds(speeds);
         let s0 = self.state;
-        let k1 = self.derivative(&s0, &cmd);
-        let k2 = self.derivative(&Self::advance(&s0, &k1, 0.5 * dt), &cmd);
-        let k3 = self.derivative(&Self::advance(&s0, &k2, 0.5 * dt), &cmd);
-        let k4 = self.derivative(&Self::advance(&s0, &k3, dt), &cmd);
+        let t0 = self.time;
+        let k1 = self.derivative(&s0, &cmd, t0);
+        let k2 = self.derivative(&Self::advance(&s0, &k1, 0.5 * dt), &cmd, t0 + 0.5 * dt);
+        let k3 = self.derivative(&Self::advance(&s0, &k2, 0.5 * dt), &cmd, t0 + 0.5 * dt);
+        let k4 = self.derivative(&Self::advance(&s0, &k3, dt), &cmd, t0 + dt);
         let w = dt / 6.0;
         let comb3 = |a: Vector3<f64>, b: Vector3<f64>, c: Vector3<f64>, d: Vector3<f64>| {
             (a + (b + c) * 2.0 + d) * w
@@ -266,6 +312,7 @@ impl Plant {
             next.rotor_speeds = cmd;
         }
         self.state = next;
+        self.time = t0 + dt;
     }
 
     /// `true` while every state component is finite.

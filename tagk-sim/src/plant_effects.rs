@@ -21,11 +21,32 @@
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //!
+//! # The extension point: [`PlantEffect`]
+//!
+//! A physical effect on the simulated vehicle is a type implementing [`PlantEffect`]. Given
+//! the plant state ([`EffectState`]: time, position, velocity, attitude, body rate, rotor
+//! speeds), it returns the wrench it adds (body frame, about the body origin,
+//! docs/CONVENTIONS.md §1) and, optionally, a factor on every rotor's thrust. The built-in
+//! wrench-like effects implement it: [`LinearDrag`], [`QuadraticDrag`], [`RotorDrag`],
+//! [`BodyBias`] (additive wrenches), [`ThrustGain`] and [`GroundEffect`] (thrust factors).
+//! [`PlantEffects::acting`] lists them in the order the plant applies them. A user's own effect
+//! is flown with [`crate::Plant::with_effect`] or [`crate::SimConfig::with_plant_effect`].
+//!
+//! Three built-ins are not wrenches and stay outside the trait:
+//! - [`MotorLag`] is rotor dynamics: it adds state (the four lagging rotor speeds) that the
+//!   integrator carries, not a force.
+//! - [`Wind`] is the air the drag effects move in: it changes their air-relative velocity
+//!   ([`EffectState::air_velocity_body`]), and adds no wrench of its own.
+//! - [`TimeDelay`] acts on the log (the sensing), not on the physics; so do the sensor errors
+//!   of [`crate::Sensing`].
+//!
 //! The effects act on the **plant only**. The measured wrench `b` the estimator sees is always
 //! computed from the measured rotor speeds, with the nominal `k_f`, `k_m` through the mixer.
 //! The measured speeds are the commanded ones plus the sensing profile's rotor-speed noise
 //! ([`crate::Sensing`]). So every effect shows up as a model mismatch `b − Y θ ≠ 0` that a
 //! diagnosis tool can look for.
+
+use std::fmt::Debug;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -33,6 +54,59 @@ use tagk_dynamics::quadrotor::{CRAZYFLIE_K_F, CRAZYFLIE_MASS};
 use tagk_dynamics::{EffectKind, Wrench};
 
 use crate::SimError;
+
+/// The plant state a [`PlantEffect`] sees, at one evaluation of the dynamics (every
+/// Runge–Kutta stage).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectState<'a> {
+    /// Time since the plant was built \[s\] (the sum of its step lengths, plus the stage's
+    /// fraction of the current step).
+    pub time: f64,
+    /// Position of the body origin, world frame (z up) \[m\].
+    pub position: Vector3<f64>,
+    /// Velocity of the body origin, world frame \[m/s\].
+    pub velocity: Vector3<f64>,
+    /// Attitude, body → world (Hamilton, scalar first).
+    pub attitude: UnitQuaternion<f64>,
+    /// Angular velocity, body frame \[rad/s\].
+    pub body_rate: Vector3<f64>,
+    /// Air-relative velocity of the body origin, body frame, `Rᵀ (v − v_wind)` \[m/s\]
+    /// (the velocity itself, rotated, without a [`Wind`]).
+    pub air_velocity_body: Vector3<f64>,
+    /// Actual rotor speeds \[rad/s\], in the order `w1..w4` (the lagging ones with a
+    /// [`MotorLag`]).
+    pub rotor_speeds: [f64; 4],
+    /// Rotor hub positions, body frame \[m\].
+    pub rotor_positions: &'a [Vector3<f64>; 4],
+}
+
+/// A physical effect acting on the simulated vehicle: the simulator's extension point.
+///
+/// At every evaluation of the dynamics the plant asks each effect for
+/// - [`wrench`](PlantEffect::wrench): the wrench it adds, body frame, about the body origin
+///   (force \[N\], torque \[N m\]), summed with the rotors' wrench;
+/// - [`thrust_factor`](PlantEffect::thrust_factor): a factor on every rotor's thrust and
+///   reaction torque (default 1).
+///
+/// The controller feels the effect; the logged wrench does not contain it. The log's wrench
+/// is the rotors' nominal wrench from the read-back rotor speeds (docs/CONVENTIONS.md §6).
+/// An effect must be a pure function of its state (no interior mutability): the integrator
+/// evaluates it at the intermediate Runge–Kutta stages too. Hence the `RefUnwindSafe` bound:
+/// a flight may be run under `catch_unwind`.
+pub trait PlantEffect: Debug + Send + Sync + std::panic::RefUnwindSafe {
+    /// A short name (the vocabulary's name for a built-in, e.g. `linear-drag`).
+    fn name(&self) -> &str;
+
+    /// The wrench this effect adds at state `s`: body frame, about the body origin; force
+    /// \[N\], torque \[N m\].
+    fn wrench(&self, s: &EffectState<'_>) -> Wrench;
+
+    /// Factor on every rotor's thrust `k_f ω²` and reaction torque `k_m ω²` at state `s`
+    /// (dimensionless; 1 when the effect does not act on the rotors).
+    fn thrust_factor(&self, _s: &EffectState<'_>) -> f64 {
+        1.0
+    }
+}
 
 /// Linear rotor drag (blade flapping and induced drag) at each rotor hub.
 ///
@@ -335,6 +409,144 @@ impl Default for TimeDelay {
     }
 }
 
+impl PlantEffect for RotorDrag {
+    fn name(&self) -> &str {
+        EffectKind::RotorDrag.name()
+    }
+    /// [`RotorDrag::wrench`] of the air-relative velocity.
+    fn wrench(&self, s: &EffectState<'_>) -> Wrench {
+        RotorDrag::wrench(
+            self,
+            &s.air_velocity_body,
+            &s.body_rate,
+            &s.rotor_speeds,
+            s.rotor_positions,
+        )
+    }
+}
+
+impl PlantEffect for LinearDrag {
+    fn name(&self) -> &str {
+        EffectKind::LinearDrag.name()
+    }
+    /// `f_b = −D v_b` on the air-relative velocity; no torque.
+    fn wrench(&self, s: &EffectState<'_>) -> Wrench {
+        Wrench {
+            force: -Vector3::from(self.coefficients).component_mul(&s.air_velocity_body),
+            torque: Vector3::zeros(),
+        }
+    }
+}
+
+impl PlantEffect for QuadraticDrag {
+    fn name(&self) -> &str {
+        EffectKind::QuadraticDrag.name()
+    }
+    /// `f_b,i = −½ ρ (C_d A)_i |v_i| v_i` on the air-relative velocity; no torque.
+    fn wrench(&self, s: &EffectState<'_>) -> Wrench {
+        let v = &s.air_velocity_body;
+        Wrench {
+            force: Vector3::from_fn(|i, _| {
+                -(0.5 * self.air_density * self.cd_area[i] * v[i].abs() * v[i])
+            }),
+            torque: Vector3::zeros(),
+        }
+    }
+}
+
+impl PlantEffect for BodyBias {
+    fn name(&self) -> &str {
+        EffectKind::BodyBias.name()
+    }
+    /// The constant body-frame force and torque.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench {
+            force: Vector3::from(self.force),
+            torque: Vector3::from(self.torque),
+        }
+    }
+}
+
+impl PlantEffect for ThrustGain {
+    fn name(&self) -> &str {
+        EffectKind::ThrustGain.name()
+    }
+    /// No wrench of its own: it scales the rotors.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench::zero()
+    }
+    /// `1 + ε`.
+    fn thrust_factor(&self, _s: &EffectState<'_>) -> f64 {
+        1.0 + self.relative_error
+    }
+}
+
+impl PlantEffect for GroundEffect {
+    fn name(&self) -> &str {
+        EffectKind::GroundEffect.name()
+    }
+    /// No wrench of its own: it scales the rotors.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench::zero()
+    }
+    /// [`GroundEffect::thrust_ratio`] at the body origin's height.
+    fn thrust_factor(&self, s: &EffectState<'_>) -> f64 {
+        self.thrust_ratio(s.position.z)
+    }
+}
+
+/// The factor on the rotors' thrust of `effects` at state `s`: the product of their
+/// [`PlantEffect::thrust_factor`]s, in order, from 1.
+pub fn thrust_factor(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> f64 {
+    effects.iter().fold(1.0, |k, e| k * e.thrust_factor(s))
+}
+
+/// The summed wrench of `effects` at state `s` (body frame, about the origin \[N, N m\]),
+/// added in order from zero.
+pub fn summed_wrench(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> Wrench {
+    let mut w = Wrench::zero();
+    for e in effects {
+        let x = e.wrench(s);
+        w.force += x.force;
+        w.torque += x.torque;
+    }
+    w
+}
+
+/// The user's own [`PlantEffect`]s of a [`crate::SimConfig`], shared between the flights of a
+/// sweep. Two lists are equal when they hold the same effect objects (pointer equality).
+#[derive(Clone, Default)]
+pub struct UserEffects(pub Vec<std::sync::Arc<dyn PlantEffect>>);
+
+impl UserEffects {
+    /// No user effect.
+    pub fn none() -> Self {
+        Self::default()
+    }
+
+    /// `true` when there is no user effect.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl PartialEq for UserEffects {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.len() == other.0.len()
+            && self
+                .0
+                .iter()
+                .zip(&other.0)
+                .all(|(a, b)| std::sync::Arc::ptr_eq(a, b))
+    }
+}
+
+impl Debug for UserEffects {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.0.iter()).finish()
+    }
+}
+
 /// Which plant effects are on (all off by default: the paper's ideal plant).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct PlantEffects {
@@ -399,6 +611,93 @@ impl PlantEffects {
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
+    }
+
+    /// The names of the coefficients [`PlantEffects::with_coefficients`] takes for `kind`,
+    /// in order, with their units: the fields of the effect's parameter struct.
+    pub fn coefficient_names(kind: EffectKind) -> &'static str {
+        match kind {
+            EffectKind::LinearDrag => "d_x, d_y, d_z [N s/m]",
+            EffectKind::RotorDrag => "k_x, k_y, k_z [kg/rad]",
+            EffectKind::QuadraticDrag => "CdA_x, CdA_y, CdA_z [m^2], air density [kg/m^3]",
+            EffectKind::MotorLag => "time constant [s]",
+            EffectKind::GroundEffect => "rotor radius [m]",
+            EffectKind::Wind => "v_x, v_y, v_z (world) [m/s]",
+            EffectKind::ThrustGain => "relative error [1]",
+            EffectKind::BodyBias => "f_x, f_y, f_z [N], t_x, t_y, t_z [N m] (body)",
+            EffectKind::TimeDelay => "delay [s]",
+            _ => "",
+        }
+    }
+
+    /// This set with `kind` switched on at the given coefficients, in the order of
+    /// [`PlantEffects::coefficient_names`] (SI units, the fields of the effect's parameter
+    /// struct). No coefficient: the Crazyflie default ([`PlantEffects::with`]).
+    ///
+    /// # Errors
+    /// [`SimError::UnsupportedEffect`] as [`PlantEffects::with`];
+    /// [`SimError::EffectCoefficients`] for a wrong number of coefficients;
+    /// [`SimError::InvalidParameter`] for a bad value ([`PlantEffects::validate`]).
+    pub fn with_coefficients(self, kind: EffectKind, c: &[f64]) -> Result<Self, SimError> {
+        let mut e = self.with(kind)?;
+        if c.is_empty() {
+            return Ok(e);
+        }
+        let three = |c: &[f64]| [c[0], c[1], c[2]];
+        let expected = match kind {
+            EffectKind::LinearDrag | EffectKind::RotorDrag | EffectKind::Wind => 3,
+            EffectKind::QuadraticDrag => 4,
+            EffectKind::BodyBias => 6,
+            _ => 1,
+        };
+        if c.len() != expected {
+            return Err(SimError::EffectCoefficients {
+                effect: kind,
+                expected,
+                names: Self::coefficient_names(kind),
+                got: c.len(),
+            });
+        }
+        match kind {
+            EffectKind::LinearDrag => {
+                e.linear_drag = Some(LinearDrag {
+                    coefficients: three(c),
+                })
+            }
+            EffectKind::RotorDrag => {
+                e.rotor_drag = Some(RotorDrag {
+                    coefficients: three(c),
+                })
+            }
+            EffectKind::QuadraticDrag => {
+                e.quadratic_drag = Some(QuadraticDrag {
+                    cd_area: three(c),
+                    air_density: c[3],
+                });
+            }
+            EffectKind::MotorLag => {
+                e.motor_lag = Some(MotorLag {
+                    time_constant: c[0],
+                })
+            }
+            EffectKind::GroundEffect => e.ground_effect = Some(GroundEffect { rotor_radius: c[0] }),
+            EffectKind::Wind => e.wind = Some(Wind { velocity: three(c) }),
+            EffectKind::ThrustGain => {
+                e.thrust_gain = Some(ThrustGain {
+                    relative_error: c[0],
+                })
+            }
+            EffectKind::BodyBias => {
+                e.body_bias = Some(BodyBias {
+                    force: three(c),
+                    torque: three(&c[3..]),
+                });
+            }
+            EffectKind::TimeDelay => e.time_delay = Some(TimeDelay { delay: c[0] }),
+            other => return Err(SimError::UnsupportedEffect { effect: other }),
+        }
+        e.validate()?;
+        Ok(e)
     }
 
     /// `true` when no effect is on.
@@ -477,17 +776,56 @@ impl PlantEffects {
         Ok(())
     }
 
+    /// The wrench-like effects that are on, as [`PlantEffect`]s, in the order the plant
+    /// applies them: `thrust-gain`, `ground-effect` (thrust factors), then the acting rotor
+    /// drag ([`PlantEffects::acting_rotor_drag`]), `linear-drag`, `quadratic-drag`,
+    /// `body-bias` (wrenches). Motor lag, wind and time delay are not among them (module
+    /// docs).
+    pub fn acting(&self) -> Vec<std::sync::Arc<dyn PlantEffect>> {
+        let mut v: Vec<std::sync::Arc<dyn PlantEffect>> = Vec::new();
+        if let Some(e) = self.thrust_gain {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.ground_effect {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.acting_rotor_drag() {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.linear_drag {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.quadratic_drag {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.body_bias {
+            v.push(std::sync::Arc::new(e));
+        }
+        v
+    }
+
+    /// The wind velocity, world frame \[m/s\] (zero without a [`Wind`]).
+    pub fn wind_velocity(&self) -> Vector3<f64> {
+        self.wind
+            .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity))
+    }
+
     /// Multiplier on every rotor's thrust and reaction torque at height `z` \[m\]
-    /// (thrust gain times ground effect; 1 for the ideal plant).
+    /// (thrust gain times ground effect; 1 for the ideal plant): [`thrust_factor`] of
+    /// [`PlantEffects::acting`].
     pub fn thrust_multiplier(&self, z: f64) -> f64 {
-        let mut k = 1.0;
-        if let Some(e) = &self.thrust_gain {
-            k *= 1.0 + e.relative_error;
-        }
-        if let Some(g) = &self.ground_effect {
-            k *= g.thrust_ratio(z);
-        }
-        k
+        let positions = [Vector3::zeros(); 4];
+        let s = EffectState {
+            time: 0.0,
+            position: Vector3::new(0.0, 0.0, z),
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            body_rate: Vector3::zeros(),
+            air_velocity_body: Vector3::zeros(),
+            rotor_speeds: [0.0; 4],
+            rotor_positions: &positions,
+        };
+        thrust_factor(&self.acting(), &s)
     }
 
     /// The rotor drag that acts: the `rotor_drag` effect, or the Crazyflie's rotor drag that
@@ -500,12 +838,15 @@ impl PlantEffects {
             _ => None,
         }
     }
+
     /// The wrench of the aerodynamic effects and the bias, body frame, about the origin: force
-    /// \[N\], torque \[N m\]. The inputs are the world velocity `velocity` \[m/s\], the attitude
-    /// `attitude`, the body rate `body_rate` \[rad/s\], and the actual rotor speeds `rotor_speeds`
-    /// \[rad/s\] of the rotors at `rotor_positions` (body frame \[m\]). The drag effects act on the
-    /// air-relative velocity (`wind` subtracted). Rotor drag acts at each hub with its moments
-    /// ([`RotorDrag::wrench`]); a `wind` without any drag effect uses it too.
+    /// \[N\], torque \[N m\] ([`summed_wrench`] of [`PlantEffects::acting`]). The inputs are the
+    /// world velocity `velocity` \[m/s\], the attitude `attitude`, the body rate `body_rate`
+    /// \[rad/s\], and the actual rotor speeds `rotor_speeds` \[rad/s\] of the rotors at
+    /// `rotor_positions` (body frame \[m\]). The drag effects act on the air-relative velocity
+    /// (`wind` subtracted). Rotor drag acts at each hub with its moments
+    /// ([`RotorDrag::wrench`]); a `wind` without any drag effect uses it too. No built-in
+    /// wrench depends on the position or the time.
     pub fn extra_wrench(
         &self,
         velocity: &Vector3<f64>,
@@ -514,30 +855,18 @@ impl PlantEffects {
         rotor_speeds: &[f64; 4],
         rotor_positions: &[Vector3<f64>; 4],
     ) -> Wrench {
-        let mut f = Vector3::zeros();
-        let mut torque = Vector3::zeros();
-        let wind = self
-            .wind
-            .map_or_else(Vector3::zeros, |w| Vector3::from(w.velocity));
-        let v_air_b = attitude.inverse_transform_vector(&(velocity - wind));
-        if let Some(d) = self.acting_rotor_drag() {
-            let w = d.wrench(&v_air_b, body_rate, rotor_speeds, rotor_positions);
-            f += w.force;
-            torque += w.torque;
-        }
-        if let Some(d) = &self.linear_drag {
-            f -= Vector3::from(d.coefficients).component_mul(&v_air_b);
-        }
-        if let Some(d) = &self.quadratic_drag {
-            for i in 0..3 {
-                f[i] -= 0.5 * d.air_density * d.cd_area[i] * v_air_b[i].abs() * v_air_b[i];
-            }
-        }
-        if let Some(b) = &self.body_bias {
-            f += Vector3::from(b.force);
-            torque += Vector3::from(b.torque);
-        }
-        Wrench { force: f, torque }
+        let s = EffectState {
+            time: 0.0,
+            position: Vector3::zeros(),
+            velocity: *velocity,
+            attitude: *attitude,
+            body_rate: *body_rate,
+            air_velocity_body: attitude
+                .inverse_transform_vector(&(velocity - self.wind_velocity())),
+            rotor_speeds: *rotor_speeds,
+            rotor_positions,
+        };
+        summed_wrench(&self.acting(), &s)
     }
 }
 

@@ -12,6 +12,7 @@ use tagk_dynamics::{InertialParams, QuadrotorModel, SafetyGate};
 
 use crate::estimators::EstimatorSpec;
 use crate::plant::validate_params;
+use crate::plant_effects::{PlantEffect, UserEffects};
 use crate::sim::Sensing;
 use crate::trajectory::TrajectoryKind;
 use crate::{EstimatorKind, PlantEffects, SimError};
@@ -467,6 +468,11 @@ pub struct SimConfig {
     pub payload: PayloadSchedule,
     /// Plant effects (all off by default).
     pub effects: PlantEffects,
+    /// The user's own physical effects, flown after the built-ins of `effects`
+    /// ([`SimConfig::with_plant_effect`]). The controller feels them; the logged wrench (the
+    /// rotors' nominal wrench) does not contain them, and the flight's truth
+    /// ([`SimConfig::record_truth`]) lists the built-ins only. Default: none.
+    pub user_effects: UserEffects,
     /// Controller parameters: nominal, oracle, or estimated.
     pub adaptation: Adaptation,
     /// Height of the path centre \[m\] (`None`: random in `[0.8, 1.5]`).
@@ -514,6 +520,7 @@ impl Default for SimConfig {
             yaw_rate: 0.0,
             payload: PayloadSchedule::Protocol,
             effects: PlantEffects::none(),
+            user_effects: UserEffects::none(),
             adaptation: Adaptation::Estimator(EstimatorSpec::new(EstimatorKind::TagK)),
             altitude: None,
             physics_dt: 0.002,
@@ -556,6 +563,14 @@ fn positive(what: &'static str, value: f64) -> Result<(), SimError> {
 }
 
 impl SimConfig {
+    /// This configuration with the user's physical effect `effect` flown too, after the
+    /// built-ins and the user effects added before it (see [`PlantEffect`]).
+    #[must_use]
+    pub fn with_plant_effect(mut self, effect: Box<dyn PlantEffect>) -> Self {
+        self.user_effects.0.push(std::sync::Arc::from(effect));
+        self
+    }
+
     /// Control steps the flight takes (`duration / control_dt`, rounded, at least one);
     /// `None` for a duration or period that is not positive and finite.
     pub fn control_steps(&self) -> Option<u64> {

@@ -315,7 +315,8 @@ impl<'a> Flight<'a> {
             body_rate: Vector3::zeros(),
             rotor_speeds: vehicle.rotor_speeds_from_thrusts(&hover.thrusts),
         };
-        let plant = Plant::new(*vehicle, nominal, config.effects, init)?;
+        let plant = Plant::new(*vehicle, nominal, config.effects, init)?
+            .with_shared_effects(&config.user_effects.0);
         let controller = Controller::new(vehicle, &nominal, config.weights, config.control_dt)?;
         let estimator = build_estimator(config, estimator_seed)?;
         // Streams 4, 5 (and 6, the physics-rate log) were added with the sensing profiles: streams 1–3 draw exactly as
