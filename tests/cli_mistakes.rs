@@ -472,11 +472,20 @@ fn text_in_a_native_log_s_own_column_is_not_read_and_is_reported() {
     tagk_in(&dir, &["diagnose", "good.csv", "--json", "good.json"]);
     let good: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("good.json")).unwrap()).unwrap();
-    assert_eq!(json["final_model"]["effects"], good["final_model"]["effects"]);
+    assert_eq!(
+        json["final_model"]["effects"],
+        good["final_model"]["effects"]
+    );
     assert_eq!(json["steps"], good["steps"]);
     // A custom effect naming it says why it is not there.
     let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(["diagnose", "extra.csv", "--quiet", "--custom", "st=status*fz@fz"])
+        .args([
+            "diagnose",
+            "extra.csv",
+            "--quiet",
+            "--custom",
+            "st=status*fz@fz",
+        ])
         .current_dir(&dir)
         .output()
         .unwrap();

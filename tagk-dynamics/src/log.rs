@@ -805,11 +805,7 @@ impl FlightLog {
         };
         // A column outside the format is read leniently: one cell that is not a finite number
         // leaves it unread, not the file refused.
-        rows.set_lenient(
-            (0..header.len())
-                .map(|j| extra_cols.contains(&j))
-                .collect(),
-        );
+        rows.set_lenient((0..header.len()).map(|j| extra_cols.contains(&j)).collect());
         let mut values = vec![0.0; header.len()];
         let mut lines = Vec::new();
         while let Some(line) = rows.next_into(&mut values)? {

@@ -718,9 +718,11 @@ const FOLD_INFORMATION_SHARE: f64 = 0.05;
 /// The directions are those of the generalised eigenproblem `train v = λ total v`: λ is the
 /// share of a direction's information held by the training samples. Along a direction with
 /// λ ≥ [`FOLD_INFORMATION_SHARE`] the training samples decide. Along the others (a start-of-log
-/// transient, a motion flown only in the held-out block) the coefficient keeps its all-data
-/// value. Such a direction is not predicted: it is reproduced, in every model alike. Solving
-/// it from a few per cent of the information would extrapolate it arbitrarily far instead.
+/// transient, a motion flown only in the held-out block) the coefficients keep the all-data
+/// fit's values, given what the training samples decide: the mean of the all-data fit's
+/// Gaussian (precision `total`) conditional on the decided directions. Such a direction is not
+/// predicted: it is reproduced, in every model alike. Solving it from a few per cent of the
+/// information would extrapolate it arbitrarily far instead.
 fn solve_fold(train: &[f64], total: &[f64], beta: &[f64], pp: usize) -> Vec<f64> {
     let p = pp - 1;
     let d: Vec<f64> = (0..p)
@@ -738,6 +740,9 @@ fn solve_fold(train: &[f64], total: &[f64], beta: &[f64], pp: usize) -> Vec<f64>
     let kept: Vec<usize> = (0..p)
         .filter(|&k| eig.eigenvalues[k] > lmax * 1e-12 && eig.eigenvalues[k] > 0.0)
         .collect();
+    if kept.is_empty() {
+        return beta.to_vec();
+    }
     let w = DMatrix::<f64>::from_fn(p, kept.len(), |i, k| {
         eig.eigenvectors[(i, kept[k])] / eig.eigenvalues[kept[k]].sqrt()
     });
@@ -769,4 +774,125 @@ fn sse_of(gm: &[f64], pp: usize, beta: &[f64]) -> f64 {
         }
     }
     s.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FOLD_INFORMATION_SHARE, solve_fold, solve_gram};
+
+    /// The `[y, x…]²` Gram matrix of rows `(y, x)`.
+    fn gram(rows: &[(f64, Vec<f64>)]) -> (Vec<f64>, usize) {
+        let pp = rows[0].1.len() + 1;
+        let mut g = vec![0.0; pp * pp];
+        for (y, x) in rows {
+            let v: Vec<f64> = std::iter::once(*y).chain(x.iter().copied()).collect();
+            for i in 0..pp {
+                for j in 0..pp {
+                    g[i * pp + j] += v[i] * v[j];
+                }
+            }
+        }
+        (g, pp)
+    }
+
+    /// Rows of `y = 2 x₀ − x₁ + 0.5 x₂ + e` with a pseudo-random design; `x₂` is zero outside
+    /// the rows `lo..hi` (a transient).
+    fn rows(n: usize, lo: usize, hi: usize) -> Vec<(f64, Vec<f64>)> {
+        let mut state = 12345u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        (0..n)
+            .map(|i| {
+                let x = vec![
+                    next(),
+                    next(),
+                    if (lo..hi).contains(&i) { next() } else { 0.0 },
+                ];
+                let y = 2.0 * x[0] - x[1] + 0.5 * x[2] + 0.01 * next();
+                (y, x)
+            })
+            .collect()
+    }
+
+    /// A fold whose training rows hold every direction well: the plain least-squares solution
+    /// of the training rows, computed independently (normal equations by Cramer's rule).
+    #[test]
+    fn a_well_determined_fold_is_the_training_least_squares() {
+        let all = rows(400, 0, 400);
+        let (total, pp) = gram(&all);
+        let (train, _) = gram(&all[100..]);
+        let (beta, _) = solve_gram(&total, pp);
+        let got = solve_fold(&train, &total, &beta, pp);
+        // Independent: 3×3 normal equations of the training rows by Cramer's rule.
+        let a = |i: usize, j: usize| train[(i + 1) * pp + j + 1];
+        let b = |i: usize| train[(i + 1) * pp];
+        let det3 = |m: [[f64; 3]; 3]| {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+        };
+        let m: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| a(i, j)));
+        let d = det3(m);
+        for k in 0..3 {
+            let mut mk = m;
+            for (i, row) in mk.iter_mut().enumerate() {
+                row[k] = b(i);
+            }
+            let want = det3(mk) / d;
+            assert!(
+                (got[k] - want).abs() < 1e-9 * want.abs().max(1.0),
+                "{k}: {got:?} {want}"
+            );
+        }
+    }
+
+    /// A transient held out: the other columns are the training rows' least squares, and the
+    /// transient's keeps the all-data fit's value given them.
+    #[test]
+    fn a_direction_the_training_rows_do_not_see_keeps_the_all_data_fit_given_the_rest() {
+        let all = rows(400, 0, 40);
+        let (total, pp) = gram(&all);
+        // The fold holds rows 0..100 out: its training rows have x₂ = 0 everywhere.
+        let (train, _) = gram(&all[100..]);
+        let (beta, _) = solve_gram(&total, pp);
+        let got = solve_fold(&train, &total, &beta, pp);
+        // The first two: the training rows' 2×2 least squares (x₂ = 0 there).
+        let a = |i: usize, j: usize| train[(i + 1) * pp + j + 1];
+        let b = |i: usize| train[(i + 1) * pp];
+        let d = a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0);
+        let want = [
+            (b(0) * a(1, 1) - a(0, 1) * b(1)) / d,
+            (a(0, 0) * b(1) - a(1, 0) * b(0)) / d,
+        ];
+        for k in 0..2 {
+            assert!((got[k] - want[k]).abs() < 1e-9, "{k}: {got:?} {want:?}");
+        }
+        // x₂: the all-data fit's value given the first two, the conditional mean of a Gaussian
+        // of precision `total` about `beta`: β₂ − T₂₂⁻¹ (T₂₀ δ₀ + T₂₁ δ₁).
+        let t = |i: usize, j: usize| total[(i + 1) * pp + j + 1];
+        let want2 =
+            beta[2] - (t(2, 0) * (got[0] - beta[0]) + t(2, 1) * (got[1] - beta[1])) / t(2, 2);
+        assert!(
+            (got[2] - want2).abs() < 1e-9 * want2.abs(),
+            "{got:?} {want2}"
+        );
+        // Without the transient's cross-information the value would be the all-data one.
+        assert!(
+            (got[2] - beta[2]).abs() < 0.2 * beta[2].abs(),
+            "{got:?} {beta:?}"
+        );
+        // Half the transient in training (rows 20..40 of 0..40): a share of 0.5, above the
+        // threshold, so the training rows decide x₂ too.
+        let (train, _) = gram(&all[20..]);
+        assert!(0.5 > FOLD_INFORMATION_SHARE);
+        let got = solve_fold(&train, &total, &beta, pp);
+        let (plain, _) = solve_gram(&train, pp);
+        for k in 0..3 {
+            assert!((got[k] - plain[k]).abs() < 1e-9, "{k}: {got:?} {plain:?}");
+        }
+    }
 }
