@@ -199,20 +199,17 @@ fn the_naive_mapping_is_refused_naming_the_specific_force() {
         "{e:?}"
     );
     // The command line says so on its standard error and fails.
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args([
+    let stderr = common::tagk_fails_in(
+        &dir,
+        &[
             "diagnose",
             "--columns",
             "map.toml",
             "--vehicle",
             "crazyflie-2.1",
             "flight.csv",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let stderr = String::from_utf8_lossy(&out.stderr);
+        ],
+    );
     assert!(
         stderr.contains("flight.csv: the columns read as the world acceleration ax, ay, az (p̈)")
             && stderr.contains("most likely the world-frame specific force")

@@ -231,13 +231,7 @@ fn each_error_is_printed_once() {
     lines[4] = cells.join(",");
     let bad = dir.join("bad.csv");
     std::fs::write(&bad, lines.join("\n")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .arg("diagnose")
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stderr = common::tagk_fails_in(&dir, &["diagnose", "bad.csv"]);
     assert_eq!(
         stderr.matches("`oops` is not a number").count(),
         1,
@@ -478,19 +472,16 @@ fn text_in_a_native_log_s_own_column_is_not_read_and_is_reported() {
     );
     assert_eq!(json["steps"], good["steps"]);
     // A custom effect naming it says why it is not there.
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args([
+    let stderr = common::tagk_fails_in(
+        &dir,
+        &[
             "diagnose",
             "extra.csv",
             "--quiet",
             "--custom",
             "st=status*fz@fz",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let stderr = String::from_utf8_lossy(&out.stderr);
+        ],
+    );
     assert!(
         stderr.contains(
             "custom effect `st`: the column `status` of extra.csv was not read as a signal: its \

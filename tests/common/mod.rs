@@ -22,6 +22,22 @@ pub fn tagk_in(dir: &Path, args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
+/// Runs the `tagk` binary in `dir`, which must fail, and returns its standard error (panics,
+/// with its standard output, if it succeeds).
+pub fn tagk_fails_in(dir: &Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success(),
+        "tagk {args:?} succeeded: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8(out.stderr).unwrap()
+}
+
 /// The README's realistic example: the plant's effects and the sensing, as `tagk simulate`
 /// arguments (README, "On the README's realistic example").
 pub const README_REALISTIC: &[&str] = &[

@@ -818,15 +818,26 @@ mod tests {
             .collect()
     }
 
+    /// [`rows`]`(n, 0, transient)` held out before `first`: the all-data Gram matrix, the
+    /// training one, its size, the all-data fit and the fold's.
+    fn fold(
+        n: usize,
+        transient: usize,
+        first: usize,
+    ) -> (Vec<f64>, Vec<f64>, usize, Vec<f64>, Vec<f64>) {
+        let all = rows(n, 0, transient);
+        let (total, pp) = gram(&all);
+        let (train, _) = gram(&all[first..]);
+        let (beta, _) = solve_gram(&total, pp);
+        let got = solve_fold(&train, &total, &beta, pp);
+        (total, train, pp, beta, got)
+    }
+
     /// A fold whose training rows hold every direction well: the plain least-squares solution
     /// of the training rows, computed independently (normal equations by Cramer's rule).
     #[test]
     fn a_well_determined_fold_is_the_training_least_squares() {
-        let all = rows(400, 0, 400);
-        let (total, pp) = gram(&all);
-        let (train, _) = gram(&all[100..]);
-        let (beta, _) = solve_gram(&total, pp);
-        let got = solve_fold(&train, &total, &beta, pp);
+        let (_, train, pp, _, got) = fold(400, 400, 100);
         // Independent: 3×3 normal equations of the training rows by Cramer's rule.
         let a = |i: usize, j: usize| train[(i + 1) * pp + j + 1];
         let b = |i: usize| train[(i + 1) * pp];
@@ -854,12 +865,8 @@ mod tests {
     /// transient's keeps the all-data fit's value given them.
     #[test]
     fn a_direction_the_training_rows_do_not_see_keeps_the_all_data_fit_given_the_rest() {
-        let all = rows(400, 0, 40);
-        let (total, pp) = gram(&all);
         // The fold holds rows 0..100 out: its training rows have x₂ = 0 everywhere.
-        let (train, _) = gram(&all[100..]);
-        let (beta, _) = solve_gram(&total, pp);
-        let got = solve_fold(&train, &total, &beta, pp);
+        let (total, train, pp, beta, got) = fold(400, 40, 100);
         // The first two: the training rows' 2×2 least squares (x₂ = 0 there).
         let a = |i: usize, j: usize| train[(i + 1) * pp + j + 1];
         let b = |i: usize| train[(i + 1) * pp];
@@ -887,9 +894,8 @@ mod tests {
         );
         // Half the transient in training (rows 20..40 of 0..40): a share of 0.5, above the
         // threshold, so the training rows decide x₂ too.
-        let (train, _) = gram(&all[20..]);
+        let (_, train, _, _, got) = fold(400, 40, 20);
         assert!(0.5 > FOLD_INFORMATION_SHARE);
-        let got = solve_fold(&train, &total, &beta, pp);
         let (plain, _) = solve_gram(&train, pp);
         for k in 0..3 {
             assert!((got[k] - plain[k]).abs() < 1e-9, "{k}: {got:?} {plain:?}");
