@@ -895,7 +895,7 @@ mod tests {
         // Half the transient in training (rows 20..40 of 0..40): a share of 0.5, above the
         // threshold, so the training rows decide x₂ too.
         let (_, train, _, _, got) = fold(400, 40, 20);
-        assert!(0.5 > FOLD_INFORMATION_SHARE);
+        const { assert!(0.5 > FOLD_INFORMATION_SHARE) };
         let (plain, _) = solve_gram(&train, pp);
         for k in 0..3 {
             assert!((got[k] - plain[k]).abs() < 1e-9, "{k}: {got:?} {plain:?}");
