@@ -52,8 +52,8 @@ pub use model_file::{
     LogSource, MODEL_FILE_VERSION, MODEL_FORMAT, ModelContext, ModelEffect, ModelFile, ModelFileError,
 };
 pub use predict::{
-    BodyState, HorizonError, Prediction, QuantityFit, default_horizons, fit_percent,
-    k_step_prediction,
+    BodyState, Comparison, HorizonError, ModelPrediction, Prediction, QuantityFit,
+    default_horizons, fit_percent, k_step_prediction, k_step_prediction_logs,
 };
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{

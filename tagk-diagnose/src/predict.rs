@@ -202,6 +202,19 @@ pub fn k_step_prediction(
     model: &ModelFile,
     horizons: &[usize],
 ) -> Result<Prediction, DiagnoseError> {
+    k_step_prediction_logs(std::slice::from_ref(signals), model, horizons)
+}
+
+/// [`k_step_prediction`] over several logs: every start sample of every log counts once in
+/// the mean errors and the fit % (the log's sampling step of the first log is reported).
+///
+/// # Errors
+/// As [`k_step_prediction`]; [`DiagnoseError::InvalidOption`] (field `logs`) for no log.
+pub fn k_step_prediction_logs(
+    logs: &[Signals],
+    model: &ModelFile,
+    horizons: &[usize],
+) -> Result<Prediction, DiagnoseError> {
     let bad_horizon = |reason: String| DiagnoseError::InvalidOption {
         field: "horizons",
         reason,
@@ -211,6 +224,36 @@ pub fn k_step_prediction(
             "{horizons:?}: give at least one horizon, each at least 1 step"
         )));
     }
+    let Some(first) = logs.first() else {
+        return Err(DiagnoseError::InvalidOption {
+            field: "logs",
+            reason: "no flight log given".into(),
+        });
+    };
+    let mut acc: Vec<Accumulator> = horizons.iter().map(|_| Accumulator::default()).collect();
+    for signals in logs {
+        accumulate(signals, model, horizons, &mut acc)?;
+    }
+    let dt = tagk_dynamics::log::median_step(&first.t);
+    let mut out = Vec::with_capacity(horizons.len());
+    for (h, a) in horizons.iter().zip(acc) {
+        if a.count == 0 {
+            return Err(bad_horizon(format!(
+                "{h} steps is longer than every gap-free segment of the log"
+            )));
+        }
+        out.push(a.finish(*h, dt));
+    }
+    Ok(Prediction { horizons: out })
+}
+
+/// Adds the predictions of `model` on one log to the accumulators of `horizons`.
+fn accumulate(
+    signals: &Signals,
+    model: &ModelFile,
+    horizons: &[usize],
+    acc: &mut [Accumulator],
+) -> Result<(), DiagnoseError> {
     let hmax = *horizons.iter().max().expect("non-empty");
     let log = signals.log();
     let n = signals.len();
@@ -320,8 +363,6 @@ pub fn k_step_prediction(
         };
         Ok(advance(state, &sum, dt / 6.0))
     };
-    // Per horizon: error sums and the series of the fit %.
-    let mut acc: Vec<Accumulator> = horizons.iter().map(|_| Accumulator::default()).collect();
     let segments = Sampling::of(&signals.t).segments();
     for seg in &segments {
         for i in seg.clone() {
@@ -340,17 +381,7 @@ pub fn k_step_prediction(
             }
         }
     }
-    let dt = tagk_dynamics::log::median_step(&signals.t);
-    let mut out = Vec::with_capacity(horizons.len());
-    for (h, a) in horizons.iter().zip(acc) {
-        if a.count == 0 {
-            return Err(bad_horizon(format!(
-                "{h} steps is longer than every gap-free segment of the log"
-            )));
-        }
-        out.push(a.finish(*h, dt));
-    }
-    Ok(Prediction { horizons: out })
+    Ok(())
 }
 
 /// The time derivative of a [`BodyState`] (the quaternion's as four numbers).
@@ -461,5 +492,98 @@ impl Accumulator {
             },
             samples: self.count,
         }
+    }
+}
+
+/// The k-step predictions of several models on one set of logs: what `tagk compare` prints
+/// and writes (`--json`: `{"models": [{"model": …, "horizons": […]}]}`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// One entry per model, in the order given.
+    pub models: Vec<ModelPrediction>,
+}
+
+/// One model's k-step prediction errors.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelPrediction {
+    /// The model (its file).
+    pub model: String,
+    /// The errors per horizon ([`Prediction::horizons`]).
+    pub horizons: Vec<HorizonError>,
+}
+
+impl Comparison {
+    /// The comparison as pretty JSON.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::Output`] if serialisation fails.
+    pub fn to_json(&self) -> Result<String, DiagnoseError> {
+        serde_json::to_string_pretty(self).map_err(|e| DiagnoseError::Output {
+            path: "<json>".into(),
+            message: e.to_string(),
+        })
+    }
+
+    /// The terminal tables: per quantity, one row per horizon and one column per model
+    /// (models side by side), mean error norms in SI units; then the fit % the same way.
+    pub fn table(&self) -> String {
+        use std::fmt::Write as _;
+        let mut out = String::new();
+        for (k, m) in self.models.iter().enumerate() {
+            let _ = writeln!(out, "model {}: {}", k + 1, m.model);
+        }
+        let quantities: [(&str, &str, fn(&HorizonError) -> f64); 4] = [
+            ("position", "m", |e| e.position),
+            ("velocity", "m/s", |e| e.velocity),
+            ("attitude", "rad", |e| e.attitude),
+            ("body rate", "rad/s", |e| e.body_rate),
+        ];
+        let Some(first) = self.models.first() else {
+            return out;
+        };
+        for (name, unit, get) in quantities {
+            let _ = write!(out, "\n{name} error [{unit}]\n{:>5} {:>9}", "h", "t [s]");
+            for k in 0..self.models.len() {
+                let _ = write!(out, " {:>10}", format!("model {}", k + 1));
+            }
+            out.push('\n');
+            for (row, e) in first.horizons.iter().enumerate() {
+                let _ = write!(out, "{:>5} {:>9.3}", e.h, e.h as f64 * e.dt);
+                for m in &self.models {
+                    let v = m.horizons.get(row).map_or(f64::NAN, get);
+                    let _ = write!(out, " {v:>10.3e}");
+                }
+                out.push('\n');
+            }
+        }
+        let fits: [(&str, fn(&QuantityFit) -> Option<f64>); 4] = [
+            ("position", |f| f.position),
+            ("velocity", |f| f.velocity),
+            ("attitude", |f| f.attitude),
+            ("body rate", |f| f.body_rate),
+        ];
+        let _ = write!(out, "\nfit % (MATLAB compare) at the longest horizon, h = {}\n", {
+            first.horizons.last().map_or(0, |e| e.h)
+        });
+        let _ = write!(out, "{:>10}", "");
+        for k in 0..self.models.len() {
+            let _ = write!(out, " {:>10}", format!("model {}", k + 1));
+        }
+        out.push('\n');
+        for (name, get) in fits {
+            let _ = write!(out, "{name:>10}");
+            for m in &self.models {
+                match m.horizons.last().and_then(|e| get(&e.fit)) {
+                    Some(v) => {
+                        let _ = write!(out, " {v:>10.2}");
+                    }
+                    None => {
+                        let _ = write!(out, " {:>10}", "n/a");
+                    }
+                }
+            }
+            out.push('\n');
+        }
+        out
     }
 }
