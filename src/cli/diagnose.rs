@@ -525,10 +525,19 @@ fn save_models(
             .iter()
             .enumerate()
         {
-            let last = file.effects.last().map_or("rigid-body", |e| e.name.as_str());
+            let last = file
+                .effects
+                .last()
+                .map_or("rigid-body", |e| e.name.as_str());
             let name: String = last
                 .chars()
-                .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '-' {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
                 .collect();
             file.write(&dir.join(format!("step-{k}-{name}.toml")))?;
         }

@@ -403,8 +403,8 @@ mod vehicle_table {
     pub fn serialize<S: Serializer>(v: &Option<Vehicle>, s: S) -> Result<S::Ok, S::Error> {
         match v {
             Some(v) => {
-                let table: toml::Table = toml::from_str(&v.to_toml_string())
-                    .map_err(serde::ser::Error::custom)?;
+                let table: toml::Table =
+                    toml::from_str(&v.to_toml_string()).map_err(serde::ser::Error::custom)?;
                 table.serialize(s)
             }
             None => s.serialize_none(),
@@ -594,9 +594,15 @@ impl ModelFile {
             );
         }
         if i.units.len() != 10 {
-            return bad("inertial.units", format!("has {} entries, not 10", i.units.len()));
+            return bad(
+                "inertial.units",
+                format!("has {} entries, not 10", i.units.len()),
+            );
         }
-        for (key, v) in [("inertial.values", &i.values), ("inertial.std_error", &i.std_error)] {
+        for (key, v) in [
+            ("inertial.values", &i.values),
+            ("inertial.std_error", &i.std_error),
+        ] {
             if v.len() != 10 {
                 return bad(key, format!("has {} entries, not 10", v.len()));
             }

@@ -562,9 +562,11 @@ impl Comparison {
             ("attitude", |f| f.attitude),
             ("body rate", |f| f.body_rate),
         ];
-        let _ = write!(out, "\nfit % (MATLAB compare) at the longest horizon, h = {}\n", {
-            first.horizons.last().map_or(0, |e| e.h)
-        });
+        let _ = write!(
+            out,
+            "\nfit % (MATLAB compare) at the longest horizon, h = {}\n",
+            { first.horizons.last().map_or(0, |e| e.h) }
+        );
         let _ = write!(out, "{:>10}", "");
         for k in 0..self.models.len() {
             let _ = write!(out, " {:>10}", format!("model {}", k + 1));

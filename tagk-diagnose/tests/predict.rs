@@ -70,11 +70,26 @@ fn a_free_symmetric_top_follows_its_closed_form() {
     }
     for e in &p.horizons {
         assert!(e.position < 1e-12, "h {}: position {:e} m", e.h, e.position);
-        assert!(e.velocity < 1e-12, "h {}: velocity {:e} m/s", e.h, e.velocity);
+        assert!(
+            e.velocity < 1e-12,
+            "h {}: velocity {:e} m/s",
+            e.h,
+            e.velocity
+        );
         // RK4's truncation at |ω| ≈ 6 rad/s: (|ω| dt)⁵ / 120 ≈ 6e-9 rad a step.
         let h = e.h as f64;
-        assert!(e.attitude < 2e-9 * h, "h {}: attitude {:e} rad", e.h, e.attitude);
-        assert!(e.body_rate < 1e-8 * h, "h {}: rate {:e} rad/s", e.h, e.body_rate);
+        assert!(
+            e.attitude < 2e-9 * h,
+            "h {}: attitude {:e} rad",
+            e.h,
+            e.attitude
+        );
+        assert!(
+            e.body_rate < 1e-8 * h,
+            "h {}: rate {:e} rad/s",
+            e.h,
+            e.body_rate
+        );
         assert!((e.dt - DT).abs() < 1e-15, "{}", e.dt);
     }
 }
@@ -97,7 +112,12 @@ fn input(t: f64) -> [f64; 6] {
         m * 9.81 + 0.05 * (2.0 * t).sin(),
     );
     let c = Vector3::new(THETA[1], THETA[2], THETA[3]) / m;
-    let tau = c.cross(&f) + Vector3::new(2e-6 * (3.0 * t).sin(), -1e-6 * (2.0 * t).cos(), 1e-6 * t.sin());
+    let tau = c.cross(&f)
+        + Vector3::new(
+            2e-6 * (3.0 * t).sin(),
+            -1e-6 * (2.0 * t).cos(),
+            1e-6 * t.sin(),
+        );
     [f.x, f.y, f.z, tau.x, tau.y, tau.z]
 }
 
@@ -222,10 +242,30 @@ fn a_driven_body_with_drag_matches_an_independent_fine_integrator() {
     for e in &p.horizons {
         // RK4's truncation at the log's step, growing with the horizon.
         let h = e.h as f64;
-        assert!(e.position < 5e-10 * h, "h {}: position {:e} m", e.h, e.position);
-        assert!(e.velocity < 2e-9 * h, "h {}: velocity {:e} m/s", e.h, e.velocity);
-        assert!(e.attitude < 5e-10 * h, "h {}: attitude {:e} rad", e.h, e.attitude);
-        assert!(e.body_rate < 2e-9 * h, "h {}: rate {:e} rad/s", e.h, e.body_rate);
+        assert!(
+            e.position < 5e-10 * h,
+            "h {}: position {:e} m",
+            e.h,
+            e.position
+        );
+        assert!(
+            e.velocity < 2e-9 * h,
+            "h {}: velocity {:e} m/s",
+            e.h,
+            e.velocity
+        );
+        assert!(
+            e.attitude < 5e-10 * h,
+            "h {}: attitude {:e} rad",
+            e.h,
+            e.attitude
+        );
+        assert!(
+            e.body_rate < 2e-9 * h,
+            "h {}: rate {:e} rad/s",
+            e.h,
+            e.body_rate
+        );
         let fit = e.fit.position.unwrap();
         assert!(fit > 99.99, "h {}: fit {fit} %", e.h);
     }
@@ -290,7 +330,10 @@ fn the_prediction_fit_agrees_with_fit_percent_on_its_own_predictions() {
     let hand = fit_percent(&y, &yhat).unwrap();
     let lib = p.horizons[0].fit.velocity.unwrap();
     assert!(hand < 99.9, "{hand}");
-    assert!((hand - lib).abs() < 1e-3 * (100.0 - hand), "{hand} vs {lib}");
+    assert!(
+        (hand - lib).abs() < 1e-3 * (100.0 - hand),
+        "{hand} vs {lib}"
+    );
 }
 
 #[test]
@@ -405,7 +448,17 @@ fn on_a_simulator_log_with_hidden_drag_the_true_model_predicts_far_better() {
     assert!(h1.body_rate < 1e-3, "h=1 rate {:e} rad/s", h1.body_rate);
     for (truth_model, fitted) in [(&p_rigid, &p_drag), (&f_rigid, &f_drag)] {
         let (a, b) = (&truth_model.horizons[2], &fitted.horizons[2]);
-        assert!(b.position * 5.0 < a.position, "{} vs {}", b.position, a.position);
-        assert!(b.velocity * 5.0 < a.velocity, "{} vs {}", b.velocity, a.velocity);
+        assert!(
+            b.position * 5.0 < a.position,
+            "{} vs {}",
+            b.position,
+            a.position
+        );
+        assert!(
+            b.velocity * 5.0 < a.velocity,
+            "{} vs {}",
+            b.velocity,
+            a.velocity
+        );
     }
 }
