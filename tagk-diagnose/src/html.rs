@@ -1121,16 +1121,11 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
         let _ = write!(html, "<li>{}</li>", escape(&m.model));
     }
     html.push_str("</ol><div class=\"grid\">");
-    let quantities: [(&str, &str, fn(&crate::predict::HorizonError) -> f64); 4] = [
-        ("position", "m", |e| e.position),
-        ("velocity", "m/s", |e| e.velocity),
-        ("attitude", "rad", |e| e.attitude),
-        ("body rate", "rad/s", |e| e.body_rate),
-    ];
     let labels: Vec<String> = (1..=comparison.models.len())
         .map(|k| format!("model {k}"))
         .collect();
-    for (name, unit, get) in quantities {
+    for q in crate::predict::QUANTITIES {
+        let (name, unit, get) = (q.name, q.unit, q.error);
         let data: Vec<(Vec<f64>, Vec<f64>)> = comparison
             .models
             .iter()
@@ -1160,9 +1155,9 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
             &[],
         ));
     }
-    let _ = write!(
+    let _ = writeln!(
         html,
-        "</div><h2>Numbers</h2><pre id=\"table\">{}</pre></body></html>\n",
+        "</div><h2>Numbers</h2><pre id=\"table\">{}</pre></body></html>",
         escape(&comparison.table())
     );
     html

@@ -58,8 +58,8 @@ pub use plan::{
     KnownMass, ResolvedPlan,
 };
 pub use predict::{
-    BodyState, Comparison, HorizonError, ModelPrediction, Prediction, QuantityFit,
-    default_horizons, fit_percent, k_step_prediction, k_step_prediction_logs,
+    BodyState, Comparison, HorizonError, ModelPrediction, Prediction, QUANTITIES, Quantity,
+    QuantityFit, default_horizons, fit_percent, k_step_prediction, k_step_prediction_logs,
 };
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,

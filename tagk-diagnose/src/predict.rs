@@ -495,6 +495,47 @@ impl Accumulator {
     }
 }
 
+/// One predicted quantity: its name, unit, mean error and fit % of a horizon.
+#[derive(Debug, Clone, Copy)]
+pub struct Quantity {
+    /// Its name (`position`, `velocity`, `attitude`, `body rate`).
+    pub name: &'static str,
+    /// The error's unit.
+    pub unit: &'static str,
+    /// The mean error norm of a horizon.
+    pub error: fn(&HorizonError) -> f64,
+    /// The fit % of a horizon.
+    pub fit: fn(&QuantityFit) -> Option<f64>,
+}
+
+/// The four predicted quantities, in the order of the tables and plots.
+pub const QUANTITIES: [Quantity; 4] = [
+    Quantity {
+        name: "position",
+        unit: "m",
+        error: |e| e.position,
+        fit: |f| f.position,
+    },
+    Quantity {
+        name: "velocity",
+        unit: "m/s",
+        error: |e| e.velocity,
+        fit: |f| f.velocity,
+    },
+    Quantity {
+        name: "attitude",
+        unit: "rad",
+        error: |e| e.attitude,
+        fit: |f| f.attitude,
+    },
+    Quantity {
+        name: "body rate",
+        unit: "rad/s",
+        error: |e| e.body_rate,
+        fit: |f| f.body_rate,
+    },
+];
+
 /// The k-step predictions of several models on one set of logs: what `tagk compare` prints
 /// and writes (`--json`: `{"models": [{"model": …, "horizons": […]}]}`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -532,16 +573,11 @@ impl Comparison {
         for (k, m) in self.models.iter().enumerate() {
             let _ = writeln!(out, "model {}: {}", k + 1, m.model);
         }
-        let quantities: [(&str, &str, fn(&HorizonError) -> f64); 4] = [
-            ("position", "m", |e| e.position),
-            ("velocity", "m/s", |e| e.velocity),
-            ("attitude", "rad", |e| e.attitude),
-            ("body rate", "rad/s", |e| e.body_rate),
-        ];
         let Some(first) = self.models.first() else {
             return out;
         };
-        for (name, unit, get) in quantities {
+        for q in QUANTITIES {
+            let (name, unit, get) = (q.name, q.unit, q.error);
             let _ = write!(out, "\n{name} error [{unit}]\n{:>5} {:>9}", "h", "t [s]");
             for k in 0..self.models.len() {
                 let _ = write!(out, " {:>10}", format!("model {}", k + 1));
@@ -556,12 +592,6 @@ impl Comparison {
                 out.push('\n');
             }
         }
-        let fits: [(&str, fn(&QuantityFit) -> Option<f64>); 4] = [
-            ("position", |f| f.position),
-            ("velocity", |f| f.velocity),
-            ("attitude", |f| f.attitude),
-            ("body rate", |f| f.body_rate),
-        ];
         let _ = write!(
             out,
             "\nfit % (MATLAB compare) at the longest horizon, h = {}\n",
@@ -572,7 +602,8 @@ impl Comparison {
             let _ = write!(out, " {:>10}", format!("model {}", k + 1));
         }
         out.push('\n');
-        for (name, get) in fits {
+        for q in QUANTITIES {
+            let (name, get) = (q.name, q.fit);
             let _ = write!(out, "{name:>10}");
             for m in &self.models {
                 match m.horizons.last().and_then(|e| get(&e.fit)) {

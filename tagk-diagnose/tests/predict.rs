@@ -1,6 +1,7 @@
 //! k-step prediction (`tagk compare`), checked against independent computations: the closed
 //! form of a torque-free symmetric top in free fall, a tiny explicit integrator written here,
 //! a hand computation of MATLAB's fit %, and simulator logs with a hidden linear drag.
+#![allow(clippy::needless_range_loop)]
 mod common;
 
 use nalgebra::{Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
