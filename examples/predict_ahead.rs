@@ -53,12 +53,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!();
     let quantities = [
-        "position [m]",
-        "velocity [m/s]",
-        "attitude [rad]",
-        "body rate [rad/s]",
+        "position (m)",
+        "velocity (m/s)",
+        "attitude (rad)",
+        "body rate (rad/s)",
     ];
-    let mut header = String::from("| h | t [s] |");
+    let mut header = String::from("| h | t (s) |");
     let mut rule = String::from("|---:|---:|");
     for q in quantities {
         for k in 0..models.len() {
