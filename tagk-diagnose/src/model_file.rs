@@ -46,6 +46,14 @@ pub enum ModelFileError {
         /// The operating system's message.
         message: String,
     },
+    /// An error of the model file `path` (its other variants, naming the file).
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// What is wrong with it.
+        source: Box<ModelFileError>,
+    },
     /// The text is not a model file: bad TOML, a missing or mistyped key, an unknown key.
     /// The message names the key and, for a syntax error, the line.
     #[error("malformed model file: {message}")]
@@ -550,19 +558,16 @@ impl ModelFile {
     /// Reads a model file.
     ///
     /// # Errors
-    /// [`ModelFileError::Io`], then as [`ModelFile::from_toml_str`] (the message names the
-    /// file).
+    /// [`ModelFileError::Io`]; the errors of [`ModelFile::from_toml_str`] in
+    /// [`ModelFileError::InFile`], naming the file.
     pub fn from_path(path: &Path) -> Result<Self, ModelFileError> {
         let text = std::fs::read_to_string(path).map_err(|e| ModelFileError::Io {
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
-        Self::from_toml_str(&text).map_err(|e| match e {
-            ModelFileError::Io { .. } => e,
-            other => ModelFileError::Io {
-                path: path.display().to_string(),
-                message: other.to_string(),
-            },
+        Self::from_toml_str(&text).map_err(|e| ModelFileError::InFile {
+            path: path.display().to_string(),
+            source: Box::new(e),
         })
     }
 

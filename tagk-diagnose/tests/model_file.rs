@@ -202,6 +202,18 @@ fn a_wrong_version_an_unknown_effect_and_a_bad_key_are_named() {
         ModelFile::from_toml_str("format = [").unwrap_err(),
         ModelFileError::Malformed { .. }
     ));
+    // From a file: the same typed error, naming the file.
+    let path = std::env::temp_dir().join(format!("tagk-model-v2-{}.toml", std::process::id()));
+    std::fs::write(&path, &v2).unwrap();
+    let err = ModelFile::from_path(&path).unwrap_err();
+    std::fs::remove_file(&path).unwrap();
+    match err {
+        ModelFileError::InFile { path: p, source } => {
+            assert_eq!(p, path.display().to_string());
+            assert_eq!(*source, ModelFileError::UnsupportedVersion { found: 2 });
+        }
+        other => panic!("{other}"),
+    }
 }
 
 #[test]
