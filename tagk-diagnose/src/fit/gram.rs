@@ -574,12 +574,64 @@ fn dot_accumulate(x: &[f64], fx: f64, y: &[f64], fy: f64, acc: &mut [f64; 4], ta
     }
 }
 
+/// [`dot_accumulate`] of the samples `from..to` of a block only (`x`, `y` the whole block):
+/// each sample into the partial sum it takes over the whole block, in the same order. Where
+/// the other samples' products are zero (one factor 0, the other finite) the sums are those
+/// of [`dot_accumulate`] bit for bit: a partial sum starts at `+0` and so is never `−0`,
+/// and `s + (±0) = s` for any other `s`.
+#[allow(clippy::too_many_arguments)]
+fn dot_accumulate_range(
+    x: &[f64],
+    fx: f64,
+    y: &[f64],
+    fy: f64,
+    acc: &mut [f64; 4],
+    tail: &mut f64,
+    from: usize,
+    to: usize,
+) {
+    let n = x.len().min(y.len());
+    let chunked = n - n % 4;
+    for i in from..to.min(n) {
+        let t = (x[i] * fx) * (y[i] * fy);
+        if i < chunked {
+            acc[i % 4] += t;
+        } else {
+            *tail += t;
+        }
+    }
+}
+
+/// The samples outside of which a column's values on a channel are all zero, `lo..hi`, for a
+/// stored column whose values are all finite; `None` for any other (every sample counts).
+/// A motor lag's start-of-log columns are zero after their transient: their cross products
+/// need only its first samples.
+fn support(col: &Column<'_>, c: usize) -> Option<std::ops::Range<usize>> {
+    let Column::Stored(d) = col else {
+        return None;
+    };
+    let v = d[c].as_ref()?;
+    if !v.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    match v.iter().position(|x| *x != 0.0) {
+        Some(lo) => {
+            let hi = v.iter().rposition(|x| *x != 0.0).map_or(lo, |i| i + 1);
+            Some(lo..hi)
+        }
+        None => Some(0..0),
+    }
+}
+
 /// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` (unweighted
 /// operands, per-operand, per-channel weights `wa`, `wb`) for every piece,
 /// channel, `j`, `k`; layout `[piece][channel][j][k]`. Every `stride`-th sample of a piece
 /// enters (summed in sample order); with stride 1, four interleaved partial sums
 /// ([`dot_accumulate`]). The samples are read block by block ([`Blocks`]): the rigid-body
-/// columns are computed once per block for every product that needs them.
+/// columns are computed once per block for every product that needs them. With stride 1, a
+/// product with a stored column that is zero outside a range of samples ([`support`]) sums
+/// that range only ([`dot_accumulate_range`]): the same bits, the other operands being
+/// finite (a validated log's signals and target are).
 #[allow(clippy::too_many_arguments)]
 fn cross_tensor(
     s: &Signals,
@@ -614,6 +666,32 @@ fn cross_tensor(
     let mut blocks = Blocks::new(s, Some(target));
     blocks.need(a);
     blocks.need(b);
+    // Per pair, the samples where its products can be non-zero (`None`: all of them).
+    let ranges: Vec<Option<std::ops::Range<usize>>> = if stride == 1 {
+        let sa: Vec<[Option<std::ops::Range<usize>>; 6]> = a
+            .iter()
+            .map(|x| std::array::from_fn(|c| support(x, c)))
+            .collect();
+        let sb: Vec<[Option<std::ops::Range<usize>>; 6]> = b
+            .iter()
+            .map(|x| std::array::from_fn(|c| support(x, c)))
+            .collect();
+        pairs
+            .iter()
+            .map(|&(j, k, c)| {
+                if !(wa[j][c].is_finite() && wb[k][c].is_finite()) {
+                    return None;
+                }
+                match (&sa[j][c], &sb[k][c]) {
+                    (None, None) => None,
+                    (Some(r), None) | (None, Some(r)) => Some(r.clone()),
+                    (Some(r), Some(q)) => Some(r.start.max(q.start)..r.end.min(q.end)),
+                }
+            })
+            .collect()
+    } else {
+        vec![None; pairs.len()]
+    };
     let mut acc = vec![[0.0f64; 4]; pairs.len()];
     let mut tail = vec![0.0f64; pairs.len()];
     let mut sums = vec![0.0f64; pairs.len()];
@@ -632,7 +710,25 @@ fn cross_tensor(
                 };
                 let (fx, fy) = (wa[j][c], wb[k][c]);
                 if stride == 1 {
-                    dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]);
+                    match &ranges[q] {
+                        Some(r) if r.start > blo || r.end < bhi => {
+                            let from = r.start.max(blo) - blo;
+                            let to = r.end.min(bhi).saturating_sub(blo);
+                            if from < to {
+                                dot_accumulate_range(
+                                    x,
+                                    fx,
+                                    y,
+                                    fy,
+                                    &mut acc[q],
+                                    &mut tail[q],
+                                    from,
+                                    to,
+                                );
+                            }
+                        }
+                        _ => dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]),
+                    }
                 } else {
                     let terms = x
                         .iter()
