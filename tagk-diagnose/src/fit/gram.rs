@@ -74,6 +74,8 @@ pub(crate) struct GramEngine<'a> {
     /// Per piece, per channel: (1+p0)² cross products of [y, base…].
     base_gram: Vec<f64>,
     stride: usize,
+    /// The supports of `[target, base…]` ([`Support`]), scanned once per engine.
+    support: Vec<Support>,
 }
 
 /// Shortest block of the blocked cross-validation \[s\] ([`GramEngine::new`]).
@@ -190,7 +192,18 @@ impl<'a> GramEngine<'a> {
         let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(base.iter().copied());
         let weights = vec![*w; 1 + base.len()];
-        let base_gram = cross_tensor(s, target, &all, &weights, &all, &weights, &pieces, stride);
+        let support = Support::of_all(&all);
+        let refs: Vec<&Support> = support.iter().collect();
+        let base_gram = cross_tensor(
+            s,
+            target,
+            (&all, &refs),
+            &weights,
+            (&all, &refs),
+            &weights,
+            &pieces,
+            stride,
+        );
         Self {
             s,
             w: *w,
@@ -200,6 +213,7 @@ impl<'a> GramEngine<'a> {
             folds,
             base_gram,
             stride,
+            support,
         }
     }
 
@@ -212,12 +226,13 @@ impl<'a> GramEngine<'a> {
         let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(self.base.iter().copied());
         let weights = vec![self.w; 1 + self.base.len()];
+        let refs: Vec<&Support> = self.support.iter().collect();
         let base_gram = cross_tensor(
             self.s,
             self.target,
-            &all,
+            (&all, &refs),
             &weights,
-            &all,
+            (&all, &refs),
             &weights,
             &pieces,
             stride,
@@ -231,6 +246,7 @@ impl<'a> GramEngine<'a> {
             folds: 1,
             base_gram,
             stride,
+            support: self.support.clone(),
         }
     }
 
@@ -280,15 +296,23 @@ impl<'a> GramEngine<'a> {
         let wl = vec![self.w; pp];
         let wc = vec![self.w; q];
         let (s, t) = (self.s, self.target);
-        let cross = cross_tensor(s, t, &left, &wl, candr, &wc, &self.pieces, self.stride);
+        let cand_support = Support::of_all(candr);
+        let cand_refs: Vec<&Support> = cand_support.iter().collect();
+        let left_refs: Vec<&Support> = self.support.iter().chain(&cand_support).collect();
+        let (l, c) = ((&left[..], &left_refs[..]), (candr, &cand_refs[..]));
+        let (pieces, stride) = (&self.pieces, self.stride);
+        let cross = cross_tensor(s, t, l, &wl, c, &wc, pieces, stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let wo = [self.w];
         let (ocross, oo) = match offset {
             Some(o) => {
                 let o = [o];
+                let os = Support::of(&o[0]);
+                let os = [&os];
+                let o = (&o[..], &os[..]);
                 (
-                    cross_tensor(s, t, &o, &wo, &left, &wl, &self.pieces, self.stride),
-                    cross_tensor(s, t, &o, &wo, &o, &wo, &self.pieces, self.stride),
+                    cross_tensor(s, t, o, &wo, l, &wl, pieces, stride),
+                    cross_tensor(s, t, o, &wo, o, &wo, pieces, stride),
                 )
             }
             None => (Vec::new(), Vec::new()),
@@ -602,25 +626,70 @@ fn dot_accumulate_range(
     }
 }
 
-/// The samples outside of which a column's values on a channel are all zero, `lo..hi`, for a
-/// stored column whose values are all finite; `None` for any other (every sample counts).
-/// A motor lag's start-of-log columns are zero after their transient: their cross products
-/// need only its first samples.
-fn support(col: &Column<'_>, c: usize) -> Option<std::ops::Range<usize>> {
-    let Column::Stored(d) = col else {
-        return None;
-    };
-    let v = d[c].as_ref()?;
-    if !v.iter().all(|x| x.is_finite()) {
-        return None;
-    }
-    match v.iter().position(|x| *x != 0.0) {
-        Some(lo) => {
-            let hi = v.iter().rposition(|x| *x != 0.0).map_or(lo, |i| i + 1);
-            Some(lo..hi)
+/// Per channel of a column, the samples outside of which its values are zero (`None`: a
+/// column that is not stored, or no values on the channel; every sample counts), and whether
+/// they are finite there (checked once, when a product first asks). A motor lag's
+/// start-of-log columns are zero after their transient: their cross products need only its
+/// first samples ([`cross_tensor`]).
+#[derive(Debug, Clone, Default)]
+struct Support {
+    ranges: [Option<std::ops::Range<usize>>; 6],
+    finite: [std::sync::OnceLock<bool>; 6],
+}
+
+impl Support {
+    /// The support of `col` (its values scanned once).
+    fn of(col: &Column<'_>) -> Self {
+        let mut out = Self::default();
+        if let Column::Stored(d) = col {
+            for (r, v) in out.ranges.iter_mut().zip(d.iter()) {
+                *r = v.as_deref().map(nonzero_range);
+            }
         }
-        None => Some(0..0),
+        out
     }
+
+    /// The supports of `cols`.
+    fn of_all(cols: &[Column<'_>]) -> Vec<Self> {
+        cols.iter().map(Self::of).collect()
+    }
+
+    /// `true` unless `col` (the column this support was made of) has a non-finite value on
+    /// channel `c` within its support.
+    fn finite(&self, col: &Column<'_>, c: usize) -> bool {
+        *self.finite[c].get_or_init(|| match (col, &self.ranges[c]) {
+            (Column::Stored(d), Some(r)) => d[c].as_ref().is_none_or(|v| {
+                v[r.clone()]
+                    .chunks(SCAN_CHUNK)
+                    .all(|x| x.iter().fold(true, |a, y| a & y.is_finite()))
+            }),
+            _ => true,
+        })
+    }
+}
+
+/// Values tested together when a column is scanned for its support (a vectorised test per
+/// chunk instead of a branch per value).
+const SCAN_CHUNK: usize = 16;
+
+/// The samples from the first to the last value of `v` that is not zero (`0..0` if none; a
+/// NaN counts as not zero).
+fn nonzero_range(v: &[f64]) -> std::ops::Range<usize> {
+    let any = |x: &[f64]| x.iter().fold(false, |a, y| a | (*y != 0.0));
+    let (Some(first), Some(last)) = (
+        v.chunks(SCAN_CHUNK).position(any),
+        v.chunks(SCAN_CHUNK).rposition(any),
+    ) else {
+        return 0..0;
+    };
+    let (a, b) = (first * SCAN_CHUNK, last * SCAN_CHUNK);
+    let lo = a + v[a..].iter().position(|y| *y != 0.0).unwrap_or(0);
+    let hi = b
+        + v[b..(b + SCAN_CHUNK).min(v.len())]
+            .iter()
+            .rposition(|y| *y != 0.0)
+            .map_or(0, |i| i + 1);
+    lo..hi
 }
 
 /// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` (unweighted
@@ -632,13 +701,14 @@ fn support(col: &Column<'_>, c: usize) -> Option<std::ops::Range<usize>> {
 /// product with a stored column that is zero outside a range of samples ([`support`]) sums
 /// that range only ([`dot_accumulate_range`]): the same bits, the other operands being
 /// finite (a validated log's signals and target are).
+/// `sa`, `sb`: the supports of `a` and `b` ([`Support::of_all`]).
 #[allow(clippy::too_many_arguments)]
 fn cross_tensor(
     s: &Signals,
     target: &[[f64; 6]],
-    a: &[Column<'_>],
+    (a, sa): (&[Column<'_>], &[&Support]),
     wa: &[[f64; 6]],
-    b: &[Column<'_>],
+    (b, sb): (&[Column<'_>], &[&Support]),
     wb: &[[f64; 6]],
     pieces: &[(usize, usize)],
     stride: usize,
@@ -666,27 +736,30 @@ fn cross_tensor(
     let mut blocks = Blocks::new(s, Some(target));
     blocks.need(a);
     blocks.need(b);
-    // Per pair, the samples where its products can be non-zero (`None`: all of them).
+    // Per pair, the samples where its products can be non-zero (`None`: all of them). Only
+    // where both operands are finite (the products outside are then ±0): the stored ones are
+    // checked (once per column and channel, when a product would skip samples), the
+    // target's and the rigid-body columns' are finite on a validated log.
     let ranges: Vec<Option<std::ops::Range<usize>>> = if stride == 1 {
-        let sa: Vec<[Option<std::ops::Range<usize>>; 6]> = a
-            .iter()
-            .map(|x| std::array::from_fn(|c| support(x, c)))
-            .collect();
-        let sb: Vec<[Option<std::ops::Range<usize>>; 6]> = b
-            .iter()
-            .map(|x| std::array::from_fn(|c| support(x, c)))
-            .collect();
+        let first = pieces.iter().map(|p| p.0).min().unwrap_or(0);
+        let last = pieces.iter().map(|p| p.1).max().unwrap_or(0);
         pairs
             .iter()
             .map(|&(j, k, c)| {
-                if !(wa[j][c].is_finite() && wb[k][c].is_finite()) {
+                let range = match (&sa[j].ranges[c], &sb[k].ranges[c]) {
+                    (None, None) => return None,
+                    (Some(r), None) | (None, Some(r)) => r.clone(),
+                    (Some(r), Some(q)) => r.start.max(q.start)..r.end.min(q.end),
+                };
+                if range.start <= first && range.end >= last {
+                    // Every sample of the pieces counts.
                     return None;
                 }
-                match (&sa[j][c], &sb[k][c]) {
-                    (None, None) => None,
-                    (Some(r), None) | (None, Some(r)) => Some(r.clone()),
-                    (Some(r), Some(q)) => Some(r.start.max(q.start)..r.end.min(q.end)),
-                }
+                let finite = wa[j][c].is_finite()
+                    && wb[k][c].is_finite()
+                    && sa[j].finite(&a[j], c)
+                    && sb[k].finite(&b[k], c);
+                finite.then_some(range)
             })
             .collect()
     } else {
