@@ -486,15 +486,7 @@ impl<'a> GramEngine<'a> {
         for (range, fold) in ranges {
             let beta = &betas[fold];
             for_each_block(&mut blocks, range.clone(), |blk, lo, hi| {
-                for (col, &b) in self.base.iter().zip(beta.iter()) {
-                    for c in 0..6 {
-                        if let Some((v, _)) = blk.get(col, c) {
-                            for (ri, x) in r[lo..hi].iter_mut().zip(v) {
-                                ri[c] -= b * x;
-                            }
-                        }
-                    }
-                }
+                subtract_base(blk, &self.base, beta, &[1.0; 6], &mut r[lo..hi]);
             });
             for (col, &b) in cand.iter().zip(&beta[nb.min(beta.len())..]) {
                 for (c, d) in col.borrow().iter().enumerate() {
@@ -553,16 +545,9 @@ impl<'a> GramEngine<'a> {
         // column order per sample as over whole columns.
         let mut blocks = Blocks::new(self.s, None);
         blocks.need(&self.base);
+        let w = self.w;
         for_each_block(&mut blocks, span.clone(), |blk, lo, hi| {
-            for (col, &b) in self.base.iter().zip(beta) {
-                for c in 0..6 {
-                    if let Some((v, _)) = blk.get(col, c) {
-                        for (ri, x) in r[lo - lo0..hi - lo0].iter_mut().zip(v) {
-                            ri[c] -= b * (x * self.w[c]);
-                        }
-                    }
-                }
-            }
+            subtract_base(blk, &self.base, beta, &w, &mut r[lo - lo0..hi - lo0]);
         });
         for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.borrow().iter().enumerate() {
@@ -574,6 +559,42 @@ impl<'a> GramEngine<'a> {
             }
         }
         r
+    }
+}
+
+/// Subtracts `b_j (x_j w)` of each column `x_j` of `base` (coefficient `b_j` of `beta`, channel
+/// weights `w`) from the rows `r` of the loaded block `blk`, column after column on each value
+/// (the same order as column by column over the rows). Per channel through one contiguous
+/// buffer, so the subtractions run over adjacent values.
+fn subtract_base(
+    blk: &Blocks<'_>,
+    base: &[Column<'_>],
+    beta: &[f64],
+    w: &[f64; 6],
+    r: &mut [[f64; 6]],
+) {
+    let mut buf = [0.0; BLOCK_SAMPLES];
+    for c in 0..6 {
+        let cols: Vec<(&[f64], f64)> = base
+            .iter()
+            .zip(beta)
+            .filter_map(|(col, &b)| blk.get(col, c).map(|(v, _)| (v, b)))
+            .collect();
+        if cols.is_empty() {
+            continue;
+        }
+        let buf = &mut buf[..r.len()];
+        for (x, ri) in buf.iter_mut().zip(r.iter()) {
+            *x = ri[c];
+        }
+        for (v, b) in cols {
+            for (x, y) in buf.iter_mut().zip(v) {
+                *x -= b * (y * w[c]);
+            }
+        }
+        for (ri, x) in r.iter_mut().zip(buf.iter()) {
+            ri[c] = *x;
+        }
     }
 }
 
