@@ -916,3 +916,107 @@ fn sse_of(gm: &[f64], pp: usize, beta: &[f64]) -> f64 {
     }
     s.max(0.0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testdata::{crazyflie, synthetic_log};
+
+    /// A column zero but on `range` of channels 2 and 3 (values that vary from sample to sample).
+    fn sparse(n: usize, range: std::ops::Range<usize>, scale: f64) -> ColData {
+        let mut v = vec![0.0; n];
+        for i in range {
+            v[i] = scale * ((i as f64) * 0.37).sin();
+        }
+        let mut d: ColData = Default::default();
+        d[2] = Some(v.clone());
+        d[3] = Some(v.iter().map(|x| -x).collect());
+        d
+    }
+
+    /// The Gram products of columns zero outside a few samples, summed over their supports
+    /// only, have the bits of the full sums (every sample, as without a support): with
+    /// folds, in a window, at the start, in the middle and at the end of the log, on a log
+    /// of several blocks whose length is no multiple of 4.
+    #[test]
+    fn products_over_supports_equal_full_sums_bit_for_bit() {
+        let log = synthetic_log(&crazyflie(), 5_003, 5e-3, 11, &|_, vb| {
+            [-0.02 * vb.x, -0.01 * vb.y, 0.0, 0.0, 0.0, 0.0]
+        });
+        let s = Signals::from_log(&log).unwrap();
+        let n = s.len();
+        let dense = crate::fit::effect_design(
+            crate::effects::builtin(crate::EffectKind::LinearDrag)
+                .unwrap()
+                .as_ref(),
+            &s,
+            None,
+        )
+        .cols;
+        let cols = [
+            sparse(n, 0..29, 0.3),
+            sparse(n, 1021..1031, 2.0),
+            sparse(n, n - 7..n, 0.5),
+            sparse(n, 0..0, 1.0),
+            dense[0].clone(),
+        ];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
+        all.extend((0..10).map(Column::Rigid));
+        all.extend(cols.iter().map(Column::Stored));
+        let w = vec![[100.0, 100.0, 50.0, 1e5, 1e5, 1e5]; all.len()];
+        let real = Support::of_all(&all);
+        let none = vec![Support::default(); all.len()];
+        let (real, none): (Vec<&Support>, Vec<&Support>) =
+            (real.iter().collect(), none.iter().collect());
+        let folds = GramEngine::new(&s, &w[0], &[], None, 5).pieces;
+        for pieces in [vec![(0, n)], folds, vec![(1000, 2003)], vec![(3, n - 5)]] {
+            let with = cross_tensor(
+                &s,
+                s.target(),
+                (&all, &real),
+                &w,
+                (&all, &real),
+                &w,
+                &pieces,
+                1,
+            );
+            let without = cross_tensor(
+                &s,
+                s.target(),
+                (&all, &none),
+                &w,
+                (&all, &none),
+                &w,
+                &pieces,
+                1,
+            );
+            assert!(with.iter().any(|x| *x != 0.0));
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&with), bits(&without), "pieces {pieces:?}");
+        }
+    }
+
+    /// The residual subtracts the base columns as a plain loop over the samples does, bit for
+    /// bit (the base columns stored, the coefficients arbitrary).
+    #[test]
+    fn residual_equals_a_plain_loop_bit_for_bit() {
+        let log = synthetic_log(&crazyflie(), 2_501, 5e-3, 3, &|_, _| [0.0; 6]);
+        let s = Signals::from_log(&log).unwrap();
+        let base = crate::fit::rigid_columns(&s);
+        let cols: Vec<Column<'_>> = base.iter().map(Column::Stored).collect();
+        let w = [3.0, 5.0, 7.0, 1e3, 2e3, 3e3];
+        let beta: Vec<f64> = (0..10).map(|j| 0.1 + 0.37 * j as f64).collect();
+        let r = GramEngine::new(&s, &w, &cols, None, 1).residual::<ColData>(&[], None, &beta);
+        for (i, ri) in r.iter().enumerate() {
+            for c in 0..6 {
+                let mut want = s.target()[i][c] * w[c];
+                for (d, b) in base.iter().zip(&beta) {
+                    if let Some(v) = &d[c] {
+                        want -= b * (v[i] * w[c]);
+                    }
+                }
+                assert_eq!(ri[c].to_bits(), want.to_bits(), "sample {i}, channel {c}");
+            }
+        }
+    }
+}
