@@ -34,8 +34,9 @@ use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
     ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
-    checked_effect_design, design_of_columns, effect_design, filters, is_start_nuisance, residual_score, rigid_design,
-    sampled_effect_design, scan_criterion, scan_window, whitened_residual,
+    checked_effect_design, design_of_columns, effect_design, filters, is_start_nuisance,
+    residual_score, rigid_design, sampled_effect_design, scan_criterion, scan_window,
+    whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;

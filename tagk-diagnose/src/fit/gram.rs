@@ -705,11 +705,10 @@ fn nonzero_range(v: &[f64]) -> std::ops::Range<usize> {
     };
     let (a, b) = (first * SCAN_CHUNK, last * SCAN_CHUNK);
     let lo = a + v[a..].iter().position(|y| *y != 0.0).unwrap_or(0);
-    let hi = b
-        + v[b..(b + SCAN_CHUNK).min(v.len())]
-            .iter()
-            .rposition(|y| *y != 0.0)
-            .map_or(0, |i| i + 1);
+    let hi = b + v[b..(b + SCAN_CHUNK).min(v.len())]
+        .iter()
+        .rposition(|y| *y != 0.0)
+        .map_or(0, |i| i + 1);
     lo..hi
 }
 
