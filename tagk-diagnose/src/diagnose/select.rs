@@ -34,8 +34,9 @@ use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
     ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
-    checked_effect_design, effect_design, filters, is_start_nuisance, residual_score, rigid_design,
-    sampled_effect_design, scan_criterion, scan_window, whitened_residual,
+    checked_effect_design, design_of_columns, effect_design, filters, is_start_nuisance,
+    residual_score, rigid_design, sampled_effect_design, scan_criterion, scan_window,
+    whitened_residual,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -323,13 +324,34 @@ impl<'s> Context<'s> {
         .map(|_| ())
     }
 
+    /// Member `m`'s design when its columns have the log's length
+    /// ([`crate::effects::check_lengths`]; `None` otherwise): the columns are computed once,
+    /// for the check and the design. A kept design's columns are computed anew for the check.
+    fn length_checked_design(&self, m: &Member) -> Option<Arc<EffectDesign>> {
+        let columns = || crate::effects::effect_columns(m.effect.as_ref(), self.s, m.param);
+        if let Some(d) = self.designs.borrow().get(&design_key(m)) {
+            return crate::effects::check_lengths(&columns(), self.s.len())
+                .ok()
+                .map(|()| d.clone());
+        }
+        let columns = columns();
+        crate::effects::check_lengths(&columns, self.s.len()).ok()?;
+        let computed = self.cached_design(m, || {
+            Ok::<_, std::convert::Infallible>(design_of_columns(columns, self.s))
+        });
+        match computed {
+            Ok(d) => Some(d),
+            Err(never) => match never {},
+        }
+    }
+
     /// The design of `m` from the cache, or from `compute` (kept when the log is short).
     fn cached_design<E>(
         &self,
         m: &Member,
         compute: impl FnOnce() -> Result<EffectDesign, E>,
     ) -> Result<Arc<EffectDesign>, E> {
-        let key = (m.name().to_string(), m.param.map(f64::to_bits));
+        let key = design_key(m);
         if let Some(d) = self.designs.borrow().get(&key) {
             return Ok(d.clone());
         }
@@ -344,7 +366,23 @@ impl<'s> Context<'s> {
 
     /// The members' fitted columns, their known part, their widths and names.
     fn member_design(&self, members: &[Member]) -> MemberDesign {
-        let designs: Vec<Arc<EffectDesign>> = members.iter().map(|m| self.design_of(m)).collect();
+        self.member_design_given(members, None)
+    }
+
+    /// [`Self::member_design`] with the design of member `k` given as `(k, design)`.
+    fn member_design_given(
+        &self,
+        members: &[Member],
+        given: Option<(usize, Arc<EffectDesign>)>,
+    ) -> MemberDesign {
+        let designs: Vec<Arc<EffectDesign>> = members
+            .iter()
+            .enumerate()
+            .map(|(i, m)| match &given {
+                Some((k, d)) if *k == i => d.clone(),
+                _ => self.design_of(m),
+            })
+            .collect();
         let with_offset: Vec<&EffectDesign> = designs
             .iter()
             .map(Arc::as_ref)
@@ -483,9 +521,15 @@ impl<'s> Context<'s> {
         }
     }
 
-    /// The in-sample score of the model plus `members` (`engine` from [`Self::fit_engine`]).
-    fn fit_score(&self, engine: &GramEngine<'_>, members: &[Member]) -> f64 {
-        let d = self.member_design(members);
+    /// The in-sample score of the model plus `members` (`engine` from [`Self::fit_engine`]),
+    /// with the design of member `k` given as `(k, design)`.
+    fn fit_score(
+        &self,
+        engine: &GramEngine<'_>,
+        members: &[Member],
+        given: Option<(usize, Arc<EffectDesign>)>,
+    ) -> f64 {
+        let d = self.member_design_given(members, given);
         let cols = d.cols();
         let ev = engine.evaluate_with(&cols, d.offset());
         let filt = self.all_filters(members);
@@ -542,12 +586,9 @@ impl<'s> Context<'s> {
                             * scan.stride() as f64
                     })
             }
-            None => match crate::effects::check_lengths(
-                &crate::effects::effect_columns(trial[k].effect.as_ref(), self.s, Some(g)),
-                self.s.len(),
-            ) {
-                Ok(()) => self.fit_score(engine, trial),
-                Err(_) => f64::INFINITY,
+            None => match self.length_checked_design(&trial[k]) {
+                Some(d) => self.fit_score(engine, trial, Some((k, d))),
+                None => f64::INFINITY,
             },
         }
     }
@@ -666,6 +707,11 @@ impl<'s> Context<'s> {
         let hi = end(above, profile[profile.len() - 1].0);
         Some([lo.min(best).min(x_best), hi.max(best).max(x_best)])
     }
+}
+
+/// The key of member `m`'s design in [`Context`]'s cache: its name and parameter.
+fn design_key(m: &Member) -> (String, Option<u64>) {
+    (m.name().to_string(), m.param.map(f64::to_bits))
 }
 
 /// Relative resolution of each end of a refined profile interval

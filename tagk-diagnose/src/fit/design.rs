@@ -113,7 +113,13 @@ pub(crate) struct EffectDesign {
 /// the target ([`Signals::smooth_channels`]); fixed columns go into the offset. The effect
 /// must be usable on the log ([`crate::effects::usable`]).
 pub(crate) fn effect_design(effect: &dyn Effect, s: &Signals, p: Option<f64>) -> EffectDesign {
-    design_of(smoothed(crate::effects::effect_columns(effect, s, p), s))
+    design_of_columns(crate::effects::effect_columns(effect, s, p), s)
+}
+
+/// [`effect_design`] of columns already computed ([`crate::effects::effect_columns`] of the
+/// effect on `s`): for a caller that checks them first.
+pub(crate) fn design_of_columns(columns: Vec<EffectColumn>, s: &Signals) -> EffectDesign {
+    design_of(smoothed(columns, s))
 }
 
 /// [`effect_design`] for an effect not yet known to be usable at `p`: `Err(reason)` when its
@@ -126,7 +132,7 @@ pub(crate) fn checked_effect_design(
 ) -> Result<EffectDesign, String> {
     let columns = crate::effects::effect_columns(effect, s, p);
     check_columns(&columns, s)?;
-    Ok(design_of(smoothed(columns, s)))
+    Ok(design_of_columns(columns, s))
 }
 
 /// The columns smoothed like the target ([`Signals::smooth_channels`]).

@@ -74,6 +74,8 @@ pub(crate) struct GramEngine<'a> {
     /// Per piece, per channel: (1+p0)² cross products of [y, base…].
     base_gram: Vec<f64>,
     stride: usize,
+    /// The supports of `[target, base…]` ([`Support`]), scanned once per engine.
+    support: Vec<Support>,
 }
 
 /// Shortest block of the blocked cross-validation \[s\] ([`GramEngine::new`]).
@@ -190,7 +192,18 @@ impl<'a> GramEngine<'a> {
         let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(base.iter().copied());
         let weights = vec![*w; 1 + base.len()];
-        let base_gram = cross_tensor(s, target, &all, &weights, &all, &weights, &pieces, stride);
+        let support = Support::of_all(&all);
+        let refs: Vec<&Support> = support.iter().collect();
+        let base_gram = cross_tensor(
+            s,
+            target,
+            (&all, &refs),
+            &weights,
+            (&all, &refs),
+            &weights,
+            &pieces,
+            stride,
+        );
         Self {
             s,
             w: *w,
@@ -200,6 +213,7 @@ impl<'a> GramEngine<'a> {
             folds,
             base_gram,
             stride,
+            support,
         }
     }
 
@@ -212,12 +226,13 @@ impl<'a> GramEngine<'a> {
         let mut all: Vec<Column<'_>> = vec![Column::Target];
         all.extend(self.base.iter().copied());
         let weights = vec![self.w; 1 + self.base.len()];
+        let refs: Vec<&Support> = self.support.iter().collect();
         let base_gram = cross_tensor(
             self.s,
             self.target,
-            &all,
+            (&all, &refs),
             &weights,
-            &all,
+            (&all, &refs),
             &weights,
             &pieces,
             stride,
@@ -231,6 +246,7 @@ impl<'a> GramEngine<'a> {
             folds: 1,
             base_gram,
             stride,
+            support: self.support.clone(),
         }
     }
 
@@ -280,15 +296,23 @@ impl<'a> GramEngine<'a> {
         let wl = vec![self.w; pp];
         let wc = vec![self.w; q];
         let (s, t) = (self.s, self.target);
-        let cross = cross_tensor(s, t, &left, &wl, candr, &wc, &self.pieces, self.stride);
+        let cand_support = Support::of_all(candr);
+        let cand_refs: Vec<&Support> = cand_support.iter().collect();
+        let left_refs: Vec<&Support> = self.support.iter().chain(&cand_support).collect();
+        let (l, c) = ((&left[..], &left_refs[..]), (candr, &cand_refs[..]));
+        let (pieces, stride) = (&self.pieces, self.stride);
+        let cross = cross_tensor(s, t, l, &wl, c, &wc, pieces, stride);
         // The offset's cross products with [y, base…, cand…] and with itself.
         let wo = [self.w];
         let (ocross, oo) = match offset {
             Some(o) => {
                 let o = [o];
+                let os = Support::of(&o[0]);
+                let os = [&os];
+                let o = (&o[..], &os[..]);
                 (
-                    cross_tensor(s, t, &o, &wo, &left, &wl, &self.pieces, self.stride),
-                    cross_tensor(s, t, &o, &wo, &o, &wo, &self.pieces, self.stride),
+                    cross_tensor(s, t, o, &wo, l, &wl, pieces, stride),
+                    cross_tensor(s, t, o, &wo, o, &wo, pieces, stride),
                 )
             }
             None => (Vec::new(), Vec::new()),
@@ -463,15 +487,7 @@ impl<'a> GramEngine<'a> {
         for (range, fold) in ranges {
             let beta = &betas[fold];
             for_each_block(&mut blocks, range.clone(), |blk, lo, hi| {
-                for (col, &b) in self.base.iter().zip(beta.iter()) {
-                    for c in 0..6 {
-                        if let Some((v, _)) = blk.get(col, c) {
-                            for (ri, x) in r[lo..hi].iter_mut().zip(v) {
-                                ri[c] -= b * x;
-                            }
-                        }
-                    }
-                }
+                subtract_base(blk, &self.base, beta, &[1.0; 6], &mut r[lo..hi]);
             });
             for (col, &b) in cand.iter().zip(&beta[nb.min(beta.len())..]) {
                 for (c, d) in col.borrow().iter().enumerate() {
@@ -530,16 +546,9 @@ impl<'a> GramEngine<'a> {
         // column order per sample as over whole columns.
         let mut blocks = Blocks::new(self.s, None);
         blocks.need(&self.base);
+        let w = self.w;
         for_each_block(&mut blocks, span.clone(), |blk, lo, hi| {
-            for (col, &b) in self.base.iter().zip(beta) {
-                for c in 0..6 {
-                    if let Some((v, _)) = blk.get(col, c) {
-                        for (ri, x) in r[lo - lo0..hi - lo0].iter_mut().zip(v) {
-                            ri[c] -= b * (x * self.w[c]);
-                        }
-                    }
-                }
-            }
+            subtract_base(blk, &self.base, beta, &w, &mut r[lo - lo0..hi - lo0]);
         });
         for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.borrow().iter().enumerate() {
@@ -551,6 +560,42 @@ impl<'a> GramEngine<'a> {
             }
         }
         r
+    }
+}
+
+/// Subtracts `b_j (x_j w)` of each column `x_j` of `base` (coefficient `b_j` of `beta`, channel
+/// weights `w`) from the rows `r` of the loaded block `blk`, column after column on each value
+/// (the same order as column by column over the rows). Per channel through one contiguous
+/// buffer, so the subtractions run over adjacent values.
+fn subtract_base(
+    blk: &Blocks<'_>,
+    base: &[Column<'_>],
+    beta: &[f64],
+    w: &[f64; 6],
+    r: &mut [[f64; 6]],
+) {
+    let mut buf = [0.0; BLOCK_SAMPLES];
+    for c in 0..6 {
+        let cols: Vec<(&[f64], f64)> = base
+            .iter()
+            .zip(beta)
+            .filter_map(|(col, &b)| blk.get(col, c).map(|(v, _)| (v, b)))
+            .collect();
+        if cols.is_empty() {
+            continue;
+        }
+        let buf = &mut buf[..r.len()];
+        for (x, ri) in buf.iter_mut().zip(r.iter()) {
+            *x = ri[c];
+        }
+        for (v, b) in cols {
+            for (x, y) in buf.iter_mut().zip(v) {
+                *x -= b * (y * w[c]);
+            }
+        }
+        for (ri, x) in r.iter_mut().zip(buf.iter()) {
+            ri[c] = *x;
+        }
     }
 }
 
@@ -575,19 +620,116 @@ fn dot_accumulate(x: &[f64], fx: f64, y: &[f64], fy: f64, acc: &mut [f64; 4], ta
     }
 }
 
+/// [`dot_accumulate`] of the samples `from..to` of a block only (`x`, `y` the whole block):
+/// each sample into the partial sum it takes over the whole block, in the same order. Where
+/// the other samples' products are zero (one factor 0, the other finite) the sums are those
+/// of [`dot_accumulate`] bit for bit: a partial sum starts at `+0` and so is never `−0`,
+/// and `s + (±0) = s` for any other `s`.
+#[allow(clippy::too_many_arguments)]
+fn dot_accumulate_range(
+    x: &[f64],
+    fx: f64,
+    y: &[f64],
+    fy: f64,
+    acc: &mut [f64; 4],
+    tail: &mut f64,
+    from: usize,
+    to: usize,
+) {
+    let n = x.len().min(y.len());
+    let chunked = n - n % 4;
+    for i in from..to.min(n) {
+        let t = (x[i] * fx) * (y[i] * fy);
+        if i < chunked {
+            acc[i % 4] += t;
+        } else {
+            *tail += t;
+        }
+    }
+}
+
+/// Per channel of a column, the samples outside of which its values are zero (`None`: a
+/// column that is not stored, or no values on the channel; every sample counts), and whether
+/// they are finite there (checked once, when a product first asks). A motor lag's
+/// start-of-log columns are zero after their transient: their cross products need only its
+/// first samples ([`cross_tensor`]).
+#[derive(Debug, Clone, Default)]
+struct Support {
+    ranges: [Option<std::ops::Range<usize>>; 6],
+    finite: [std::sync::OnceLock<bool>; 6],
+}
+
+impl Support {
+    /// The support of `col` (its values scanned once).
+    fn of(col: &Column<'_>) -> Self {
+        let mut out = Self::default();
+        if let Column::Stored(d) = col {
+            for (r, v) in out.ranges.iter_mut().zip(d.iter()) {
+                *r = v.as_deref().map(nonzero_range);
+            }
+        }
+        out
+    }
+
+    /// The supports of `cols`.
+    fn of_all(cols: &[Column<'_>]) -> Vec<Self> {
+        cols.iter().map(Self::of).collect()
+    }
+
+    /// `true` unless `col` (the column this support was made of) has a non-finite value on
+    /// channel `c` within its support.
+    fn finite(&self, col: &Column<'_>, c: usize) -> bool {
+        *self.finite[c].get_or_init(|| match (col, &self.ranges[c]) {
+            (Column::Stored(d), Some(r)) => d[c].as_ref().is_none_or(|v| {
+                v[r.clone()]
+                    .chunks(SCAN_CHUNK)
+                    .all(|x| x.iter().fold(true, |a, y| a & y.is_finite()))
+            }),
+            _ => true,
+        })
+    }
+}
+
+/// Values tested together when a column is scanned for its support (a vectorised test per
+/// chunk instead of a branch per value).
+const SCAN_CHUNK: usize = 16;
+
+/// The samples from the first to the last value of `v` that is not zero (`0..0` if none; a
+/// NaN counts as not zero).
+fn nonzero_range(v: &[f64]) -> std::ops::Range<usize> {
+    let any = |x: &[f64]| x.iter().fold(false, |a, y| a | (*y != 0.0));
+    let (Some(first), Some(last)) = (
+        v.chunks(SCAN_CHUNK).position(any),
+        v.chunks(SCAN_CHUNK).rposition(any),
+    ) else {
+        return 0..0;
+    };
+    let (a, b) = (first * SCAN_CHUNK, last * SCAN_CHUNK);
+    let lo = a + v[a..].iter().position(|y| *y != 0.0).unwrap_or(0);
+    let hi = b + v[b..(b + SCAN_CHUNK).min(v.len())]
+        .iter()
+        .rposition(|y| *y != 0.0)
+        .map_or(0, |i| i + 1);
+    lo..hi
+}
+
 /// Cross products `Σ_{i ∈ piece} (a_j[c][i] wa_j[c]) (b_k[c][i] wb_k[c])` (unweighted
 /// operands, per-operand, per-channel weights `wa`, `wb`) for every piece,
 /// channel, `j`, `k`; layout `[piece][channel][j][k]`. Every `stride`-th sample of a piece
 /// enters (summed in sample order); with stride 1, four interleaved partial sums
 /// ([`dot_accumulate`]). The samples are read block by block ([`Blocks`]): the rigid-body
-/// columns are computed once per block for every product that needs them.
+/// columns are computed once per block for every product that needs them. With stride 1, a
+/// product with a stored column that is zero outside a range of samples ([`support`]) sums
+/// that range only ([`dot_accumulate_range`]): the same bits, the other operands being
+/// finite (a validated log's signals and target are).
+/// `sa`, `sb`: the supports of `a` and `b` ([`Support::of_all`]).
 #[allow(clippy::too_many_arguments)]
 fn cross_tensor(
     s: &Signals,
     target: &[[f64; 6]],
-    a: &[Column<'_>],
+    (a, sa): (&[Column<'_>], &[&Support]),
     wa: &[[f64; 6]],
-    b: &[Column<'_>],
+    (b, sb): (&[Column<'_>], &[&Support]),
     wb: &[[f64; 6]],
     pieces: &[(usize, usize)],
     stride: usize,
@@ -615,6 +757,35 @@ fn cross_tensor(
     let mut blocks = Blocks::new(s, Some(target));
     blocks.need(a);
     blocks.need(b);
+    // Per pair, the samples where its products can be non-zero (`None`: all of them). Only
+    // where both operands are finite (the products outside are then ±0): the stored ones are
+    // checked (once per column and channel, when a product would skip samples), the
+    // target's and the rigid-body columns' are finite on a validated log.
+    let ranges: Vec<Option<std::ops::Range<usize>>> = if stride == 1 {
+        let first = pieces.iter().map(|p| p.0).min().unwrap_or(0);
+        let last = pieces.iter().map(|p| p.1).max().unwrap_or(0);
+        pairs
+            .iter()
+            .map(|&(j, k, c)| {
+                let range = match (&sa[j].ranges[c], &sb[k].ranges[c]) {
+                    (None, None) => return None,
+                    (Some(r), None) | (None, Some(r)) => r.clone(),
+                    (Some(r), Some(q)) => r.start.max(q.start)..r.end.min(q.end),
+                };
+                if range.start <= first && range.end >= last {
+                    // Every sample of the pieces counts.
+                    return None;
+                }
+                let finite = wa[j][c].is_finite()
+                    && wb[k][c].is_finite()
+                    && sa[j].finite(&a[j], c)
+                    && sb[k].finite(&b[k], c);
+                finite.then_some(range)
+            })
+            .collect()
+    } else {
+        vec![None; pairs.len()]
+    };
     let mut acc = vec![[0.0f64; 4]; pairs.len()];
     let mut tail = vec![0.0f64; pairs.len()];
     let mut sums = vec![0.0f64; pairs.len()];
@@ -633,7 +804,25 @@ fn cross_tensor(
                 };
                 let (fx, fy) = (wa[j][c], wb[k][c]);
                 if stride == 1 {
-                    dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]);
+                    match &ranges[q] {
+                        Some(r) if r.start > blo || r.end < bhi => {
+                            let from = r.start.max(blo) - blo;
+                            let to = r.end.min(bhi).saturating_sub(blo);
+                            if from < to {
+                                dot_accumulate_range(
+                                    x,
+                                    fx,
+                                    y,
+                                    fy,
+                                    &mut acc[q],
+                                    &mut tail[q],
+                                    from,
+                                    to,
+                                );
+                            }
+                        }
+                        _ => dot_accumulate(x, fx, y, fy, &mut acc[q], &mut tail[q]),
+                    }
                 } else {
                     let terms = x
                         .iter()
@@ -778,7 +967,106 @@ fn sse_of(gm: &[f64], pp: usize, beta: &[f64]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{FOLD_INFORMATION_SHARE, solve_fold, solve_gram};
+    use super::*;
+    use crate::testdata::{crazyflie, synthetic_log};
+
+    /// A column zero but on `range` of channels 2 and 3 (values that vary from sample to sample).
+    fn sparse(n: usize, range: std::ops::Range<usize>, scale: f64) -> ColData {
+        let mut v = vec![0.0; n];
+        for i in range {
+            v[i] = scale * ((i as f64) * 0.37).sin();
+        }
+        let mut d: ColData = Default::default();
+        d[2] = Some(v.clone());
+        d[3] = Some(v.iter().map(|x| -x).collect());
+        d
+    }
+
+    /// The Gram products of columns zero outside a few samples, summed over their supports
+    /// only, have the bits of the full sums (every sample, as without a support): with
+    /// folds, in a window, at the start, in the middle and at the end of the log, on a log
+    /// of several blocks whose length is no multiple of 4.
+    #[test]
+    fn products_over_supports_equal_full_sums_bit_for_bit() {
+        let log = synthetic_log(&crazyflie(), 5_003, 5e-3, 11, &|_, vb| {
+            [-0.02 * vb.x, -0.01 * vb.y, 0.0, 0.0, 0.0, 0.0]
+        });
+        let s = Signals::from_log(&log).unwrap();
+        let n = s.len();
+        let dense = crate::fit::effect_design(
+            crate::effects::builtin(crate::EffectKind::LinearDrag)
+                .unwrap()
+                .as_ref(),
+            &s,
+            None,
+        )
+        .cols;
+        let cols = [
+            sparse(n, 0..29, 0.3),
+            sparse(n, 1021..1031, 2.0),
+            sparse(n, n - 7..n, 0.5),
+            sparse(n, 0..0, 1.0),
+            dense[0].clone(),
+        ];
+        let mut all: Vec<Column<'_>> = vec![Column::Target];
+        all.extend((0..10).map(Column::Rigid));
+        all.extend(cols.iter().map(Column::Stored));
+        let w = vec![[100.0, 100.0, 50.0, 1e5, 1e5, 1e5]; all.len()];
+        let real = Support::of_all(&all);
+        let none = vec![Support::default(); all.len()];
+        let (real, none): (Vec<&Support>, Vec<&Support>) =
+            (real.iter().collect(), none.iter().collect());
+        let folds = GramEngine::new(&s, &w[0], &[], None, 5).pieces;
+        for pieces in [vec![(0, n)], folds, vec![(1000, 2003)], vec![(3, n - 5)]] {
+            let with = cross_tensor(
+                &s,
+                s.target(),
+                (&all, &real),
+                &w,
+                (&all, &real),
+                &w,
+                &pieces,
+                1,
+            );
+            let without = cross_tensor(
+                &s,
+                s.target(),
+                (&all, &none),
+                &w,
+                (&all, &none),
+                &w,
+                &pieces,
+                1,
+            );
+            assert!(with.iter().any(|x| *x != 0.0));
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&with), bits(&without), "pieces {pieces:?}");
+        }
+    }
+
+    /// The residual subtracts the base columns as a plain loop over the samples does, bit for
+    /// bit (the base columns stored, the coefficients arbitrary).
+    #[test]
+    fn residual_equals_a_plain_loop_bit_for_bit() {
+        let log = synthetic_log(&crazyflie(), 2_501, 5e-3, 3, &|_, _| [0.0; 6]);
+        let s = Signals::from_log(&log).unwrap();
+        let base = crate::fit::rigid_columns(&s);
+        let cols: Vec<Column<'_>> = base.iter().map(Column::Stored).collect();
+        let w = [3.0, 5.0, 7.0, 1e3, 2e3, 3e3];
+        let beta: Vec<f64> = (0..10).map(|j| 0.1 + 0.37 * j as f64).collect();
+        let r = GramEngine::new(&s, &w, &cols, None, 1).residual::<ColData>(&[], None, &beta);
+        for (i, ri) in r.iter().enumerate() {
+            for c in 0..6 {
+                let mut want = s.target()[i][c] * w[c];
+                for (d, b) in base.iter().zip(&beta) {
+                    if let Some(v) = &d[c] {
+                        want -= b * (v[i] * w[c]);
+                    }
+                }
+                assert_eq!(ri[c].to_bits(), want.to_bits(), "sample {i}, channel {c}");
+            }
+        }
+    }
 
     /// The `[y, x…]²` Gram matrix of rows `(y, x)`.
     fn gram(rows: &[(f64, Vec<f64>)]) -> (Vec<f64>, usize) {

@@ -20,8 +20,8 @@ pub(crate) use columns::{Column, rigid_channels};
 #[cfg(test)]
 pub(crate) use design::rigid_columns;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, effect_design, is_start_nuisance,
-    rigid_design, sampled_effect_design,
+    ColData, EffectDesign, add_offset, checked_effect_design, design_of_columns, effect_design,
+    is_start_nuisance, rigid_design, sampled_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
