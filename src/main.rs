@@ -3,6 +3,7 @@
 //! ```text
 //! tagk simulate --help     write a realistic flight log (CSV) from the simulator
 //! tagk diagnose LOG.csv    compare the rigid-body model with a log, find what is missing
+//! tagk compare LOG.csv --model m.toml   k-step prediction error of identified models
 //! tagk vehicle show NAME   print a vehicle preset as a vehicle-file template
 //! ```
 
@@ -26,6 +27,10 @@ enum Command {
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (--with).
     Diagnose(tagk::cli::diagnose::DiagnoseArgs),
+    /// Predict each log k steps ahead with identified models (model files of diagnose
+    /// --save-model) from every sample, and report the error against the horizon (MATLAB's
+    /// compare(data, sys, k)).
+    Compare(tagk::cli::compare::CompareArgs),
     /// List the vehicle presets or print one as a vehicle file (TOML) to edit
     /// (--vehicle of diagnose).
     Vehicle(tagk::cli::vehicle::VehicleArgs),
@@ -38,6 +43,7 @@ fn main() -> ExitCode {
             .map(|summary| println!("{summary}"))
             .map_err(Into::into),
         Command::Diagnose(args) => tagk::cli::diagnose::run_diagnose(args).map_err(Into::into),
+        Command::Compare(args) => tagk::cli::compare::run_compare(args).map_err(Into::into),
         Command::Vehicle(args) => tagk::cli::vehicle::run_vehicle(args)
             .map(|text| print!("{text}"))
             .map_err(Into::into),

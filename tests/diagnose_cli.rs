@@ -176,6 +176,7 @@ fn help_is_plain_text_and_defines_the_fit_measures() {
         &["--help"][..],
         &["diagnose", "--help"],
         &["simulate", "--help"],
+        &["compare", "--help"],
         &["vehicle", "--help"],
         &["vehicle", "show", "--help"],
     ] {

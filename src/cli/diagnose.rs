@@ -95,6 +95,16 @@ pub struct DiagnoseArgs {
     /// pose. With a shift given, nothing is moved automatically.
     #[arg(long = "shift", value_name = "STREAM=SECONDS")]
     pub shift: Vec<String>,
+    /// Write the final model (vehicle, inertial parameters with their covariance, effects
+    /// with their coefficients, sensing, the logs' hashes) to this model file
+    /// (docs/MODEL_FILE.md); tagk compare --model reads it.
+    #[arg(long, value_name = "FILE")]
+    pub save_model: Option<PathBuf>,
+    /// Write one model file per step into this directory (created): the rigid body, the
+    /// --with model, then each staircase step (step-0-….toml, step-1-….toml, …), so that
+    /// tagk compare LOG --model DIR/*.toml shows the error fall.
+    #[arg(long, value_name = "DIR")]
+    pub save_steps: Option<PathBuf>,
     /// Most effects the stepwise search adds.
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_steps: usize,
@@ -145,6 +155,8 @@ impl DiagnoseArgs {
             noise_floor: None,
             resample: None,
             max_steps: 5,
+            save_model: None,
+            save_steps: None,
             quiet: false,
             no_align: false,
             shift: Vec::new(),
@@ -454,7 +466,83 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         }
     }
     let report = args.finish(plan.run_read()?);
+    save_models(&report, args, vehicle)?;
     write_outputs(&report, args)
+}
+
+/// What a model file records besides the fit, from the arguments: the vehicle, the logs'
+/// hashes, the custom specifications, the known mass and the sensing options.
+///
+/// # Errors
+/// [`DiagnoseError::ModelFile`] for a log that cannot be read for its hash.
+pub fn model_context(
+    args: &DiagnoseArgs,
+    vehicle: Option<Vehicle>,
+) -> Result<crate::diagnose::ModelContext, DiagnoseError> {
+    let mut files: Vec<&PathBuf> = args.logs.iter().chain(&args.stream).collect();
+    if files.is_empty()
+        && let Some(c) = &args.columns
+    {
+        files.push(c);
+    }
+    let logs = files
+        .into_iter()
+        .map(|p| crate::diagnose::LogSource::of_file(p))
+        .collect::<Result<_, _>>()?;
+    let known_mass = match args.mass {
+        Some(KnownMass::Kg(m)) => Some(m),
+        Some(KnownMass::Vehicle) => vehicle.as_ref().and_then(|v| v.mass),
+        None => None,
+    };
+    Ok(crate::diagnose::ModelContext {
+        vehicle,
+        logs,
+        custom: args.custom.clone(),
+        known_mass,
+        align: !args.no_align,
+        resample: args.resample,
+    })
+}
+
+/// Writes `--save-model` and `--save-steps`.
+///
+/// # Errors
+/// [`DiagnoseError::ModelFile`] naming the file that could not be written.
+fn save_models(
+    report: &Report,
+    args: &DiagnoseArgs,
+    vehicle: Option<Vehicle>,
+) -> Result<(), DiagnoseError> {
+    if args.save_model.is_none() && args.save_steps.is_none() {
+        return Ok(());
+    }
+    let context = model_context(args, vehicle)?;
+    if let Some(path) = &args.save_model {
+        crate::diagnose::ModelFile::from_diagnosis(report, &context).write(path)?;
+    }
+    if let Some(dir) = &args.save_steps {
+        for (k, file) in crate::diagnose::ModelFile::steps(report, &context)
+            .iter()
+            .enumerate()
+        {
+            let last = file
+                .effects
+                .last()
+                .map_or("rigid-body", |e| e.name.as_str());
+            let name: String = last
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '-' {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            file.write(&dir.join(format!("step-{k}-{name}.toml")))?;
+        }
+    }
+    Ok(())
 }
 
 /// Checks the `--json` and `--report` destinations before any work, so that a typo in them
@@ -492,6 +580,29 @@ pub fn check_outputs(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         if std::fs::metadata(path).is_ok_and(|m| m.permissions().readonly()) {
             return Err(output(path, "is read-only (--json)".into()));
         }
+    }
+    if let Some(path) = &args.save_model {
+        let parent = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        if !parent.is_dir() || path.is_dir() {
+            return Err(output(
+                path,
+                format!(
+                    "cannot write the model file (--save-model): {} is not a directory, or the file is one",
+                    parent.display()
+                ),
+            ));
+        }
+    }
+    if let Some(dir) = &args.save_steps {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            output(
+                dir,
+                format!("cannot create the directory (--save-steps): {e}"),
+            )
+        })?;
     }
     if let Some(dir) = &args.report {
         std::fs::create_dir_all(dir).map_err(|e| {

@@ -2,6 +2,7 @@
 //! and `vehicle` subcommands and clap parsers for the simulator's names (trajectories, noise levels,
 //! estimators, effects) that list the accepted values in `--help`.
 
+pub mod compare;
 pub mod diagnose;
 pub mod simulate;
 pub mod vehicle;

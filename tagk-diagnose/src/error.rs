@@ -104,6 +104,9 @@ pub enum DiagnoseError {
         /// Every failed check, with its likely cause.
         message: String,
     },
+    /// A model file (`--model`, `--save-model`) cannot be read or written.
+    #[error(transparent)]
+    ModelFile(#[from] crate::model_file::ModelFileError),
     /// The online TAG-K pass failed: the estimator could not be built or rejected a window.
     #[error("online TAG-K pass failed: {0}")]
     Online(String),

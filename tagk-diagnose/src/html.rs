@@ -1110,6 +1110,59 @@ pub fn render(report: &Report) -> String {
     html
 }
 
+/// The HTML page of a k-step comparison (`tagk compare --report`): per quantity, the mean
+/// error against the horizon, one line per model, then the numbers as tables.
+pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
+    const COLORS: [&str; 6] = ["#c22", "#36c", "#393", "#c80", "#808", "#088"];
+    let mut html = String::from(
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk compare</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}</style></head><body><h1>tagk compare: k-step prediction error</h1><ol id=\"models\">",
+    );
+    for m in &comparison.models {
+        let _ = write!(html, "<li>{}</li>", escape(&m.model));
+    }
+    html.push_str("</ol><div class=\"grid\">");
+    let labels: Vec<String> = (1..=comparison.models.len())
+        .map(|k| format!("model {k}"))
+        .collect();
+    for q in crate::predict::QUANTITIES {
+        let (name, unit, get) = (q.name, q.unit, q.error);
+        let data: Vec<(Vec<f64>, Vec<f64>)> = comparison
+            .models
+            .iter()
+            .map(|m| {
+                (
+                    m.horizons.iter().map(|e| e.h as f64).collect(),
+                    m.horizons.iter().map(get).collect(),
+                )
+            })
+            .collect();
+        let series: Vec<LineSeries<'_>> = data
+            .iter()
+            .enumerate()
+            .map(|(k, (x, y))| LineSeries {
+                label: &labels[k],
+                color: COLORS[k % COLORS.len()],
+                dash: "",
+                x,
+                y,
+            })
+            .collect();
+        html.push_str(&line_plot(
+            &format!("mean {name} error [{unit}]"),
+            "horizon [steps]",
+            &series,
+            &[],
+            &[],
+        ));
+    }
+    let _ = writeln!(
+        html,
+        "</div><h2>Numbers</h2><pre id=\"table\">{}</pre></body></html>",
+        escape(&comparison.table())
+    );
+    html
+}
+
 /// Writes [`render`] to `dir/index.html` (creating `dir`) and returns the file's path.
 ///
 /// # Errors

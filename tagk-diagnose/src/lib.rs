@@ -14,8 +14,10 @@ pub mod glitches;
 pub mod html;
 pub mod log;
 pub mod log_params;
+pub mod model_file;
 pub mod online;
 mod plan;
+pub mod predict;
 pub mod report;
 pub mod sampling;
 pub mod scales;
@@ -46,10 +48,18 @@ pub use log::{FlightLog, LogSample};
 pub use log_params::{
     LOG_CONSISTENCY_EFFECT_FACTOR, LOG_CONSISTENCY_RELATIVE, LOG_CONSISTENCY_Z, LogParameter,
 };
+pub use model_file::{
+    LogSource, MODEL_FILE_VERSION, MODEL_FORMAT, ModelContext, ModelEffect, ModelFile,
+    ModelFileError,
+};
 pub use online::{OnlineOptions, OnlineStart, OnlineSummary, online_pass, online_pass_with};
 pub use plan::{
     CustomChoice, DEFAULT_ONLINE_STRIDE, DiagnosisPlan, EffectChoice, Flight, KNOWN_MASS_RANGE,
     KnownMass, ResolvedPlan,
+};
+pub use predict::{
+    BodyState, Comparison, HorizonError, ModelPrediction, Prediction, QUANTITIES, Quantity,
+    QuantityFit, default_horizons, fit_percent, k_step_prediction, k_step_prediction_logs,
 };
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,

@@ -759,6 +759,28 @@ impl DiagnosisPlan {
         }
     }
 
+    /// The flights read and made ready as for a diagnosis, without fitting: the wrench from
+    /// the rotor speeds if a log has none (with the vehicle), the glitches excluded, the
+    /// resampling, the stream alignment (the shifts given, or the measured ones) and the scale
+    /// checks. What `tagk compare` predicts on. Returns each flight's name and log.
+    ///
+    /// # Errors
+    /// As [`DiagnosisPlan::read`]; a log without the wrench and no vehicle or no rotor speeds
+    /// (naming the flight); the alignment's and the scale checks' errors.
+    pub fn conditioned_flights(self) -> Result<Vec<(String, FlightLog)>, DiagnoseError> {
+        let mut settings = self.read()?;
+        let flights = settings.take_flights();
+        flights
+            .into_iter()
+            .map(|f| {
+                let name = f.name;
+                let named = |e: DiagnoseError| in_file(&name, e);
+                let c = settings.condition(&name, f.log, f.source.as_ref(), named, named)?;
+                Ok((name, c.log))
+            })
+            .collect()
+    }
+
     /// A flight's log ready to fit, and what was found on the way: the wrench from the rotor
     /// speeds if the log has none ([`log_with_wrench`]), the sampling findings (named
     /// `label`), the glitches excluded ([`crate::glitches`], located by `source`), the

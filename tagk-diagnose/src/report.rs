@@ -157,6 +157,11 @@ pub struct Report {
     /// Samples excluded around the glitches (each glitch and the samples whose derivatives
     /// read it).
     pub glitch_samples_excluded: usize,
+    /// The fit of every model on the way to the final one, simplest first: the rigid body,
+    /// the model with the `--with` effects (when some were given), then one per staircase
+    /// step. What `tagk diagnose --save-steps` writes ([`crate::ModelFile::steps`]).
+    #[serde(skip)]
+    pub step_fits: Vec<std::sync::Arc<crate::fit::Fit>>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -309,6 +314,14 @@ fn loop_from(
     let final_diagnosis = (!discovery.added.is_empty()).then(|| discovery.last().clone());
     let last = after.as_ref().unwrap_or(&before);
     let with_names: Vec<String> = with.iter().map(|e| e.name().to_string()).collect();
+    let mut step_fits = vec![before.fit.clone()];
+    step_fits.extend(
+        discovery
+            .diagnoses
+            .iter()
+            .skip(usize::from(with.is_empty()))
+            .map(|d| d.fit.clone()),
+    );
     let mut effects = with_names.clone();
     effects.extend(discovery.added.iter().cloned());
     Ok(Report {
@@ -340,6 +353,7 @@ fn loop_from(
         scale_checks: Vec::new(),
         glitches: Vec::new(),
         glitch_samples_excluded: 0,
+        step_fits,
     })
 }
 

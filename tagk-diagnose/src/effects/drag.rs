@@ -1,8 +1,10 @@
 //! Drag: linear, quadratic and rotor drag on the body-frame velocity (forces only).
 
+use nalgebra::{Matrix3, Vector3};
 use tagk_dynamics::EffectKind;
 
 use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
+use crate::predict::BodyState;
 use crate::signals::{Channel, Signals};
 
 /// Horizontal speed in the body frame \[m/s\]: the driving signal of the drag effects.
@@ -41,6 +43,16 @@ impl Effect for LinearDrag {
             })
             .collect()
     }
+    fn columns_at(
+        &self,
+        _s: &Signals,
+        _i: usize,
+        state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        let v = state.velocity_body();
+        Some((0..3).map(|k| on_channel(k, -v[k])).collect())
+    }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         nonneg(&["d_x", "d_y", "d_z"], coef, se, "drag coefficient")
     }
@@ -77,6 +89,16 @@ impl Effect for QuadraticDrag {
             })
             .collect()
     }
+    fn columns_at(
+        &self,
+        _s: &Signals,
+        _i: usize,
+        state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        let v = state.velocity_body();
+        Some((0..3).map(|k| on_channel(k, -v[k] * v[k].abs())).collect())
+    }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         nonneg(&["c_x", "c_y", "c_z"], coef, se, "drag coefficient")
     }
@@ -95,25 +117,86 @@ pub(crate) fn hub_wind_columns(s: &Signals) -> Option<[[Option<Vec<f64>>; 6]; 2]
     let n = s.len();
     let mut data: [[Vec<f64>; 6]; 2] =
         std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n]));
-    let axes = [0, 1].map(|j| nalgebra::Vector3::ith(j, 1.0));
     for (i, rot) in s.rotations().enumerate() {
-        let rt = rot.transpose();
-        for (col, e) in data.iter_mut().zip(axes) {
-            let d = rt * e;
-            for (r, hub) in hubs.iter().enumerate() {
-                let (x, y) = (hub[0], hub[1]);
-                let wr = w[i][r].abs();
-                let (hx, hy, hz) = (wr * d.x, wr * d.y, wr * d.z);
-                col[0][i] += hx;
-                col[1][i] += hy;
-                col[2][i] += hz;
-                col[3][i] += y * hz;
-                col[4][i] += -x * hz;
-                col[5][i] += x * hy - y * hx;
+        let at = hub_wind_at(&rot, &w[i], &hubs);
+        for (col, values) in data.iter_mut().zip(at) {
+            for c in 0..6 {
+                col[c][i] = values[c];
             }
         }
     }
     Some(data.map(|col| col.map(Some)))
+}
+
+/// [`hub_wind_columns`] at one sample: attitude `rot` (body → world), rotor speeds `w`
+/// \[rad/s\], hub positions `hubs` \[m\]; per world direction `x`, `y`, the wrench
+/// `[fx..tz]` per unit `k_h v_w`.
+pub(crate) fn hub_wind_at(rot: &Matrix3<f64>, w: &[f64; 4], hubs: &[[f64; 2]; 4]) -> [[f64; 6]; 2] {
+    let rt = rot.transpose();
+    let mut out = [[0.0; 6]; 2];
+    for (col, j) in out.iter_mut().zip([0, 1]) {
+        let d = rt * Vector3::ith(j, 1.0);
+        for (r, hub) in hubs.iter().enumerate() {
+            let (x, y) = (hub[0], hub[1]);
+            let wr = w[r].abs();
+            let (hx, hy, hz) = (wr * d.x, wr * d.y, wr * d.z);
+            col[0] += hx;
+            col[1] += hy;
+            col[2] += hz;
+            col[3] += y * hz;
+            col[4] += -x * hz;
+            col[5] += x * hy - y * hx;
+        }
+    }
+    out
+}
+
+/// A wrench `[fx..tz]` with `value` on `channel` and zero elsewhere.
+pub(crate) fn on_channel(channel: usize, value: f64) -> [f64; 6] {
+    let mut w = [0.0; 6];
+    w[channel] = value;
+    w
+}
+
+/// The rotor drag's two columns at one sample ([`RotorDrag`]): per unit `k_h` (horizontal
+/// forces and every hub moment) and per unit `k_z` (the vertical force), from the body-frame
+/// velocity `v` \[m/s\], the body rate `om` \[rad/s\], the rotor speeds `w` \[rad/s\] and the
+/// hub positions (without them, the force `−K (Σ|ω_i|) v` alone).
+pub(crate) fn rotor_drag_at(
+    v: &Vector3<f64>,
+    om: &Vector3<f64>,
+    w: &[f64; 4],
+    hubs: Option<&[[f64; 2]; 4]>,
+) -> [[f64; 6]; 2] {
+    let mut horizontal = [0.0; 6];
+    let mut vertical = [0.0; 6];
+    match hubs {
+        None => {
+            let sum: f64 = w.iter().map(|x| x.abs()).sum();
+            horizontal[0] += -v.x * sum;
+            horizontal[1] += -v.y * sum;
+            vertical[2] += -v.z * sum;
+        }
+        Some(h) => {
+            for (r, hub) in h.iter().enumerate() {
+                let (x, y) = (hub[0], hub[1]);
+                let p = Vector3::new(x, y, 0.0);
+                let vh = v + om.cross(&p);
+                let wr = w[r].abs();
+                // H = −K |ω| v_hub; moment r × H with r = (x, y, 0).
+                let (hx, hy, hz) = (-wr * vh.x, -wr * vh.y, -wr * vh.z);
+                horizontal[0] += hx;
+                horizontal[1] += hy;
+                horizontal[5] += x * hy - y * hx;
+                // The vertical hub forces' moments: their hub velocity is mostly Ω × r_i (a
+                // roll/pitch rate damping), carried by k_h.
+                horizontal[3] += y * hz;
+                horizontal[4] += -x * hz;
+                vertical[2] += hz;
+            }
+        }
+    }
+    [horizontal, vertical]
 }
 
 /// Rotor (blade-flapping / induced) drag, per rotor at its hub: `H_i = −K |ω_i| v_hub,i` with
@@ -167,37 +250,13 @@ impl Effect for RotorDrag {
             }
         }
         vertical[2] = Some(vec![0.0; n]);
-        let add = |d: &mut [Option<Vec<f64>>; 6], c: usize, i: usize, x: f64| {
-            if let Some(v) = d[c].as_mut() {
-                v[i] += x;
-            }
-        };
+        let hubs = hubs.as_ref();
         for i in 0..n {
-            let v = s.velocity_body[i];
-            match hubs {
-                None => {
-                    let sum: f64 = w[i].iter().map(|x| x.abs()).sum();
-                    add(&mut horizontal, 0, i, -v.x * sum);
-                    add(&mut horizontal, 1, i, -v.y * sum);
-                    add(&mut vertical, 2, i, -v.z * sum);
-                }
-                Some(h) => {
-                    let om = s.omega(i);
-                    for (r, hub) in h.iter().enumerate() {
-                        let (x, y) = (hub[0], hub[1]);
-                        let p = nalgebra::Vector3::new(x, y, 0.0);
-                        let vh = v + om.cross(&p);
-                        let wr = w[i][r].abs();
-                        // H = −K |ω| v_hub; moment r × H with r = (x, y, 0).
-                        let (hx, hy, hz) = (-wr * vh.x, -wr * vh.y, -wr * vh.z);
-                        add(&mut horizontal, 0, i, hx);
-                        add(&mut horizontal, 1, i, hy);
-                        add(&mut horizontal, 5, i, x * hy - y * hx);
-                        // The vertical hub forces' moments: their hub velocity is mostly
-                        // Ω × r_i (a roll/pitch rate damping), carried by k_h.
-                        add(&mut horizontal, 3, i, y * hz);
-                        add(&mut horizontal, 4, i, -x * hz);
-                        add(&mut vertical, 2, i, hz);
+            let at = rotor_drag_at(&s.velocity_body[i], &s.omega(i), &w[i], hubs);
+            for (d, values) in [&mut horizontal, &mut vertical].into_iter().zip(at) {
+                for (c, column) in d.iter_mut().enumerate() {
+                    if let Some(column) = column {
+                        column[i] = values[c];
                     }
                 }
             }
@@ -219,6 +278,18 @@ impl Effect for RotorDrag {
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         nonneg(&["k_h", "k_z"], coef, se, "rotor-drag coefficient")
+    }
+    fn columns_at(
+        &self,
+        s: &Signals,
+        i: usize,
+        state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        let w = s.rotor_speeds()?;
+        let hubs = s.rotor_mixer().map(|m| m.hubs);
+        let at = rotor_drag_at(&state.velocity_body(), &state.omega, &w[i], hubs.as_ref());
+        Some(at.to_vec())
     }
 
     fn driver(&self, s: &Signals) -> (String, Vec<f64>) {

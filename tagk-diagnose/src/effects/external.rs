@@ -7,6 +7,7 @@ use tagk_dynamics::EffectKind;
 
 use crate::effects::{Effect, EffectColumn, Plausibility, nonneg};
 use crate::fit::Coefficient;
+use crate::predict::BodyState;
 use crate::signals::{CHANNEL_NAMES, Channel, Signals};
 
 /// Constant body-frame torque bias (an unbalanced propeller, a bent arm, a cable pulling off
@@ -42,6 +43,20 @@ impl Effect for BodyBias {
                 )
             })
             .collect()
+    }
+    fn columns_at(
+        &self,
+        _s: &Signals,
+        _i: usize,
+        _state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        Some(
+            BIAS_CHANNELS
+                .iter()
+                .map(|&c| crate::effects::drag::on_channel(c, 1.0))
+                .collect(),
+        )
     }
     fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         Plausibility::ok()
@@ -82,6 +97,17 @@ impl Effect for AccelBias {
         (0..2)
             .map(|c| EffectColumn::on(&format!("f_{}", ["x", "y"][c]), "N", c, vec![1.0; n]))
             .collect()
+    }
+    /// Zero: a sensor error, no force on the body. The fit's column `m b_a` is the offset of
+    /// the measured acceleration; the body itself moves by the actuators' wrench.
+    fn columns_at(
+        &self,
+        _s: &Signals,
+        _i: usize,
+        _state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        Some(vec![[0.0; 6]; 2])
     }
     fn plausibility(&self, _coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         Plausibility::ok()
@@ -235,6 +261,34 @@ impl Effect for Wind {
             });
         }
         cols
+    }
+    fn columns_at(
+        &self,
+        s: &Signals,
+        i: usize,
+        state: &BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        let rot = state.rotation();
+        let v = state.velocity_body();
+        let w = s.rotor_speeds().map(|w| w[i]);
+        if let (Some(w), Some(mixer)) = (w, s.rotor_mixer()) {
+            let mut cols =
+                crate::effects::drag::rotor_drag_at(&v, &state.omega, &w, Some(&mixer.hubs))
+                    .to_vec();
+            cols.extend(crate::effects::drag::hub_wind_at(&rot, &w, &mixer.hubs));
+            return Some(cols);
+        }
+        let f = w.map_or(1.0, |w| w.iter().map(|x| x.abs()).sum());
+        let mut cols: Vec<[f64; 6]> = (0..3)
+            .map(|k| crate::effects::drag::on_channel(k, -v[k] * f))
+            .collect();
+        let rt = rot.transpose();
+        for j in 0..2 {
+            let d = rt * Vector3::ith(j, 1.0);
+            cols.push([d.x * f, d.y * f, d.z * f, 0.0, 0.0, 0.0]);
+        }
+        Some(cols)
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         let WindLayout {

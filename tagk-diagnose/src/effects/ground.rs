@@ -65,6 +65,21 @@ impl Effect for GroundEffect {
             fixed: None,
         }]
     }
+    fn columns_at(
+        &self,
+        s: &Signals,
+        i: usize,
+        state: &crate::predict::BodyState,
+        _p: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        let shape = self.shape(state.position.z);
+        let b = s.wrench()[i];
+        let mut w = [0.0; 6];
+        for c in 2..6 {
+            w[c] = b[c] * shape;
+        }
+        Some(vec![w])
+    }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {
         let sign = nonneg(&["c_ge"], coef, se, "ground-effect gain");
         if !sign.plausible {

@@ -166,6 +166,24 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// The columns of `Φ` on this log (`param` is the scanned parameter, if any): at least
     /// one, each with one finite value per sample on the channels it touches.
     fn columns(&self, signals: &Signals, param: Option<f64>) -> Vec<EffectColumn>;
+    /// The columns of `Φ` at one predicted state (the k-step prediction,
+    /// [`crate::k_step_prediction`]): the external wrench per unit coefficient, one `[fx..tz]`
+    /// per column of [`Effect::columns`], in that order (fixed columns included). The state
+    /// (position, velocity, attitude, body rate) is `state`; the inputs (rotor speeds, the
+    /// logged wrench) are the log's at sample `i` of `signals`. Same state, same values as
+    /// [`Effect::columns`] at that sample.
+    ///
+    /// Default `None`: the effect is input-driven (a lag, a delay, a gain of the logged
+    /// wrench), and the prediction takes its columns from the log at sample `i`.
+    fn columns_at(
+        &self,
+        _signals: &Signals,
+        _i: usize,
+        _state: &crate::predict::BodyState,
+        _param: Option<f64>,
+    ) -> Option<Vec<[f64; 6]>> {
+        None
+    }
     /// [`Effect::columns`] at every `stride`-th sample only (samples `0, stride, 2 stride, …`
     /// of the log; `stride ≥ 1`): what a scan of the parameter reads of a long log (about
     /// 10 000 samples). Each vector holds `signals.len().div_ceil(stride)` values, bit for bit

@@ -13,6 +13,9 @@ use crate::stats;
 pub(crate) struct LsSolution {
     pub beta: Vec<f64>,
     pub se: Vec<Option<f64>>,
+    /// The coefficients' covariance, row-major `p × p` (`NaN` in the rows and columns of
+    /// unidentifiable coefficients, whose `se` is `None`).
+    pub cov: Vec<f64>,
 }
 
 /// Weighted least squares `min Σ_c w_c² ‖b_c − X_c β‖²` with a Householder QR of
@@ -111,7 +114,19 @@ pub(crate) fn weighted_qr_solve(
     if beta.iter().any(|x| !x.is_finite()) {
         return Err(DiagnoseError::Fit("non-finite coefficients".into()));
     }
-    Ok(LsSolution { beta, se })
+    let mut covariance = vec![f64::NAN; p * p];
+    for j in 0..p {
+        for k in 0..p {
+            if se[j].is_some() && se[k].is_some() {
+                covariance[j * p + k] = cov[(j, k)] * sigma2 * scale[j] * scale[k];
+            }
+        }
+    }
+    Ok(LsSolution {
+        beta,
+        se,
+        cov: covariance,
+    })
 }
 
 /// Samples per block of the blocked QR ([`stacked_qr_r`]): `6 ×` this many rows at a time.

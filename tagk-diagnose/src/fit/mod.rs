@@ -336,6 +336,10 @@ pub struct Fit {
     pub theta: InertialParams,
     /// Their standard errors.
     pub theta_se: [Option<f64>; 10],
+    /// Their covariance (row-major 10 × 10, the order of `theta`), inflated like
+    /// [`Fit::theta_se`]: its diagonal is their square. `NaN` in the rows and columns of a
+    /// parameter without a standard error (unidentifiable, or the known mass).
+    pub theta_cov: [[f64; 10]; 10],
     /// Fitted effects.
     pub effects: Vec<FittedEffect>,
     /// Predicted wrench per sample.
@@ -513,6 +517,9 @@ fn fit(
     for se in sol.se.iter_mut().flatten() {
         *se *= kappa.sqrt() * lift;
     }
+    for c in &mut sol.cov {
+        *c *= kappa * lift * lift;
+    }
     // The residual and the prediction of the measured wrench itself: a filter of the target
     // (a lag) is undone on the residual ([`crate::Effect::unfilter`]).
     let filt = model_filters(model, s, &params);
@@ -532,12 +539,13 @@ fn fit(
         };
         (predicted, residual)
     };
-    let (theta, theta_se) = rigid_parameters(model, &sol, rigid.len());
+    let (theta, theta_se, theta_cov) = rigid_parameters(model, &sol, rigid.len());
     let effects = fitted_effects(model, s, &params, &names, &sol, rigid.len());
     Ok(Fit {
         label: model.label(),
         theta,
         theta_se,
+        theta_cov,
         effects,
         channels: channel_stats(s.target(), &residual),
         predicted,
@@ -819,13 +827,13 @@ fn solve_pass(
     })
 }
 
-/// Step 4: the ten rigid-body parameters and their standard errors from the solution's first
-/// `nr` coefficients (nine with a known mass, which is put back in place).
+/// Step 4: the ten rigid-body parameters, their standard errors and their covariance from the
+/// solution's first `nr` coefficients (nine with a known mass, which is put back in place).
 fn rigid_parameters(
     model: &Model,
     sol: &LsSolution,
     nr: usize,
-) -> (InertialParams, [Option<f64>; 10]) {
+) -> (InertialParams, [Option<f64>; 10], [[f64; 10]; 10]) {
     let mut theta = [0.0; 10];
     let mut theta_se = [None; 10];
     theta[10 - nr..].copy_from_slice(&sol.beta[..nr]);
@@ -833,7 +841,14 @@ fn rigid_parameters(
     if let Some(m) = model.known_mass() {
         theta[0] = m;
     }
-    (InertialParams::from_array(theta), theta_se)
+    let p = sol.beta.len();
+    let mut cov = [[f64::NAN; 10]; 10];
+    for j in 0..nr {
+        for k in 0..nr {
+            cov[10 - nr + j][10 - nr + k] = sol.cov[j * p + k];
+        }
+    }
+    (InertialParams::from_array(theta), theta_se, cov)
 }
 
 /// Step 5: each effect's coefficients (after the first `nr` rigid-body ones), named by its
