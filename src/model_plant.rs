@@ -177,12 +177,11 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
             });
             continue;
         }
-        let kind = EffectKind::from_name(&effect.name).ok_or_else(|| {
-            ModelPlantError::NotFlyable {
+        let kind =
+            EffectKind::from_name(&effect.name).ok_or_else(|| ModelPlantError::NotFlyable {
                 effect: effect.name.clone(),
                 reason: "not an effect of the vocabulary (docs/CONVENTIONS.md §7)",
-            }
-        })?;
+            })?;
         let c = |name| coef(effect, name);
         match kind {
             EffectKind::LinearDrag => {
@@ -308,10 +307,24 @@ mod tests {
             interval: None,
         });
         let file = model(vec![
-            effect("quadratic-drag", &[("c_x", 0.01), ("c_y", 0.02), ("c_z", 0.03)]),
-            effect("body-bias", &[("bias_tx", 1e-5), ("bias_ty", 2e-5), ("bias_tz", 3e-5)]),
+            effect(
+                "quadratic-drag",
+                &[("c_x", 0.01), ("c_y", 0.02), ("c_z", 0.03)],
+            ),
+            effect(
+                "body-bias",
+                &[("bias_tx", 1e-5), ("bias_ty", 2e-5), ("bias_tz", 3e-5)],
+            ),
             effect("thrust-gain", &[("kappa@1", -0.1), ("kappa@2", -0.2)]),
-            effect("wind", &[("k_h", 2e-7), ("k_z", 3e-7), ("kv_wx", 1e-7), ("kv_wy", -4e-8)]),
+            effect(
+                "wind",
+                &[
+                    ("k_h", 2e-7),
+                    ("k_z", 3e-7),
+                    ("kv_wx", 1e-7),
+                    ("kv_wy", -4e-8),
+                ],
+            ),
             effect("accel-bias", &[("b_x", 0.1)]),
             lag,
         ]);
@@ -362,11 +375,20 @@ mod tests {
         let err = model_plant(&model(vec![custom])).unwrap_err();
         assert!(matches!(&err, ModelPlantError::NotFlyable { effect, .. } if effect == "tether"));
         let err = model_plant(&model(vec![effect("linear-drag", &[("d_x", 0.01)])])).unwrap_err();
-        assert!(matches!(err, ModelPlantError::Missing { name: "d_y", .. }), "{err}");
+        assert!(
+            matches!(err, ModelPlantError::Missing { name: "d_y", .. }),
+            "{err}"
+        );
         let mut file = model(Vec::new());
         file.vehicle = None;
-        assert!(matches!(model_plant(&file), Err(ModelPlantError::NoVehicle)));
+        assert!(matches!(
+            model_plant(&file),
+            Err(ModelPlantError::NoVehicle)
+        ));
         let err = model_plant(&model(vec![effect("motor-lag", &[])])).unwrap_err();
-        assert!(matches!(err, ModelPlantError::Missing { name: "tau", .. }), "{err}");
+        assert!(
+            matches!(err, ModelPlantError::Missing { name: "tau", .. }),
+            "{err}"
+        );
     }
 }

@@ -113,7 +113,10 @@ fn round_trip(
         assert!(model.effects.is_empty(), "{:?}", model.effects);
     }
     let relative = |name: &str, value: f64, interval: Option<[f64; 2]>| match interval {
-        Some([lo, hi]) => format!("{name} {value:.3e} ±{:.1} %", 50.0 * (hi - lo) / value.abs()),
+        Some([lo, hi]) => format!(
+            "{name} {value:.3e} ±{:.1} %",
+            50.0 * (hi - lo) / value.abs()
+        ),
         None => format!("{name} {value:.3e}"),
     };
     let mut numbers = Vec::new();
@@ -174,7 +177,11 @@ fn every_flyable_effect_round_trips() {
                 r.miss[g],
                 100.0 * r.miss[g] / r.imprint[g],
                 bound,
-                if exempt { " (not flown: sensor offset)" } else { "" },
+                if exempt {
+                    " (not flown: sensor offset)"
+                } else {
+                    ""
+                },
                 r.numbers.join(", ")
             );
             if r.miss[g] > bound && !exempt {
@@ -188,14 +195,17 @@ fn every_flyable_effect_round_trips() {
 #[test]
 fn model_with_vehicle_or_effect_is_refused() {
     let dir = tmpdir("refused");
-    let err = tagk_fails_in(
-        &dir,
-        &["simulate", "--model", "m.toml", "--effect", "wind"],
-    );
+    let err = tagk_fails_in(&dir, &["simulate", "--model", "m.toml", "--effect", "wind"]);
     assert!(err.contains("--effect"), "{err}");
     let err = tagk_fails_in(
         &dir,
-        &["simulate", "--model", "m.toml", "--vehicle", "crazyflie-2.1"],
+        &[
+            "simulate",
+            "--model",
+            "m.toml",
+            "--vehicle",
+            "crazyflie-2.1",
+        ],
     );
     assert!(err.contains("--vehicle"), "{err}");
 }
