@@ -7,12 +7,15 @@
 //! original flight's wrench minus that of the same flight without the effect (the controller
 //! cancels the effect, so the wrench it commands carries it). The model's flight misses
 //! `E = w_model − w_X`. Per group (force \[N\], torque \[N m\]) the RMS over samples of `‖E‖`
-//! must be below `TOLERANCE` times that of `‖I‖`, on every group where the effect's imprint
-//! stands out (`‖I‖` above 10 % of the rigid flight's own wrench variation would not do for
-//! a small effect; the group with the larger imprint relative to the other is checked, see
-//! `checked_groups`). `TOLERANCE` = 0.1: the fitted coefficients' 95 % intervals are a few
-//! per cent wide on these noise-free flights (printed), so a model within its intervals
-//! reproduces the imprint to a few per cent; 10 % leaves room for the refitted rigid body.
+//! must stay below `TOLERANCE · RMS‖I‖ + FLOOR_FACTOR · F`. `F` is the miss of the rigid body's
+//! own round trip (no effect): what a refitted rigid body alone misses.
+//!
+//! `TOLERANCE` = 0.1 is tighter than the 95 % intervals of the drag and wind coefficients
+//! (±8–19 %, printed), and looser than the sharp ones (`k_h`, `tau`, `kappa`: < 1 %). Every
+//! effect misses at most 5.6 % of its imprint where the imprint stands above the floor.
+//!
+//! Exempt, and printed as such: the force of `body-bias`. The diagnosis reads a constant body
+//! force as the accelerometer's offset (a sensor error), so it does not come back.
 
 mod common;
 

@@ -80,13 +80,13 @@ pub struct SimulateArgs {
     /// effect vocabulary shared with tagk diagnose --with).
     #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
-    /// Fly an identified model: a model file written by `tagk diagnose --save-model`
+    /// Fly an identified model: a model file written by tagk diagnose --save-model
     /// (docs/MODEL_FILE.md), its vehicle, inertial parameters and effects with their fitted
     /// coefficients. Not with --vehicle or --effect: the model gives both.
     #[arg(long, conflicts_with_all = ["vehicle", "effects"])]
     pub model: Option<PathBuf>,
-    /// The vehicle to fly: a preset name (`tagk vehicle list`) or a vehicle file
-    /// (docs/VEHICLE.md) with `k_f` and the `mass` and `inertia` keys (default: the
+    /// The vehicle to fly: a preset name (tagk vehicle list) or a vehicle file
+    /// (docs/VEHICLE.md) with k_f and the mass and inertia keys (default: the
     /// Crazyflie 2.1). Its airframe radius is the safety gate's largest centre-of-mass offset.
     #[arg(long)]
     pub vehicle: Option<String>,
