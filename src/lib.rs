@@ -2,6 +2,7 @@
 
 pub mod cli;
 pub mod diagnosis_benchmark;
+pub mod model_plant;
 
 pub use tagk_baselines as baselines;
 pub use tagk_control as control;

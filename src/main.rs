@@ -21,8 +21,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Simulate a flight of the Crazyflie or a --vehicle file's quadrotor (trajectory, payloads,
-    /// plant effects, sensor noise) and write it as a flight log.
+    /// Simulate a flight of the Crazyflie, a --vehicle file's quadrotor or a --model file's
+    /// identified model (trajectory, payloads, plant effects, sensor noise) and write it as a
+    /// flight log.
     Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
     /// that are missing, and refit with the ones you add (--with).

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Parser;
 use tagk::cli::diagnose::{DiagnoseArgs, diagnose_log, diagnose_logs, plan, run_diagnose};
-use tagk::cli::simulate::{SimulateArgs, run_simulate};
+use tagk::cli::simulate::{SimulateArgs, SimulateError, run_simulate};
 use tagk::diagnose::{DiagnoseError, FlightLog, Model, Signals, fit_model};
 use tagk::dynamics::deriv::{DEFAULT_HALF_WIDTH, savitzky_golay_derivative3};
 use tagk::sim::{Adaptation, NoiseLevel, PayloadSchedule, SimConfig, SimError, TrajectoryKind};
@@ -201,7 +201,10 @@ fn a_noise_free_log_lists_no_rounding_noise_as_failures() {
 fn simulate_refuses_a_request_above_the_memory_budget() {
     let cli = Cli::try_parse_from(["tagk", "--duration", "1e9"]).unwrap();
     let err = run_simulate(&cli.args).unwrap_err();
-    assert!(matches!(err, SimError::OverMemoryBudget { .. }), "{err}");
+    assert!(
+        matches!(err, SimulateError::Sim(SimError::OverMemoryBudget { .. })),
+        "{err}"
+    );
     let message = err.to_string();
     assert!(
         message.contains("GiB") && message.contains("budget"),

@@ -2,7 +2,7 @@
 //! vocabulary.
 
 use clap::Parser;
-use tagk::cli::simulate::{SimulateArgs, run_simulate};
+use tagk::cli::simulate::{SimulateArgs, SimulateError, run_simulate};
 use tagk::dynamics::EffectKind;
 use tagk::sim::SimError;
 
@@ -51,7 +51,7 @@ fn simulate_command_writes_a_log_from_flags() {
     let bad = Cli::try_parse_from(["tagk", "--duration", "0"]).unwrap();
     assert!(matches!(
         run_simulate(&bad.args),
-        Err(SimError::InvalidDuration { .. })
+        Err(SimulateError::Sim(SimError::InvalidDuration { .. }))
     ));
 }
 

@@ -5,6 +5,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use tagk_diagnose::{ModelFile, ModelFileError};
 use tagk_dynamics::EffectKind;
 use tagk_dynamics::QuadrotorModel;
 use tagk_dynamics::vehicle::Vehicle;
@@ -12,6 +13,8 @@ use tagk_sim::{
     Adaptation, EstimatorKind, EstimatorSpec, LogRate, NoiseLevel, Payload, PayloadSchedule,
     PayloadShape, PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
 };
+
+use crate::model_plant::{ModelPlantError, SkippedEffect, model_plant};
 
 use super::{
     effect_parser, estimator_parser, log_rate_parser, noise_parser, sensing_parser,
@@ -77,8 +80,13 @@ pub struct SimulateArgs {
     /// effect vocabulary shared with tagk diagnose --with).
     #[arg(long = "effect", value_parser = effect_parser())]
     pub effects: Vec<EffectKind>,
-    /// The vehicle to fly: a preset name (`tagk vehicle list`) or a vehicle file
-    /// (docs/VEHICLE.md) with `k_f` and the `mass` and `inertia` keys (default: the
+    /// Fly an identified model: a model file written by tagk diagnose --save-model
+    /// (docs/MODEL_FILE.md), its vehicle, inertial parameters and effects with their fitted
+    /// coefficients. Not with --vehicle or --effect: the model gives both.
+    #[arg(long, conflicts_with_all = ["vehicle", "effects"])]
+    pub model: Option<PathBuf>,
+    /// The vehicle to fly: a preset name (tagk vehicle list) or a vehicle file
+    /// (docs/VEHICLE.md) with k_f and the mass and inertia keys (default: the
     /// Crazyflie 2.1). Its airframe radius is the safety gate's largest centre-of-mass offset.
     #[arg(long)]
     pub vehicle: Option<String>,
@@ -99,8 +107,47 @@ pub struct SimulateArgs {
     pub output: PathBuf,
 }
 
+/// Why `tagk simulate` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SimulateError {
+    /// The flags or the flight.
+    #[error("{0}")]
+    Sim(#[from] SimError),
+    /// The model file of `--model` cannot be read.
+    #[error("{0}")]
+    ModelFile(#[from] ModelFileError),
+    /// The model of `--model` cannot be flown.
+    #[error("{0}")]
+    Model(#[from] ModelPlantError),
+}
+
 impl SimulateArgs {
-    /// The flight configuration these flags describe.
+    /// The flight configuration these flags describe, and the effects of `--model` not flown.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a payload offset without three values;
+    /// [`SimError::UnsupportedEffect`] for an effect the simulator cannot produce;
+    /// [`SimError::Vehicle`], [`SimError::NotFlyable`] for a vehicle it cannot read or fly;
+    /// [`SimulateError::ModelFile`], [`SimulateError::Model`] for a model file that cannot be
+    /// read or flown ([`model_plant`]).
+    pub fn config_and_skipped(&self) -> Result<(SimConfig, Vec<SkippedEffect>), SimulateError> {
+        let config = self.config()?;
+        match &self.model {
+            None => Ok((config, Vec::new())),
+            Some(path) => {
+                let model = ModelFile::from_path(path)?;
+                let plant = model_plant(&model)?;
+                let mut config = plant.configure(config);
+                if let Some(vehicle) = &model.vehicle {
+                    config.gate.max_com_offset = vehicle.airframe_radius;
+                }
+                Ok((config, plant.skipped))
+            }
+        }
+    }
+
+    /// The flight configuration these flags describe, without `--model` (see
+    /// [`SimulateArgs::config_and_skipped`]).
     ///
     /// # Errors
     /// [`SimError::InvalidParameter`] for a payload offset without three values;
@@ -218,6 +265,8 @@ pub struct SimulateSummary {
     pub aborted: bool,
     /// Payload events.
     pub events: usize,
+    /// Effects of `--model` not flown, and why.
+    pub skipped: Vec<SkippedEffect>,
 }
 
 impl fmt::Display for SimulateSummary {
@@ -230,23 +279,31 @@ impl fmt::Display for SimulateSummary {
             self.position_error_cm,
             if self.aborted { ", aborted" } else { "" },
             self.events
-        )
+        )?;
+        for s in &self.skipped {
+            write!(f, "\nnot flown: `{}` ({})", s.effect, s.reason)?;
+        }
+        Ok(())
     }
 }
 
 /// Flies the flight of `args` and writes its log to `args.output`.
 ///
 /// # Errors
-/// Invalid flags (typed [`SimError`]s) and I/O errors.
-pub fn run_simulate(args: &SimulateArgs) -> Result<SimulateSummary, SimError> {
-    let cfg = args.config()?;
+/// Invalid flags (typed [`SimError`]s), a model file that cannot be read or flown, and I/O
+/// errors.
+pub fn run_simulate(args: &SimulateArgs) -> Result<SimulateSummary, SimulateError> {
+    let (cfg, skipped) = args.config_and_skipped()?;
     let out = tagk_sim::simulate(&cfg)?;
-    out.log.write_csv_path(&args.output)?;
+    out.log
+        .write_csv_path(&args.output)
+        .map_err(SimError::from)?;
     Ok(SimulateSummary {
         samples: out.log.len(),
         output: args.output.clone(),
         position_error_cm: out.metrics.position_error_cm,
         aborted: out.metrics.aborted,
         events: out.events.len(),
+        skipped,
     })
 }
