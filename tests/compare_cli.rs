@@ -2,30 +2,17 @@
 //! through the binary: the model files read back, the JSON has exactly the documented keys,
 //! and the staircase's final model predicts the flight better than the rigid body.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
+use common::tagk_in;
 use tagk::diagnose::ModelFile;
-
-fn tagk(args: &[&str], dir: &PathBuf) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "tagk {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 #[test]
 fn simulate_diagnose_save_and_compare() {
     let dir = std::env::temp_dir().join(format!("tagk-compare-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    tagk(
+    tagk_in(
+        &dir,
         &[
             "simulate",
             "--effect",
@@ -39,9 +26,9 @@ fn simulate_diagnose_save_and_compare() {
             "-o",
             "f.csv",
         ],
-        &dir,
     );
-    tagk(
+    tagk_in(
+        &dir,
         &[
             "diagnose",
             "f.csv",
@@ -53,7 +40,6 @@ fn simulate_diagnose_save_and_compare() {
             "steps",
             "--quiet",
         ],
-        &dir,
     );
     let model = ModelFile::from_path(&dir.join("m.toml")).unwrap();
     assert_eq!(model.label, "rigid body + linear-drag");
@@ -75,7 +61,8 @@ fn simulate_diagnose_save_and_compare() {
             "steps/step-1-linear-drag.toml"
         ]
     );
-    let table = tagk(
+    let table = tagk_in(
+        &dir,
         &[
             "compare",
             "f.csv",
@@ -89,7 +76,6 @@ fn simulate_diagnose_save_and_compare() {
             &steps[0],
             &steps[1],
         ],
-        &dir,
     );
     assert!(table.contains("velocity error [m/s]"), "{table}");
     let json: serde_json::Value =
