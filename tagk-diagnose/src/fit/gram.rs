@@ -908,8 +908,8 @@ const FOLD_INFORMATION_SHARE: f64 = 0.05;
 /// share of a direction's information held by the training samples. Along a direction with
 /// λ ≥ [`FOLD_INFORMATION_SHARE`] the training samples decide. Along the others (a start-of-log
 /// transient, a motion flown only in the held-out block) the coefficients keep the all-data
-/// fit's values, given what the training samples decide: the mean of the all-data fit's
-/// Gaussian (precision `total`) conditional on the decided directions. Such a direction is not
+/// fit's values, given what the training samples decide. That is the mean of the all-data
+/// fit's Gaussian (precision `total`), conditional on the decided directions. Such a direction is not
 /// predicted: it is reproduced, in every model alike. Solving it from a few per cent of the
 /// information would extrapolate it arbitrarily far instead.
 fn solve_fold(train: &[f64], total: &[f64], beta: &[f64], pp: usize) -> Vec<f64> {
