@@ -671,19 +671,7 @@ const README_FIGURES: ReadmeFigures = ReadmeFigures {
 
 /// The README's step 2 in `dir` with the vehicle file `quad`.
 fn readme_diagnose(dir: &Path, quad: &str, extra: &[&str]) -> String {
-    let mut args = vec![
-        "diagnose",
-        "--columns",
-        "map.toml",
-        "--vehicle",
-        quad,
-        "--stream",
-        "imu.csv",
-        "--stream",
-        "motors.csv",
-        "--stream",
-        "mocap.csv",
-    ];
+    let mut args = common::foreign_flight_with(quad);
     args.extend(extra);
     tagk_in(dir, &args)
 }

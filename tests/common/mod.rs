@@ -4,16 +4,21 @@
 #![allow(dead_code)]
 
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Output};
+
+/// Runs the `tagk` binary in `dir` with `args`.
+pub fn tagk_output(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
 
 /// Runs the `tagk` binary in `dir` and returns its standard output (panics, with its standard
 /// error, if it fails).
 pub fn tagk_in(dir: &Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
+    let out = tagk_output(dir, args);
     assert!(
         out.status.success(),
         "tagk {args:?}: {}",
@@ -25,11 +30,7 @@ pub fn tagk_in(dir: &Path, args: &[&str]) -> String {
 /// Runs the `tagk` binary in `dir`, which must fail, and returns its standard error (panics,
 /// with its standard output, if it succeeds).
 pub fn tagk_fails_in(dir: &Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
+    let out = tagk_output(dir, args);
     assert!(
         !out.status.success(),
         "tagk {args:?} succeeded: {}",
@@ -66,3 +67,11 @@ pub const FOREIGN_FLIGHT: &[&str] = &[
     "--stream",
     "mocap.csv",
 ];
+
+/// [`FOREIGN_FLIGHT`] with the vehicle `vehicle` (a preset's name or a vehicle file).
+pub fn foreign_flight_with(vehicle: &str) -> Vec<&str> {
+    let mut args = FOREIGN_FLIGHT.to_vec();
+    let k = args.iter().position(|a| *a == "--vehicle").unwrap();
+    args[k + 1] = vehicle;
+    args
+}
