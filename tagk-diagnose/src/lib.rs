@@ -37,8 +37,8 @@ pub use diagnose::{
 };
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility,
-    ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, effect_columns,
-    is_sensor_effect, subsample,
+    ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
+    effect_columns, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;

@@ -1,12 +1,18 @@
 //! The scans' sampled columns ([`Effect::sampled_columns`], [`sampled_effect_design`],
-//! [`GramEngine::evaluate_sampled`]) against the full columns subsampled: the same bits, for
-//! every built-in effect, with and without rotor speeds, on smoothed and joined logs, and for
-//! a user effect whose sampled columns are malformed.
+//! [`GramEngine::evaluate_sampled`]) against the full columns subsampled, and their window
+//! columns ([`Effect::window_columns`], [`window_effect_design`],
+//! [`GramEngine::evaluate_window`]) against the full columns cut: the same bits, for every
+//! built-in effect, with and without rotor speeds, on smoothed and joined logs, and for a
+//! user effect whose sampled columns are malformed.
 
 use nalgebra::{Matrix4, Vector4};
 
-use crate::effects::{Effect, EffectColumn, Plausibility, builtin_effects, subsample};
-use crate::fit::{ColData, Column, GramEngine, effect_design, sampled_effect_design};
+use crate::effects::{
+    Effect, EffectColumn, Plausibility, builtin_effects, cut_to_window, subsample,
+};
+use crate::fit::{
+    ColData, Column, GramEngine, effect_design, sampled_effect_design, window_effect_design,
+};
 use crate::log::FlightLog;
 use crate::signals::{Channel, Signals};
 use crate::testdata::{crazyflie, synthetic_log};
@@ -107,6 +113,92 @@ fn sampled_columns_are_the_full_columns_subsampled() {
                         &subsample(full.clone(), stride),
                         &format!("{} at {p:?}, stride {stride}", e.name()),
                     );
+                }
+            }
+        }
+    }
+}
+
+/// Each built-in effect's window columns are its full columns in the window, bit for bit:
+/// windows from the log's start (where a lag's start transient lives), in its middle, at its
+/// end, past its end and empty, with and without the rotor mixer.
+#[test]
+fn window_columns_are_the_full_columns_cut() {
+    let with_rotors = Signals::from_log(&log_with_rotors(1_003, 3)).unwrap();
+    let without = Signals::from_log(&synthetic_log(&crazyflie(), 1_003, 5e-3, 4, &|_, _| {
+        [0.0; 6]
+    }))
+    .unwrap();
+    for s in [&with_rotors, &without] {
+        for e in builtin_effects() {
+            if e.check(s).is_err() {
+                continue;
+            }
+            let params: Vec<Option<f64>> = match e.scan() {
+                None => vec![None],
+                Some(spec) => spec.grid.iter().step_by(5).map(|g| Some(*g)).collect(),
+            };
+            for p in params {
+                let full = e.columns(s, p);
+                for window in [
+                    0..1_003,
+                    0..17,
+                    1..40,
+                    500..700,
+                    990..1_003,
+                    990..2_000,
+                    5..5,
+                ] {
+                    assert_same_columns(
+                        &e.window_columns(s, p, window.clone()),
+                        &cut_to_window(full.clone(), window.clone()),
+                        &format!("{} at {p:?}, window {window:?}", e.name()),
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A window engine's evaluation and residual of the window design equal those of the full
+/// design, bit for bit: for the scanned built-ins on a plain log, a log without rotor speeds,
+/// a smoothed log (the full design, cut) and a window at the log's start.
+#[test]
+fn window_engines_on_window_designs_equal_them_on_full_designs() {
+    let plain = Signals::from_log(&log_with_rotors(6_011, 5)).unwrap();
+    let mut no_rotors = log_with_rotors(6_011, 6);
+    no_rotors.rotor_speeds = None;
+    let no_rotors = Signals::from_log(&no_rotors).unwrap();
+    let mut derived = log_with_rotors(6_011, 7);
+    derived.accel = None;
+    derived.omega_dot = None;
+    let derived = Signals::from_log(&derived).unwrap();
+    let rigid: Vec<Column<'_>> = (0..10).map(Column::Rigid).collect();
+    let w = [100.0, 100.0, 50.0, 1e5, 1e5, 1e5];
+    for s in [&plain, &no_rotors, &derived] {
+        for range in [2_000..4_500, 0..3_000] {
+            let engine = GramEngine::new_window(s, &w, &rigid, None, range.clone());
+            for e in builtin_effects().iter().filter(|e| e.scan().is_some()) {
+                let grid = e.scan().unwrap().grid;
+                for g in [grid[0], grid[grid.len() / 2], grid[grid.len() - 1]] {
+                    let what = format!("{} at {g}, window {range:?}", e.name());
+                    let full = effect_design(e.as_ref(), s, Some(g));
+                    let window = window_effect_design(e.as_ref(), s, Some(g), range.clone())
+                        .expect("a built-in's window design");
+                    let a = engine.evaluate_with(&full.cols, full.offset.as_ref());
+                    let b = engine.evaluate_window(&window.cols, window.offset.as_ref());
+                    assert_eq!(a.sse_full.to_bits(), b.sse_full.to_bits(), "{what}");
+                    assert_eq!(bits(&a.beta), bits(&b.beta), "{what}");
+                    let ra = engine.residual_unweighted(&full.cols, full.offset.as_ref(), &a.beta);
+                    let rb = engine.residual_window_unweighted(
+                        &window.cols,
+                        window.offset.as_ref(),
+                        &b.beta,
+                    );
+                    assert_eq!(ra.len(), range.len(), "{what}");
+                    let flat = |r: &[[f64; 6]]| bits(&r.concat());
+                    assert_eq!(flat(&ra), flat(&rb), "{what}");
+                    assert_eq!(full.names, window.names);
                 }
             }
         }

@@ -36,7 +36,7 @@ use crate::fit::{
     ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
     checked_effect_design, design_of_columns, effect_design, filters, is_start_nuisance,
     residual_score, rigid_design, sampled_effect_design, scan_criterion, scan_window,
-    whitened_residual,
+    whitened_residual, window_effect_design,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -173,6 +173,17 @@ pub(crate) struct Context<'s> {
     designs: RefCell<DesignCache>,
     /// The model's own score ([`Context::base_with_residual`]), once computed.
     base: RefCell<Option<Score>>,
+}
+
+/// `true` when every vector of a design (fitted columns and the fixed columns' sum) holds
+/// `len` values: the length check of the columns it was made from ([`design_of_columns`]
+/// keeps each vector's length).
+fn design_lengths_are(d: &EffectDesign, len: usize) -> bool {
+    d.cols
+        .iter()
+        .chain(d.offset.as_ref())
+        .flat_map(|col| col.iter().flatten())
+        .all(|v| v.len() == len)
 }
 
 /// Effect designs by effect name and the bits of its parameter.
@@ -326,15 +337,13 @@ impl<'s> Context<'s> {
 
     /// Member `m`'s design when its columns have the log's length
     /// ([`crate::effects::check_lengths`]; `None` otherwise): the columns are computed once,
-    /// for the check and the design. A kept design's columns are computed anew for the check.
+    /// for the check and the design. A kept design is checked on its own vectors, which have
+    /// its columns' lengths.
     fn length_checked_design(&self, m: &Member) -> Option<Arc<EffectDesign>> {
-        let columns = || crate::effects::effect_columns(m.effect.as_ref(), self.s, m.param);
         if let Some(d) = self.designs.borrow().get(&design_key(m)) {
-            return crate::effects::check_lengths(&columns(), self.s.len())
-                .ok()
-                .map(|()| d.clone());
+            return design_lengths_are(d, self.s.len()).then(|| d.clone());
         }
-        let columns = columns();
+        let columns = crate::effects::effect_columns(m.effect.as_ref(), self.s, m.param);
         crate::effects::check_lengths(&columns, self.s.len()).ok()?;
         let computed = self.cached_design(m, || {
             Ok::<_, std::convert::Infallible>(design_of_columns(columns, self.s))
@@ -586,11 +595,38 @@ impl<'s> Context<'s> {
                             * scan.stride() as f64
                     })
             }
-            None => match self.length_checked_design(&trial[k]) {
-                Some(d) => self.fit_score(engine, trial, Some((k, d))),
-                None => f64::INFINITY,
-            },
+            None => {
+                if let Some(score) = self.window_fit_score(engine, trial) {
+                    return score;
+                }
+                match self.length_checked_design(&trial[k]) {
+                    Some(d) => self.fit_score(engine, trial, Some((k, d))),
+                    None => f64::INFINITY,
+                }
+            }
         }
+    }
+
+    /// [`Self::fit_score`] of a single member on an engine over a window of a long log
+    /// ([`Self::fit_engine`]), from the member's columns on the window only
+    /// ([`window_effect_design`]: a lag's columns over the whole log would cost five times
+    /// more). `None` for several members or an engine over the whole log.
+    fn window_fit_score(&self, engine: &GramEngine<'_>, trial: &[Member]) -> Option<f64> {
+        let span = engine.span();
+        let [m] = trial else { return None };
+        if span == (0..self.s.len()) {
+            return None;
+        }
+        let Some(d) = window_effect_design(m.effect.as_ref(), self.s, m.param, span.clone()) else {
+            return Some(f64::INFINITY);
+        };
+        let ev = engine.evaluate_window(&d.cols, d.offset.as_ref());
+        let filt = self.all_filters(trial);
+        if filt.is_empty() {
+            return Some(ev.sse_full);
+        }
+        let residual = engine.residual_window_unweighted(&d.cols, d.offset.as_ref(), &ev.beta);
+        Some(scan_criterion(self.s, &residual, span, &filt, &self.noise))
     }
 
     /// Scans member `k`'s parameter with the other members fixed: the in-sample score over

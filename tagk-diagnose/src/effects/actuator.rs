@@ -75,6 +75,7 @@ fn same_step(dt: f64, previous: f64) -> bool {
 /// The samples `0, stride, 2 stride, …` of a series of `n`, as they pass by in a loop over
 /// every sample: `take(k)` is `Some(slot)` when sample `k` is one of them (without a division
 /// per sample).
+#[derive(Clone)]
 struct Sampled {
     stride: usize,
     phase: usize,
@@ -104,18 +105,69 @@ impl Sampled {
     }
 }
 
-/// `e^{−(t − t₀)/τ}` at the samples `0, stride, 2 stride, …` (0 once below 1e-12; all 0 for
-/// `τ ≤ 0`), by the recursion `x_k = x_{k−1} e^{−Δt_k/τ}` over every sample (one exponential
-/// per distinct step).
-fn start_decay(t: &[f64], tau: f64, stride: usize) -> Vec<f64> {
-    let mut out = vec![0.0; t.len().div_ceil(stride.max(1))];
+/// The samples a column computation keeps, as they pass by in a loop over every sample of a
+/// log: every `stride`-th from the first (a scan's subsample, [`Effect::sampled_columns`]) or
+/// a contiguous window (a filter's scan window, [`Effect::window_columns`]).
+#[derive(Clone)]
+enum Keep {
+    /// The samples `0, stride, 2 stride, …`.
+    Every(Sampled),
+    /// The samples of a range (clipped to the log).
+    Window(std::ops::Range<usize>),
+}
+
+impl Keep {
+    /// Every `stride`-th sample (a `stride` of 0 is read as 1).
+    fn every(stride: usize) -> Self {
+        Keep::Every(Sampled::new(stride))
+    }
+
+    /// The slot of sample 0, if it is kept.
+    fn first(&self) -> Option<usize> {
+        match self {
+            Keep::Every(_) => Some(0),
+            Keep::Window(r) => (r.start == 0 && r.end > 0).then_some(0),
+        }
+    }
+
+    /// The slot of sample `k` if it is kept; called for `k = 1, 2, …` in order.
+    fn next(&mut self, k: usize) -> Option<usize> {
+        match self {
+            Keep::Every(sampled) => sampled.next(),
+            Keep::Window(r) => r.contains(&k).then(|| k - r.start),
+        }
+    }
+
+    /// The samples of a log of `n` a loop must visit: `0..end` (none after the last kept).
+    fn end(&self, n: usize) -> usize {
+        match self {
+            Keep::Every(_) => n,
+            Keep::Window(r) => r.end.min(n),
+        }
+    }
+
+    /// How many samples of a log of `n` are kept.
+    fn count(&self, n: usize) -> usize {
+        match self {
+            Keep::Every(sampled) => n.div_ceil(sampled.stride),
+            Keep::Window(r) => r.end.min(n).saturating_sub(r.start),
+        }
+    }
+}
+
+/// `e^{−(t − t₀)/τ}` at the samples `keep` (0 once below 1e-12; all 0 for `τ ≤ 0`), by the
+/// recursion `x_k = x_{k−1} e^{−Δt_k/τ}` over every sample (one exponential per distinct
+/// step).
+fn start_decay(t: &[f64], tau: f64, mut keep: Keep) -> Vec<f64> {
+    let mut out = vec![0.0; keep.count(t.len())];
     if t.is_empty() || tau <= 0.0 {
         return out;
     }
     let (mut x, mut last_dt, mut factor) = (1.0, f64::NAN, 0.0);
-    out[0] = 1.0;
-    let mut sampled = Sampled::new(stride);
-    for k in 1..t.len() {
+    if let Some(slot) = keep.first() {
+        out[slot] = 1.0;
+    }
+    for k in 1..keep.end(t.len()) {
         let dt = t[k] - t[k - 1];
         if !same_step(dt, last_dt) {
             last_dt = dt;
@@ -125,7 +177,7 @@ fn start_decay(t: &[f64], tau: f64, stride: usize) -> Vec<f64> {
         if x < 1e-12 {
             break;
         }
-        if let Some(slot) = sampled.next() {
+        if let Some(slot) = keep.next(k) {
             out[slot] = x;
         }
     }
@@ -140,26 +192,27 @@ fn start_decay(t: &[f64], tau: f64, stride: usize) -> Vec<f64> {
 /// starting at rest on the first command (`Y_0 = u_0`).
 #[cfg(test)]
 pub(crate) fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
-    sampled_first_order_lag(t, |k| u[k], tau, 1)
+    sampled_first_order_lag(t, |k| u[k], tau, Keep::every(1))
 }
 
-/// [`first_order_lag`] of the command `u(k)` (`k < t.len()`) at the samples
-/// `0, stride, 2 stride, …` only (the recursion runs over every sample).
+/// [`first_order_lag`] of the command `u(k)` (`k < t.len()`) at the samples `keep` only (the
+/// recursion runs over every sample up to the last kept).
 fn sampled_first_order_lag(
     t: &[f64],
     u: impl Fn(usize) -> f64,
     tau: f64,
-    stride: usize,
+    mut keep: Keep,
 ) -> Vec<f64> {
-    let mut y = Vec::with_capacity(t.len().div_ceil(stride.max(1)));
+    let mut y = Vec::with_capacity(keep.count(t.len()));
     if t.is_empty() {
         return y;
     }
     let mut end = u(0);
-    y.push(end);
+    if keep.first().is_some() {
+        y.push(end);
+    }
     let (mut last_dt, mut a_half, mut a_full) = (f64::NAN, 0.0, 0.0);
-    let mut sampled = Sampled::new(stride);
-    for k in 1..t.len() {
+    for k in 1..keep.end(t.len()) {
         let dt = t[k] - t[k - 1];
         // Uniformly sampled logs reuse the factors (exp is the cost of a 1-D scan).
         if !same_step(dt, last_dt) {
@@ -171,7 +224,7 @@ fn sampled_first_order_lag(
             };
         }
         let uk = u(k);
-        if sampled.next().is_some() {
+        if keep.next(k).is_some() {
             y.push(uk + a_half * (end - uk));
         }
         end = uk + a_full * (end - uk);
@@ -179,9 +232,8 @@ fn sampled_first_order_lag(
     y
 }
 
-/// A rotor-speed lag on a log with rotor speeds ([`lagged_rotors`]), at the samples
-/// `0, stride, 2 stride, …`: the delivered `[fz, tx, ty, tz]` and the start-of-log transient's
-/// columns.
+/// A rotor-speed lag on a log with rotor speeds ([`lagged_rotors`]), at the kept samples
+/// ([`Keep`]): the delivered `[fz, tx, ty, tz]` and the start-of-log transient's columns.
 struct RotorLag {
     /// The delivered wrench `M lag_τ(ω)²` from rest on the first command: `fz` at the
     /// interval's middle, the torques as interval means \[N, N m\].
@@ -218,17 +270,16 @@ impl RotorLag {
 /// ([`RotorLag`]), so the start is exact for any offsets. Each sample is the exact response
 /// to the command held over its interval `[t_k − Δt/2, t_k + Δt/2)`. The thrust is taken at
 /// the middle (what an accelerometer sample sees). The torques are the interval mean (what a
-/// differenced gyro, the logged angular acceleration, sees). At the samples
-/// `0, stride, 2 stride, …` (the lag runs over every sample).
-fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
+/// differenced gyro, the logged angular acceleration, sees). At the samples `keep` (the lag
+/// runs over every sample up to the last kept).
+fn lagged_rotors(s: &Signals, tau: f64, mut keep: Keep) -> Option<RotorLag> {
     let w = s.rotor_speeds()?;
     let mixer = s.rotor_mixer()?;
     let n = s.len();
-    let m = n.div_ceil(stride.max(1));
     let mut out = RotorLag {
-        wrench: Vec::with_capacity(m),
-        start_rotor: vec![[[0.0; 4]; 4]; 1],
-        start_square: vec![[0.0; 2]; 1],
+        wrench: Vec::with_capacity(keep.count(n)),
+        start_rotor: Vec::new(),
+        start_square: Vec::new(),
     };
     if n == 0 {
         return Some(out);
@@ -257,18 +308,19 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
     // the first (its length that of the first step).
     let first = factors(if n > 1 { s.t[1] - s.t[0] } else { 0.0 });
     let mut z = if first[0] > 0.0 { 1.0 / first[0] } else { 0.0 };
-    out.wrench.push({
-        let sq = end.map(|x| x * x);
-        mixer.apply(&sq)
-    });
-    for r in 0..4 {
-        out.start_rotor[0][r] = through(r, end[r], end[r] * z * first[2]);
+    if keep.first().is_some() {
+        out.wrench.push({
+            let sq = end.map(|x| x * x);
+            mixer.apply(&sq)
+        });
+        out.start_rotor.push(std::array::from_fn(|r| {
+            through(r, end[r], end[r] * z * first[2])
+        }));
+        out.start_square.push([1.0, z * z * first[3]]);
     }
-    out.start_square[0] = [1.0, z * z * first[3]];
     z *= first[1];
     let mut step = (f64::NAN, [0.0; 4]);
-    let mut sampled = Sampled::new(stride);
-    for i in 1..n {
+    for i in 1..keep.end(n) {
         let dt = s.t[i] - s.t[i - 1];
         // Uniform sampling reuses the factors (the exponentials dominate a scan's cost).
         if !same_step(dt, step.0) {
@@ -277,7 +329,7 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
         let [a_half, a_full, m1, m2] = step.1;
         let u = w[i];
         let e: [f64; 4] = std::array::from_fn(|r| end[r] - u[r]);
-        if let Some(slot) = sampled.next() {
+        if let Some(slot) = keep.next(i) {
             let mut mid = [0.0; 4];
             let mut mean = [0.0; 4];
             for r in 0..4 {
@@ -288,9 +340,9 @@ fn lagged_rotors(s: &Signals, tau: f64, stride: usize) -> Option<RotorLag> {
             let ym = mixer.apply(&mid);
             let ya = mixer.apply(&mean);
             out.wrench.push([ym[0], ya[1], ya[2], ya[3]]);
-            // Once the transient is below 1e-12 of its start, its columns stay 0.
-            if z >= 1e-12 {
-                debug_assert_eq!(out.start_rotor.len(), slot);
+            // Once the transient is below 1e-12 of its start, its columns stay 0: the kept
+            // entries are the first slots'.
+            if z >= 1e-12 && out.start_rotor.len() == slot {
                 out.start_rotor.push(std::array::from_fn(|r| {
                     let at_mid = (u[r] + a_half * e[r]) * z * a_half;
                     let mean = z * (u[r] * m1 + e[r] * m2);
@@ -331,54 +383,34 @@ pub(crate) fn inverse_first_order_lag(t: &[f64], y: &mut [f64], tau: f64, interv
     }
 }
 
-impl Effect for MotorLag {
-    fn name(&self) -> &str {
-        EffectKind::MotorLag.name()
-    }
-    fn description(&self) -> &str {
-        "first-order motor dynamics: delivered thrust/torque lags the logged command by a time constant"
-    }
-    fn channels(&self) -> Vec<Channel> {
-        vec![2, 3, 4, 5]
-    }
-    fn scan(&self) -> Option<ScanSpec> {
-        Some(ScanSpec {
-            name: "tau".into(),
-            unit: "s".into(),
-            grid: self.grid.clone(),
-            // The shortest lag: the closest to no lag at all.
-            start: self.grid.iter().copied().reduce(f64::min),
-        })
-    }
-    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
-        self.sampled_columns(s, p, 1)
-    }
-    fn sampled_columns(&self, s: &Signals, p: Option<f64>, stride: usize) -> Vec<EffectColumn> {
-        let stride = stride.max(1);
+impl MotorLag {
+    /// The columns at the samples `keep` ([`Keep`]); `kept`: the measured wrench there.
+    fn kept_columns<'a>(
+        &self,
+        s: &Signals,
+        p: Option<f64>,
+        keep: Keep,
+        kept: impl Iterator<Item = &'a [f64; 6]> + Clone,
+    ) -> Vec<EffectColumn> {
         let tau = self.tau(p);
         let b = s.wrench();
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
-        let rotors = lagged_rotors(s, tau, stride);
+        let rotors = lagged_rotors(s, tau, keep.clone());
         if let Some(lagged) = &rotors {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
                 *d = Some(
                     lagged
                         .wrench
                         .iter()
-                        .zip(b.iter().step_by(stride))
+                        .zip(kept.clone())
                         .map(|(y, b)| y[c - 2] - b[c])
                         .collect(),
                 );
             }
         } else {
             for (c, d) in data.iter_mut().enumerate().skip(2) {
-                let y = sampled_first_order_lag(&s.t, |k| b[k][c], tau, stride);
-                *d = Some(
-                    y.iter()
-                        .zip(b.iter().step_by(stride))
-                        .map(|(y, b)| y - b[c])
-                        .collect(),
-                );
+                let y = sampled_first_order_lag(&s.t, |k| b[k][c], tau, keep.clone());
+                *d = Some(y.iter().zip(kept.clone()).map(|(y, b)| y - b[c]).collect());
             }
         }
         let mut cols = vec![EffectColumn {
@@ -417,7 +449,7 @@ impl Effect for MotorLag {
             }
             // A lag of the wrench itself: its decay e^{−(t − t₀)/τ}, one column per channel.
             None => {
-                let decay = start_decay(&s.t, tau, stride);
+                let decay = start_decay(&s.t, tau, keep);
                 for c in 2..6 {
                     cols.push(EffectColumn::on(
                         &format!("start_{}", CHANNEL_NAMES[c]),
@@ -429,6 +461,46 @@ impl Effect for MotorLag {
             }
         }
         cols
+    }
+}
+
+impl Effect for MotorLag {
+    fn name(&self) -> &str {
+        EffectKind::MotorLag.name()
+    }
+    fn description(&self) -> &str {
+        "first-order motor dynamics: delivered thrust/torque lags the logged command by a time constant"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![2, 3, 4, 5]
+    }
+    fn scan(&self) -> Option<ScanSpec> {
+        Some(ScanSpec {
+            name: "tau".into(),
+            unit: "s".into(),
+            grid: self.grid.clone(),
+            // The shortest lag: the closest to no lag at all.
+            start: self.grid.iter().copied().reduce(f64::min),
+        })
+    }
+    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        self.sampled_columns(s, p, 1)
+    }
+    fn sampled_columns(&self, s: &Signals, p: Option<f64>, stride: usize) -> Vec<EffectColumn> {
+        let stride = stride.max(1);
+        let kept = s.wrench().iter().step_by(stride);
+        self.kept_columns(s, p, Keep::every(stride), kept)
+    }
+    fn window_columns(
+        &self,
+        s: &Signals,
+        p: Option<f64>,
+        window: std::ops::Range<usize>,
+    ) -> Vec<EffectColumn> {
+        let b = s.wrench();
+        let end = window.end.min(b.len());
+        let window = window.start.min(end)..end;
+        self.kept_columns(s, p, Keep::Window(window.clone()), b[window].iter())
     }
     fn unfilter(&self, s: &Signals, p: Option<f64>, channel: Channel, series: &mut [f64]) -> bool {
         if !is_actuated(channel) {

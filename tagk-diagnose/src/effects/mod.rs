@@ -199,6 +199,21 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     ) -> Vec<EffectColumn> {
         subsample(self.columns(signals, param), stride)
     }
+    /// [`Effect::columns`] at the samples `window` only (clipped to the log): each vector holds
+    /// the window's number of values, bit for bit those of [`Effect::columns`] there. It is
+    /// what a scan of a filtering effect reads of a long log (a contiguous window,
+    /// [`crate::fit::scan_window`]); a vector of another length makes the scan fall back to
+    /// the full columns. Default: [`Effect::columns`], cut to the window ([`cut_to_window`]). Override
+    /// it when the window costs less than the whole log (a filter run from the log's start
+    /// that stores its output in the window only).
+    fn window_columns(
+        &self,
+        signals: &Signals,
+        param: Option<f64>,
+        window: std::ops::Range<usize>,
+    ) -> Vec<EffectColumn> {
+        cut_to_window(self.columns(signals, param), window)
+    }
     /// Physical plausibility of fitted coefficients `coef` with standard errors `se` (one per
     /// fitted column of [`Effect::columns`] — fixed columns have none — in that order).
     fn plausibility(&self, coef: &[f64], se: &[f64], param: Option<f64>) -> Plausibility;
@@ -253,6 +268,23 @@ pub fn subsample(mut columns: Vec<EffectColumn>, stride: usize) -> Vec<EffectCol
             for v in column.data.iter_mut().flatten() {
                 *v = v.iter().copied().step_by(stride).collect();
             }
+        }
+    }
+    columns
+}
+
+/// The values of each column's vectors at the samples `window` (clipped to each vector): the
+/// default of [`Effect::window_columns`].
+pub fn cut_to_window(
+    mut columns: Vec<EffectColumn>,
+    window: std::ops::Range<usize>,
+) -> Vec<EffectColumn> {
+    for column in &mut columns {
+        for v in column.data.iter_mut().flatten() {
+            let end = window.end.min(v.len());
+            let start = window.start.min(end);
+            v.truncate(end);
+            v.drain(..start);
         }
     }
     columns

@@ -51,6 +51,10 @@ pub(crate) enum Column<'a> {
     /// blocks that read them ([`Blocks::load`] from a multiple of it): a scanned candidate's
     /// columns in a scan ([`crate::fit::design::sampled_effect_design`]).
     Sampled(&'a ColData),
+    /// Values kept at the samples `start..start + len` only (`len` the vectors' length), read
+    /// at stride 1: a scanned filtering candidate's columns on a scan window
+    /// ([`crate::fit::design::window_effect_design`]).
+    Window(&'a ColData, usize),
     /// Rigid-body column `j` (`0..10`), computed per block from the signals.
     Rigid(usize),
     /// The regression target (per-sample rows of the six channels, given to
@@ -67,7 +71,7 @@ impl<'a> Column<'a> {
     /// `true` if the column has values on channel `c`.
     pub fn has(&self, c: usize) -> bool {
         match self {
-            Column::Stored(d) | Column::Sampled(d) => d[c].is_some(),
+            Column::Stored(d) | Column::Sampled(d) | Column::Window(d, _) => d[c].is_some(),
             Column::Rigid(j) => rigid_channels(*j).contains(&c),
             Column::Target => true,
         }
@@ -85,6 +89,7 @@ impl<'a> Column<'a> {
             (Column::Stored(a), Column::Stored(b)) | (Column::Sampled(a), Column::Sampled(b)) => {
                 std::ptr::eq(*a, *b)
             }
+            (Column::Window(a, i), Column::Window(b, j)) => std::ptr::eq(*a, *b) && i == j,
             (Column::Rigid(a), Column::Rigid(b)) => a == b,
             (Column::Target, Column::Target) => true,
             _ => false,
@@ -204,6 +209,10 @@ impl<'s> Blocks<'s> {
     pub fn get<'b>(&'b self, col: &Column<'b>, c: usize) -> Option<(&'b [f64], usize)> {
         match col {
             Column::Stored(d) => d[c].as_ref().map(|v| (&v[self.lo..self.hi], self.stride)),
+            Column::Window(d, start) => d[c].as_ref().map(|v| {
+                assert_eq!(self.stride, 1, "window column read at a stride");
+                (&v[self.lo - start..self.hi - start], 1)
+            }),
             Column::Sampled(d) => d[c].as_ref().map(|v| {
                 // The blocks of a scan start at multiples of the stride (one piece from 0).
                 assert_eq!(

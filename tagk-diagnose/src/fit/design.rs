@@ -5,7 +5,9 @@ use std::borrow::Cow;
 
 use tagk_dynamics::write_rigid_body_regressor;
 
-use crate::effects::{Effect, EffectColumn, check_columns, check_lengths, subsample};
+use crate::effects::{
+    Effect, EffectColumn, check_columns, check_lengths, cut_to_window, subsample,
+};
 use crate::fit::Model;
 use crate::fit::columns::{Column, rigid_channels};
 use crate::signals::Signals;
@@ -167,6 +169,31 @@ pub(crate) fn sampled_effect_design(
     let columns = crate::effects::effect_columns(effect, s, p);
     check_lengths(&columns, s.len()).ok()?;
     Some(design_of(subsample(smoothed(columns, s), stride)))
+}
+
+/// [`effect_design`] at the samples `window` only (each vector `window.len()` long, bit for
+/// bit the full design's values there): the columns a scan of a filtering effect reads on a
+/// long log ([`crate::fit::GramEngine::evaluate_window`]). From the effect's own
+/// [`Effect::window_columns`] on a single log without smoothed channels; else (joined logs,
+/// a smoothing filter, or window columns of the wrong length) the full design, cut.
+/// `None` when the full columns have the wrong length too (a faulty user effect: the scan
+/// skips the value).
+pub(crate) fn window_effect_design(
+    effect: &dyn Effect,
+    s: &Signals,
+    p: Option<f64>,
+    window: std::ops::Range<usize>,
+) -> Option<EffectDesign> {
+    let window = window.start.min(s.len())..window.end.min(s.len());
+    if s.parts().is_empty() && !s.smoothed.iter().any(|x| *x) {
+        let columns = effect.window_columns(s, p, window.clone());
+        if !columns.is_empty() && check_lengths(&columns, window.len()).is_ok() {
+            return Some(design_of(columns));
+        }
+    }
+    let columns = crate::effects::effect_columns(effect, s, p);
+    check_lengths(&columns, s.len()).ok()?;
+    Some(design_of(cut_to_window(smoothed(columns, s), window)))
 }
 
 /// The regression's side of effect columns: sign flipped (`b = Yθ − Φβ`), fitted columns kept,

@@ -280,6 +280,15 @@ impl<'a> GramEngine<'a> {
         self.evaluate_columns(&cand, offset.map(Column::Sampled))
     }
 
+    /// [`Self::evaluate_with`] for candidate columns and offset given at this engine's samples
+    /// [`Self::span`] only (each vector holds the span's values,
+    /// [`crate::fit::design::window_effect_design`]): the same bits as from the full columns.
+    pub fn evaluate_window(&self, cand: &[ColData], offset: Option<&ColData>) -> Evaluation {
+        let start = self.span().start;
+        let cand: Vec<Column<'_>> = cand.iter().map(|c| Column::Window(c, start)).collect();
+        self.evaluate_columns(&cand, offset.map(|o| Column::Window(o, start)))
+    }
+
     /// Every `stride`-th sample enters this engine's cross products.
     pub fn stride(&self) -> usize {
         self.stride
@@ -511,12 +520,30 @@ impl<'a> GramEngine<'a> {
         beta: &[f64],
     ) -> Vec<[f64; 6]> {
         let mut r = self.residual(cand, offset, beta);
+        self.unweight(&mut r);
+        r
+    }
+
+    /// [`Self::residual_unweighted`] for columns given at the samples [`Self::span`] only (as
+    /// to [`Self::evaluate_window`]).
+    pub fn residual_window_unweighted(
+        &self,
+        cand: &[ColData],
+        offset: Option<&ColData>,
+        beta: &[f64],
+    ) -> Vec<[f64; 6]> {
+        let mut r = self.residual_from(cand, offset, beta, 0);
+        self.unweight(&mut r);
+        r
+    }
+
+    /// Divides each channel of a weighted residual by its weight.
+    fn unweight(&self, r: &mut [[f64; 6]]) {
         for x in r.iter_mut() {
             for c in 0..6 {
                 x[c] /= self.w[c];
             }
         }
-        r
     }
 
     /// Weighted residual of base + `cand` (with the known part `offset`) at coefficients
@@ -527,8 +554,22 @@ impl<'a> GramEngine<'a> {
         offset: Option<&ColData>,
         beta: &[f64],
     ) -> Vec<[f64; 6]> {
+        self.residual_from(cand, offset, beta, self.span().start)
+    }
+
+    /// [`Self::residual`] over [`Self::span`], the columns' and the offset's vectors read from
+    /// index `first` for the span's first sample (its own index for full columns, 0 for
+    /// columns given on the span only).
+    fn residual_from<C: Borrow<ColData>>(
+        &self,
+        cand: &[C],
+        offset: Option<&ColData>,
+        beta: &[f64],
+        first: usize,
+    ) -> Vec<[f64; 6]> {
         let span = self.span();
         let (lo0, hi0) = (span.start, span.end);
+        let (f0, f1) = (first, first + (hi0 - lo0));
         let mut r: Vec<[f64; 6]> = self.target[lo0..hi0]
             .iter()
             .map(|t| std::array::from_fn(|c| t[c] * self.w[c]))
@@ -536,7 +577,7 @@ impl<'a> GramEngine<'a> {
         if let Some(o) = offset {
             for (c, d) in o.iter().enumerate() {
                 if let Some(v) = d {
-                    for (ri, x) in r.iter_mut().zip(&v[lo0..hi0]) {
+                    for (ri, x) in r.iter_mut().zip(&v[f0..f1]) {
                         ri[c] -= x * self.w[c];
                     }
                 }
@@ -553,7 +594,7 @@ impl<'a> GramEngine<'a> {
         for (col, &b) in cand.iter().zip(&beta[self.base.len().min(beta.len())..]) {
             for (c, d) in col.borrow().iter().enumerate() {
                 if let Some(v) = d {
-                    for (ri, x) in r.iter_mut().zip(&v[lo0..hi0]) {
+                    for (ri, x) in r.iter_mut().zip(&v[f0..f1]) {
                         ri[c] -= b * (x * self.w[c]);
                     }
                 }
@@ -663,10 +704,16 @@ impl Support {
     /// The support of `col` (its values scanned once).
     fn of(col: &Column<'_>) -> Self {
         let mut out = Self::default();
-        if let Column::Stored(d) = col {
-            for (r, v) in out.ranges.iter_mut().zip(d.iter()) {
-                *r = v.as_deref().map(nonzero_range);
-            }
+        let (d, start) = match col {
+            Column::Stored(d) => (d, 0),
+            Column::Window(d, start) => (d, *start),
+            _ => return out,
+        };
+        for (r, v) in out.ranges.iter_mut().zip(d.iter()) {
+            *r = v.as_deref().map(|v| {
+                let r = nonzero_range(v);
+                r.start + start..r.end + start
+            });
         }
         out
     }
@@ -682,6 +729,11 @@ impl Support {
         *self.finite[c].get_or_init(|| match (col, &self.ranges[c]) {
             (Column::Stored(d), Some(r)) => d[c].as_ref().is_none_or(|v| {
                 v[r.clone()]
+                    .chunks(SCAN_CHUNK)
+                    .all(|x| x.iter().fold(true, |a, y| a & y.is_finite()))
+            }),
+            (Column::Window(d, start), Some(r)) => d[c].as_ref().is_none_or(|v| {
+                v[r.start - start..r.end - start]
                     .chunks(SCAN_CHUNK)
                     .all(|x| x.iter().fold(true, |a, y| a & y.is_finite()))
             }),

@@ -21,7 +21,7 @@ pub(crate) use columns::{Column, rigid_channels};
 pub(crate) use design::rigid_columns;
 pub(crate) use design::{
     ColData, EffectDesign, add_offset, checked_effect_design, design_of_columns, effect_design,
-    is_start_nuisance, rigid_design, sampled_effect_design,
+    is_start_nuisance, rigid_design, sampled_effect_design, window_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
@@ -637,10 +637,24 @@ fn scan_parameters(
                 .map(|r| GramEngine::new_window(s, w, &fixed, Some(&shifted_target), r));
             // The residual's forward form, unweighted, at parameter `g`, over the engine's
             // samples.
+            // On a window of a long log, the effect's columns there only
+            // ([`window_effect_design`]).
             let residual_at = |engine: &GramEngine<'_>, g: f64| -> (Vec<[f64; 6]>, EffectParams) {
-                let d = effect_design(e.as_ref(), s, Some(g));
-                let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
-                let r = engine.residual_unweighted(&d.cols, d.offset.as_ref(), &ev.beta);
+                let span = engine.span();
+                let windowed = (span != (0..s.len()))
+                    .then(|| window_effect_design(e.as_ref(), s, Some(g), span))
+                    .flatten();
+                let r = match windowed {
+                    Some(d) => {
+                        let ev = engine.evaluate_window(&d.cols, d.offset.as_ref());
+                        engine.residual_window_unweighted(&d.cols, d.offset.as_ref(), &ev.beta)
+                    }
+                    None => {
+                        let d = effect_design(e.as_ref(), s, Some(g));
+                        let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
+                        engine.residual_unweighted(&d.cols, d.offset.as_ref(), &ev.beta)
+                    }
+                };
                 let mut filt = other_filters.clone();
                 if filters(s, e.as_ref(), Some(g)) {
                     filt.push((e.clone(), Some(g)));
