@@ -462,9 +462,11 @@ impl ModelFile {
     }
 
     /// The model of a fit (`effects`: its fitted effects, those of a diagnosis carry the
-    /// scanned parameters' intervals), with what `context` records.
+    /// scanned parameters' intervals), with what `context` records. Its inertial parameters
+    /// are the fit's physically consistent ones ([`Fit::consistent_theta`]): a model file
+    /// is flown and predicted with.
     pub fn from_fit(fit: &Fit, effects: &[FittedEffect], context: &ModelContext) -> Self {
-        let mut file = Self::rigid_body(fit.theta.to_array());
+        let mut file = Self::rigid_body(fit.consistent_theta().to_array());
         file.label = fit.label.clone();
         file.inertial.std_error = fit.theta_se.map(|e| e.unwrap_or(f64::NAN)).to_vec();
         file.inertial.covariance = fit.theta_cov.iter().map(|r| r.to_vec()).collect();

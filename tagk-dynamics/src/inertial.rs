@@ -412,6 +412,142 @@ impl InertialParams {
     }
 }
 
+impl InertialParams {
+    /// The physically consistent parameters nearest to θ in the metric of an information
+    /// matrix `information` (the inverse of an estimate's covariance, SI units of θ): the
+    /// minimiser of `(θ' − θ)ᵀ P (θ' − θ)` over θ' whose pseudo-inertia is positive
+    /// semidefinite. With `P` the inverse covariance of a least-squares estimate, it is the
+    /// most likely consistent θ' under Gaussian errors: it moves an estimate most along the
+    /// directions the data determine least.
+    ///
+    /// A consistent θ (smallest pseudo-inertia eigenvalue ≥ 0) is returned unchanged. The
+    /// search runs over the Cholesky factor of the pseudo-inertia, `J = C Cᵀ` (Levenberg–
+    /// Marquardt from the eigenvalue clipping of [`project_to_consistent`](Self::project_to_consistent)).
+    /// `P` is regularised by `1e-9` of its own diagonal, so that a singular `P` still has a
+    /// unique answer. A parameter without information (a zero diagonal) is weighted like the
+    /// least determined one, relative to the Frobenius metric of `J`. A non-finite θ or `P`
+    /// falls back to [`project_to_consistent`](Self::project_to_consistent) with `ε = 0`.
+    pub fn nearest_consistent(&self, information: &[[f64; 10]; 10]) -> Self {
+        use nalgebra::{SMatrix, SVector};
+        type M10 = SMatrix<f64, 10, 10>;
+        type V10 = SVector<f64, 10>;
+        if !self.is_finite() {
+            return *self;
+        }
+        let eig = self.pseudo_inertia().symmetric_eigen();
+        if eig.eigenvalues.min() >= 0.0 {
+            return *self;
+        }
+        let clipped = self.project_to_consistent(0.0);
+        let p = M10::from_fn(|i, j| 0.5 * (information[i][j] + information[j][i]));
+        if !p.iter().all(|x| x.is_finite()) {
+            return clipped;
+        }
+        // The Frobenius metric of J: ‖J(θ)‖²_F = θᵀ F θ (J is linear in θ).
+        let unit = |k: usize| {
+            let mut e = [0.0; 10];
+            e[k] = 1.0;
+            Self(e).pseudo_inertia()
+        };
+        let units: Vec<Matrix4<f64>> = (0..10).map(unit).collect();
+        let frobenius = M10::from_fn(|i, j| units[i].dot(&units[j]));
+        // A parameter without information (a zero diagonal) is weighted like the least
+        // determined one is, relative to the Frobenius metric.
+        let scale = (0..10)
+            .filter(|&i| p[(i, i)] > 0.0)
+            .map(|i| p[(i, i)] / frobenius[(i, i)])
+            .fold(f64::INFINITY, f64::min);
+        let scale = if scale.is_finite() { scale } else { 1.0 };
+        let diagonal = V10::from_fn(|i, _| {
+            if p[(i, i)] > 0.0 {
+                p[(i, i)]
+            } else {
+                scale * frobenius[(i, i)]
+            }
+        });
+        let metric = p + M10::from_diagonal(&diagonal) * 1e-9;
+        let Some(chol) = metric.cholesky() else {
+            return clipped;
+        };
+        let root = chol.l().transpose();
+        let target = V10::from_column_slice(&self.0);
+        // J = C Cᵀ, C lower triangular: its ten entries, row by row.
+        const ENTRIES: [(usize, usize); 10] = [
+            (0, 0),
+            (1, 0),
+            (1, 1),
+            (2, 0),
+            (2, 1),
+            (2, 2),
+            (3, 0),
+            (3, 1),
+            (3, 2),
+            (3, 3),
+        ];
+        let factor = |x: &V10| {
+            let mut c = Matrix4::zeros();
+            for (k, &(i, j)) in ENTRIES.iter().enumerate() {
+                c[(i, j)] = x[k];
+            }
+            c
+        };
+        let theta_of = |j: &Matrix4<f64>| V10::from_column_slice(&Self::from_pseudo_inertia(j).0);
+        let residual = |x: &V10| {
+            let c = factor(x);
+            root * (theta_of(&(c * c.transpose())) - target)
+        };
+        // The start: the Cholesky factor of the clipped J, nudged inside the cone.
+        let j0 = clipped.pseudo_inertia();
+        let nudge = 1e-12 * j0.symmetric_eigenvalues().amax().max(f64::MIN_POSITIVE);
+        let Some(c0) = (j0 + Matrix4::identity() * nudge).cholesky() else {
+            return clipped;
+        };
+        let c0 = c0.l();
+        let mut x = V10::from_fn(|k, _| c0[ENTRIES[k]]);
+        let mut r = residual(&x);
+        let mut cost = r.norm_squared();
+        let mut mu = 1e-3;
+        for _ in 0..200 {
+            let c = factor(&x);
+            // ∂J/∂C_ab = E_ab Cᵀ + C E_ba; θ is linear in J.
+            let mut jac = M10::zeros();
+            for (k, &(a, b)) in ENTRIES.iter().enumerate() {
+                let mut e = Matrix4::zeros();
+                e[(a, b)] = 1.0;
+                let dj = e * c.transpose() + c * e.transpose();
+                jac.set_column(k, &(root * theta_of(&dj)));
+            }
+            let jtj = jac.transpose() * jac;
+            let g = jac.transpose() * r;
+            let mut improved = false;
+            for _ in 0..30 {
+                let damped =
+                    jtj + M10::from_diagonal(&jtj.diagonal()) * mu + M10::identity() * (mu * 1e-30);
+                let Some(step) = damped.cholesky().map(|f| f.solve(&(-g))) else {
+                    mu *= 10.0;
+                    continue;
+                };
+                let trial = x + step;
+                let tr = residual(&trial);
+                let tc = tr.norm_squared();
+                if tc.is_finite() && tc < cost {
+                    let done = cost - tc <= 1e-15 * cost;
+                    (x, r, cost) = (trial, tr, tc);
+                    mu = (mu * 0.3).max(1e-15);
+                    improved = !done;
+                    break;
+                }
+                mu *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        let c = factor(&x);
+        Self::from_pseudo_inertia(&(c * c.transpose()))
+    }
+}
+
 impl From<[f64; 10]> for InertialParams {
     fn from(theta: [f64; 10]) -> Self {
         Self(theta)

@@ -585,3 +585,116 @@ fn helpers_are_consistent() {
     assert!((r * r.transpose() - Matrix3::identity()).amax() < 1e-14);
     assert!((skew(&a) * a).norm() < 1e-15);
 }
+
+/// The Frobenius metric of the pseudo-inertia as an information matrix on θ:
+/// `θᵀ F θ = ‖J(θ)‖²_F`, entry by entry from `J` of the unit vectors.
+fn frobenius_information() -> [[f64; 10]; 10] {
+    let unit = |k: usize| {
+        let mut e = [0.0; 10];
+        e[k] = 1.0;
+        InertialParams::from_array(e).pseudo_inertia()
+    };
+    std::array::from_fn(|i| std::array::from_fn(|j| unit(i).dot(&unit(j))))
+}
+
+/// `(a − b)ᵀ P (a − b)`.
+fn mahalanobis(a: &InertialParams, b: &InertialParams, p: &[[f64; 10]; 10]) -> f64 {
+    let d: Vec<f64> = a
+        .as_slice()
+        .iter()
+        .zip(b.as_slice())
+        .map(|(x, y)| x - y)
+        .collect();
+    (0..10)
+        .map(|i| (0..10).map(|j| d[i] * p[i][j] * d[j]).sum::<f64>())
+        .sum()
+}
+
+/// In the Frobenius metric of `J` the nearest consistent θ is the eigenvalue clipping at 0
+/// (closed form: the nearest positive semidefinite matrix), which the metric-weighted search
+/// must reproduce.
+#[test]
+fn nearest_consistent_in_the_frobenius_metric_is_the_eigenvalue_clipping() {
+    let p = frobenius_information();
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let mut tried = 0;
+    while tried < 40 {
+        let (body, _) = random_body(&mut rng);
+        // Break it: a too large inertia about one axis, or a negative second moment.
+        let mut t: [f64; 10] = body.as_slice().try_into().unwrap();
+        let k = [4, 6, 9][rng.random_range(0..3)];
+        t[k] *= rng.random_range(2.5..6.0);
+        let bad = InertialParams::from_array(t);
+        if bad.min_pseudo_inertia_eigenvalue().unwrap() >= 0.0 {
+            continue;
+        }
+        tried += 1;
+        let want = bad.project_to_consistent(0.0);
+        let got = bad.nearest_consistent(&p);
+        let scale = (bad.pseudo_inertia()).norm();
+        let gap = (got.pseudo_inertia() - want.pseudo_inertia()).norm();
+        assert!(
+            gap <= 1e-6 * scale,
+            "case {tried}: {gap:e} from the clipping (scale {scale:e})"
+        );
+        assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= -1e-12 * scale);
+    }
+}
+
+/// With a general information matrix: a consistent θ is kept, and an inconsistent one lands
+/// on a consistent θ that no random consistent body beats in the metric. A quadrotor-like
+/// estimate whose yaw inertia is poorly determined (and too large for the triangle
+/// inequality) is repaired by lowering I_zz, not the well-determined I_xx and I_yy.
+#[test]
+fn nearest_consistent_moves_along_the_least_determined_direction() {
+    let body = InertialParams::from_mass_com_inertia(
+        0.035,
+        Vector3::new(0.0, 0.0, 0.002),
+        Matrix3::from_diagonal(&Vector3::new(1.6e-5, 1.6e-5, 2.9e-5)),
+    )
+    .unwrap();
+    let se: [f64; 10] = [1e-4, 1e-5, 1e-5, 1e-5, 2e-7, 1e-7, 2e-7, 1e-7, 1e-7, 2e-5];
+    let p: [[f64; 10]; 10] =
+        std::array::from_fn(|i| std::array::from_fn(|j| if i == j { se[i].powi(-2) } else { 0.0 }));
+    assert_eq!(body.nearest_consistent(&p), body);
+    let mut t: [f64; 10] = body.as_slice().try_into().unwrap();
+    t[9] = 4.0e-5; // I_zz beyond I_xx + I_yy = 3.2e-5 (+ the offset's share)
+    let bad = InertialParams::from_array(t);
+    assert!(bad.min_pseudo_inertia_eigenvalue().unwrap() < 0.0);
+    let got = bad.nearest_consistent(&p);
+    let scale = bad.pseudo_inertia().norm();
+    assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= -1e-12 * scale);
+    let i = got.inertia_origin();
+    assert!(
+        (i[(0, 0)] - 1.6e-5 - 0.035 * 0.002f64.powi(2)).abs() < 2e-7,
+        "I_xx {}",
+        i[(0, 0)]
+    );
+    assert!(
+        (i[(1, 1)] - 1.6e-5 - 0.035 * 0.002f64.powi(2)).abs() < 2e-7,
+        "I_yy {}",
+        i[(1, 1)]
+    );
+    assert!(i[(2, 2)] < 3.3e-5, "I_zz {}", i[(2, 2)]);
+    let clip = bad.project_to_consistent(0.0);
+    assert!(mahalanobis(&got, &bad, &p) <= mahalanobis(&clip, &bad, &p));
+    // No random consistent body near the estimate is closer in the metric.
+    let best = mahalanobis(&got, &bad, &p);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for _ in 0..5_000 {
+        let mut c: [f64; 10] = got.as_slice().try_into().unwrap();
+        for (k, x) in c.iter_mut().enumerate() {
+            *x += rng.random_range(-3.0..3.0) * se[k];
+        }
+        let cand = InertialParams::from_array(c);
+        if cand.min_pseudo_inertia_eigenvalue().unwrap() >= 0.0 {
+            assert!(
+                mahalanobis(&cand, &bad, &p) >= best * (1.0 - 1e-9),
+                "a consistent body beats the search"
+            );
+        }
+    }
+    // Non-finite information: the clipping.
+    let nan = [[f64::NAN; 10]; 10];
+    assert_eq!(bad.nearest_consistent(&nan), bad.project_to_consistent(0.0));
+}

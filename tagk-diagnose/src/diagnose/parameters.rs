@@ -41,7 +41,8 @@ pub(crate) fn parameter_report(
     recommended: Option<&str>,
 ) -> ParameterReport {
     let airframe_radius = limits.airframe_radius;
-    let theta = fit.theta;
+    // The reported parameters are physically consistent ([`Fit::consistent_theta`]).
+    let theta = fit.consistent_theta();
     let parameters: Vec<Parameter> = (0..10)
         .map(|j| {
             Coefficient::new(
@@ -60,7 +61,7 @@ pub(crate) fn parameter_report(
         [f64::NAN; 3]
     };
     let mut warnings = Vec::new();
-    let physically_consistent = consistent_within_tolerance(&theta);
+    let physically_consistent = consistent_within_tolerance(&fit.theta);
     let safety_gate = match theta.safety_gate(&SafetyGate {
         max_com_offset: airframe_radius,
         ..SafetyGate::crazyflie()
@@ -117,9 +118,12 @@ pub(crate) fn parameter_report(
     if !physically_consistent && m > 0.0 {
         warnings.push(format!(
             "the fitted parameters are not physically consistent: the pseudo-inertia's consistency margin is {:.3}, beyond the tolerance −{}",
-            consistency_margin(&theta),
+            consistency_margin(&fit.theta),
             crate::diagnose::CONSISTENCY_TOLERANCE
         ));
+    }
+    if let Some(note) = repair_note(fit, &theta) {
+        warnings.push(note);
     }
     warnings.extend(attenuation_warnings(s, fit));
     for fe in &fit.effects {
@@ -137,6 +141,26 @@ pub(crate) fn parameter_report(
         safety_gate,
         warnings,
     }
+}
+
+/// What the consistency repair ([`Fit::consistent_theta`]) changed, when it moved a
+/// parameter by at least a tenth of its standard error: the largest move, in standard errors.
+fn repair_note(fit: &Fit, repaired: &tagk_dynamics::InertialParams) -> Option<String> {
+    let (k, moved) = (0..10)
+        .filter_map(|k| {
+            let se = fit.theta_se[k]?;
+            let d = repaired.as_slice()[k] - fit.theta.as_slice()[k];
+            (se > 0.0).then_some((k, d / se))
+        })
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
+    (moved.abs() >= 0.1).then(|| {
+        format!(
+            "the least-squares parameters are no body's (a pseudo-inertia eigenvalue of {:.2e}); the reported ones are the nearest physically consistent parameters in the fit's covariance: {} moved by {:+.1} standard errors",
+            fit.theta.min_pseudo_inertia_eigenvalue().unwrap_or(f64::NAN),
+            THETA_NAMES[k],
+            moved
+        )
+    })
 }
 
 /// An inertia whose axis' angular acceleration hardly rises above the noise of the
@@ -359,5 +383,51 @@ mod tests {
         let bias = 1.0 - fit.theta.as_slice()[4] / crazyflie().as_slice()[4];
         assert!(bias.abs() < 0.01, "bias {bias}");
         assert_eq!(attenuation_warnings(&s, &fit), Vec::<String>::new());
+    }
+
+    /// A fit whose yaw inertia breaks the triangle inequality (as a flight that hardly yaws
+    /// can give): the report gives the nearest consistent parameters, lowers I_zz and says
+    /// by how much; the well-determined mass stays. A consistent fit is reported as it is.
+    #[test]
+    fn an_inconsistent_fit_is_reported_as_the_nearest_consistent_body() {
+        let (s, fit, _) = differenced_gyro_log(0.0, false);
+        let opts = DiagnoseOptions::default();
+        let limits = crate::diagnose::limits_of(&Model::rigid_body(), &opts);
+        let report = parameter_report(&fit, &s, &opts, &limits, None);
+        let values: Vec<f64> = report.parameters.iter().map(|p| p.value).collect();
+        assert_eq!(values, fit.theta.as_slice());
+        assert!(!report.warnings.iter().any(|w| w.contains("no body's")));
+        let mut broken = fit.clone();
+        let mut t = fit.theta.to_array();
+        let i = fit.theta.inertia_origin();
+        t[9] = 1.3 * (i[(0, 0)] + i[(1, 1)]);
+        broken.theta = tagk_dynamics::InertialParams::from_array(t);
+        // A flight that hardly yaws: I_zz a hundred times less determined.
+        for k in 0..10 {
+            broken.theta_cov[9][k] *= 100.0;
+            broken.theta_cov[k][9] *= 100.0;
+        }
+        broken.theta_se[9] = fit.theta_se[9].map(|se| 100.0 * se);
+        assert!(broken.theta.min_pseudo_inertia_eigenvalue().unwrap() < 0.0);
+        let report = parameter_report(&broken, &s, &opts, &limits, None);
+        let moved = |k: usize| report.parameters[k].value - fit.theta.as_slice()[k];
+        assert!(
+            moved(4).abs() < 0.1 * fit.theta_se[4].unwrap(),
+            "I_xx moved {}",
+            moved(4)
+        );
+        let got: [f64; 10] = std::array::from_fn(|k| report.parameters[k].value);
+        let got = tagk_dynamics::InertialParams::from_array(got);
+        let scale = got.pseudo_inertia().norm();
+        assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= -1e-12 * scale);
+        assert!(got.as_slice()[9] < t[9]);
+        let mass_se = fit.theta_se[0].unwrap();
+        assert!((got.mass() - fit.theta.mass()).abs() < 0.1 * mass_se);
+        let note = report.warnings.iter().find(|w| w.contains("no body's"));
+        assert!(
+            note.is_some_and(|w| w.contains("I_zz")),
+            "{:?}",
+            report.warnings
+        );
     }
 }

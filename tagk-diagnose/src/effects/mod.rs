@@ -201,9 +201,9 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// [`Effect::columns`] at the samples `window` only (clipped to the log): each vector holds
     /// the window's number of values, bit for bit those of [`Effect::columns`] there. It is
-    /// what a scan of a filtering effect reads of a long log (a contiguous window,
-    /// [`crate::fit::scan_window`]); a vector of another length makes the scan fall back to
-    /// the full columns. Default: [`Effect::columns`], cut to the window ([`cut_to_window`]). Override
+    /// what a scan of a filtering effect reads of a long log (a contiguous window of 12 000
+    /// samples in its middle). A vector of another length makes the scan fall back to the
+    /// full columns. Default: [`Effect::columns`], cut to the window ([`cut_to_window`]). Override
     /// it when the window costs less than the whole log (a filter run from the log's start
     /// that stores its output in the window only).
     fn window_columns(

@@ -368,6 +368,59 @@ impl Fit {
             .collect()
     }
 
+    /// The physically consistent parameters nearest to [`Fit::theta`] in the metric of its
+    /// covariance ([`InertialParams::nearest_consistent`]): `theta` itself when its
+    /// pseudo-inertia is positive semidefinite. The least-squares θ is the data's answer;
+    /// one whose pseudo-inertia has a negative eigenvalue is no body's. The repair moves it
+    /// most along the directions the log determines least (an inertia the flight hardly
+    /// excites). A parameter without a standard error carries no information and moves
+    /// freely, except a mass without one (a known mass), which stays.
+    pub fn consistent_theta(&self) -> InertialParams {
+        if self
+            .theta
+            .min_pseudo_inertia_eigenvalue()
+            .is_none_or(|l| l >= 0.0)
+        {
+            return self.theta;
+        }
+        let known: Vec<usize> = (0..10)
+            .filter(|&k| self.theta_cov[k][k].is_finite() && self.theta_cov[k][k] > 0.0)
+            .collect();
+        let cov = nalgebra::DMatrix::from_fn(known.len(), known.len(), |i, j| {
+            self.theta_cov[known[i]][known[j]]
+        });
+        if !cov.iter().all(|x| x.is_finite()) {
+            return self.theta.project_to_consistent(0.0);
+        }
+        // The information: the covariance's (pseudo-)inverse on the parameters it covers,
+        // through the correlation matrix (the parameters' scales differ by 10²⁰).
+        let sd = cov.diagonal().map(f64::sqrt);
+        let corr = nalgebra::DMatrix::from_fn(cov.nrows(), cov.ncols(), |i, j| {
+            cov[(i, j)] / (sd[i] * sd[j])
+        });
+        let eig = corr.symmetric_eigen();
+        let top = eig.eigenvalues.amax();
+        let inverse = nalgebra::DMatrix::from_diagonal(
+            &eig.eigenvalues
+                .map(|l| if l > 1e-12 * top { 1.0 / l } else { 0.0 }),
+        );
+        let corr_info = &eig.eigenvectors * inverse * eig.eigenvectors.transpose();
+        let info = nalgebra::DMatrix::from_fn(cov.nrows(), cov.ncols(), |i, j| {
+            corr_info[(i, j)] / (sd[i] * sd[j])
+        });
+        let mut p = [[0.0; 10]; 10];
+        for (a, &i) in known.iter().enumerate() {
+            for (b, &j) in known.iter().enumerate() {
+                p[i][j] = info[(a, b)];
+            }
+        }
+        if !known.contains(&0) {
+            let most = (0..10).map(|k| p[k][k]).fold(1.0f64, f64::max);
+            p[0][0] = 1e6 * most;
+        }
+        self.theta.nearest_consistent(&p)
+    }
+
     /// Residual of one channel as a series.
     pub fn residual_channel(&self, c: usize) -> Vec<f64> {
         self.residual.iter().map(|r| r[c]).collect()
