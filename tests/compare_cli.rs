@@ -81,7 +81,11 @@ fn simulate_diagnose_save_and_compare() {
     assert!(table.contains("velocity error [m/s]"), "{table}");
     assert!(table.contains("model 3: constant-rate"), "{table}");
     // The default overlay is at the longest horizon: one summary line per model.
-    assert_eq!(table.matches("\nh   20 (0.400 s) model ").count(), 3, "{table}");
+    assert_eq!(
+        table.matches("\nh   20 (0.400 s) model ").count(),
+        3,
+        "{table}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
     let top: Vec<&String> = json.as_object().unwrap().keys().collect();
@@ -163,7 +167,10 @@ fn simulate_diagnose_save_and_compare() {
             &steps[0],
         ],
     );
-    assert!(!plain.contains("constant-rate") && !plain.contains("overlay"), "{plain}");
+    assert!(
+        !plain.contains("constant-rate") && !plain.contains("overlay"),
+        "{plain}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("p.json")).unwrap()).unwrap();
     let mut entry: Vec<&String> = json["models"][0].as_object().unwrap().keys().collect();

@@ -30,7 +30,7 @@ pub struct CompareArgs {
     /// … up to it, and it.
     #[arg(long, value_name = "K", default_value_t = 50)]
     pub horizon: usize,
-    /// Horizons [steps] at which to overlay the logged state and the predictions over time
+    /// Horizons, in steps, at which to overlay the logged state and the predictions over time
     /// (comma-separated) [default: the longest horizon, K].
     #[arg(
         long,
@@ -105,7 +105,7 @@ pub fn read_logs(args: &CompareArgs, model: &ModelFile) -> Result<Vec<Signals>, 
         .collect()
 }
 
-/// The overlay horizons of `args` [steps]: `--overlay`, by default the longest horizon, none
+/// The overlay horizons of `args` \[steps\]: `--overlay`, by default the longest horizon, none
 /// with `--no-overlay`.
 pub fn overlay_horizons(args: &CompareArgs) -> Vec<usize> {
     if args.no_overlay {
