@@ -147,7 +147,7 @@ fn simulate_diagnose_save_and_compare() {
         );
     }
     let html = std::fs::read_to_string(dir.join("c.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4 + 12);
+    assert_eq!(html.matches("<svg").count(), 4 + 16);
     assert!(html.contains("id=\"overlay-h20\""));
     // Without the reference and the overlays: the former output exactly.
     let plain = tagk_in(
@@ -197,6 +197,6 @@ fn simulate_diagnose_save_and_compare() {
     assert_eq!(two.matches("\nh    1 (0.020 s) model ").count(), 2, "{two}");
     assert_eq!(two.matches("\nh   30 (0.600 s) model ").count(), 2, "{two}");
     let html = std::fs::read_to_string(dir.join("two.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4 + 2 * 12);
+    assert_eq!(html.matches("<svg").count(), 4 + 2 * 16);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1125,8 +1125,17 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
         let _ = write!(html, "<li>{}</li>", escape(&m.model));
     }
     html.push_str("</ol><div class=\"grid\">");
-    let labels: Vec<String> = (1..=comparison.models.len())
-        .map(|k| format!("model {k}"))
+    let labels: Vec<String> = comparison
+        .models
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            if m.model == crate::predict::CONSTANT_RATE {
+                m.model.clone()
+            } else {
+                format!("model {}", k + 1)
+            }
+        })
         .collect();
     for q in crate::predict::QUANTITIES {
         let (name, unit, get) = (q.name, q.unit, q.error);
@@ -1169,8 +1178,9 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
     html
 }
 
-/// One section per overlay horizon (`id="overlay-h{h}"`): per quantity and component, the
-/// logged series and each model's `h`-step prediction over time, on the first log. Lines are
+/// One section per overlay horizon (`id="overlay-h{h}"`): per quantity, each model's error
+/// norm over time, then per component the logged series and each model's `h`-step prediction
+/// over time, on the first log. Lines are
 /// drawn through at most [`MAX_POINTS`] evenly strided samples; the JSON holds every sample.
 fn section_overlays(html: &mut String, comparison: &crate::predict::Comparison, labels: &[String]) {
     use crate::predict::{COMPONENTS, QUANTITIES};
@@ -1198,12 +1208,35 @@ fn section_overlays(html: &mut String, comparison: &crate::predict::Comparison, 
         let stride = n.div_ceil(MAX_POINTS).max(1);
         let _ = write!(
             html,
-            "<h2 id=\"overlay-h{h}\">Overlay at h = {h} steps ({:.3} s)</h2><p>The logged state (black) and each model's prediction made {h} steps earlier, plotted at the time the prediction ends.{} Drawn through every {}th of {n} samples (for the page's size only: the JSON holds every sample).</p><div class=\"grid\">",
+            "<h2 id=\"overlay-h{h}\">Overlay at h = {h} steps ({:.3} s)</h2><p>Per quantity, each model's error norm over time; then per component the logged state (black) and each model's prediction made {h} steps earlier (dashed), plotted at the time the prediction ends.{} Drawn through every {}th of {n} samples (for the page's size only: the JSON holds every sample).</p><div class=\"grid\">",
             h as f64 * dt,
             if several { " First log only." } else { "" },
             stride
         );
         for (q, quantity) in QUANTITIES.iter().enumerate() {
+            // The error norm over time, one line per model.
+            let errors: Vec<(&[f64], &[f64])> = overlays
+                .iter()
+                .map(|o| o.map_or((&[][..], &[][..]), |o| (&o.t[..], o.error.of(q))))
+                .collect();
+            let series: Vec<LineSeries<'_>> = errors
+                .iter()
+                .enumerate()
+                .map(|(k, (x, y))| LineSeries {
+                    label: &labels[k],
+                    color: MODEL_COLORS[k % MODEL_COLORS.len()],
+                    dash: "",
+                    x,
+                    y,
+                })
+                .collect();
+            html.push_str(&line_plot(
+                &format!("{} error [{}], h = {h}", quantity.name, quantity.unit),
+                "time [s]",
+                &series,
+                &[],
+                &[],
+            ));
             for (c, component) in COMPONENTS[q].iter().enumerate() {
                 let ys: Vec<Vec<f64>> = std::iter::once(logged.logged.of(q))
                     .chain(

@@ -704,9 +704,9 @@ fn a_comparison_with_overlays_round_trips_through_json_and_html() {
     // Without overlays, the old shape exactly.
     let plain: serde_json::Value = serde_json::from_str(&with(&[]).to_json().unwrap()).unwrap();
     assert_eq!(keys(&plain["models"][0]), ["horizons", "model"]);
-    // The page: the error plots, then 12 overlay plots per horizon.
+    // The page: the error plots, then per horizon 4 error-over-time and 12 overlay plots.
     let html = tagk_diagnose::html::render_comparison(&c);
-    assert_eq!(html.matches("<svg").count(), 4 + 2 * 12);
+    assert_eq!(html.matches("<svg").count(), 4 + 2 * 16);
     assert!(html.contains("id=\"overlay-h2\"") && html.contains("id=\"overlay-h10\""));
     assert!(html.contains("body rate r [rad/s], h = 10"));
     let table = c.table();
