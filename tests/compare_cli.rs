@@ -1,6 +1,7 @@
 //! `tagk simulate` → `tagk diagnose --save-model --save-steps` → `tagk compare`, end to end
 //! through the binary: the model files read back, the JSON has exactly the documented keys,
-//! and the staircase's final model predicts the flight better than the rigid body.
+//! the staircase's final model predicts the flight better than the rigid body and than the
+//! constant-rate reference, and the overlays reach the terminal, the JSON and the page.
 
 mod common;
 
@@ -78,13 +79,33 @@ fn simulate_diagnose_save_and_compare() {
         ],
     );
     assert!(table.contains("velocity error [m/s]"), "{table}");
+    assert!(table.contains("model 3: constant-rate"), "{table}");
+    // The default overlay is at the longest horizon: one summary line per model.
+    assert_eq!(
+        table.matches("\nh   20 (0.400 s) model ").count(),
+        3,
+        "{table}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
     let top: Vec<&String> = json.as_object().unwrap().keys().collect();
     assert_eq!(top, ["models"]);
     let models = json["models"].as_array().unwrap();
-    assert_eq!(models.len(), 2);
+    assert_eq!(models.len(), 3);
     assert_eq!(models[0]["model"], "steps/step-0-rigid-body.toml");
+    assert_eq!(models[2]["model"], "constant-rate");
+    let mut entry: Vec<&String> = models[0].as_object().unwrap().keys().collect();
+    entry.sort();
+    assert_eq!(entry, ["horizons", "model", "overlays"]);
+    let overlay = &models[1]["overlays"][0];
+    assert_eq!(overlay["h"], 20);
+    let n = overlay["t"].as_array().unwrap().len();
+    assert!(n > 900, "{n} overlay samples");
+    for side in ["logged", "predicted"] {
+        for q in ["position", "velocity", "attitude", "body_rate"] {
+            assert_eq!(overlay[side][q].as_array().unwrap().len(), n, "{side} {q}");
+        }
+    }
     let mut keys: Vec<&String> = models[0]["horizons"][0]
         .as_object()
         .unwrap()
@@ -118,8 +139,64 @@ fn simulate_diagnose_save_and_compare() {
             at20(1, q),
             at20(0, q)
         );
+        assert!(
+            at20(1, q) < at20(2, q),
+            "{q}: final {} vs constant-rate {}",
+            at20(1, q),
+            at20(2, q)
+        );
     }
     let html = std::fs::read_to_string(dir.join("c.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4 + 16);
+    assert!(html.contains("id=\"overlay-h20\""));
+    // Without the reference and the overlays: the former output exactly.
+    let plain = tagk_in(
+        &dir,
+        &[
+            "compare",
+            "f.csv",
+            "--horizon",
+            "20",
+            "--no-overlay",
+            "--no-baseline",
+            "--json",
+            "p.json",
+            "--report",
+            "p.html",
+            "--model",
+            &steps[0],
+        ],
+    );
+    assert!(
+        !plain.contains("constant-rate") && !plain.contains("overlay"),
+        "{plain}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("p.json")).unwrap()).unwrap();
+    let mut entry: Vec<&String> = json["models"][0].as_object().unwrap().keys().collect();
+    entry.sort();
+    assert_eq!(entry, ["horizons", "model"]);
+    let html = std::fs::read_to_string(dir.join("p.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 4);
+    // Two chosen overlay horizons, one beyond the error table's.
+    let two = tagk_in(
+        &dir,
+        &[
+            "compare",
+            "f.csv",
+            "--horizon",
+            "20",
+            "--overlay",
+            "1,30",
+            "--report",
+            "two.html",
+            "--model",
+            &steps[1],
+        ],
+    );
+    assert_eq!(two.matches("\nh    1 (0.020 s) model ").count(), 2, "{two}");
+    assert_eq!(two.matches("\nh   30 (0.600 s) model ").count(), 2, "{two}");
+    let html = std::fs::read_to_string(dir.join("two.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4 + 2 * 16);
     std::fs::remove_dir_all(&dir).unwrap();
 }

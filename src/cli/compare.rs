@@ -1,11 +1,15 @@
 //! `tagk compare`: the k-step-ahead prediction of identified models on flight logs, as
-//! MATLAB's `compare(data, sys, k)` ([`crate::diagnose::k_step_prediction_logs`]).
+//! MATLAB's `compare(data, sys, k)` ([`crate::diagnose::predict_logs`]).
+//!
+//! The constant-rate reference ([`crate::diagnose::Predictor::ConstantRate`]) is listed last,
+//! named `constant-rate`, unless `--no-baseline`. It is on by default: a model's error means
+//! little until it is set beside what holding the current rates predicts.
 
 use std::path::PathBuf;
 
 use crate::diagnose::{
-    AlignOptions, Comparison, DiagnoseError, DiagnosisPlan, ModelFile, ModelPrediction, Signals,
-    default_horizons, k_step_prediction_logs,
+    AlignOptions, CONSTANT_RATE, Comparison, DiagnoseError, DiagnosisPlan, ModelFile,
+    ModelPrediction, Predictor, Signals, default_horizons, predict_logs,
 };
 use crate::dynamics::log_input::ColumnMapping;
 use crate::dynamics::vehicle::Vehicle;
@@ -26,6 +30,22 @@ pub struct CompareArgs {
     /// … up to it, and it.
     #[arg(long, value_name = "K", default_value_t = 50)]
     pub horizon: usize,
+    /// Horizons, in steps, at which to overlay the logged state and the predictions over time
+    /// (comma-separated) [default: the longest horizon, K].
+    #[arg(
+        long,
+        value_name = "H,...",
+        value_delimiter = ',',
+        conflicts_with = "no_overlay"
+    )]
+    pub overlay: Vec<usize>,
+    /// No overlay (a smaller JSON file and page).
+    #[arg(long)]
+    pub no_overlay: bool,
+    /// Leave out the constant-rate reference (body rate and velocity held), listed last
+    /// as constant-rate by default.
+    #[arg(long)]
+    pub no_baseline: bool,
     /// Column mapping (TOML, docs/COLUMN_MAPPING.md), as for tagk diagnose.
     #[arg(long, value_name = "FILE")]
     pub columns: Option<PathBuf>,
@@ -39,7 +59,7 @@ pub struct CompareArgs {
     /// Write the errors as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Write an HTML page with the error against the horizon to this file.
+    /// Write an HTML page with the error against the horizon and the overlays to this file.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
     /// Do not print the tables.
@@ -85,22 +105,41 @@ pub fn read_logs(args: &CompareArgs, model: &ModelFile) -> Result<Vec<Signals>, 
         .collect()
 }
 
-/// The comparison of every `--model` on the logs.
+/// The overlay horizons of `args` \[steps\]: `--overlay`, by default the longest horizon, none
+/// with `--no-overlay`.
+pub fn overlay_horizons(args: &CompareArgs) -> Vec<usize> {
+    if args.no_overlay {
+        Vec::new()
+    } else if args.overlay.is_empty() {
+        vec![args.horizon]
+    } else {
+        args.overlay.clone()
+    }
+}
+
+/// The comparison of every `--model` on the logs, then the constant-rate reference (on the
+/// logs as the first model reads them) unless `--no-baseline`.
 ///
 /// # Errors
 /// A model file that cannot be read; the logs' errors ([`read_logs`]); the prediction's
-/// ([`k_step_prediction_logs`]).
+/// ([`predict_logs`]).
 pub fn compare(args: &CompareArgs) -> Result<Comparison, DiagnoseError> {
     let horizons = default_horizons(args.horizon);
+    let overlays = overlay_horizons(args);
     let mut models = Vec::new();
+    let mut first_logs = None;
     for path in &args.models {
         let model = ModelFile::from_path(path)?;
         let logs = read_logs(args, &model)?;
-        let prediction = k_step_prediction_logs(&logs, &model, &horizons)?;
-        models.push(ModelPrediction {
-            model: path.display().to_string(),
-            horizons: prediction.horizons,
-        });
+        let prediction = predict_logs(&logs, Predictor::Model(&model), &horizons, &overlays)?;
+        models.push(ModelPrediction::new(path.display().to_string(), prediction));
+        first_logs.get_or_insert(logs);
+    }
+    if !args.no_baseline
+        && let Some(logs) = &first_logs
+    {
+        let prediction = predict_logs(logs, Predictor::ConstantRate, &horizons, &overlays)?;
+        models.push(ModelPrediction::new(CONSTANT_RATE, prediction));
     }
     Ok(Comparison { models })
 }

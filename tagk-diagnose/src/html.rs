@@ -1110,10 +1110,14 @@ pub fn render(report: &Report) -> String {
     html
 }
 
+/// Line colours of the models of a comparison, in their order.
+const MODEL_COLORS: [&str; 6] = ["#c22", "#36c", "#393", "#c80", "#808", "#088"];
+
 /// The HTML page of a k-step comparison (`tagk compare --report`): per quantity, the mean
-/// error against the horizon, one line per model, then the numbers as tables.
+/// error against the horizon, one line per model; then per overlay horizon the logged and
+/// predicted components over time (the first log only); then the numbers as tables.
 pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
-    const COLORS: [&str; 6] = ["#c22", "#36c", "#393", "#c80", "#808", "#088"];
+    const COLORS: [&str; 6] = MODEL_COLORS;
     let mut html = String::from(
         "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk compare</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}</style></head><body><h1>tagk compare: k-step prediction error</h1><ol id=\"models\">",
     );
@@ -1121,8 +1125,17 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
         let _ = write!(html, "<li>{}</li>", escape(&m.model));
     }
     html.push_str("</ol><div class=\"grid\">");
-    let labels: Vec<String> = (1..=comparison.models.len())
-        .map(|k| format!("model {k}"))
+    let labels: Vec<String> = comparison
+        .models
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            if m.model == crate::predict::CONSTANT_RATE {
+                m.model.clone()
+            } else {
+                format!("model {}", k + 1)
+            }
+        })
         .collect();
     for q in crate::predict::QUANTITIES {
         let (name, unit, get) = (q.name, q.unit, q.error);
@@ -1155,12 +1168,114 @@ pub fn render_comparison(comparison: &crate::predict::Comparison) -> String {
             &[],
         ));
     }
+    html.push_str("</div>");
+    section_overlays(&mut html, comparison, &labels);
     let _ = writeln!(
         html,
-        "</div><h2>Numbers</h2><pre id=\"table\">{}</pre></body></html>",
+        "<h2>Numbers</h2><pre id=\"table\">{}</pre></body></html>",
         escape(&comparison.table())
     );
     html
+}
+
+/// One section per overlay horizon (`id="overlay-h{h}"`): per quantity, each model's error
+/// norm over time, then per component the logged series and each model's `h`-step prediction
+/// over time, on the first log. Lines are
+/// drawn through at most [`MAX_POINTS`] evenly strided samples; the JSON holds every sample.
+fn section_overlays(html: &mut String, comparison: &crate::predict::Comparison, labels: &[String]) {
+    use crate::predict::{COMPONENTS, QUANTITIES};
+    let mut hs: Vec<(usize, f64)> = Vec::new();
+    for o in comparison.models.iter().flat_map(|m| &m.overlays) {
+        if !hs.iter().any(|(h, _)| *h == o.h) {
+            hs.push((o.h, o.dt));
+        }
+    }
+    let several = comparison
+        .models
+        .iter()
+        .flat_map(|m| &m.overlays)
+        .any(|o| o.log > 0);
+    for (h, dt) in hs {
+        let overlays: Vec<Option<&crate::predict::Overlay>> = comparison
+            .models
+            .iter()
+            .map(|m| m.overlays.iter().find(|o| o.h == h && o.log == 0))
+            .collect();
+        let Some(logged) = overlays.iter().flatten().next() else {
+            continue;
+        };
+        let n = logged.t.len();
+        let stride = n.div_ceil(MAX_POINTS).max(1);
+        let _ = write!(
+            html,
+            "<h2 id=\"overlay-h{h}\">Overlay at h = {h} steps ({:.3} s)</h2><p>Per quantity, each model's error norm over time; then per component the logged state (black) and each model's prediction made {h} steps earlier (dashed), plotted at the time the prediction ends.{} Drawn through every {}th of {n} samples (for the page's size only: the JSON holds every sample).</p><div class=\"grid\">",
+            h as f64 * dt,
+            if several { " First log only." } else { "" },
+            stride
+        );
+        for (q, quantity) in QUANTITIES.iter().enumerate() {
+            // The error norm over time, one line per model.
+            let errors: Vec<(&[f64], &[f64])> = overlays
+                .iter()
+                .map(|o| o.map_or((&[][..], &[][..]), |o| (&o.t[..], o.error.of(q))))
+                .collect();
+            let series: Vec<LineSeries<'_>> = errors
+                .iter()
+                .enumerate()
+                .map(|(k, (x, y))| LineSeries {
+                    label: &labels[k],
+                    color: MODEL_COLORS[k % MODEL_COLORS.len()],
+                    dash: "",
+                    x,
+                    y,
+                })
+                .collect();
+            html.push_str(&line_plot(
+                &format!("{} error [{}], h = {h}", quantity.name, quantity.unit),
+                "time [s]",
+                &series,
+                &[],
+                &[],
+            ));
+            for (c, component) in COMPONENTS[q].iter().enumerate() {
+                let ys: Vec<Vec<f64>> = std::iter::once(logged.logged.of(q))
+                    .chain(
+                        overlays
+                            .iter()
+                            .map(|o| o.map_or(&[][..], |o| o.predicted.of(q))),
+                    )
+                    .map(|v| v.iter().map(|r| r[c]).collect())
+                    .collect();
+                let xs: Vec<&[f64]> = std::iter::once(&logged.t[..])
+                    .chain(overlays.iter().map(|o| o.map_or(&[][..], |o| &o.t[..])))
+                    .collect();
+                let mut series = vec![LineSeries {
+                    label: "logged",
+                    color: "#000",
+                    dash: "",
+                    x: xs[0],
+                    y: &ys[0],
+                }];
+                for k in 0..overlays.len() {
+                    series.push(LineSeries {
+                        label: &labels[k],
+                        color: MODEL_COLORS[k % MODEL_COLORS.len()],
+                        dash: "4 2",
+                        x: xs[k + 1],
+                        y: &ys[k + 1],
+                    });
+                }
+                html.push_str(&line_plot(
+                    &format!("{} {component} [{}], h = {h}", quantity.name, quantity.unit),
+                    "time [s]",
+                    &series,
+                    &[],
+                    &[],
+                ));
+            }
+        }
+        html.push_str("</div>");
+    }
 }
 
 /// Writes [`render`] to `dir/index.html` (creating `dir`) and returns the file's path.

@@ -58,8 +58,10 @@ pub use plan::{
     KnownMass, ResolvedPlan,
 };
 pub use predict::{
-    BodyState, Comparison, HorizonError, ModelPrediction, Prediction, QUANTITIES, Quantity,
-    QuantityFit, default_horizons, fit_percent, k_step_prediction, k_step_prediction_logs,
+    BodyState, COMPONENTS, CONSTANT_RATE, Comparison, HorizonError, ModelPrediction, Overlay,
+    OverlayErrors, OverlayPeak, OverlaySeries, Prediction, Predictor, QUANTITIES, Quantity,
+    QuantityFit, constant_rate_prediction, default_horizons, fit_percent, k_step_prediction,
+    k_step_prediction_logs, predict_logs,
 };
 pub use report::{
     ChannelChange, FIT_MEASURES, FinalModel, LogVerdict, NextStep, RankingEntry, Report,

@@ -19,6 +19,15 @@
 //! each step (zero-order hold). The attitude is a unit quaternion (body → world), integrated
 //! as four numbers and normalised after each step. A prediction never runs across a gap in
 //! the time stamps.
+//!
+//! **The constant-rate reference** ([`Predictor::ConstantRate`], named [`CONSTANT_RATE`]) needs
+//! no model. From the logged state at `i` it holds the body rate `ω_i` and the velocity `v_i`.
+//! The attitude turns at that rate: `q(t_i + τ) = q_i ⊗ exp(ω_i τ / 2)`. The position moves
+//! at that velocity: `p(t_i + τ) = p_i + v_i τ`. It is the naive baseline ("persistence") of
+//! multi-horizon prediction benchmarks: a model is worth its cost where it beats it.
+//!
+//! **Overlays** ([`Overlay`]): at a chosen horizon `h`, the logged state at each sample beside
+//! the `h`-step prediction that ends there, per component, with the error norms.
 
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use serde::Serialize;
@@ -109,6 +118,182 @@ pub struct QuantityFit {
 pub struct Prediction {
     /// One entry per horizon, in the order asked.
     pub horizons: Vec<HorizonError>,
+    /// One entry per overlay horizon asked and per log, in that order (empty: none asked).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub overlays: Vec<Overlay>,
+}
+
+/// Name of the constant-rate reference predictor in a [`Comparison`].
+pub const CONSTANT_RATE: &str = "constant-rate";
+
+/// What predicts ahead.
+#[derive(Debug, Clone, Copy)]
+pub enum Predictor<'a> {
+    /// An identified model (rigid body plus effects), integrated open loop from the log's
+    /// inputs: see the module documentation.
+    Model(&'a ModelFile),
+    /// The model-free reference: body rate and velocity held at their logged values at the
+    /// start, attitude and position integrated with them (module documentation).
+    ConstantRate,
+}
+
+/// Logged or predicted states over time, per component.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct OverlaySeries {
+    /// Position `x, y, z`, world frame \[m\].
+    pub position: Vec<[f64; 3]>,
+    /// Velocity `x, y, z`, world frame \[m/s\].
+    pub velocity: Vec<[f64; 3]>,
+    /// Attitude as roll, pitch, yaw (Z-Y-X Euler angles of body → world) \[rad\].
+    /// The logged angles are unwrapped over time. A predicted angle lies within π of the
+    /// logged one.
+    pub attitude: Vec<[f64; 3]>,
+    /// Body rate `p, q, r`, body frame \[rad/s\].
+    pub body_rate: Vec<[f64; 3]>,
+}
+
+/// The error norms of each prediction of an overlay.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct OverlayErrors {
+    /// Position error norm \[m\].
+    pub position: Vec<f64>,
+    /// Velocity error norm \[m/s\].
+    pub velocity: Vec<f64>,
+    /// Attitude error: the angle of the relative rotation \[rad\].
+    pub attitude: Vec<f64>,
+    /// Body-rate error norm \[rad/s\].
+    pub body_rate: Vec<f64>,
+}
+
+impl OverlayErrors {
+    /// The error series of quantity `k` of [`QUANTITIES`] (0 position … 3 body rate).
+    pub fn of(&self, k: usize) -> &[f64] {
+        match k {
+            0 => &self.position,
+            1 => &self.velocity,
+            2 => &self.attitude,
+            _ => &self.body_rate,
+        }
+    }
+}
+
+impl OverlaySeries {
+    /// The component series of quantity `k` of [`QUANTITIES`] (0 position … 3 body rate).
+    pub fn of(&self, k: usize) -> &[[f64; 3]] {
+        match k {
+            0 => &self.position,
+            1 => &self.velocity,
+            2 => &self.attitude,
+            _ => &self.body_rate,
+        }
+    }
+}
+
+/// The component names of each quantity of [`QUANTITIES`], in its order.
+pub const COMPONENTS: [[&str; 3]; 4] = [
+    ["x", "y", "z"],
+    ["x", "y", "z"],
+    ["roll", "pitch", "yaw"],
+    ["p", "q", "r"],
+];
+
+/// The `h`-step predictions of one log beside the logged states they predict.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Overlay {
+    /// The horizon \[steps\].
+    pub h: usize,
+    /// The log's sampling step \[s\].
+    pub dt: f64,
+    /// Index of the log among those pooled (0 for one log).
+    pub log: usize,
+    /// Time of each compared sample, where its prediction ends \[s\] (the log's clock).
+    pub t: Vec<f64>,
+    /// The logged state at each time.
+    pub logged: OverlaySeries,
+    /// The prediction made `h` steps before each time.
+    pub predicted: OverlaySeries,
+    /// The error norms at each time.
+    pub error: OverlayErrors,
+}
+
+/// The largest error of one quantity in an overlay.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OverlayPeak {
+    /// The error \[SI unit of the quantity\].
+    pub error: f64,
+    /// When it occurs \[s\], the end of the prediction (the log's clock).
+    pub t: f64,
+    /// In which log (index among those pooled).
+    pub log: usize,
+}
+
+impl Overlay {
+    /// An empty overlay of horizon `h` on log `log`.
+    fn new(h: usize, log: usize) -> Self {
+        Self {
+            h,
+            dt: 0.0,
+            log,
+            t: Vec::new(),
+            logged: OverlaySeries::default(),
+            predicted: OverlaySeries::default(),
+            error: OverlayErrors::default(),
+        }
+    }
+
+    /// Adds the prediction `p` of the logged state `y` at time `t` \[s\].
+    fn push(&mut self, t: f64, p: &BodyState, y: &BodyState) {
+        let v3 = |v: &Vector3<f64>| [v.x, v.y, v.z];
+        self.t.push(t);
+        self.logged.position.push(v3(&y.position));
+        self.predicted.position.push(v3(&p.position));
+        self.logged.velocity.push(v3(&y.velocity));
+        self.predicted.velocity.push(v3(&p.velocity));
+        self.logged.body_rate.push(v3(&y.omega));
+        self.predicted.body_rate.push(v3(&p.omega));
+        let euler = |q: &UnitQuaternion<f64>| {
+            let (r, p, y) = q.euler_angles();
+            [r, p, y]
+        };
+        let raw_y = euler(&y.attitude);
+        let raw_p = euler(&p.attitude);
+        // The logged angles unwrapped against the previous sample; the predicted ones within
+        // π of the logged.
+        let logged = match self.logged.attitude.last() {
+            Some(prev) => std::array::from_fn(|c| prev[c] + wrap_angle(raw_y[c] - prev[c])),
+            None => raw_y,
+        };
+        let predicted: [f64; 3] =
+            std::array::from_fn(|c| logged[c] + wrap_angle(raw_p[c] - raw_y[c]));
+        self.logged.attitude.push(logged);
+        self.predicted.attitude.push(predicted);
+        self.error.position.push((p.position - y.position).norm());
+        self.error.velocity.push((p.velocity - y.velocity).norm());
+        self.error.attitude.push(p.attitude.angle_to(&y.attitude));
+        self.error.body_rate.push((p.omega - y.omega).norm());
+    }
+
+    /// The largest error of quantity `k` of [`QUANTITIES`] and when it occurs (`None` for an
+    /// empty overlay).
+    pub fn peak(&self, k: usize) -> Option<OverlayPeak> {
+        self.error
+            .of(k)
+            .iter()
+            .zip(&self.t)
+            .filter(|(e, _)| e.is_finite())
+            .max_by(|a, b| a.0.total_cmp(b.0))
+            .map(|(e, t)| OverlayPeak {
+                error: *e,
+                t: *t,
+                log: self.log,
+            })
+    }
+}
+
+/// `a` wrapped into `[−π, π)` \[rad\].
+fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    (a + PI).rem_euclid(TAU) - PI
 }
 
 /// The horizons `1, 2, 5, 10, 20, 50, 100, …` up to `max`, and `max` itself.
@@ -215,6 +400,39 @@ pub fn k_step_prediction_logs(
     model: &ModelFile,
     horizons: &[usize],
 ) -> Result<Prediction, DiagnoseError> {
+    predict_logs(logs, Predictor::Model(model), horizons, &[])
+}
+
+/// The constant-rate reference's k-step prediction on one log ([`Predictor::ConstantRate`]).
+///
+/// # Errors
+/// [`DiagnoseError::InvalidOption`] (field `horizons`) as [`k_step_prediction`].
+pub fn constant_rate_prediction(
+    signals: &Signals,
+    horizons: &[usize],
+) -> Result<Prediction, DiagnoseError> {
+    predict_logs(
+        std::slice::from_ref(signals),
+        Predictor::ConstantRate,
+        horizons,
+        &[],
+    )
+}
+
+/// The k-step prediction of `predictor` over several logs at `horizons` (steps), with an
+/// [`Overlay`] per log at each of `overlays` (steps; empty: none). Every start sample of every
+/// log counts once in the mean errors and the fit %. The sampling step of the first log is
+/// reported.
+///
+/// # Errors
+/// As [`k_step_prediction`]; [`DiagnoseError::InvalidOption`] (field `logs`) for no log,
+/// (field `overlays`) for a zero overlay horizon or one longer than every gap-free segment.
+pub fn predict_logs(
+    logs: &[Signals],
+    predictor: Predictor<'_>,
+    horizons: &[usize],
+    overlays: &[usize],
+) -> Result<Prediction, DiagnoseError> {
     let bad_horizon = |reason: String| DiagnoseError::InvalidOption {
         field: "horizons",
         reason,
@@ -224,6 +442,12 @@ pub fn k_step_prediction_logs(
             "{horizons:?}: give at least one horizon, each at least 1 step"
         )));
     }
+    if overlays.contains(&0) {
+        return Err(DiagnoseError::InvalidOption {
+            field: "overlays",
+            reason: format!("{overlays:?}: each overlay horizon must be at least 1 step"),
+        });
+    }
     let Some(first) = logs.first() else {
         return Err(DiagnoseError::InvalidOption {
             field: "logs",
@@ -231,8 +455,15 @@ pub fn k_step_prediction_logs(
         });
     };
     let mut acc: Vec<Accumulator> = horizons.iter().map(|_| Accumulator::default()).collect();
-    for signals in logs {
-        accumulate(signals, model, horizons, &mut acc)?;
+    let mut out_overlays = Vec::new();
+    for (k, signals) in logs.iter().enumerate() {
+        let mut ov: Vec<Overlay> = overlays.iter().map(|h| Overlay::new(*h, k)).collect();
+        accumulate(signals, predictor, horizons, &mut acc, &mut ov)?;
+        let dt = tagk_dynamics::log::median_step(&signals.t);
+        for o in &mut ov {
+            o.dt = dt;
+        }
+        out_overlays.push(ov);
     }
     let dt = tagk_dynamics::log::median_step(&first.t);
     let mut out = Vec::with_capacity(horizons.len());
@@ -244,17 +475,103 @@ pub fn k_step_prediction_logs(
         }
         out.push(a.finish(*h, dt));
     }
-    Ok(Prediction { horizons: out })
+    // Overlays ordered by horizon as asked, then by log.
+    let mut overlays_out = Vec::new();
+    for (k, h) in overlays.iter().enumerate() {
+        if out_overlays.iter().all(|ov| ov[k].t.is_empty()) {
+            return Err(DiagnoseError::InvalidOption {
+                field: "overlays",
+                reason: format!("{h} steps is longer than every gap-free segment of the log"),
+            });
+        }
+        for ov in &out_overlays {
+            overlays_out.push(ov[k].clone());
+        }
+    }
+    Ok(Prediction {
+        horizons: out,
+        overlays: overlays_out,
+    })
 }
 
-/// Adds the predictions of `model` on one log to the accumulators of `horizons`.
+/// Adds the predictions of `predictor` on one log to the accumulators of `horizons` and to
+/// the overlays `ov`.
 fn accumulate(
+    signals: &Signals,
+    predictor: Predictor<'_>,
+    horizons: &[usize],
+    acc: &mut [Accumulator],
+    ov: &mut [Overlay],
+) -> Result<(), DiagnoseError> {
+    match predictor {
+        Predictor::Model(model) => accumulate_model(signals, model, horizons, acc, ov),
+        Predictor::ConstantRate => drive(signals, horizons, acc, ov, |state, _, dt| {
+            Ok(hold_step(state, dt))
+        }),
+    }
+}
+
+/// One step of the constant-rate reference: `ω` and `v` held, `q ← q ⊗ exp(ω dt / 2)`,
+/// `p ← p + v dt` (exact for a constant rate).
+fn hold_step(state: &BodyState, dt: f64) -> BodyState {
+    BodyState {
+        position: state.position + state.velocity * dt,
+        velocity: state.velocity,
+        attitude: state.attitude * UnitQuaternion::from_scaled_axis(state.omega * dt),
+        omega: state.omega,
+    }
+}
+
+/// From every start sample of every gap-free segment, steps the state with `step(state, j,
+/// dt)` (over the log's step `j → j + 1`) up to the longest horizon, and adds each prediction
+/// at a horizon of `horizons` to its accumulator and at an overlay's horizon to the overlay.
+fn drive(
+    signals: &Signals,
+    horizons: &[usize],
+    acc: &mut [Accumulator],
+    ov: &mut [Overlay],
+    mut step: impl FnMut(&BodyState, usize, f64) -> Result<BodyState, DiagnoseError>,
+) -> Result<(), DiagnoseError> {
+    let hmax = horizons
+        .iter()
+        .chain(ov.iter().map(|o| &o.h))
+        .copied()
+        .max()
+        .unwrap_or(0);
+    let log = signals.log();
+    let segments = Sampling::of(&signals.t).segments();
+    for seg in &segments {
+        for i in seg.clone() {
+            if i + 1 >= seg.end {
+                break;
+            }
+            let mut state = BodyState::logged(log, i);
+            let last = (i + hmax).min(seg.end - 1);
+            for j in i..last {
+                let dt = signals.t[j + 1] - signals.t[j];
+                state = step(&state, j, dt)?;
+                let h = j + 1 - i;
+                let logged = BodyState::logged(log, j + 1);
+                for (k, _) in horizons.iter().enumerate().filter(|(_, x)| **x == h) {
+                    acc[k].add(&state, &logged);
+                }
+                for o in ov.iter_mut().filter(|o| o.h == h) {
+                    o.push(signals.t[j + 1], &state, &logged);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// [`accumulate`] of a model.
+fn accumulate_model(
     signals: &Signals,
     model: &ModelFile,
     horizons: &[usize],
     acc: &mut [Accumulator],
+    ov: &mut [Overlay],
 ) -> Result<(), DiagnoseError> {
-    let hmax = *horizons.iter().max().expect("non-empty");
     let log = signals.log();
     let n = signals.len();
     let fd = ForwardDynamics::new(&model.inertial.theta()).map_err(|e| {
@@ -363,25 +680,7 @@ fn accumulate(
         };
         Ok(advance(state, &sum, dt / 6.0))
     };
-    let segments = Sampling::of(&signals.t).segments();
-    for seg in &segments {
-        for i in seg.clone() {
-            if i + 1 >= seg.end {
-                break;
-            }
-            let mut state = BodyState::logged(log, i);
-            let last = (i + hmax).min(seg.end - 1);
-            for j in i..last {
-                let dt = signals.t[j + 1] - signals.t[j];
-                state = step(&state, j, dt)?;
-                let h = j + 1 - i;
-                for (k, _) in horizons.iter().enumerate().filter(|(_, x)| **x == h) {
-                    acc[k].add(&state, &BodyState::logged(log, j + 1));
-                }
-            }
-        }
-    }
-    Ok(())
+    drive(signals, horizons, acc, ov, step)
 }
 
 /// The time derivative of a [`BodyState`] (the quaternion's as four numbers).
@@ -495,6 +794,90 @@ impl Accumulator {
     }
 }
 
+/// serde_json's pretty formatter, except that an array opened at nesting depth `depth` or
+/// deeper (the root value is depth 1) is written compactly, on one line.
+struct SeriesOnOneLine {
+    pretty: serde_json::ser::PrettyFormatter<'static>,
+    /// Nesting depth of the containers open.
+    level: usize,
+    /// Depth of the compact array open, if any.
+    compact_at: Option<usize>,
+    /// First depth written compactly.
+    depth: usize,
+}
+
+impl SeriesOnOneLine {
+    fn new(depth: usize) -> Self {
+        Self {
+            pretty: serde_json::ser::PrettyFormatter::new(),
+            level: 0,
+            compact_at: None,
+            depth,
+        }
+    }
+}
+
+/// Forwards a formatter call to the compact or the pretty formatter.
+macro_rules! forward {
+    ($self:ident, $name:ident ( $($arg:expr),* )) => {
+        if $self.compact_at.is_some() {
+            serde_json::ser::CompactFormatter.$name($($arg),*)
+        } else {
+            $self.pretty.$name($($arg),*)
+        }
+    };
+}
+
+impl serde_json::ser::Formatter for SeriesOnOneLine {
+    fn begin_array<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        self.level += 1;
+        if self.compact_at.is_none() && self.level >= self.depth {
+            self.compact_at = Some(self.level);
+        }
+        forward!(self, begin_array(w))
+    }
+    fn end_array<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        let r = forward!(self, end_array(w));
+        if self.compact_at == Some(self.level) {
+            self.compact_at = None;
+        }
+        self.level -= 1;
+        r
+    }
+    fn begin_array_value<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        forward!(self, begin_array_value(w, first))
+    }
+    fn end_array_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        forward!(self, end_array_value(w))
+    }
+    fn begin_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        self.level += 1;
+        forward!(self, begin_object(w))
+    }
+    fn end_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        let r = forward!(self, end_object(w));
+        self.level -= 1;
+        r
+    }
+    fn begin_object_key<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        forward!(self, begin_object_key(w, first))
+    }
+    fn begin_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        forward!(self, begin_object_value(w))
+    }
+    fn end_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        forward!(self, end_object_value(w))
+    }
+}
+
 /// One predicted quantity: its name, unit, mean error and fit % of a horizon.
 #[derive(Debug, Clone, Copy)]
 pub struct Quantity {
@@ -537,7 +920,9 @@ pub const QUANTITIES: [Quantity; 4] = [
 ];
 
 /// The k-step predictions of several models on one set of logs: what `tagk compare` prints
-/// and writes (`--json`: `{"models": [{"model": …, "horizons": […]}]}`).
+/// and writes (`--json`: `{"models": [{"model": …, "horizons": […], "overlays": […]}]}`).
+/// The constant-rate reference is an entry named [`CONSTANT_RATE`]. The key `overlays` is
+/// absent where none was asked.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Comparison {
     /// One entry per model, in the order given.
@@ -551,6 +936,20 @@ pub struct ModelPrediction {
     pub model: String,
     /// The errors per horizon ([`Prediction::horizons`]).
     pub horizons: Vec<HorizonError>,
+    /// The overlays ([`Prediction::overlays`]); not written when empty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub overlays: Vec<Overlay>,
+}
+
+impl ModelPrediction {
+    /// The entry of `model` (a name) from its prediction.
+    pub fn new(model: impl Into<String>, prediction: Prediction) -> Self {
+        Self {
+            model: model.into(),
+            horizons: prediction.horizons,
+            overlays: prediction.overlays,
+        }
+    }
 }
 
 impl Comparison {
@@ -558,8 +957,17 @@ impl Comparison {
     ///
     /// # Errors
     /// [`DiagnoseError::Output`] if serialisation fails.
+    /// An overlay's series (arrays nested six levels deep or more) are written each on one
+    /// line: pretty-printed, a long log's overlay would take one line per number.
     pub fn to_json(&self) -> Result<String, DiagnoseError> {
-        serde_json::to_string_pretty(self).map_err(|e| DiagnoseError::Output {
+        let mut out = Vec::new();
+        let mut ser = serde_json::Serializer::with_formatter(&mut out, SeriesOnOneLine::new(6));
+        self.serialize(&mut ser)
+            .map_err(|e| DiagnoseError::Output {
+                path: "<json>".into(),
+                message: e.to_string(),
+            })?;
+        String::from_utf8(out).map_err(|e| DiagnoseError::Output {
             path: "<json>".into(),
             message: e.to_string(),
         })
@@ -571,7 +979,12 @@ impl Comparison {
         use std::fmt::Write as _;
         let mut out = String::new();
         for (k, m) in self.models.iter().enumerate() {
-            let _ = writeln!(out, "model {}: {}", k + 1, m.model);
+            let note = if m.model == CONSTANT_RATE {
+                " (reference: body rate and velocity held)"
+            } else {
+                ""
+            };
+            let _ = writeln!(out, "model {}: {}{note}", k + 1, m.model);
         }
         let Some(first) = self.models.first() else {
             return out;
@@ -616,6 +1029,69 @@ impl Comparison {
                 }
             }
             out.push('\n');
+        }
+        out.push_str(&self.overlay_summary());
+        out
+    }
+
+    /// One line per model and overlay horizon: the largest error of each quantity and when it
+    /// occurs (the end of the prediction; with several logs, which log). Empty without
+    /// overlays.
+    pub fn overlay_summary(&self) -> String {
+        use std::fmt::Write as _;
+        let mut out = String::new();
+        let mut hs: Vec<(usize, f64)> = Vec::new();
+        for o in self.models.iter().flat_map(|m| &m.overlays) {
+            if !hs.iter().any(|(h, _)| *h == o.h) {
+                hs.push((o.h, o.dt));
+            }
+        }
+        if hs.is_empty() {
+            return out;
+        }
+        let several = self
+            .models
+            .iter()
+            .flat_map(|m| &m.overlays)
+            .any(|o| o.log > 0);
+        out.push_str("\nlargest error at the overlay horizons (at t, the end of the prediction)\n");
+        for (h, dt) in hs {
+            for (k, m) in self.models.iter().enumerate() {
+                let _ = write!(out, "h {h:>4} ({:.3} s) model {:>2}:", h as f64 * dt, k + 1);
+                for (q, quantity) in QUANTITIES.iter().enumerate() {
+                    let peak = m
+                        .overlays
+                        .iter()
+                        .filter(|o| o.h == h)
+                        .filter_map(|o| o.peak(q))
+                        .max_by(|a, b| a.error.total_cmp(&b.error));
+                    let sep = if q == 0 { " " } else { ", " };
+                    match peak {
+                        Some(p) if several => {
+                            let _ = write!(
+                                out,
+                                "{sep}{} {:.2e} {} at {:.2} s (log {})",
+                                quantity.name,
+                                p.error,
+                                quantity.unit,
+                                p.t,
+                                p.log + 1
+                            );
+                        }
+                        Some(p) => {
+                            let _ = write!(
+                                out,
+                                "{sep}{} {:.2e} {} at {:.2} s",
+                                quantity.name, p.error, quantity.unit, p.t
+                            );
+                        }
+                        None => {
+                            let _ = write!(out, "{sep}{} n/a", quantity.name);
+                        }
+                    }
+                }
+                out.push('\n');
+            }
         }
         out
     }

@@ -7,8 +7,9 @@ mod common;
 use nalgebra::{Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
 use tagk_diagnose::model_file::ModelCoefficient;
 use tagk_diagnose::{
-    BodyState, EffectKind, FlightLog, LogSample, Model, ModelContext, ModelEffect, ModelFile,
-    Signals, builtin, builtin_effects, fit_percent, k_step_prediction,
+    BodyState, CONSTANT_RATE, Comparison, EffectKind, FlightLog, LogSample, Model, ModelContext,
+    ModelEffect, ModelFile, ModelPrediction, Predictor, Signals, builtin, builtin_effects,
+    constant_rate_prediction, fit_percent, k_step_prediction, predict_logs,
 };
 use tagk_dynamics::GRAVITY_WORLD;
 
@@ -443,6 +444,57 @@ fn on_a_simulator_log_with_hidden_drag_the_true_model_predicts_far_better() {
     // h = 1 with the true model: the simulator's own RK4 at 2 ms against one RK4 step of
     // 20 ms, nothing else.
     let h1 = &p_drag.horizons[0];
+    // The overlay at h = 1 of the true model follows the log sample by sample, component by
+    // component; its mean error norms are the horizon's.
+    let o = predict_logs(
+        std::slice::from_ref(&s),
+        Predictor::Model(&drag_true),
+        &[1],
+        &[1, 50],
+    )
+    .unwrap();
+    assert_eq!(o.overlays.len(), 2);
+    let o1 = &o.overlays[0];
+    assert_eq!((o1.h, o1.log), (1, 0));
+    assert_eq!(o1.t.len(), o1.error.position.len());
+    assert!(
+        o1.t.len() > s.len() * 9 / 10,
+        "{} of {}",
+        o1.t.len(),
+        s.len()
+    );
+    // The first 0.1 s are the simulator's start (its first control step): left out of the
+    // sample-by-sample check, kept in the mean. The body rate's bound is the log's: its
+    // wrench is held over a 20 ms step, the simulator's is not.
+    for (q, tol) in [1.5e-5, 3e-3, 5e-4, 0.1].into_iter().enumerate() {
+        let worst = o1
+            .logged
+            .of(q)
+            .iter()
+            .zip(o1.predicted.of(q))
+            .zip(&o1.t)
+            .filter(|(_, t)| **t >= 0.1)
+            .flat_map(|((a, b), _)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+            .fold(0.0_f64, f64::max);
+        let peak = o1.peak(q).unwrap();
+        eprintln!(
+            "overlay h=1 quantity {q}: worst component difference {worst:e}, peak {:e} at {} s",
+            peak.error, peak.t
+        );
+        assert!(worst < tol, "quantity {q}: {worst:e}");
+        let mean = o1.error.of(q).iter().sum::<f64>() / o1.t.len() as f64;
+        let from_horizon = [h1.position, h1.velocity, h1.attitude, h1.body_rate][q];
+        assert!(
+            (mean - from_horizon).abs() <= 1e-12 * from_horizon.max(1e-300),
+            "{mean} vs {from_horizon}"
+        );
+    }
+    // Each overlay point is the logged sample at its time.
+    for (k, t) in o1.t.iter().enumerate().step_by(50) {
+        let i = s.t.iter().position(|x| x == t).unwrap();
+        assert_eq!(o1.logged.position[k], out.log.position[i]);
+        assert_eq!(o1.logged.body_rate[k], out.log.omega[i]);
+    }
     assert!(h1.position < 1e-6, "h=1 position {:e} m", h1.position);
     assert!(h1.velocity < 1e-4, "h=1 velocity {:e} m/s", h1.velocity);
     assert!(h1.attitude < 1e-5, "h=1 attitude {:e} rad", h1.attitude);
@@ -462,4 +514,206 @@ fn on_a_simulator_log_with_hidden_drag_the_true_model_predicts_far_better() {
             a.velocity
         );
     }
+}
+
+/// A log of `state(t)` sampled every `DT` for `n` samples, no wrench.
+fn log_of(n: usize, state: impl Fn(f64) -> BodyState) -> FlightLog {
+    let mut log = FlightLog::new();
+    for k in 0..n {
+        let t = k as f64 * DT;
+        log.push(&sample(t, &state(t), [0.0; 6]));
+    }
+    log
+}
+
+#[test]
+fn the_constant_rate_reference_is_exact_on_a_constant_rate_flight() {
+    // Closed form: ω constant in the body, R(t) = R0 exp(t [ω]×), v constant, p linear. The
+    // yaw turns through ±π several times (4 s at 2 rad/s about a tilted axis).
+    let w = Vector3::new(0.4, -0.3, 2.0);
+    let q0 = UnitQuaternion::from_euler_angles(0.2, -0.1, 2.9);
+    let (p0, v0) = (Vector3::new(1.0, -2.0, 1.5), Vector3::new(0.3, 0.2, -0.1));
+    let state = |t: f64| BodyState {
+        position: p0 + v0 * t,
+        velocity: v0,
+        attitude: q0
+            * UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(w), w.norm() * t),
+        omega: w,
+    };
+    let s = Signals::from_log(&log_of(400, state)).unwrap();
+    let p = constant_rate_prediction(&s, &[1, 10, 50]).unwrap();
+    for e in &p.horizons {
+        eprintln!("{e:?}");
+        assert!(e.position < 1e-12, "h {}: {:e} m", e.h, e.position);
+        assert!(e.velocity < 1e-12, "h {}: {:e} m/s", e.h, e.velocity);
+        assert!(e.attitude < 1e-9, "h {}: {:e} rad", e.h, e.attitude);
+        assert!(e.body_rate < 1e-12, "h {}: {:e} rad/s", e.h, e.body_rate);
+    }
+    // The rigid body of a flat disc spins about another axis: the test can tell them apart.
+    let disc = ModelFile::rigid_body([0.03, 0.0, 0.0, 0.0, 1e-5, 0.0, 1e-5, 0.0, 0.0, 2e-5]);
+    let r = k_step_prediction(&s, &disc, &[50]).unwrap();
+    assert!(r.horizons[0].attitude > 1e-3, "{:?}", r.horizons[0]);
+    // The overlay: the logged Euler angles unwrapped (no jump of 2π), the predicted ones on them.
+    let o = predict_logs(
+        std::slice::from_ref(&s),
+        Predictor::ConstantRate,
+        &[1],
+        &[50],
+    )
+    .unwrap();
+    let ov = &o.overlays[0];
+    assert_eq!(ov.t.len(), 400 - 50);
+    let yaw: Vec<f64> = ov.logged.attitude.iter().map(|a| a[2]).collect();
+    assert!(yaw.windows(2).all(|w| (w[1] - w[0]).abs() < 0.1));
+    assert!(
+        yaw.last().unwrap() - yaw[0] > 4.0,
+        "{} → {}",
+        yaw[0],
+        yaw.last().unwrap()
+    );
+    for (a, b) in ov.logged.attitude.iter().zip(&ov.predicted.attitude) {
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() < 1e-9, "{a:?} vs {b:?}");
+        }
+    }
+}
+
+#[test]
+fn the_constant_rate_reference_misses_half_a_t_squared_under_constant_acceleration() {
+    // p = p0 + v0 t + a t²/2, v = v0 + a t, attitude fixed, ω = 0: from t0 the held velocity
+    // misses p(t0 + τ) by a τ²/2 and v by a τ, τ = k dt, whatever t0.
+    let a = Vector3::new(0.6, -0.2, 1.1);
+    let (p0, v0) = (Vector3::new(0.0, 1.0, 2.0), Vector3::new(-0.5, 0.4, 0.0));
+    let q0 = UnitQuaternion::from_euler_angles(0.1, 0.2, 0.3);
+    let state = |t: f64| BodyState {
+        position: p0 + v0 * t + 0.5 * a * t * t,
+        velocity: v0 + a * t,
+        attitude: q0,
+        omega: Vector3::zeros(),
+    };
+    let s = Signals::from_log(&log_of(300, state)).unwrap();
+    let horizons = [1, 7, 50];
+    let p = predict_logs(
+        std::slice::from_ref(&s),
+        Predictor::ConstantRate,
+        &horizons,
+        &[7],
+    )
+    .unwrap();
+    for e in &p.horizons {
+        let tau = e.h as f64 * DT;
+        let (dp, dv) = (0.5 * a.norm() * tau * tau, a.norm() * tau);
+        eprintln!(
+            "h {}: {:e} vs {dp:e} m, {:e} vs {dv:e} m/s",
+            e.h, e.position, e.velocity
+        );
+        assert!(
+            (e.position - dp).abs() < 1e-9 * dp,
+            "h {}: {} vs {dp}",
+            e.h,
+            e.position
+        );
+        assert!(
+            (e.velocity - dv).abs() < 1e-9 * dv,
+            "h {}: {} vs {dv}",
+            e.h,
+            e.velocity
+        );
+        assert!(e.attitude < 1e-12 && e.body_rate == 0.0, "{e:?}");
+    }
+    // The overlay at h = 7: each prediction is the closed form from 7 steps earlier.
+    let ov = &p.overlays[0];
+    for (k, t) in ov.t.iter().enumerate() {
+        let t0 = t - 7.0 * DT;
+        let start = state(t0);
+        let expected = start.position + start.velocity * (7.0 * DT);
+        for c in 0..3 {
+            assert!((ov.predicted.position[k][c] - expected[c]).abs() < 1e-12);
+            assert!((ov.predicted.velocity[k][c] - start.velocity[c]).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn a_comparison_with_overlays_round_trips_through_json_and_html() {
+    let a = Vector3::new(0.6, -0.2, 1.1);
+    let state = |t: f64| BodyState {
+        position: 0.5 * a * t * t,
+        velocity: a * t,
+        attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3 * t),
+        omega: Vector3::new(0.0, 0.0, 0.3),
+    };
+    let s = Signals::from_log(&log_of(200, state)).unwrap();
+    let logs = std::slice::from_ref(&s);
+    let model = ModelFile::rigid_body(THETA);
+    let with = |overlays: &[usize]| Comparison {
+        models: vec![
+            ModelPrediction::new(
+                "m.toml",
+                predict_logs(logs, Predictor::Model(&model), &[1, 10], overlays).unwrap(),
+            ),
+            ModelPrediction::new(
+                CONSTANT_RATE,
+                predict_logs(logs, Predictor::ConstantRate, &[1, 10], overlays).unwrap(),
+            ),
+        ],
+    };
+    let c = with(&[2, 10]);
+    let json: serde_json::Value = serde_json::from_str(&c.to_json().unwrap()).unwrap();
+    let keys = |v: &serde_json::Value| {
+        let mut k: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
+        k.sort();
+        k
+    };
+    assert_eq!(keys(&json), ["models"]);
+    let m1 = &json["models"][1];
+    assert_eq!(m1["model"], CONSTANT_RATE);
+    assert_eq!(keys(m1), ["horizons", "model", "overlays"]);
+    assert_eq!(m1["horizons"].as_array().unwrap().len(), 2);
+    let o = &m1["overlays"][1];
+    assert_eq!(
+        keys(o),
+        ["dt", "error", "h", "log", "logged", "predicted", "t"]
+    );
+    assert_eq!(
+        keys(&o["logged"]),
+        ["attitude", "body_rate", "position", "velocity"]
+    );
+    assert_eq!(o["h"], 10);
+    // serde_json reads floats to within an ulp or so (no `float_roundtrip` feature).
+    let back: Vec<f64> = serde_json::from_value(o["t"].clone()).unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-15 * a.abs().max(1.0);
+    assert_eq!(back.len(), c.models[1].overlays[1].t.len());
+    assert!(
+        back.iter()
+            .zip(&c.models[1].overlays[1].t)
+            .all(|(a, b)| close(*a, *b))
+    );
+    let rate: Vec<[f64; 3]> = serde_json::from_value(o["predicted"]["body_rate"].clone()).unwrap();
+    let ours = &c.models[1].overlays[1].predicted.body_rate;
+    assert_eq!(rate.len(), ours.len());
+    assert!(
+        rate.iter()
+            .zip(ours)
+            .all(|(a, b)| (0..3).all(|k| close(a[k], b[k])))
+    );
+    // The series are written one per line, the rest as before.
+    let text = c.to_json().unwrap();
+    assert!(text.lines().count() < 200, "{} lines", text.lines().count());
+    assert!(text.contains("\n          \"h\": 1,\n"), "{}", &text[..400]);
+    // Without overlays, the old shape exactly.
+    let plain: serde_json::Value = serde_json::from_str(&with(&[]).to_json().unwrap()).unwrap();
+    assert_eq!(keys(&plain["models"][0]), ["horizons", "model"]);
+    // The page: the error plots, then per horizon 4 error-over-time and 12 overlay plots.
+    let html = tagk_diagnose::html::render_comparison(&c);
+    assert_eq!(html.matches("<svg").count(), 4 + 2 * 16);
+    assert!(html.contains("id=\"overlay-h2\"") && html.contains("id=\"overlay-h10\""));
+    assert!(html.contains("body rate r [rad/s], h = 10"));
+    let table = c.table();
+    assert!(table.contains("constant-rate (reference"), "{table}");
+    assert_eq!(table.matches("\nh   10 ").count(), 2, "{table}");
+    // The logged rate is constant: the constant-rate reference has no body-rate error.
+    assert_eq!(c.models[1].overlays[1].peak(3).unwrap().error, 0.0);
+    // A zero overlay horizon is refused.
+    assert!(predict_logs(logs, Predictor::ConstantRate, &[1], &[0]).is_err());
 }
