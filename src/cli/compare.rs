@@ -31,7 +31,8 @@ pub struct CompareArgs {
     #[arg(long, value_name = "K", default_value_t = 50)]
     pub horizon: usize,
     /// Horizons, in steps, at which to overlay the logged state and the predictions over time
-    /// (comma-separated) [default: the longest horizon, K].
+    /// (comma-separated) [default: the longest horizon, K, on the page only; given, the
+    /// series enter the JSON file too].
     #[arg(
         long,
         value_name = "H,...",
@@ -158,7 +159,16 @@ pub fn run_compare(args: &CompareArgs) -> Result<(), DiagnoseError> {
         })
     };
     if let Some(path) = &args.json {
-        write(path, comparison.to_json()?)?;
+        // The overlays' series (every sample of every log) enter the JSON file only when
+        // asked for: by default they are for the page, and would make the file 40 MB per
+        // model on a 10-minute log.
+        if args.overlay.is_empty() {
+            let mut slim = comparison.clone();
+            slim.models.iter_mut().for_each(|m| m.overlays.clear());
+            write(path, slim.to_json()?)?;
+        } else {
+            write(path, comparison.to_json()?)?;
+        }
     }
     if let Some(path) = &args.report {
         write(path, crate::diagnose::html::render_comparison(&comparison))?;
