@@ -13,8 +13,8 @@
 //!    errors of the diagnosed model, of the rigid body (the staircase's first step) and of the
 //!    constant-rate reference (`tagk::diagnose::Predictor::ConstantRate`).
 //!
-//! A model whose spatial inertia is not positive definite cannot be integrated. Its errors
-//! are infinite: it meets no target.
+//! A model whose spatial inertia is not positive definite, or whose open-loop state diverges
+//! within the horizon, cannot be integrated. Its errors are infinite: it meets no target.
 //!
 //! It prints one line per flight, then the medians of the error ratios and the fractions of
 //! flights where the diagnosed model's body-rate error is at most half the constant-rate's
@@ -265,7 +265,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let log = fly(&held_out)?;
             let d_logs = read_as(&diagnosed, &log)?;
             let r_logs = read_as(&rigid, &log)?;
-            // A model without a positive-definite spatial inertia cannot be integrated: it
+            // A model without a positive-definite spatial inertia, or whose open-loop state
+            // leaves the finite numbers within the horizon, cannot be integrated: it
             // predicts nothing (its errors infinite).
             let at = |logs: &[Signals],
                       p: Predictor<'_>|
@@ -342,7 +343,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     );
     println!(
-        "models that cannot be integrated (spatial inertia not positive definite): diagnosed {}/{n}, rigid {}/{n}",
+        "models that cannot be integrated (spatial inertia not positive definite, or the open-loop state diverges): diagnosed {}/{n}, rigid {}/{n}",
         unpredictable(&|s| &s.diagnosed),
         unpredictable(&|s| &s.rigid),
     );
@@ -361,7 +362,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         share(&|s| s.diagnosed.velocity <= s.rigid.velocity),
     );
     println!(
-        "horizon {} steps = {:.3} s (the log's step {:.3} s); a model without a positive-definite spatial inertia predicts nothing (inf)",
+        "horizon {} steps = {:.3} s (the log's step {:.3} s); a model that cannot be integrated predicts nothing (inf)",
         args.horizon,
         args.horizon as f64 * *step.borrow(),
         *step.borrow()

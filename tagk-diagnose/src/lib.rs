@@ -42,7 +42,10 @@ pub use effects::{
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
-pub use fit::{ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95, fit_model};
+pub use fit::{
+    CONSISTENT_MARGIN, ChannelFit, Coefficient, Fit, FittedEffect, Model, TargetFilter, Z_95,
+    fit_model,
+};
 pub use glitches::{Glitch, SampleSource};
 pub use log::{FlightLog, LogSample};
 pub use log_params::{

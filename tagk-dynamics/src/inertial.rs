@@ -415,30 +415,36 @@ impl InertialParams {
 impl InertialParams {
     /// The physically consistent parameters nearest to θ in the metric of an information
     /// matrix `information` (the inverse of an estimate's covariance, SI units of θ): the
-    /// minimiser of `(θ' − θ)ᵀ P (θ' − θ)` over θ' whose pseudo-inertia is positive
-    /// semidefinite. With `P` the inverse covariance of a least-squares estimate, it is the
+    /// minimiser of `(θ' − θ)ᵀ P (θ' − θ)` over θ' whose pseudo-inertia has every eigenvalue
+    /// at least `min_eigenvalue` (`ε ≥ 0`, units of `J`; `ε > 0` keeps θ' off the boundary,
+    /// where the body would be flat and its spatial inertia singular). With `P` the inverse covariance of a least-squares estimate, it is the
     /// most likely consistent θ' under Gaussian errors: it moves an estimate most along the
     /// directions the data determine least.
     ///
-    /// A consistent θ (smallest pseudo-inertia eigenvalue ≥ 0) is returned unchanged. The
-    /// search runs over the Cholesky factor of the pseudo-inertia, `J = C Cᵀ` (Levenberg–
-    /// Marquardt from the eigenvalue clipping of [`project_to_consistent`](Self::project_to_consistent)).
+    /// A θ whose smallest pseudo-inertia eigenvalue is at least `ε` is returned unchanged. The
+    /// search runs over the Cholesky factor of the pseudo-inertia, `J = C Cᵀ + ε 1`
+    /// (Levenberg–Marquardt from the eigenvalue clipping of
+    /// [`project_to_consistent`](Self::project_to_consistent)).
     /// `P` is regularised by `1e-9` of its own diagonal, so that a singular `P` still has a
     /// unique answer. A parameter without information (a zero diagonal) is weighted like the
     /// least determined one, relative to the Frobenius metric of `J`. A non-finite θ or `P`
-    /// falls back to [`project_to_consistent`](Self::project_to_consistent) with `ε = 0`.
-    pub fn nearest_consistent(&self, information: &[[f64; 10]; 10]) -> Self {
+    /// falls back to [`project_to_consistent`](Self::project_to_consistent).
+    pub fn nearest_consistent(&self, information: &[[f64; 10]; 10], min_eigenvalue: f64) -> Self {
         use nalgebra::{SMatrix, SVector};
         type M10 = SMatrix<f64, 10, 10>;
         type V10 = SVector<f64, 10>;
         if !self.is_finite() {
             return *self;
         }
-        let eig = self.pseudo_inertia().symmetric_eigen();
-        if eig.eigenvalues.min() >= 0.0 {
+        let eps = if min_eigenvalue.is_finite() {
+            min_eigenvalue.max(0.0)
+        } else {
+            0.0
+        };
+        if self.pseudo_inertia().symmetric_eigenvalues().min() >= eps {
             return *self;
         }
-        let clipped = self.project_to_consistent(0.0);
+        let clipped = self.project_to_consistent(eps);
         let p = M10::from_fn(|i, j| 0.5 * (information[i][j] + information[j][i]));
         if !p.iter().all(|x| x.is_finite()) {
             return clipped;
@@ -492,12 +498,13 @@ impl InertialParams {
             c
         };
         let theta_of = |j: &Matrix4<f64>| V10::from_column_slice(&Self::from_pseudo_inertia(j).0);
+        let lifted = Matrix4::identity() * eps;
         let residual = |x: &V10| {
             let c = factor(x);
-            root * (theta_of(&(c * c.transpose())) - target)
+            root * (theta_of(&(c * c.transpose() + lifted)) - target)
         };
-        // The start: the Cholesky factor of the clipped J, nudged inside the cone.
-        let j0 = clipped.pseudo_inertia();
+        // The start: the Cholesky factor of the clipped J − ε 1, nudged inside the cone.
+        let j0 = clipped.pseudo_inertia() - lifted;
         let nudge = 1e-12 * j0.symmetric_eigenvalues().amax().max(f64::MIN_POSITIVE);
         let Some(c0) = (j0 + Matrix4::identity() * nudge).cholesky() else {
             return clipped;
@@ -544,7 +551,7 @@ impl InertialParams {
             }
         }
         let c = factor(&x);
-        Self::from_pseudo_inertia(&(c * c.transpose()))
+        Self::from_pseudo_inertia(&(c * c.transpose() + lifted))
     }
 }
 

@@ -629,15 +629,16 @@ fn nearest_consistent_in_the_frobenius_metric_is_the_eigenvalue_clipping() {
             continue;
         }
         tried += 1;
-        let want = bad.project_to_consistent(0.0);
-        let got = bad.nearest_consistent(&p);
         let scale = (bad.pseudo_inertia()).norm();
+        let eps = [0.0, 1e-4 * scale][tried % 2];
+        let want = bad.project_to_consistent(eps);
+        let got = bad.nearest_consistent(&p, eps);
         let gap = (got.pseudo_inertia() - want.pseudo_inertia()).norm();
         assert!(
             gap <= 1e-6 * scale,
             "case {tried}: {gap:e} from the clipping (scale {scale:e})"
         );
-        assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= -1e-12 * scale);
+        assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= eps - 1e-12 * scale);
     }
 }
 
@@ -656,12 +657,12 @@ fn nearest_consistent_moves_along_the_least_determined_direction() {
     let se: [f64; 10] = [1e-4, 1e-5, 1e-5, 1e-5, 2e-7, 1e-7, 2e-7, 1e-7, 1e-7, 2e-5];
     let p: [[f64; 10]; 10] =
         std::array::from_fn(|i| std::array::from_fn(|j| if i == j { se[i].powi(-2) } else { 0.0 }));
-    assert_eq!(body.nearest_consistent(&p), body);
+    assert_eq!(body.nearest_consistent(&p, 0.0), body);
     let mut t: [f64; 10] = body.as_slice().try_into().unwrap();
     t[9] = 4.0e-5; // I_zz beyond I_xx + I_yy = 3.2e-5 (+ the offset's share)
     let bad = InertialParams::from_array(t);
     assert!(bad.min_pseudo_inertia_eigenvalue().unwrap() < 0.0);
-    let got = bad.nearest_consistent(&p);
+    let got = bad.nearest_consistent(&p, 0.0);
     let scale = bad.pseudo_inertia().norm();
     assert!(got.min_pseudo_inertia_eigenvalue().unwrap() >= -1e-12 * scale);
     let i = got.inertia_origin();
@@ -696,5 +697,8 @@ fn nearest_consistent_moves_along_the_least_determined_direction() {
     }
     // Non-finite information: the clipping.
     let nan = [[f64::NAN; 10]; 10];
-    assert_eq!(bad.nearest_consistent(&nan), bad.project_to_consistent(0.0));
+    assert_eq!(
+        bad.nearest_consistent(&nan, 0.0),
+        bad.project_to_consistent(0.0)
+    );
 }

@@ -327,6 +327,10 @@ pub struct ChannelFit {
     pub rms: f64,
 }
 
+/// The smallest pseudo-inertia eigenvalue of a repaired fit ([`Fit::consistent_theta`]), as a
+/// fraction of its largest second moment: a Crazyflie's smallest is a tenth of its largest.
+pub const CONSISTENT_MARGIN: f64 = 1e-3;
+
 /// Result of fitting a [`Model`].
 #[derive(Debug, Clone)]
 pub struct Fit {
@@ -374,7 +378,10 @@ impl Fit {
     /// one whose pseudo-inertia has a negative eigenvalue is no body's. The repair moves it
     /// most along the directions the log determines least (an inertia the flight hardly
     /// excites). A parameter without a standard error carries no information and moves
-    /// freely, except a mass without one (a known mass), which stays.
+    /// freely, except a mass without one (a known mass), which stays. The repaired body keeps
+    /// every pseudo-inertia eigenvalue at least [`CONSISTENT_MARGIN`] of its largest second
+    /// moment: on the boundary it would be flat, and its spatial inertia singular (a model
+    /// that cannot be integrated).
     pub fn consistent_theta(&self) -> InertialParams {
         if self
             .theta
@@ -383,6 +390,13 @@ impl Fit {
         {
             return self.theta;
         }
+        let second_moment = self
+            .theta
+            .pseudo_inertia()
+            .fixed_view::<3, 3>(0, 0)
+            .into_owned();
+        let largest = second_moment.symmetric_eigenvalues().max().max(0.0);
+        let margin = CONSISTENT_MARGIN * largest;
         let known: Vec<usize> = (0..10)
             .filter(|&k| self.theta_cov[k][k].is_finite() && self.theta_cov[k][k] > 0.0)
             .collect();
@@ -418,7 +432,7 @@ impl Fit {
             let most = (0..10).map(|k| p[k][k]).fold(1.0f64, f64::max);
             p[0][0] = 1e6 * most;
         }
-        self.theta.nearest_consistent(&p)
+        self.theta.nearest_consistent(&p, margin)
     }
 
     /// Residual of one channel as a series.
