@@ -1,9 +1,9 @@
 //! The scans' sampled columns ([`Effect::sampled_columns`], [`sampled_effect_design`],
-//! [`GramEngine::evaluate_sampled`]) against the full columns subsampled, and their window
-//! columns ([`Effect::window_columns`], [`window_effect_design`],
-//! [`GramEngine::evaluate_window`]) against the full columns cut: the same bits, for every
-//! built-in effect, with and without rotor speeds, on smoothed and joined logs, and for a
-//! user effect whose sampled columns are malformed.
+//! [`GramEngine::evaluate_sampled`]) against the full columns subsampled. Their window columns
+//! ([`Effect::window_columns`], [`window_effect_design`], [`GramEngine::evaluate_window`])
+//! against the full columns cut. Both give the same bits for every built-in effect. The logs
+//! have rotor speeds or not, smoothed channels or not, and some are joined. A user effect
+//! with malformed sampled columns falls back to the full ones.
 
 use nalgebra::{Matrix4, Vector4};
 
@@ -80,8 +80,8 @@ fn assert_same_columns(a: &[EffectColumn], b: &[EffectColumn], what: &str) {
 }
 
 /// Each built-in effect's sampled columns are its full columns at the sampled samples, bit
-/// for bit: at strides that divide the log's length and that do not, at several values of a
-/// scanned parameter, with the rotor mixer (the lag on each rotor) and without it.
+/// for bit. The strides divide the log's length or not. A scanned parameter takes several
+/// values. The lag runs on each rotor (with the rotor mixer) or on the wrench.
 #[test]
 fn sampled_columns_are_the_full_columns_subsampled() {
     let with_rotors = Signals::from_log(&log_with_rotors(1_003, 3)).unwrap();
@@ -119,9 +119,9 @@ fn sampled_columns_are_the_full_columns_subsampled() {
     }
 }
 
-/// Each built-in effect's window columns are its full columns in the window, bit for bit:
-/// windows from the log's start (where a lag's start transient lives), in its middle, at its
-/// end, past its end and empty, with and without the rotor mixer.
+/// Each built-in effect's window columns are its full columns in the window, bit for bit.
+/// The windows lie at the log's start (where a lag's start transient lives), in its middle,
+/// at its end and past it; one is empty. The log has the rotor mixer or not.
 #[test]
 fn window_columns_are_the_full_columns_cut() {
     let with_rotors = Signals::from_log(&log_with_rotors(1_003, 3)).unwrap();
@@ -161,8 +161,8 @@ fn window_columns_are_the_full_columns_cut() {
 }
 
 /// A window engine's evaluation and residual of the window design equal those of the full
-/// design, bit for bit: for the scanned built-ins on a plain log, a log without rotor speeds,
-/// a smoothed log (the full design, cut) and a window at the log's start.
+/// design, bit for bit, for the scanned built-ins. The logs: a plain one, one without rotor
+/// speeds, a smoothed one (the full design, cut). One window starts at the log's start.
 #[test]
 fn window_engines_on_window_designs_equal_them_on_full_designs() {
     let plain = Signals::from_log(&log_with_rotors(6_011, 5)).unwrap();
@@ -206,9 +206,9 @@ fn window_engines_on_window_designs_equal_them_on_full_designs() {
 }
 
 /// A scan engine's evaluation of the sampled design equals its evaluation of the full design
-/// (which reads the same samples), bit for bit: for the two scanned built-ins at several
-/// values, on a plain log, a log with rotor speeds, a log whose accelerations are derived
-/// (smoothed channels: the full design, subsampled) and two joined logs (per-log columns:
+/// (which reads the same samples), bit for bit. The two scanned built-ins take several
+/// values. The logs: a plain one, one with rotor speeds, one whose accelerations are derived
+/// (smoothed channels: the full design, subsampled), and two joined logs (per-log columns:
 /// likewise).
 #[test]
 fn scans_on_sampled_designs_equal_scans_on_full_designs() {
@@ -302,9 +302,9 @@ fn malformed_sampled_columns_fall_back_to_the_full_columns() {
     }
 }
 
-/// A scanned user effect, a lateral drag `sign(v) |v|^p` along body x: at `p = 1` (the
-/// drag hidden in the test log) its column is not finite at sample 1, which a scan of a long
-/// log does not read; at `p = 3` its columns are one value short.
+/// A scanned user effect, a lateral drag `sign(v) |v|^p` along body x. At `p = 1` (the drag
+/// hidden in the test log) its column is not finite at sample 1, which a scan of a long log
+/// does not read. At `p = 3` its columns are one value short.
 #[derive(Debug)]
 struct FaultyScanned;
 

@@ -414,10 +414,10 @@ impl InertialParams {
 
 impl InertialParams {
     /// The physically consistent parameters nearest to θ in the metric of an information
-    /// matrix `information` (the inverse of an estimate's covariance, SI units of θ): the
-    /// minimiser of `(θ' − θ)ᵀ P (θ' − θ)` over θ' whose pseudo-inertia has every eigenvalue
-    /// at least `min_eigenvalue` (`ε ≥ 0`, units of `J`; `ε > 0` keeps θ' off the boundary,
-    /// where the body would be flat and its spatial inertia singular). With `P` the inverse covariance of a least-squares estimate, it is the
+    /// matrix `information` (`P`: the inverse of an estimate's covariance, SI units of θ).
+    /// They minimise `(θ' − θ)ᵀ P (θ' − θ)` over θ' whose pseudo-inertia has every eigenvalue
+    /// at least `min_eigenvalue` (`ε ≥ 0`, units of `J`). An `ε > 0` keeps θ' off the
+    /// boundary, where the body would be flat and its spatial inertia singular. With `P` the inverse covariance of a least-squares estimate, it is the
     /// most likely consistent θ' under Gaussian errors: it moves an estimate most along the
     /// directions the data determine least.
     ///
