@@ -634,11 +634,10 @@ pub fn check_fit(
     vehicle_wrench: bool,
 ) -> Vec<ScaleFinding> {
     let mut out = Vec::new();
-    let p = &report.final_diagnosis().parameters;
-    if p.len() < 10 {
-        return out;
-    }
-    let value = |j: usize| (p[j].value, p[j].std_error.unwrap_or(0.0));
+    // The least-squares estimate (the data's answer), not the reported nearest consistent
+    // body ([`crate::Fit::consistent_theta`]): a negative I_zz is the evidence looked for.
+    let fit = &report.final_diagnosis().fit;
+    let value = |j: usize| (fit.theta.as_slice()[j], fit.theta_se[j].unwrap_or(0.0));
     if mass_fitted && let Some(mv) = vehicle.mass {
         let (m, se) = value(0);
         let ratio = m / mv;
