@@ -601,6 +601,9 @@ impl<'a> Flight<'a> {
                 state,
                 acc,
                 motor_speeds: self.plant.acting_rotor_speeds(state, cmd),
+                motor_accelerations: self
+                    .plant
+                    .rotor_accelerations(state, &self.plant.clamp_speeds(cmd)),
                 now,
                 logged,
             };

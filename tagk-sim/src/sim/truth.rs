@@ -30,6 +30,7 @@
 //! | `linear-drag`, `quadratic-drag`, `rotor-drag` | the drag law at the **ground-relative** velocity |
 //! | `wind` | the drag laws at the air-relative velocity minus the same at the ground-relative velocity |
 //! | `body-bias` | the constant force and torque |
+//! | `rotor-inertia` | the torque `J_r Ḣ e_z + J_r H (Ω × e_z)` of the spinning rotors; without a motor lag only its gyroscopic part (the jumps at new commands are impulses, not in any instant's wrench) |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
 //! ([`PlantEffects::extra_wrench`]): its truth then lists `rotor-drag` (that drag at the
@@ -136,6 +137,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::BodyBias => effects.body_bias.is_some(),
             EffectKind::Wind => effects.wind.is_some(),
             EffectKind::ThrustGain => effects.thrust_gain.is_some(),
+            EffectKind::RotorInertia => effects.rotor_inertia.is_some(),
             _ => false,
         })
         .collect()
@@ -147,6 +149,8 @@ pub(crate) struct TruthInputs<'a> {
     pub(crate) state: &'a PlantState,
     pub(crate) acc: &'a Accelerations,
     pub(crate) motor_speeds: [f64; 4],
+    /// The rates of change of `motor_speeds` \[rad/s²\] (zero without a motor lag).
+    pub(crate) motor_accelerations: [f64; 4],
     pub(crate) now: Wrench,
     pub(crate) logged: Wrench,
 }
@@ -327,6 +331,17 @@ pub(crate) fn truth_parts(
                     force: Vector3::from(b.force),
                     torque: Vector3::from(b.torque),
                 }),
+                EffectKind::RotorInertia => Wrench {
+                    force: Vector3::zeros(),
+                    torque: effects.rotor_inertia.map_or_else(Vector3::zeros, |r| {
+                        r.torque(
+                            &s.body_rate,
+                            &inputs.motor_speeds,
+                            &inputs.motor_accelerations,
+                            &model.spin_directions,
+                        )
+                    }),
+                },
                 _ => Wrench::zero(),
             };
             w.to_array()
