@@ -306,21 +306,13 @@ impl Plant {
     /// spatial inertia's solve of that impulse (the forward dynamics at zero rate, where
     /// they are linear in the wrench).
     fn rotor_jump(&self, s: &mut PlantState, cmd: &[f64; 4]) {
-        let Some(ri) = &self.effects.rotor_inertia else {
-            return;
-        };
-        if self.effects.motor_lag.is_some() {
-            return;
-        }
-        let spins = &self.model.spin_directions;
-        let dh =
-            RotorInertia::spin_sum(cmd, spins) - RotorInertia::spin_sum(&s.rotor_speeds, spins);
-        if dh == 0.0 {
+        let angular = self.rotor_jump_impulse(s, cmd);
+        if angular == Vector3::zeros() {
             return;
         }
         let impulse = Wrench {
             force: Vector3::zeros(),
-            torque: Vector3::new(0.0, 0.0, ri.inertia * dh),
+            torque: angular,
         };
         if let Ok((dv_body, d_rate)) = self.dynamics.accelerations(&impulse, &Vector3::zeros()) {
             s.velocity += s.attitude * dv_body;
@@ -362,6 +354,22 @@ impl Plant {
         }
         self.state = next;
         self.time = t0 + dt;
+    }
+
+    /// The angular impulse on the body when the rotor speeds of state `s` jump to the clamped
+    /// command `cmd` \[rad/s\]: `J_r ΔH e_z`, body frame \[N m s\]. Zero without a
+    /// [`RotorInertia`](crate::plant_effects::RotorInertia) or with a motor lag (the speeds
+    /// then do not jump).
+    pub(crate) fn rotor_jump_impulse(&self, s: &PlantState, cmd: &[f64; 4]) -> Vector3<f64> {
+        match (&self.effects.rotor_inertia, &self.effects.motor_lag) {
+            (Some(ri), None) => {
+                let spins = &self.model.spin_directions;
+                let dh = RotorInertia::spin_sum(cmd, spins)
+                    - RotorInertia::spin_sum(&s.rotor_speeds, spins);
+                Vector3::new(0.0, 0.0, ri.inertia * dh)
+            }
+            _ => Vector3::zeros(),
+        }
     }
 
     /// Applies [`Plant::rotor_jump`] to the current state.

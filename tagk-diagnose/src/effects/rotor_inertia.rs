@@ -16,16 +16,13 @@ pub(crate) const MAX_ROTOR_INERTIA: f64 = CRAZYFLIE_INERTIA[5] / 4.0;
 /// sampling).
 const RATE_HALF_WIDTH: usize = 1;
 
-/// Samples on each side of `i` that the rate at `i` reads, with margin (the window keeps 3
-/// samples at the ends of the log).
-const RATE_REACH: usize = RATE_HALF_WIDTH + 2;
-
 /// Rotor inertia `J_r` \[kg m²\] of each rotor with its motor bell (docs/CONVENTIONS.md §7).
 ///
 /// With the signed spin sum `H = Σ sᵢ ωᵢ` \[rad/s\] of the logged rotor speeds, the rotors add
 /// the torque `J_r Ḣ e_z + J_r H (Ω × e_z)` (body frame). One column, on three channels:
 /// `tx = H q`, `ty = −H p` (gyroscopic, `Ω = (p, q, r)` the logged body rate) and `tz = Ḣ`
-/// (the yaw reaction of the rotors' acceleration). The spin signs `sᵢ` are those of the yaw
+/// (the yaw reaction of the rotors' acceleration, less what a timing error of the actuator log
+/// makes: [`spin_sum_and_rate`]). The spin signs `sᵢ` are those of the yaw
 /// row of the mixer identified from the log.
 ///
 /// `Ḣ` is the local rate of `H`: the crate's Savitzky–Golay differentiator at its narrowest
@@ -59,13 +56,26 @@ fn spin_sum(w: &[[f64; 4]], spins: &[f64; 4]) -> Vec<f64> {
         .collect()
 }
 
-/// `(H, Ḣ)` of the log at every sample, or empty vectors without rotor speeds or mixer.
+/// `(H, Ḣ⊥)` of the log at every sample, or empty vectors without rotor speeds or mixer.
+///
+/// `Ḣ⊥` is `Ḣ` less its least-squares multiple of `τ̇_z`, the rate of the logged yaw torque
+/// (both by the same differentiator). Near hover `τ_z ≈ 2 k_m ω̄ H`, so that multiple is what
+/// a timing error of the actuator log (a delay, a lag's time constant off its grid) leaves on
+/// `tz`: `δ τ̇_z`. The rest is the yaw reaction a timing error cannot make.
 fn spin_sum_and_rate(s: &Signals) -> (Vec<f64>, Vec<f64>) {
     let (Ok(spins), Some(w)) = (spins(s), s.rotor_speeds()) else {
         return (Vec::new(), Vec::new());
     };
     let h = spin_sum(w, &spins);
-    let h_dot = savitzky_golay_derivative(&s.t, &h, RATE_HALF_WIDTH);
+    let mut h_dot = savitzky_golay_derivative(&s.t, &h, RATE_HALF_WIDTH);
+    let tz: Vec<f64> = s.wrench().iter().map(|b| b[5]).collect();
+    let tz_dot = savitzky_golay_derivative(&s.t, &tz, RATE_HALF_WIDTH);
+    let num: f64 = h_dot.iter().zip(&tz_dot).map(|(a, b)| a * b).sum();
+    let den: f64 = tz_dot.iter().map(|b| b * b).sum();
+    let c = if den > 0.0 { num / den } else { 0.0 };
+    for (x, d) in h_dot.iter_mut().zip(&tz_dot) {
+        *x -= c * d;
+    }
     (h, h_dot)
 }
 
@@ -119,15 +129,10 @@ impl Effect for RotorInertia {
         state: &BodyState,
         _p: Option<f64>,
     ) -> Option<Vec<[f64; 6]>> {
-        let spins = spins(s).ok()?;
-        let w = s.rotor_speeds()?;
-        // The derivative at `i` from its own window (the differentiator is local).
-        let lo = i.saturating_sub(RATE_REACH);
-        let hi = (i + RATE_REACH + 1).min(s.len());
-        let h = spin_sum(&w[lo..hi], &spins);
-        let h_dot = savitzky_golay_derivative(&s.t[lo..hi], &h, RATE_HALF_WIDTH);
-        let (hi_, dot) = (h[i - lo], h_dot[i - lo]);
-        Some(vec![wrench_at(hi_, dot, state.omega.x, state.omega.y)])
+        // The projection reads the whole log: O(n) per call.
+        let (h, h_dot) = spin_sum_and_rate(s);
+        let (&hi, &dot) = (h.get(i)?, h_dot.get(i)?);
+        Some(vec![wrench_at(hi, dot, state.omega.x, state.omega.y)])
     }
     /// `J_r ≥ 0` (beyond 3 standard errors), and at most [`MAX_ROTOR_INERTIA`].
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {

@@ -205,6 +205,21 @@ impl TruthParts {
     }
 }
 
+impl TruthParts {
+    /// These parts with the torque `torque` (body frame \[N m\]) added to the total and to
+    /// effect `effect` (an index into the effects; `None`: the total only). It spreads an
+    /// impulse at the interval's start over the interval, as the differenced gyro sees it.
+    pub(crate) fn with_torque(mut self, effect: Option<usize>, torque: &Vector3<f64>) -> Self {
+        for c in 0..3 {
+            self.wrench[3 + c] += torque[c];
+            if let Some(w) = effect.and_then(|k| self.effects.get_mut(k)) {
+                w[3 + c] += torque[c];
+            }
+        }
+        self
+    }
+}
+
 impl TruthSample {
     /// The truth of a log sample at time `t` \[s\] of a body with parameters `params`. It holds the
     /// state and accelerations at the sample, the logged actuator wrench and the wrenches at the
