@@ -215,11 +215,11 @@ fn model_with_vehicle_or_effect_is_refused() {
 
 /// `rotor-inertia` through the whole chain: `simulate --effect rotor-inertia` → `diagnose
 /// --with rotor-inertia --save-model` → the model file's `J_r` → the plant `simulate --model`
-/// flies (its `rotor_inertia`), and that flight runs.
+/// flies (its `rotor_inertia`), and the command runs.
 ///
 /// Not in [`every_flyable_effect_round_trips`]: on this 50 Hz flight without motor lag the
-/// rotor speeds jump at each command and the default `J_r` is not identified (its interval
-/// spans ±200 times its value, measured), so the flight cannot reproduce its imprint. The
+/// rotor speeds jump at each command and the default `J_r` is not identified (measured: 4.9e-7
+/// for a true 2.5e-8), so the flight cannot reproduce its imprint. The
 /// fit's accuracy is tested where the log resolves the rotors (tagk-diagnose's
 /// `tests/rotor_inertia.rs`).
 #[test]
@@ -254,6 +254,10 @@ fn rotor_inertia_is_carried_from_the_model_file_to_the_plant() {
         .rotor_inertia
         .expect("the plant flies the rotor inertia");
     assert_eq!(flown.inertia, j_r);
-    let again = simulate(&dir, "again.csv", &["--model", "m.toml"]);
-    assert!(!again.t.is_empty());
+    // The command flies it (the flight itself may abort: an unidentified `J_r` of 20 times
+    // the true one, measured, jolts the yaw at every command without a motor lag).
+    let mut args = vec!["simulate", "-o", "again.csv", "--model", "m.toml"];
+    args.extend(FLIGHT);
+    tagk_in(&dir, &args);
+    assert!(dir.join("again.csv").exists());
 }

@@ -13,7 +13,7 @@
 //! wrench of every [`PlantEffect`]: the built-ins of [`PlantEffects::acting`], then the user's
 //! own ([`Plant::with_effect`]).
 //!
-//! With a [`RotorInertia`](crate::plant_effects::RotorInertia) the body also feels the spinning
+//! With a [`RotorInertia`] the body also feels the spinning
 //! rotors: the torque `J_r Ḣ e_z + J_r H (Ω × e_z)`, `H = Σ sᵢ ωᵢ`, with `Ḣ` the motor lag's
 //! rotor acceleration. Without a motor lag the rotor speeds jump at each new command. The
 //! plant then conserves the total angular momentum across the jump ([`Plant::step`]).
@@ -300,7 +300,7 @@ impl Plant {
     }
 
     /// The jump of the body's velocities when the rotor speeds jump to `cmd` \[rad/s\] (no
-    /// motor lag, a [`RotorInertia`](crate::plant_effects::RotorInertia) on). The rotors'
+    /// motor lag, a [`RotorInertia`] on). The rotors'
     /// angular momentum changes by `−J_r ΔH e_z`; the body takes the impulsive torque
     /// `J_r ΔH e_z` about the origin, so the total is conserved. Its velocity change is the
     /// spatial inertia's solve of that impulse (the forward dynamics at zero rate, where
@@ -358,7 +358,7 @@ impl Plant {
 
     /// The angular impulse on the body when the rotor speeds of state `s` jump to the clamped
     /// command `cmd` \[rad/s\]: `J_r ΔH e_z`, body frame \[N m s\]. Zero without a
-    /// [`RotorInertia`](crate::plant_effects::RotorInertia) or with a motor lag (the speeds
+    /// [`RotorInertia`] or with a motor lag (the speeds
     /// then do not jump).
     pub(crate) fn rotor_jump_impulse(&self, s: &PlantState, cmd: &[f64; 4]) -> Vector3<f64> {
         match (&self.effects.rotor_inertia, &self.effects.motor_lag) {
