@@ -17,6 +17,7 @@
 //! | `time-delay` | scanned `delay` \[s\] | `time-delay` of `−delay` (the diagnosis's is positive for an early wrench) |
 //! | `wind` | `k_h, k_z, kv_wx, kv_wy` | `rotor-drag` `K` and `wind` `v_w = kv / k_h` |
 //! | `wind` | `d_x, d_y, d_z, F_wx, F_wy` | `linear-drag` `D` and `wind` `v_w = F_w / d̄` |
+//! | `rotor-inertia` | `J_r` \[kg m²\] | `rotor-inertia`, `J_r` times `1 + κ` (as the inertia) |
 //!
 //! `thrust-gain` is fitted on the thrust alone: the diagnosis's torques stay in units of the
 //! logged torque, so its inertia is the true one over `1 + κ`. The plant's gain scales the
@@ -162,6 +163,8 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
     let mut skipped = Vec::new();
     // The thrust gain's factor on the inertia (see the module's documentation).
     let mut inertia_scale = 1.0;
+    // The rotor inertia, scaled with the body's inertia once the thrust gain is known.
+    let mut rotor_inertia = None;
     for effect in &model.effects {
         if effect.spec.is_some() {
             return Err(ModelPlantError::NotFlyable {
@@ -218,6 +221,7 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 gain: c("c_ge")?,
             })),
             EffectKind::MotorLag => builtins.push((kind, vec![scanned(effect, "tau")?])),
+            EffectKind::RotorInertia => rotor_inertia = Some(c("J_r")?),
             // The diagnosis's delay is positive for an early actuator log; the plant's delays
             // (makes late) the logged wrench.
             EffectKind::TimeDelay => builtins.push((kind, vec![-scanned(effect, "delay")?])),
@@ -248,6 +252,9 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 });
             }
         }
+    }
+    if let Some(j) = rotor_inertia {
+        builtins.push((EffectKind::RotorInertia, vec![j * inertia_scale]));
     }
     let mut theta: [f64; 10] = model.inertial.theta().to_array();
     for i in &mut theta[4..] {

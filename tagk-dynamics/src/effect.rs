@@ -36,11 +36,16 @@ pub enum EffectKind {
     /// A relative error `ε` of the thrust (and reaction-torque) coefficient: the rotors make
     /// `(1 + ε)` times the modelled wrench (dimensionless).
     ThrustGain,
+    /// Rotor and motor-bell inertia `J_r` \[kg m²\] about the spin axis: the yaw reaction
+    /// torque of the rotors' angular acceleration and the gyroscopic roll/pitch torque of their
+    /// spin. Rotor `i` spins at `−sᵢ ωᵢ e_z` (`sᵢ` the reaction-torque sign):
+    /// `τ = J_r (Σ sᵢ ω̇ᵢ) e_z + J_r (Σ sᵢ ωᵢ) Ω × e_z`.
+    RotorInertia,
 }
 
 impl EffectKind {
     /// Every effect, in a fixed order (the order of help texts and reports).
-    pub const ALL: [EffectKind; 9] = [
+    pub const ALL: [EffectKind; 10] = [
         EffectKind::LinearDrag,
         EffectKind::QuadraticDrag,
         EffectKind::RotorDrag,
@@ -50,6 +55,7 @@ impl EffectKind {
         EffectKind::BodyBias,
         EffectKind::Wind,
         EffectKind::ThrustGain,
+        EffectKind::RotorInertia,
     ];
 
     /// The canonical kebab-case name, e.g. `"rotor-drag"`.
@@ -64,6 +70,7 @@ impl EffectKind {
             EffectKind::BodyBias => "body-bias",
             EffectKind::Wind => "wind",
             EffectKind::ThrustGain => "thrust-gain",
+            EffectKind::RotorInertia => "rotor-inertia",
         }
     }
 
@@ -73,6 +80,7 @@ impl EffectKind {
             EffectKind::BodyBias => &["bias", "wrench-bias", "force-bias"],
             EffectKind::ThrustGain => &["thrust-error", "thrust-coefficient"],
             EffectKind::TimeDelay => &["delay"],
+            EffectKind::RotorInertia => &["motor-inertia", "gyroscopic"],
             _ => &[],
         }
     }
@@ -91,6 +99,9 @@ impl EffectKind {
             EffectKind::BodyBias => "constant horizontal body-frame force and torque",
             EffectKind::Wind => "constant wind acting through drag on the air-relative velocity",
             EffectKind::ThrustGain => "relative error of the thrust coefficient",
+            EffectKind::RotorInertia => {
+                "rotor spin inertia J_r: yaw torque of rotor acceleration, gyroscopic roll/pitch"
+            }
         }
     }
 

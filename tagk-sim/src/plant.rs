@@ -12,13 +12,18 @@
 //! The wrench `w` is the rotors' (each thrust scaled by the effects' thrust factors) plus the
 //! wrench of every [`PlantEffect`]: the built-ins of [`PlantEffects::acting`], then the user's
 //! own ([`Plant::with_effect`]).
+//!
+//! With a [`RotorInertia`] the body also feels the spinning
+//! rotors: the torque `J_r Ḣ e_z + J_r H (Ω × e_z)`, `H = Σ sᵢ ωᵢ`, with `Ḣ` the motor lag's
+//! rotor acceleration. Without a motor lag the rotor speeds jump at each new command. The
+//! plant then conserves the total angular momentum across the jump ([`Plant::step`]).
 
 use std::sync::Arc;
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::{ForwardDynamics, GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench};
 
-use crate::plant_effects::{EffectState, PlantEffect, summed_wrench, thrust_factor};
+use crate::plant_effects::{EffectState, PlantEffect, RotorInertia, summed_wrench, thrust_factor};
 use crate::{PlantEffects, SimError};
 
 /// Full plant state.
@@ -228,10 +233,24 @@ impl Plant {
         }
     }
 
+    /// The rates of change of the actual rotor speeds at state `s` under the clamped command
+    /// `cmd` \[rad/s²\]: the motor lag's `(ω_cmd − ω) / τ_m`; zero without a motor lag (the
+    /// speeds then jump at the steps, [`Plant::step`]).
+    pub(crate) fn rotor_accelerations(&self, s: &PlantState, cmd: &[f64; 4]) -> [f64; 4] {
+        match &self.effects.motor_lag {
+            Some(l) => core::array::from_fn(|i| (cmd[i] - s.rotor_speeds[i]) / l.time_constant),
+            None => [0.0; 4],
+        }
+    }
+
     /// Accelerations at state `s` under clamped command `cmd` [rad/s].
     fn accelerations_at(&self, s: &PlantState, cmd: &[f64; 4], time: f64) -> Accelerations {
         let rotor = self.actual_rotor(s, cmd);
-        let wrench = self.wrench_at(s, &rotor, time);
+        let mut wrench = self.wrench_at(s, &rotor, time);
+        if let Some(ri) = &self.effects.rotor_inertia {
+            let rates = self.rotor_accelerations(s, cmd);
+            wrench.torque += ri.torque(&s.body_rate, &rotor, &rates, &self.model.spin_directions);
+        }
         // The parameters were validated on entry, so the solve succeeds for finite input;
         // a non-finite state (a diverged run) propagates as NaN and is caught by the caller.
         let (proper, angular) = self
@@ -258,10 +277,7 @@ impl Plant {
         let acc = self.accelerations_at(s, cmd, time);
         let w = s.body_rate;
         let dq = s.attitude.into_inner() * Quaternion::new(0.0, w.x, w.y, w.z) * 0.5;
-        let dr = match &self.effects.motor_lag {
-            Some(l) => core::array::from_fn(|i| (cmd[i] - s.rotor_speeds[i]) / l.time_constant),
-            None => [0.0; 4],
-        };
+        let dr = self.rotor_accelerations(s, cmd);
         Derivative {
             dp: s.velocity,
             dv: acc.world,
@@ -283,11 +299,36 @@ impl Plant {
         }
     }
 
+    /// The jump of the body's velocities when the rotor speeds jump to `cmd` \[rad/s\] (no
+    /// motor lag, a [`RotorInertia`] on). The rotors'
+    /// angular momentum changes by `−J_r ΔH e_z`; the body takes the impulsive torque
+    /// `J_r ΔH e_z` about the origin, so the total is conserved. Its velocity change is the
+    /// spatial inertia's solve of that impulse (the forward dynamics at zero rate, where
+    /// they are linear in the wrench).
+    fn rotor_jump(&self, s: &mut PlantState, cmd: &[f64; 4]) {
+        let angular = self.rotor_jump_impulse(s, cmd);
+        if angular == Vector3::zeros() {
+            return;
+        }
+        let impulse = Wrench {
+            force: Vector3::zeros(),
+            torque: angular,
+        };
+        if let Ok((dv_body, d_rate)) = self.dynamics.accelerations(&impulse, &Vector3::zeros()) {
+            s.velocity += s.attitude * dv_body;
+            s.body_rate += d_rate;
+        }
+        s.rotor_speeds = *cmd;
+    }
+
     /// Advances the state by one RK4 step of `dt` \[s\] with the rotor-speed command `speeds`
     /// [rad/s] held constant (clamped to `[0, ω_max]`). Without motor lag the actual rotor
-    /// speeds equal the clamped command.
+    /// speeds equal the clamped command. With a rotor inertia and no motor lag, a change of
+    /// the command first changes the body's velocities by the impulse that conserves the
+    /// total angular momentum (rotors and body).
     pub fn step(&mut self, speeds: &[f64; 4], dt: f64) {
         let cmd = self.clamp_speeds(speeds);
+        self.rotor_jump_to(&cmd);
         let s0 = self.state;
         let t0 = self.time;
         let k1 = self.derivative(&s0, &cmd, t0);
@@ -313,6 +354,29 @@ impl Plant {
         }
         self.state = next;
         self.time = t0 + dt;
+    }
+
+    /// The angular impulse on the body when the rotor speeds of state `s` jump to the clamped
+    /// command `cmd` \[rad/s\]: `J_r ΔH e_z`, body frame \[N m s\]. Zero without a
+    /// [`RotorInertia`] or with a motor lag (the speeds
+    /// then do not jump).
+    pub(crate) fn rotor_jump_impulse(&self, s: &PlantState, cmd: &[f64; 4]) -> Vector3<f64> {
+        match (&self.effects.rotor_inertia, &self.effects.motor_lag) {
+            (Some(ri), None) => {
+                let spins = &self.model.spin_directions;
+                let dh = RotorInertia::spin_sum(cmd, spins)
+                    - RotorInertia::spin_sum(&s.rotor_speeds, spins);
+                Vector3::new(0.0, 0.0, ri.inertia * dh)
+            }
+            _ => Vector3::zeros(),
+        }
+    }
+
+    /// Applies [`Plant::rotor_jump`] to the current state.
+    fn rotor_jump_to(&mut self, cmd: &[f64; 4]) {
+        let mut s = self.state;
+        self.rotor_jump(&mut s, cmd);
+        self.state = s;
     }
 
     /// `true` while every state component is finite.

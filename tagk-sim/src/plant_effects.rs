@@ -20,6 +20,7 @@
 //! | `wind` | [`Wind`] | `wind` |
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
+//! | `rotor-inertia` | [`RotorInertia`] (rotor dynamics, applied by the plant) | `rotor_inertia` |
 //!
 //! # The extension point: [`PlantEffect`]
 //!
@@ -39,6 +40,8 @@
 //!   ([`EffectState::air_velocity_body`]), and adds no wrench of its own.
 //! - [`TimeDelay`] acts on the log (the sensing), not on the physics; so do the sensor errors
 //!   of [`crate::Sensing`].
+//! - [`RotorInertia`] needs the rotors' spin directions and accelerations, which an
+//!   [`EffectState`] does not carry; the plant applies it itself ([`RotorInertia::torque`]).
 //!
 //! The effects act on the **plant only**. The measured wrench `b` the estimator sees is always
 //! computed from the measured rotor speeds, with the nominal `k_f`, `k_m` through the mixer.
@@ -409,6 +412,69 @@ impl Default for TimeDelay {
     }
 }
 
+/// Rotor inertia (the vocabulary's `rotor-inertia`): each rotor with its motor bell has the
+/// axial inertia `J_r` \[kg m²\] about its spin axis, body `+z`.
+///
+/// Rotor `i` turns at `ωᵢ ≥ 0` \[rad/s\]; its reaction-torque sign `sᵢ` (docs/CONVENTIONS.md §4)
+/// means it spins about `−sᵢ e_z` (a clockwise rotor, `sᵢ = +1`, spins about `−z`). The rotors'
+/// angular momentum, body frame, is `h_r = −J_r H e_z` with `H = Σ sᵢ ωᵢ` \[rad/s\]. The body's
+/// Euler equation `d/dt(I Ω + h_r) + Ω × (I Ω + h_r) = τ` gives it the extra torque
+/// `τ_r = −ḣ_r − Ω × h_r = J_r Ḣ e_z + J_r H (Ω × e_z)` ([`RotorInertia::torque`]). Speeding up a
+/// rotor turns the body the way its drag reaction `sᵢ k_m ωᵢ²` does.
+///
+/// `Ḣ` is the plant's actual rotor acceleration: the [`MotorLag`]'s derivative. Without a motor
+/// lag the rotor speeds jump to each new command; the plant then conserves the total angular
+/// momentum across the jump. The body takes the impulsive torque `J_r ΔH e_z` (a change of its
+/// angular and linear velocity through the spatial inertia, [`crate::Plant::step`]).
+///
+/// Default [`RotorInertia::crazyflie`]: `J_r = 2.5·10⁻⁸ kg m²`. It is an estimate from the parts,
+/// not a measured value (no published measurement was found). A 45 mm propeller of about
+/// 0.2 g, as a tapered blade, gives about `2·10⁻⁸`; the coreless motor's rotating cup (about
+/// 0.5 g at 3 mm radius) about `0.5·10⁻⁸`. A realistic range is `1·10⁻⁸ … 6·10⁻⁸ kg m²`.
+/// The four rotors hold well under 1 % of the Crazyflie's `I_zz = 2.93·10⁻⁵ kg m²`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RotorInertia {
+    /// Axial inertia of one rotor with its motor bell `J_r` \[kg m²\] (physically `≥ 0`; any
+    /// finite value is flown).
+    pub inertia: f64,
+}
+
+impl RotorInertia {
+    /// `J_r = 2.5·10⁻⁸ kg m²` (an estimate from the Crazyflie 2.x parts).
+    pub fn crazyflie() -> Self {
+        Self { inertia: 2.5e-8 }
+    }
+
+    /// The signed spin sum `H = Σ sᵢ ωᵢ` \[rad/s\] of rotor speeds `speeds` \[rad/s\] with
+    /// reaction-torque signs `spins`.
+    pub fn spin_sum(speeds: &[f64; 4], spins: &[f64; 4]) -> f64 {
+        speeds.iter().zip(spins).map(|(w, s)| s * w).sum()
+    }
+
+    /// The torque the spinning rotors exert on the body, body frame \[N m\]:
+    /// `J_r Ḣ e_z + J_r H (Ω × e_z)`. The inputs are the body rate `body_rate` \[rad/s\], the
+    /// actual rotor speeds `speeds` \[rad/s\], their rates of change `accelerations`
+    /// \[rad/s²\] and the reaction-torque signs `spins`.
+    pub fn torque(
+        &self,
+        body_rate: &Vector3<f64>,
+        speeds: &[f64; 4],
+        accelerations: &[f64; 4],
+        spins: &[f64; 4],
+    ) -> Vector3<f64> {
+        let h = Self::spin_sum(speeds, spins);
+        let h_dot = Self::spin_sum(accelerations, spins);
+        let gyro = body_rate.cross(&Vector3::z()) * (self.inertia * h);
+        gyro + Vector3::new(0.0, 0.0, self.inertia * h_dot)
+    }
+}
+
+impl Default for RotorInertia {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
 impl PlantEffect for RotorDrag {
     fn name(&self) -> &str {
         EffectKind::RotorDrag.name()
@@ -568,6 +634,10 @@ pub struct PlantEffects {
     pub body_bias: Option<BodyBias>,
     /// Delay of the logged wrench behind the logged motion (the log only).
     pub time_delay: Option<TimeDelay>,
+    /// Rotor and motor-bell spin inertia (left out of serialised sets when off, so that they
+    /// read as before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotor_inertia: Option<RotorInertia>,
 }
 
 impl PlantEffects {
@@ -608,6 +678,7 @@ impl PlantEffects {
             EffectKind::ThrustGain => self.thrust_gain = Some(ThrustGain::crazyflie()),
             EffectKind::BodyBias => self.body_bias = Some(BodyBias::crazyflie()),
             EffectKind::TimeDelay => self.time_delay = Some(TimeDelay::crazyflie()),
+            EffectKind::RotorInertia => self.rotor_inertia = Some(RotorInertia::crazyflie()),
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -626,6 +697,7 @@ impl PlantEffects {
             EffectKind::ThrustGain => "relative error [1]",
             EffectKind::BodyBias => "f_x, f_y, f_z [N], t_x, t_y, t_z [N m] (body)",
             EffectKind::TimeDelay => "delay [s]",
+            EffectKind::RotorInertia => "J_r (one rotor) [kg m^2]",
             _ => "",
         }
     }
@@ -694,6 +766,7 @@ impl PlantEffects {
                 });
             }
             EffectKind::TimeDelay => e.time_delay = Some(TimeDelay { delay: c[0] }),
+            EffectKind::RotorInertia => e.rotor_inertia = Some(RotorInertia { inertia: c[0] }),
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         e.validate()?;
@@ -772,6 +845,11 @@ impl PlantEffects {
                 value: d.delay,
                 reason: "must be non-negative and finite",
             });
+        }
+        if let Some(r) = &self.rotor_inertia {
+            // Finite only, as the drag coefficients: a fitted `J_r` may be negative within
+            // its noise, and flying it is the model file's business.
+            finite("rotor_inertia.inertia", &[r.inertia])?;
         }
         Ok(())
     }

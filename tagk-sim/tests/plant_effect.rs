@@ -295,6 +295,13 @@ fn wrench_before_the_trait(
     }
     wrench.force += f;
     wrench.torque += torque;
+    // The rotor inertia without a motor lag: its gyroscopic torque J_r H (q, −p, 0) alone
+    // (constant speeds within a step), H = Σ sᵢ ωᵢ, written out.
+    if let Some(r) = &e.rotor_inertia {
+        let h: f64 = (0..4).map(|i| model.spin_directions[i] * rotor[i]).sum();
+        let (p, q) = (s.body_rate.x, s.body_rate.y);
+        wrench.torque += Vector3::new(r.inertia * h * q, -(r.inertia * h) * p, 0.0);
+    }
     wrench
 }
 

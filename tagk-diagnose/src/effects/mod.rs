@@ -16,6 +16,7 @@ mod custom;
 mod drag;
 mod external;
 mod ground;
+mod rotor_inertia;
 
 #[cfg(test)]
 pub(crate) use actuator::{first_order_lag, shifted};
@@ -419,6 +420,7 @@ pub fn builtin_with(
         EffectKind::BodyBias => Arc::new(external::BodyBias),
         EffectKind::Wind => Arc::new(external::Wind),
         EffectKind::ThrustGain => Arc::new(actuator::ThrustGain),
+        EffectKind::RotorInertia => Arc::new(rotor_inertia::RotorInertia),
         other => return Err(DiagnoseError::NoCandidate(other)),
     };
     Ok(effect)

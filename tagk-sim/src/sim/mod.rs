@@ -601,6 +601,9 @@ impl<'a> Flight<'a> {
                 state,
                 acc,
                 motor_speeds: self.plant.acting_rotor_speeds(state, cmd),
+                motor_accelerations: self
+                    .plant
+                    .rotor_accelerations(state, &self.plant.clamp_speeds(cmd)),
                 now,
                 logged,
             };
@@ -619,8 +622,18 @@ impl<'a> Flight<'a> {
             let rate_change = steps
                 .last()
                 .map_or_else(Vector3::zeros, |(s, _)| s.body_rate - s0.body_rate);
+            // Without a motor lag the rotor inertia's jump at the interval's start is an
+            // impulse: the differenced gyro sees it spread over the interval.
+            let jump = self
+                .plant
+                .rotor_jump_impulse(s0, &self.plant.clamp_speeds(cmd))
+                / self.config.control_dt;
+            let inertia = truth
+                .effects
+                .iter()
+                .position(|e| *e == EffectKind::RotorInertia);
             (
-                TruthParts::mean(&points),
+                TruthParts::mean(&points).with_torque(inertia, &jump),
                 rate_change / self.config.control_dt,
             )
         });

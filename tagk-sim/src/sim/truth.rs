@@ -30,6 +30,7 @@
 //! | `linear-drag`, `quadratic-drag`, `rotor-drag` | the drag law at the **ground-relative** velocity |
 //! | `wind` | the drag laws at the air-relative velocity minus the same at the ground-relative velocity |
 //! | `body-bias` | the constant force and torque |
+//! | `rotor-inertia` | the torque `J_r Ḣ e_z + J_r H (Ω × e_z)` of the spinning rotors; without a motor lag only its gyroscopic part (the jumps at new commands are impulses, not in any instant's wrench) |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
 //! ([`PlantEffects::extra_wrench`]): its truth then lists `rotor-drag` (that drag at the
@@ -136,6 +137,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::BodyBias => effects.body_bias.is_some(),
             EffectKind::Wind => effects.wind.is_some(),
             EffectKind::ThrustGain => effects.thrust_gain.is_some(),
+            EffectKind::RotorInertia => effects.rotor_inertia.is_some(),
             _ => false,
         })
         .collect()
@@ -147,6 +149,8 @@ pub(crate) struct TruthInputs<'a> {
     pub(crate) state: &'a PlantState,
     pub(crate) acc: &'a Accelerations,
     pub(crate) motor_speeds: [f64; 4],
+    /// The rates of change of `motor_speeds` \[rad/s²\] (zero without a motor lag).
+    pub(crate) motor_accelerations: [f64; 4],
     pub(crate) now: Wrench,
     pub(crate) logged: Wrench,
 }
@@ -198,6 +202,21 @@ impl TruthParts {
             wrench: avg(&|p| p.wrench),
             effects: (0..count).map(|e| avg(&|p| p.effects[e])).collect(),
         }
+    }
+}
+
+impl TruthParts {
+    /// These parts with the torque `torque` (body frame \[N m\]) added to the total and to
+    /// effect `effect` (an index into the effects; `None`: the total only). It spreads an
+    /// impulse at the interval's start over the interval, as the differenced gyro sees it.
+    pub(crate) fn with_torque(mut self, effect: Option<usize>, torque: &Vector3<f64>) -> Self {
+        for c in 0..3 {
+            self.wrench[3 + c] += torque[c];
+            if let Some(w) = effect.and_then(|k| self.effects.get_mut(k)) {
+                w[3 + c] += torque[c];
+            }
+        }
+        self
     }
 }
 
@@ -327,6 +346,17 @@ pub(crate) fn truth_parts(
                     force: Vector3::from(b.force),
                     torque: Vector3::from(b.torque),
                 }),
+                EffectKind::RotorInertia => Wrench {
+                    force: Vector3::zeros(),
+                    torque: effects.rotor_inertia.map_or_else(Vector3::zeros, |r| {
+                        r.torque(
+                            &s.body_rate,
+                            &inputs.motor_speeds,
+                            &inputs.motor_accelerations,
+                            &model.spin_directions,
+                        )
+                    }),
+                },
                 _ => Wrench::zero(),
             };
             w.to_array()
