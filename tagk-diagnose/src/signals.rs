@@ -30,6 +30,27 @@ pub(crate) const VELOCITY_SMOOTHING_HALF_WIDTH: usize = 7;
 /// it is read.
 pub(crate) const RIGID_CACHE_SAMPLES: usize = 250_000;
 
+/// Series derived from a log by key, each computed once ([`Signals::derived`]). A clone starts
+/// empty.
+#[derive(Default)]
+struct DerivedCache(
+    std::sync::Mutex<
+        std::collections::HashMap<&'static str, std::sync::Arc<dyn std::any::Any + Send + Sync>>,
+    >,
+);
+
+impl Clone for DerivedCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for DerivedCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("DerivedCache")
+    }
+}
+
 /// Per-sample signals computed once from a [`FlightLog`].
 #[derive(Debug, Clone)]
 pub struct Signals {
@@ -63,6 +84,8 @@ pub struct Signals {
     /// regressor leaves zero are empty), computed on first use for logs of at most
     /// [`RIGID_CACHE_SAMPLES`] samples: a diagnosis reads them hundreds of times.
     rigid_cache: std::sync::OnceLock<Option<std::sync::Arc<Vec<Vec<f64>>>>>,
+    /// Series an effect derives from the whole log, computed on first use ([`Signals::derived`]).
+    derived: DerivedCache,
     /// For several logs joined by [`Signals::concat`]: each log's own signals (empty for one
     /// log). Effects with a time history (lags, delays, start transients) are computed per
     /// log and never across the joins.
@@ -183,6 +206,7 @@ impl Signals {
             log: FlightLog::new(),
             rotor_mixer: std::sync::OnceLock::new(),
             rigid_cache: std::sync::OnceLock::new(),
+            derived: DerivedCache::default(),
             parts: Vec::new(),
         };
         let vs: Vec<Vec<f64>> = (0..3)
@@ -408,6 +432,7 @@ impl Signals {
             log,
             rotor_mixer: std::sync::OnceLock::new(),
             rigid_cache: std::sync::OnceLock::new(),
+            derived: DerivedCache::default(),
             parts,
         })
     }
@@ -537,6 +562,35 @@ impl Signals {
             .get()
             .and_then(|rows| rows.as_ref())
             .map(|rows| rows.as_slice())
+    }
+
+    /// A series derived from the whole log, computed by `make` on first use and kept under
+    /// `key`: what an effect needs at one sample but computes from every sample (the k-step
+    /// prediction asks for one sample at a time). `None` if `key` holds another type.
+    pub(crate) fn derived<T: std::any::Any + Send + Sync>(
+        &self,
+        key: &'static str,
+        make: impl FnOnce() -> T,
+    ) -> Option<std::sync::Arc<T>> {
+        let held = self
+            .derived
+            .0
+            .lock()
+            .ok()
+            .and_then(|map| map.get(key).cloned());
+        let value = match held {
+            Some(v) => v,
+            None => {
+                let v: std::sync::Arc<dyn std::any::Any + Send + Sync> =
+                    std::sync::Arc::new(make());
+                if let Ok(mut map) = self.derived.0.lock() {
+                    map.entry(key).or_insert_with(|| v.clone()).clone()
+                } else {
+                    v
+                }
+            }
+        };
+        value.downcast::<T>().ok()
     }
 
     /// The rotor mixer identified from the log (`None` without rotor speeds, or when the

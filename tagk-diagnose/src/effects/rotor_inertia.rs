@@ -56,6 +56,9 @@ fn spin_sum(w: &[[f64; 4]], spins: &[f64; 4]) -> Vec<f64> {
         .collect()
 }
 
+/// The key of [`spin_sum_and_rate`] in [`Signals::derived`].
+const SPIN_RATE_KEY: &str = "rotor-inertia: H and its rate";
+
 /// `(H, Ḣ⊥)` of the log at every sample, or empty vectors without rotor speeds or mixer.
 ///
 /// `Ḣ⊥` is `Ḣ` less its least-squares multiple of `τ̇_z`, the rate of the logged yaw torque
@@ -129,8 +132,9 @@ impl Effect for RotorInertia {
         state: &BodyState,
         _p: Option<f64>,
     ) -> Option<Vec<[f64; 6]>> {
-        // The projection reads the whole log: O(n) per call.
-        let (h, h_dot) = spin_sum_and_rate(s);
+        // The projection reads the whole log: computed once per log.
+        let series = s.derived(SPIN_RATE_KEY, || spin_sum_and_rate(s))?;
+        let (h, h_dot) = series.as_ref();
         let (&hi, &dot) = (h.get(i)?, h_dot.get(i)?);
         Some(vec![wrench_at(hi, dot, state.omega.x, state.omega.y)])
     }
