@@ -17,6 +17,7 @@
 //! | `time-delay` | scanned `delay` \[s\] | `time-delay` of `−delay` (the diagnosis's is positive for an early wrench) |
 //! | `wind` | `k_h, k_z, kv_wx, kv_wy` | `rotor-drag` `K` and `wind` `v_w = kv / k_h` |
 //! | `wind` | `d_x, d_y, d_z, F_wx, F_wy` | `linear-drag` `D` and `wind` `v_w = F_w / d̄` |
+//! | `rotor-inflow` | `k_in` \[kg/rad\] | `rotor-inflow`, the same `k_in` |
 //!
 //! `thrust-gain` is fitted on the thrust alone: the diagnosis's torques stay in units of the
 //! logged torque, so its inertia is the true one over `1 + κ`. The plant's gain scales the
@@ -241,6 +242,7 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                     builtins.push((kind, vec![c("F_wx")? / mean, c("F_wy")? / mean, 0.0]));
                 }
             }
+            EffectKind::RotorInflow => builtins.push((kind, vec![c("k_in")?])),
             _ => {
                 return Err(ModelPlantError::NotFlyable {
                     effect: effect.name.clone(),

@@ -36,11 +36,15 @@ pub enum EffectKind {
     /// A relative error `ε` of the thrust (and reaction-torque) coefficient: the rotors make
     /// `(1 + ε)` times the modelled wrench (dimensionless).
     ThrustGain,
+    /// Thrust loss of each rotor with its own axial air speed (inflow): rotor `i` makes
+    /// `k_f ωᵢ² − k_in ωᵢ v_a,i`, with `v_a,i` the body-`z` air velocity of its hub
+    /// \[N s²/(m rad)\]. Its hub forces damp roll and pitch rates.
+    RotorInflow,
 }
 
 impl EffectKind {
     /// Every effect, in a fixed order (the order of help texts and reports).
-    pub const ALL: [EffectKind; 9] = [
+    pub const ALL: [EffectKind; 10] = [
         EffectKind::LinearDrag,
         EffectKind::QuadraticDrag,
         EffectKind::RotorDrag,
@@ -50,6 +54,7 @@ impl EffectKind {
         EffectKind::BodyBias,
         EffectKind::Wind,
         EffectKind::ThrustGain,
+        EffectKind::RotorInflow,
     ];
 
     /// The canonical kebab-case name, e.g. `"rotor-drag"`.
@@ -64,6 +69,7 @@ impl EffectKind {
             EffectKind::BodyBias => "body-bias",
             EffectKind::Wind => "wind",
             EffectKind::ThrustGain => "thrust-gain",
+            EffectKind::RotorInflow => "rotor-inflow",
         }
     }
 
@@ -73,6 +79,7 @@ impl EffectKind {
             EffectKind::BodyBias => &["bias", "wrench-bias", "force-bias"],
             EffectKind::ThrustGain => &["thrust-error", "thrust-coefficient"],
             EffectKind::TimeDelay => &["delay"],
+            EffectKind::RotorInflow => &["inflow"],
             _ => &[],
         }
     }
@@ -91,6 +98,9 @@ impl EffectKind {
             EffectKind::BodyBias => "constant horizontal body-frame force and torque",
             EffectKind::Wind => "constant wind acting through drag on the air-relative velocity",
             EffectKind::ThrustGain => "relative error of the thrust coefficient",
+            EffectKind::RotorInflow => {
+                "rotor thrust loss with its axial air speed, dT_i = -k_in w_i v_z,hub, with its moments"
+            }
         }
     }
 

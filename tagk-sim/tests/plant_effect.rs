@@ -293,6 +293,18 @@ fn wrench_before_the_trait(
         f += Vector3::from(b.force);
         torque += Vector3::from(b.torque);
     }
+    // Added after the trait: each hub's thrust loss `−k_in ω_i (v_z + p y_i − q x_i)`.
+    if let Some(inflow) = &e.rotor_inflow {
+        let (mut fi, mut ti) = (Vector3::zeros(), Vector3::zeros());
+        for (w, r) in rotor.iter().zip(&model.rotor_positions) {
+            let axial = v_air_b.z + (s.body_rate.x * r.y - s.body_rate.y * r.x);
+            let hub = Vector3::new(0.0, 0.0, -inflow.coefficient * w * axial);
+            fi += hub;
+            ti += r.cross(&hub);
+        }
+        f += fi;
+        torque += ti;
+    }
     wrench.force += f;
     wrench.torque += torque;
     wrench

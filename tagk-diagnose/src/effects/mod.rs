@@ -16,6 +16,7 @@ mod custom;
 mod drag;
 mod external;
 mod ground;
+mod inflow;
 
 #[cfg(test)]
 pub(crate) use actuator::{first_order_lag, shifted};
@@ -288,6 +289,10 @@ pub struct BuiltinOptions {
     /// `ground-effect`: heights below this are clamped \[m\] (avoids the singularity at
     /// `z = R/4`; must exceed `R/4`; default 0.0225 m).
     pub ground_min_height: f64,
+    /// `rotor-inflow`: the momentum-theory limit of `k_in`, `sqrt(2 ρ π R² k_f)` \[kg/rad\].
+    /// A fit significantly above it is implausible. Default: the Crazyflie's, 9.5e-6
+    /// (`ρ = 1.225 kg/m³`, `R = 0.0225 m`, `k_f = 2.3e-8`); positive and finite.
+    pub inflow_limit: f64,
 }
 
 impl Default for BuiltinOptions {
@@ -298,6 +303,7 @@ impl Default for BuiltinOptions {
             time_delays: actuator::TimeDelay::default().grid,
             rotor_radius: ground.rotor_radius,
             ground_min_height: ground.min_height,
+            inflow_limit: inflow::RotorInflow::default().limit,
         }
     }
 }
@@ -334,6 +340,12 @@ impl BuiltinOptions {
             return bad(
                 "rotor_radius",
                 format!("{} m is not positive and finite", self.rotor_radius),
+            );
+        }
+        if !(self.inflow_limit.is_finite() && self.inflow_limit > 0.0) {
+            return bad(
+                "inflow_limit",
+                format!("{} kg/rad is not positive and finite", self.inflow_limit),
             );
         }
         if !(self.ground_min_height.is_finite() && self.ground_min_height > self.rotor_radius / 4.0)
@@ -387,6 +399,9 @@ pub fn builtin_with(
         EffectKind::BodyBias => Arc::new(external::BodyBias),
         EffectKind::Wind => Arc::new(external::Wind),
         EffectKind::ThrustGain => Arc::new(actuator::ThrustGain),
+        EffectKind::RotorInflow => Arc::new(inflow::RotorInflow {
+            limit: options.inflow_limit,
+        }),
         other => return Err(DiagnoseError::NoCandidate(other)),
     };
     Ok(effect)

@@ -27,8 +27,8 @@
 //! | `motor-lag` | `W(ω_motor) − W(ω_now)`: what the lagging motors deliver minus what was commanded (read back) |
 //! | `thrust-gain` | `ε W(ω_motor)` |
 //! | `ground-effect` | `(1 + ε) (T_IGE/T_OGE(z) − 1) W(ω_motor)` (`ε = 0` without a thrust gain) |
-//! | `linear-drag`, `quadratic-drag`, `rotor-drag` | the drag law at the **ground-relative** velocity |
-//! | `wind` | the drag laws at the air-relative velocity minus the same at the ground-relative velocity |
+//! | `linear-drag`, `quadratic-drag`, `rotor-drag`, `rotor-inflow` | the drag law (the inflow law) at the **ground-relative** velocity |
+//! | `wind` | the drag and inflow laws at the air-relative velocity minus the same at the ground-relative velocity |
 //! | `body-bias` | the constant force and torque |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
@@ -136,6 +136,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::BodyBias => effects.body_bias.is_some(),
             EffectKind::Wind => effects.wind.is_some(),
             EffectKind::ThrustGain => effects.thrust_gain.is_some(),
+            EffectKind::RotorInflow => effects.rotor_inflow.is_some(),
             _ => false,
         })
         .collect()
@@ -282,6 +283,7 @@ pub(crate) fn truth_parts(
         linear_drag: effects.linear_drag,
         quadratic_drag: effects.quadratic_drag,
         rotor_drag: effects.acting_rotor_drag(),
+        rotor_inflow: effects.rotor_inflow,
         ..none
     };
     let scaled = |w: &Wrench, k: f64| Wrench {
@@ -327,6 +329,13 @@ pub(crate) fn truth_parts(
                     force: Vector3::from(b.force),
                     torque: Vector3::from(b.torque),
                 }),
+                EffectKind::RotorInflow => drag_only(
+                    PlantEffects {
+                        rotor_inflow: effects.rotor_inflow,
+                        ..none
+                    },
+                    None,
+                ),
                 _ => Wrench::zero(),
             };
             w.to_array()
