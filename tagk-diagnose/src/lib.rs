@@ -36,9 +36,9 @@ pub use diagnose::{
     second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility,
-    ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, effect_columns,
-    is_sensor_effect, subsample,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
+    Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with,
+    effect_columns, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;

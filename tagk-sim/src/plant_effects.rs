@@ -21,6 +21,7 @@
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //! | `rotor-inflow` | [`RotorInflow`] | `rotor_inflow` |
+//! | `rotor-imbalance` | [`RotorImbalance`] (per-rotor factors) | `rotor_imbalance` |
 //!
 //! # The extension point: [`PlantEffect`]
 //!
@@ -106,6 +107,12 @@ pub trait PlantEffect: Debug + Send + Sync + std::panic::RefUnwindSafe {
     /// (dimensionless; 1 when the effect does not act on the rotors).
     fn thrust_factor(&self, _s: &EffectState<'_>) -> f64 {
         1.0
+    }
+
+    /// Factor on each rotor's thrust and reaction torque at state `s`, in the order `w1..w4`
+    /// (dimensionless; all 1 by default). It multiplies [`PlantEffect::thrust_factor`].
+    fn rotor_factors(&self, _s: &EffectState<'_>) -> [f64; 4] {
+        [1.0; 4]
     }
 }
 
@@ -470,6 +477,50 @@ impl Default for RotorInflow {
     }
 }
 
+/// Rotor imbalance (the vocabulary's `rotor-imbalance`): rotor `i` makes `(1 + εᵢ)` times its
+/// nominal thrust `k_f ωᵢ²` and reaction torque `k_m ωᵢ²` (a chipped propeller, a tired
+/// motor). The vehicle computes its wrench with the nominal coefficients. A per-rotor factor
+/// ([`PlantEffect::rotor_factors`]); it multiplies the common factors of `thrust-gain` and
+/// `ground-effect`.
+///
+/// Default: rotor M1 10 % weak, `ε = (−0.1, 0, 0, 0)`. A chosen magnitude: a propeller with a
+/// chipped tip loses thrust of this order. Förster (2015) identified one thrust map for all
+/// four Crazyflie rotors and reports their spread as a few per cent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RotorImbalance {
+    /// `εᵢ` of rotors M1..M4 (dimensionless, each `> −1`).
+    pub relative_errors: [f64; 4],
+}
+
+impl RotorImbalance {
+    /// Rotor M1 10 % weak.
+    pub fn crazyflie() -> Self {
+        Self {
+            relative_errors: [-0.1, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+impl Default for RotorImbalance {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
+impl PlantEffect for RotorImbalance {
+    fn name(&self) -> &str {
+        EffectKind::RotorImbalance.name()
+    }
+    /// No wrench of its own: it scales the rotors one by one.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench::zero()
+    }
+    /// `1 + εᵢ` per rotor.
+    fn rotor_factors(&self, _s: &EffectState<'_>) -> [f64; 4] {
+        self.relative_errors.map(|e| 1.0 + e)
+    }
+}
+
 impl PlantEffect for RotorInflow {
     fn name(&self) -> &str {
         EffectKind::RotorInflow.name()
@@ -572,6 +623,15 @@ impl PlantEffect for GroundEffect {
     }
 }
 
+/// The factor on each rotor's thrust of `effects` at state `s`: the product of their
+/// [`PlantEffect::rotor_factors`], in order, from 1 (rotors `w1..w4`).
+pub fn rotor_factors(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> [f64; 4] {
+    effects.iter().fold([1.0; 4], |k, e| {
+        let f = e.rotor_factors(s);
+        std::array::from_fn(|i| k[i] * f[i])
+    })
+}
+
 /// The factor on the rotors' thrust of `effects` at state `s`: the product of their
 /// [`PlantEffect::thrust_factor`]s, in order, from 1.
 pub fn thrust_factor(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> f64 {
@@ -648,6 +708,9 @@ pub struct PlantEffects {
     /// Thrust loss with each rotor's axial air speed.
     #[serde(default)]
     pub rotor_inflow: Option<RotorInflow>,
+    /// Per-rotor thrust and torque coefficients.
+    #[serde(default)]
+    pub rotor_imbalance: Option<RotorImbalance>,
 }
 
 impl PlantEffects {
@@ -689,6 +752,9 @@ impl PlantEffects {
             EffectKind::BodyBias => self.body_bias = Some(BodyBias::crazyflie()),
             EffectKind::TimeDelay => self.time_delay = Some(TimeDelay::crazyflie()),
             EffectKind::RotorInflow => self.rotor_inflow = Some(RotorInflow::crazyflie()),
+            EffectKind::RotorImbalance => {
+                self.rotor_imbalance = Some(RotorImbalance::crazyflie());
+            }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -708,6 +774,7 @@ impl PlantEffects {
             EffectKind::BodyBias => "f_x, f_y, f_z [N], t_x, t_y, t_z [N m] (body)",
             EffectKind::TimeDelay => "delay [s]",
             EffectKind::RotorInflow => "k_in [N s^2/(m rad)]",
+            EffectKind::RotorImbalance => "eps_1, eps_2, eps_3, eps_4 [1] (rotors M1..M4)",
             _ => "",
         }
     }
@@ -730,6 +797,7 @@ impl PlantEffects {
             EffectKind::LinearDrag | EffectKind::RotorDrag | EffectKind::Wind => 3,
             EffectKind::QuadraticDrag => 4,
             EffectKind::BodyBias => 6,
+            EffectKind::RotorImbalance => 4,
             _ => 1,
         };
         if c.len() != expected {
@@ -777,6 +845,11 @@ impl PlantEffects {
             }
             EffectKind::TimeDelay => e.time_delay = Some(TimeDelay { delay: c[0] }),
             EffectKind::RotorInflow => e.rotor_inflow = Some(RotorInflow { coefficient: c[0] }),
+            EffectKind::RotorImbalance => {
+                e.rotor_imbalance = Some(RotorImbalance {
+                    relative_errors: [c[0], c[1], c[2], c[3]],
+                });
+            }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         e.validate()?;
@@ -856,6 +929,16 @@ impl PlantEffects {
                 reason: "must be non-negative and finite",
             });
         }
+        if let Some(b) = &self.rotor_imbalance {
+            finite("rotor_imbalance.relative_errors", &b.relative_errors)?;
+            if let Some(&value) = b.relative_errors.iter().find(|e| **e <= -1.0) {
+                return Err(SimError::InvalidParameter {
+                    name: "rotor_imbalance.relative_errors",
+                    value,
+                    reason: "must be > -1",
+                });
+            }
+        }
         if let Some(d) = &self.time_delay
             && !(d.delay >= 0.0 && d.delay.is_finite())
         {
@@ -871,8 +954,8 @@ impl PlantEffects {
     /// The wrench-like effects that are on, as [`PlantEffect`]s, in the order the plant
     /// applies them: `thrust-gain`, `ground-effect` (thrust factors), then the acting rotor
     /// drag ([`PlantEffects::acting_rotor_drag`]), `linear-drag`, `quadratic-drag`,
-    /// `body-bias`, `rotor-inflow` (wrenches). Motor lag, wind and time delay are not among
-    /// them (module docs).
+    /// `body-bias`, `rotor-inflow` (wrenches), `rotor-imbalance` (per-rotor factors). Motor
+    /// lag, wind and time delay are not among them (module docs).
     pub fn acting(&self) -> Vec<std::sync::Arc<dyn PlantEffect>> {
         let mut v: Vec<std::sync::Arc<dyn PlantEffect>> = Vec::new();
         if let Some(e) = self.thrust_gain {
@@ -894,6 +977,9 @@ impl PlantEffects {
             v.push(std::sync::Arc::new(e));
         }
         if let Some(e) = self.rotor_inflow {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.rotor_imbalance {
             v.push(std::sync::Arc::new(e));
         }
         v

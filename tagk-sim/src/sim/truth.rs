@@ -30,6 +30,7 @@
 //! | `linear-drag`, `quadratic-drag`, `rotor-drag`, `rotor-inflow` | the drag law (the inflow law) at the **ground-relative** velocity |
 //! | `wind` | the drag and inflow laws at the air-relative velocity minus the same at the ground-relative velocity |
 //! | `body-bias` | the constant force and torque |
+//! | `rotor-imbalance` | `(1 + ε) (T_IGE/T_OGE(z)) Σ ε_i W_i(ω_motor)`: each rotor's share `W_i` times its `ε_i` |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
 //! ([`PlantEffects::extra_wrench`]): its truth then lists `rotor-drag` (that drag at the
@@ -137,6 +138,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::Wind => effects.wind.is_some(),
             EffectKind::ThrustGain => effects.thrust_gain.is_some(),
             EffectKind::RotorInflow => effects.rotor_inflow.is_some(),
+            EffectKind::RotorImbalance => effects.rotor_imbalance.is_some(),
             _ => false,
         })
         .collect()
@@ -336,6 +338,19 @@ pub(crate) fn truth_parts(
                     },
                     None,
                 ),
+                EffectKind::RotorImbalance => {
+                    let ratio = effects
+                        .ground_effect
+                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
+                    let eps = effects
+                        .rotor_imbalance
+                        .map_or([0.0; 4], |b| b.relative_errors);
+                    let k = (1.0 + epsilon) * ratio;
+                    let w = &inputs.motor_speeds;
+                    model.wrench_from_thrusts(&std::array::from_fn(|i| {
+                        k * eps[i] * model.k_f * w[i] * w[i]
+                    }))
+                }
                 _ => Wrench::zero(),
             };
             w.to_array()
