@@ -18,6 +18,8 @@
 //! | `wind` | `k_h, k_z, kv_wx, kv_wy` | `rotor-drag` `K` and `wind` `v_w = kv / k_h` |
 //! | `wind` | `d_x, d_y, d_z, F_wx, F_wy` | `linear-drag` `D` and `wind` `v_w = F_w / d̄` |
 //! | `rotor-inertia` | `J_r` \[kg m²\] | `rotor-inertia`, `J_r` times `1 + κ` (as the inertia) |
+//! | `rotor-inflow` | `k_in` \[kg/rad\] | `rotor-inflow`, the same `k_in` |
+//! | `rotor-imbalance` | `d_eps1, d_eps2, d_eps3` \[1\] | `rotor-imbalance`, `ε = (d₁, d₂, d₃, −d₁ − d₂ − d₃)` |
 //!
 //! `thrust-gain` is fitted on the thrust alone: the diagnosis's torques stay in units of the
 //! logged torque, so its inertia is the true one over `1 + κ`. The plant's gain scales the
@@ -244,6 +246,12 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                     builtins.push((EffectKind::LinearDrag, d.to_vec()));
                     builtins.push((kind, vec![c("F_wx")? / mean, c("F_wy")? / mean, 0.0]));
                 }
+            }
+            EffectKind::RotorInflow => builtins.push((kind, vec![c("k_in")?])),
+            // The contrasts; their common part is the thrust gain's (or the mass's).
+            EffectKind::RotorImbalance => {
+                let d = [c("d_eps1")?, c("d_eps2")?, c("d_eps3")?];
+                builtins.push((kind, vec![d[0], d[1], d[2], -(d[0] + d[1] + d[2])]));
             }
             _ => {
                 return Err(ModelPlantError::NotFlyable {

@@ -154,7 +154,7 @@ fn every_flyable_effect_round_trips() {
         "rigid body floor: force {:.3e} N, torque {:.3e} N m",
         floor[0], floor[1]
     );
-    let cases: [(&str, &[&str], &[&str]); 9] = [
+    let cases: [(&str, &[&str], &[&str]); 11] = [
         ("linear-drag", &[], &[]),
         ("quadratic-drag", &[], &[]),
         ("rotor-drag", &[], &[]),
@@ -164,6 +164,9 @@ fn every_flyable_effect_round_trips() {
         ("motor-lag", &[], &[]),
         ("time-delay", &[], &[]),
         ("wind", &[], &[]),
+        // A helix climbs and descends: the rotors see an axial air speed.
+        ("rotor-inflow", &["--trajectory", "helix"], &[]),
+        ("rotor-imbalance", &[], &[]),
     ];
     let mut failures = Vec::new();
     for (effect, sim_extra, diag_extra) in cases {

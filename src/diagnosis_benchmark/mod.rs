@@ -299,10 +299,10 @@ const DRAG_LAWS: [EffectKind; 3] = [
     EffectKind::RotorDrag,
 ];
 
-/// The effects a flight may draw, in the order of the draw: the vocabulary as it stood when
-/// the benchmark's seeds were fixed. Effects added to [`EffectKind::ALL`] later are not drawn,
-/// so a seed draws the same flights as before.
-const DRAWN_EFFECTS: [EffectKind; 9] = [
+/// The effects the benchmark draws from, in the vocabulary's order of 2026-11 (the nine
+/// effects before `rotor-inflow`). A fixed list, not [`EffectKind::ALL`]: a new effect in
+/// the vocabulary must not change what a seed draws.
+pub const BENCHMARK_EFFECTS: [EffectKind; 9] = [
     EffectKind::LinearDrag,
     EffectKind::QuadraticDrag,
     EffectKind::RotorDrag,
@@ -318,7 +318,7 @@ const DRAWN_EFFECTS: [EffectKind; 9] = [
 /// one drag law, `thrust-gain` only with a known mass. A `wind` comes with a drag law (drawn
 /// with it when none was drawn yet and a slot is left).
 fn draw_kinds(rng: &mut ChaCha8Rng, count: usize, known_mass: bool) -> Vec<EffectKind> {
-    let mut pool: Vec<EffectKind> = DRAWN_EFFECTS
+    let mut pool: Vec<EffectKind> = BENCHMARK_EFFECTS
         .into_iter()
         .filter(|k| known_mass || *k != EffectKind::ThrustGain)
         .collect();

@@ -36,8 +36,8 @@ pub use diagnose::{
     second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, Plausibility,
-    ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
+    Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
     effect_columns, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};

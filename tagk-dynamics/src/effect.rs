@@ -41,11 +41,18 @@ pub enum EffectKind {
     /// spin. Rotor `i` spins at `−sᵢ ωᵢ e_z` (`sᵢ` the reaction-torque sign):
     /// `τ = J_r (Σ sᵢ ω̇ᵢ) e_z + J_r (Σ sᵢ ωᵢ) Ω × e_z`.
     RotorInertia,
+    /// Thrust loss of each rotor with its own axial air speed (inflow): rotor `i` makes
+    /// `k_f ωᵢ² − k_in ωᵢ v_a,i`, with `v_a,i` the body-`z` air velocity of its hub
+    /// \[N s²/(m rad)\]. Its hub forces damp roll and pitch rates.
+    RotorInflow,
+    /// Per-rotor coefficients: rotor `i` makes `(1 + εᵢ)` times its nominal thrust `k_f ωᵢ²`
+    /// and reaction torque `k_m ωᵢ²` (a weak or damaged rotor; dimensionless `εᵢ`).
+    RotorImbalance,
 }
 
 impl EffectKind {
     /// Every effect, in a fixed order (the order of help texts and reports).
-    pub const ALL: [EffectKind; 10] = [
+    pub const ALL: [EffectKind; 12] = [
         EffectKind::LinearDrag,
         EffectKind::QuadraticDrag,
         EffectKind::RotorDrag,
@@ -56,6 +63,8 @@ impl EffectKind {
         EffectKind::Wind,
         EffectKind::ThrustGain,
         EffectKind::RotorInertia,
+        EffectKind::RotorInflow,
+        EffectKind::RotorImbalance,
     ];
 
     /// The canonical kebab-case name, e.g. `"rotor-drag"`.
@@ -71,6 +80,8 @@ impl EffectKind {
             EffectKind::Wind => "wind",
             EffectKind::ThrustGain => "thrust-gain",
             EffectKind::RotorInertia => "rotor-inertia",
+            EffectKind::RotorInflow => "rotor-inflow",
+            EffectKind::RotorImbalance => "rotor-imbalance",
         }
     }
 
@@ -81,6 +92,8 @@ impl EffectKind {
             EffectKind::ThrustGain => &["thrust-error", "thrust-coefficient"],
             EffectKind::TimeDelay => &["delay"],
             EffectKind::RotorInertia => &["motor-inertia", "gyroscopic"],
+            EffectKind::RotorInflow => &["inflow"],
+            EffectKind::RotorImbalance => &["per-rotor-thrust"],
             _ => &[],
         }
     }
@@ -102,6 +115,12 @@ impl EffectKind {
             EffectKind::RotorInertia => {
                 "rotor spin inertia J_r: yaw torque of rotor acceleration, gyroscopic roll/pitch"
             }
+            EffectKind::RotorInflow => {
+                "rotor thrust loss with its axial air speed, dT_i = -k_in w_i v_z,hub, with its moments"
+            }
+            EffectKind::RotorImbalance => {
+                "per-rotor thrust and torque coefficients, (1 + eps_i) k_f w_i^2 (a weak rotor)"
+            }
         }
     }
 
@@ -114,7 +133,7 @@ impl EffectKind {
     ///   above the noise.
     /// - Every other effect is a family of its own, named like it.
     ///
-    /// A `wind` fit includes a drag: [`EffectKind::includes_drag`].
+    /// A `wind` fit includes a drag, and so does `rotor-inflow`: [`EffectKind::includes_drag`].
     pub const fn family(self) -> &'static str {
         match self {
             EffectKind::LinearDrag | EffectKind::QuadraticDrag | EffectKind::RotorDrag => "drag",
@@ -123,8 +142,9 @@ impl EffectKind {
         }
     }
 
-    /// `true` for effects whose model contains a drag (the drag family, and `wind`: drag on
-    /// the air-relative velocity).
+    /// `true` for effects whose model contains a drag (the drag family; `wind`: drag on
+    /// the air-relative velocity; `rotor-inflow`: its force `−k_in Σ|ωᵢ| v_z` is the vertical
+    /// row of rotor drag, and of every drag law near hover).
     pub const fn includes_drag(self) -> bool {
         matches!(
             self,
@@ -132,6 +152,7 @@ impl EffectKind {
                 | EffectKind::QuadraticDrag
                 | EffectKind::RotorDrag
                 | EffectKind::Wind
+                | EffectKind::RotorInflow
         )
     }
 

@@ -9,9 +9,9 @@
 //! the Newton–Euler equations): `(a, ω̇) = FD(θ, w, ω)`, `p̈ = R a + g_w`, `q̇ = ½ q ⊗ (0, ω)`.
 //! The quaternion is renormalised after every step.
 //!
-//! The wrench `w` is the rotors' (each thrust scaled by the effects' thrust factors) plus the
-//! wrench of every [`PlantEffect`]: the built-ins of [`PlantEffects::acting`], then the user's
-//! own ([`Plant::with_effect`]).
+//! The wrench `w` is the rotors' (each thrust scaled by the effects' thrust factors and
+//! per-rotor factors) plus the wrench of every [`PlantEffect`]: the built-ins of
+//! [`PlantEffects::acting`], then the user's own ([`Plant::with_effect`]).
 //!
 //! With a [`RotorInertia`] the body also feels the spinning
 //! rotors: the torque `J_r Ḣ e_z + J_r H (Ω × e_z)`, `H = Σ sᵢ ωᵢ`, with `Ḣ` the motor lag's
@@ -23,7 +23,9 @@ use std::sync::Arc;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use tagk_dynamics::{ForwardDynamics, GRAVITY_WORLD, InertialParams, QuadrotorModel, Wrench};
 
-use crate::plant_effects::{EffectState, PlantEffect, RotorInertia, summed_wrench, thrust_factor};
+use crate::plant_effects::{
+    EffectState, PlantEffect, RotorInertia, rotor_factors, summed_wrench, thrust_factor,
+};
 use crate::{PlantEffects, SimError};
 
 /// Full plant state.
@@ -211,7 +213,12 @@ impl Plant {
             rotor_positions: &self.model.rotor_positions,
         };
         let k = thrust_factor(&self.acting, &es);
-        let thrusts = rotor.map(|w| k * self.model.k_f * w * w);
+        let each = rotor_factors(&self.acting, &es);
+        let thrusts: [f64; 4] = if each == [1.0; 4] {
+            rotor.map(|w| k * self.model.k_f * w * w)
+        } else {
+            std::array::from_fn(|i| k * each[i] * self.model.k_f * rotor[i] * rotor[i])
+        };
         let mut wrench = self.model.wrench_from_thrusts(&thrusts);
         let extra = summed_wrench(&self.acting, &es);
         wrench.force += extra.force;

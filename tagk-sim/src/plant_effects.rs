@@ -21,6 +21,8 @@
 //! | `thrust-gain` | [`ThrustGain`] | `thrust_gain` |
 //! | `time-delay` | [`TimeDelay`] (acts on the log, not on the physics) | `time_delay` |
 //! | `rotor-inertia` | [`RotorInertia`] (rotor dynamics, applied by the plant) | `rotor_inertia` |
+//! | `rotor-inflow` | [`RotorInflow`] | `rotor_inflow` |
+//! | `rotor-imbalance` | [`RotorImbalance`] (per-rotor factors) | `rotor_imbalance` |
 //!
 //! # The extension point: [`PlantEffect`]
 //!
@@ -29,7 +31,7 @@
 //! speeds), it returns the wrench it adds (body frame, about the body origin,
 //! docs/CONVENTIONS.md §1) and, optionally, a factor on every rotor's thrust. The built-in
 //! wrench-like effects implement it: [`LinearDrag`], [`QuadraticDrag`], [`RotorDrag`],
-//! [`BodyBias`] (additive wrenches), [`ThrustGain`] and [`GroundEffect`] (thrust factors).
+//! [`BodyBias`], [`RotorInflow`] (additive wrenches), [`ThrustGain`] and [`GroundEffect`] (thrust factors).
 //! [`PlantEffects::acting`] lists them in the order the plant applies them. A user's own effect
 //! is flown with [`crate::Plant::with_effect`] or [`crate::SimConfig::with_plant_effect`].
 //!
@@ -108,6 +110,12 @@ pub trait PlantEffect: Debug + Send + Sync + std::panic::RefUnwindSafe {
     /// (dimensionless; 1 when the effect does not act on the rotors).
     fn thrust_factor(&self, _s: &EffectState<'_>) -> f64 {
         1.0
+    }
+
+    /// Factor on each rotor's thrust and reaction torque at state `s`, in the order `w1..w4`
+    /// (dimensionless; all 1 by default). It multiplies [`PlantEffect::thrust_factor`].
+    fn rotor_factors(&self, _s: &EffectState<'_>) -> [f64; 4] {
+        [1.0; 4]
     }
 }
 
@@ -475,6 +483,126 @@ impl Default for RotorInertia {
     }
 }
 
+/// Rotor inflow (the vocabulary's `rotor-inflow`): each rotor loses thrust with its own axial
+/// air speed. Rotor `i` at hub `rᵢ` makes `T_i = k_f ωᵢ² − k_in ωᵢ v_a,i`, with
+/// `v_a,i = v_z + (Ω × rᵢ)_z` the body-`z` air velocity of its hub \[m/s\]. Here `v_z` is the
+/// body-`z` air-relative velocity of the origin (wind subtracted) and `Ω` the body rate.
+///
+/// A rotor climbing into its own stream (`v_a,i > 0`) sees a larger inflow angle and makes less
+/// thrust; a descending one makes more. The extra force is `−k_in Σ ωᵢ v_a,i` along body `z`.
+/// Its moments `rᵢ × f_i` damp the roll and pitch rates: at `v = 0` the power
+/// `τ·Ω = −k_in Σ ωᵢ (Ω × rᵢ)_z² ≤ 0`.
+///
+/// It is the same law as the vertical row of [`RotorDrag`] (`k_z`). The plant adds the two
+/// when both are on. The diagnosis tells them apart by their columns (docs/CONVENTIONS.md §7).
+///
+/// Default `k_in = 1.0311·10⁻⁶ kg/rad` (= N s²/(m rad)): the axial coefficient Förster (2015)
+/// identified on the Crazyflie 2.0. Blade-element momentum theory for a 45 mm, two-blade
+/// propeller (chord about 6 mm, lift slope 5.7) at hover gives about `3.5·10⁻⁶`, the same
+/// order.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RotorInflow {
+    /// `k_in` \[N s²/(m rad)\] (`≥ 0`).
+    pub coefficient: f64,
+}
+
+impl RotorInflow {
+    /// Förster (2015)'s axial coefficient, `k_in = 1.0311·10⁻⁶ kg/rad`.
+    pub fn crazyflie() -> Self {
+        Self {
+            coefficient: 1.0311e-6,
+        }
+    }
+
+    /// The inflow wrench of the four rotors, body frame, about the origin: force
+    /// `Σ f_i` \[N\] and torque `Σ rᵢ × f_i` \[N m\], with `f_i = −k_in ωᵢ v_a,i e_z`. The
+    /// inputs are the air-relative body-frame velocity of the origin `v_air_b` \[m/s\], the
+    /// body rate `body_rate` \[rad/s\], the rotor speeds `rotor_speeds` \[rad/s\] and the hub
+    /// positions `rotor_positions` (body frame) \[m\].
+    pub fn wrench(
+        &self,
+        v_air_b: &Vector3<f64>,
+        body_rate: &Vector3<f64>,
+        rotor_speeds: &[f64; 4],
+        rotor_positions: &[Vector3<f64>; 4],
+    ) -> Wrench {
+        let mut w = Wrench::zero();
+        for (omega, r) in rotor_speeds.iter().zip(rotor_positions) {
+            let v_axial = v_air_b.z + body_rate.cross(r).z;
+            let f = Vector3::new(0.0, 0.0, -self.coefficient * omega * v_axial);
+            w.force += f;
+            w.torque += r.cross(&f);
+        }
+        w
+    }
+}
+
+impl Default for RotorInflow {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
+/// Rotor imbalance (the vocabulary's `rotor-imbalance`): rotor `i` makes `(1 + εᵢ)` times its
+/// nominal thrust `k_f ωᵢ²` and reaction torque `k_m ωᵢ²` (a chipped propeller, a tired
+/// motor). The vehicle computes its wrench with the nominal coefficients. A per-rotor factor
+/// ([`PlantEffect::rotor_factors`]); it multiplies the common factors of `thrust-gain` and
+/// `ground-effect`.
+///
+/// Default: rotor M1 10 % weak, `ε = (−0.1, 0, 0, 0)`. A chosen magnitude: a propeller with a
+/// chipped tip loses thrust of this order. Förster (2015) identified one thrust map for all
+/// four Crazyflie rotors and reports their spread as a few per cent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RotorImbalance {
+    /// `εᵢ` of rotors M1..M4 (dimensionless, each `> −1`).
+    pub relative_errors: [f64; 4],
+}
+
+impl RotorImbalance {
+    /// Rotor M1 10 % weak.
+    pub fn crazyflie() -> Self {
+        Self {
+            relative_errors: [-0.1, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+impl Default for RotorImbalance {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
+impl PlantEffect for RotorImbalance {
+    fn name(&self) -> &str {
+        EffectKind::RotorImbalance.name()
+    }
+    /// No wrench of its own: it scales the rotors one by one.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench::zero()
+    }
+    /// `1 + εᵢ` per rotor.
+    fn rotor_factors(&self, _s: &EffectState<'_>) -> [f64; 4] {
+        self.relative_errors.map(|e| 1.0 + e)
+    }
+}
+
+impl PlantEffect for RotorInflow {
+    fn name(&self) -> &str {
+        EffectKind::RotorInflow.name()
+    }
+    /// [`RotorInflow::wrench`] of the air-relative velocity.
+    fn wrench(&self, s: &EffectState<'_>) -> Wrench {
+        RotorInflow::wrench(
+            self,
+            &s.air_velocity_body,
+            &s.body_rate,
+            &s.rotor_speeds,
+            s.rotor_positions,
+        )
+    }
+}
+
 impl PlantEffect for RotorDrag {
     fn name(&self) -> &str {
         EffectKind::RotorDrag.name()
@@ -561,6 +689,15 @@ impl PlantEffect for GroundEffect {
     }
 }
 
+/// The factor on each rotor's thrust of `effects` at state `s`: the product of their
+/// [`PlantEffect::rotor_factors`], in order, from 1 (rotors `w1..w4`).
+pub fn rotor_factors(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> [f64; 4] {
+    effects.iter().fold([1.0; 4], |k, e| {
+        let f = e.rotor_factors(s);
+        std::array::from_fn(|i| k[i] * f[i])
+    })
+}
+
 /// The factor on the rotors' thrust of `effects` at state `s`: the product of their
 /// [`PlantEffect::thrust_factor`]s, in order, from 1.
 pub fn thrust_factor(effects: &[std::sync::Arc<dyn PlantEffect>], s: &EffectState<'_>) -> f64 {
@@ -638,6 +775,12 @@ pub struct PlantEffects {
     /// read as before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotor_inertia: Option<RotorInertia>,
+    /// Thrust loss with each rotor's axial air speed.
+    #[serde(default)]
+    pub rotor_inflow: Option<RotorInflow>,
+    /// Per-rotor thrust and torque coefficients.
+    #[serde(default)]
+    pub rotor_imbalance: Option<RotorImbalance>,
 }
 
 impl PlantEffects {
@@ -679,6 +822,10 @@ impl PlantEffects {
             EffectKind::BodyBias => self.body_bias = Some(BodyBias::crazyflie()),
             EffectKind::TimeDelay => self.time_delay = Some(TimeDelay::crazyflie()),
             EffectKind::RotorInertia => self.rotor_inertia = Some(RotorInertia::crazyflie()),
+            EffectKind::RotorInflow => self.rotor_inflow = Some(RotorInflow::crazyflie()),
+            EffectKind::RotorImbalance => {
+                self.rotor_imbalance = Some(RotorImbalance::crazyflie());
+            }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -698,6 +845,8 @@ impl PlantEffects {
             EffectKind::BodyBias => "f_x, f_y, f_z [N], t_x, t_y, t_z [N m] (body)",
             EffectKind::TimeDelay => "delay [s]",
             EffectKind::RotorInertia => "J_r (one rotor) [kg m^2]",
+            EffectKind::RotorInflow => "k_in [N s^2/(m rad)]",
+            EffectKind::RotorImbalance => "eps_1, eps_2, eps_3, eps_4 [1] (rotors M1..M4)",
             _ => "",
         }
     }
@@ -720,6 +869,7 @@ impl PlantEffects {
             EffectKind::LinearDrag | EffectKind::RotorDrag | EffectKind::Wind => 3,
             EffectKind::QuadraticDrag => 4,
             EffectKind::BodyBias => 6,
+            EffectKind::RotorImbalance => 4,
             _ => 1,
         };
         if c.len() != expected {
@@ -767,6 +917,12 @@ impl PlantEffects {
             }
             EffectKind::TimeDelay => e.time_delay = Some(TimeDelay { delay: c[0] }),
             EffectKind::RotorInertia => e.rotor_inertia = Some(RotorInertia { inertia: c[0] }),
+            EffectKind::RotorInflow => e.rotor_inflow = Some(RotorInflow { coefficient: c[0] }),
+            EffectKind::RotorImbalance => {
+                e.rotor_imbalance = Some(RotorImbalance {
+                    relative_errors: [c[0], c[1], c[2], c[3]],
+                });
+            }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         e.validate()?;
@@ -837,6 +993,25 @@ impl PlantEffects {
             finite("body_bias.force", &b.force)?;
             finite("body_bias.torque", &b.torque)?;
         }
+        if let Some(i) = &self.rotor_inflow
+            && !(i.coefficient >= 0.0 && i.coefficient.is_finite())
+        {
+            return Err(SimError::InvalidParameter {
+                name: "rotor_inflow.coefficient",
+                value: i.coefficient,
+                reason: "must be non-negative and finite",
+            });
+        }
+        if let Some(b) = &self.rotor_imbalance {
+            finite("rotor_imbalance.relative_errors", &b.relative_errors)?;
+            if let Some(&value) = b.relative_errors.iter().find(|e| **e <= -1.0) {
+                return Err(SimError::InvalidParameter {
+                    name: "rotor_imbalance.relative_errors",
+                    value,
+                    reason: "must be > -1",
+                });
+            }
+        }
         if let Some(d) = &self.time_delay
             && !(d.delay >= 0.0 && d.delay.is_finite())
         {
@@ -857,8 +1032,8 @@ impl PlantEffects {
     /// The wrench-like effects that are on, as [`PlantEffect`]s, in the order the plant
     /// applies them: `thrust-gain`, `ground-effect` (thrust factors), then the acting rotor
     /// drag ([`PlantEffects::acting_rotor_drag`]), `linear-drag`, `quadratic-drag`,
-    /// `body-bias` (wrenches). Motor lag, wind and time delay are not among them (module
-    /// docs).
+    /// `body-bias`, `rotor-inflow` (wrenches), `rotor-imbalance` (per-rotor factors). Motor
+    /// lag, wind and time delay are not among them (module docs).
     pub fn acting(&self) -> Vec<std::sync::Arc<dyn PlantEffect>> {
         let mut v: Vec<std::sync::Arc<dyn PlantEffect>> = Vec::new();
         if let Some(e) = self.thrust_gain {
@@ -877,6 +1052,12 @@ impl PlantEffects {
             v.push(std::sync::Arc::new(e));
         }
         if let Some(e) = self.body_bias {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.rotor_inflow {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.rotor_imbalance {
             v.push(std::sync::Arc::new(e));
         }
         v
@@ -1091,5 +1272,62 @@ mod tests {
         let b = drag.extra_wrench(&Vector3::new(-0.3, 0.0, 0.0), &q, &rate, &speeds, &hubs());
         assert_eq!(a, b);
         assert!(a.torque.norm() > 0.0);
+    }
+    /// The inflow wrench summed by hand in scalars: `v_a = v_z + p y − q x` (hubs with
+    /// `r_z = 0`), `f_z = −k ω v_a`, and `r × (0, 0, f_z) = (y f_z, −x f_z, 0)`. At `v = 0` the
+    /// torque damps the rate: `τ·Ω = −k Σ ω (p y − q x)² < 0`.
+    #[test]
+    fn rotor_inflow_wrench_is_the_hand_written_sum_over_the_hubs() {
+        let e = RotorInflow::crazyflie();
+        let k = e.coefficient;
+        let (vx, vy, vz) = (0.4, -0.3, 0.25);
+        let (p, q, r) = (0.7, -1.1, 0.9);
+        let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+        let (mut fz, mut tx, mut ty) = (0.0, 0.0, 0.0);
+        for (w, h) in speeds.iter().zip(hubs()) {
+            let (x, y) = (h.x, h.y);
+            let f = -k * w * (vz + p * y - q * x);
+            fz += f;
+            tx += y * f;
+            ty -= x * f;
+        }
+        let w = e.wrench(
+            &Vector3::new(vx, vy, vz),
+            &Vector3::new(p, q, r),
+            &speeds,
+            &hubs(),
+        );
+        assert!(w.force.x == 0.0 && w.force.y == 0.0 && w.torque.z == 0.0);
+        assert!((w.force.z - fz).abs() < 1e-16, "{} {fz}", w.force.z);
+        assert!((w.torque.x - tx).abs() < 1e-18 && (w.torque.y - ty).abs() < 1e-18);
+        // A climb (v_z > 0) loses thrust: the extra force points down.
+        assert!(fz < 0.0);
+        let rate = Vector3::new(1.5, -0.8, 2.0);
+        let d = e.wrench(&Vector3::zeros(), &rate, &speeds, &hubs());
+        let power: f64 = speeds
+            .iter()
+            .zip(hubs())
+            .map(|(w, h)| -k * w * (rate.x * h.y - rate.y * h.x).powi(2))
+            .sum();
+        assert!(power < 0.0);
+        assert!((d.torque.dot(&rate) - power).abs() < 1e-18);
+        // Through the plant's effect list, on the air-relative velocity (the wind subtracted).
+        let plant = PlantEffects {
+            wind: Some(Wind {
+                velocity: [0.0, 0.0, 0.5],
+            }),
+            rotor_drag: Some(RotorDrag {
+                coefficients: [0.0; 3],
+            }),
+            ..PlantEffects::only(EffectKind::RotorInflow).unwrap()
+        };
+        let via = plant.extra_wrench(
+            &Vector3::new(vx, vy, vz + 0.5),
+            &UnitQuaternion::identity(),
+            &Vector3::new(p, q, r),
+            &speeds,
+            &hubs(),
+        );
+        assert!((via.force.z - fz).abs() < 1e-16 && (via.torque.x - tx).abs() < 1e-18);
     }
 }

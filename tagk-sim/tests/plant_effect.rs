@@ -268,7 +268,13 @@ fn wrench_before_the_trait(
     if let Some(g) = &e.ground_effect {
         k *= g.thrust_ratio(s.position.z);
     }
-    let thrusts = rotor.map(|w| k * model.k_f * w * w);
+    // Added after the trait: the per-rotor factors of a rotor imbalance.
+    let thrusts: [f64; 4] = match &e.rotor_imbalance {
+        None => rotor.map(|w| k * model.k_f * w * w),
+        Some(b) => std::array::from_fn(|i| {
+            k * (1.0 + b.relative_errors[i]) * model.k_f * rotor[i] * rotor[i]
+        }),
+    };
     let mut wrench = model.wrench_from_thrusts(&thrusts);
     let mut f = Vector3::zeros();
     let mut torque = Vector3::zeros();
@@ -292,6 +298,18 @@ fn wrench_before_the_trait(
     if let Some(b) = &e.body_bias {
         f += Vector3::from(b.force);
         torque += Vector3::from(b.torque);
+    }
+    // Added after the trait: each hub's thrust loss `−k_in ω_i (v_z + p y_i − q x_i)`.
+    if let Some(inflow) = &e.rotor_inflow {
+        let (mut fi, mut ti) = (Vector3::zeros(), Vector3::zeros());
+        for (w, r) in rotor.iter().zip(&model.rotor_positions) {
+            let axial = v_air_b.z + (s.body_rate.x * r.y - s.body_rate.y * r.x);
+            let hub = Vector3::new(0.0, 0.0, -inflow.coefficient * w * axial);
+            fi += hub;
+            ti += r.cross(&hub);
+        }
+        f += fi;
+        torque += ti;
     }
     wrench.force += f;
     wrench.torque += torque;
@@ -353,4 +371,66 @@ fn built_ins_through_the_trait_give_the_wrench_of_before() {
             assert_eq!(now, before, "{effects:?}, state {k}");
         }
     }
+}
+
+/// A rotor imbalance, written out by hand per rotor: `T_i = (1 + ε_i) k_f ω_i²` at the
+/// Crazyflie's hubs `(±L, ±L)` (M1..M4, docs/CONVENTIONS.md §4), `f_z = Σ T_i`,
+/// `τ = Σ (y_i T_i, −x_i T_i, s_i (k_m/k_f) T_i)`; with a thrust gain on too, every `T_i`
+/// times `1 + g`.
+#[test]
+fn rotor_imbalance_scales_each_rotor_alone() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let l = tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
+    let hubs = [(l, -l), (-l, -l), (-l, l), (l, l)];
+    let spins = [1.0, -1.0, 1.0, -1.0];
+    let eps = [-0.1, 0.05, 0.0, 0.2];
+    let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+    for gain in [0.0, -0.08] {
+        let mut effects = PlantEffects::none()
+            .with_coefficients(EffectKind::RotorImbalance, &eps)
+            .unwrap();
+        if gain != 0.0 {
+            effects = effects
+                .with_coefficients(EffectKind::ThrustGain, &[gain])
+                .unwrap();
+        }
+        let plant = Plant::new(
+            model,
+            model.params,
+            effects,
+            PlantState::at_rest(Vector3::new(0.0, 0.0, 1.0)),
+        )
+        .unwrap();
+        let w = plant.accelerations(&speeds).wrench;
+        let (mut fz, mut tx, mut ty, mut tz) = (0.0, 0.0, 0.0, 0.0);
+        for i in 0..4 {
+            let t = (1.0 + gain) * (1.0 + eps[i]) * 2.3e-8 * speeds[i] * speeds[i];
+            fz += t;
+            tx += hubs[i].1 * t;
+            ty -= hubs[i].0 * t;
+            tz += spins[i] * (7.8e-10 / 2.3e-8) * t;
+        }
+        assert!(w.force.x == 0.0 && w.force.y == 0.0);
+        assert!((w.force.z - fz).abs() < 1e-12, "{} {fz}", w.force.z);
+        assert!((w.torque.x - tx).abs() < 1e-14 && (w.torque.y - ty).abs() < 1e-14);
+        assert!((w.torque.z - tz).abs() < 1e-15, "{} {tz}", w.torque.z);
+    }
+    // The default's weak M1 (at y = −L) raises τ_x by L times its lost thrust.
+    let nominal = model.wrench_from_rotor_speeds(&speeds);
+    let only_m1 = PlantEffects::only(EffectKind::RotorImbalance).unwrap();
+    let plant = Plant::new(
+        model,
+        model.params,
+        only_m1,
+        PlantState::at_rest(Vector3::new(0.0, 0.0, 1.0)),
+    )
+    .unwrap();
+    let w = plant.accelerations(&speeds).wrench;
+    let t1 = 0.1 * 2.3e-8 * speeds[0] * speeds[0];
+    assert!((w.torque.x - (nominal.torque.x + l * t1)).abs() < 1e-14);
+    assert!(
+        PlantEffects::none()
+            .with_coefficients(EffectKind::RotorImbalance, &[-1.0, 0.0, 0.0, 0.0])
+            .is_err()
+    );
 }

@@ -27,10 +27,11 @@
 //! | `motor-lag` | `W(ω_motor) − W(ω_now)`: what the lagging motors deliver minus what was commanded (read back) |
 //! | `thrust-gain` | `ε W(ω_motor)` |
 //! | `ground-effect` | `(1 + ε) (T_IGE/T_OGE(z) − 1) W(ω_motor)` (`ε = 0` without a thrust gain) |
-//! | `linear-drag`, `quadratic-drag`, `rotor-drag` | the drag law at the **ground-relative** velocity |
-//! | `wind` | the drag laws at the air-relative velocity minus the same at the ground-relative velocity |
+//! | `linear-drag`, `quadratic-drag`, `rotor-drag`, `rotor-inflow` | the drag law (the inflow law) at the **ground-relative** velocity |
+//! | `wind` | the drag and inflow laws at the air-relative velocity minus the same at the ground-relative velocity |
 //! | `body-bias` | the constant force and torque |
 //! | `rotor-inertia` | the torque `J_r Ḣ e_z + J_r H (Ω × e_z)` of the spinning rotors; without a motor lag only its gyroscopic part (the jumps at new commands are impulses, not in any instant's wrench) |
+//! | `rotor-imbalance` | `(1 + ε) (T_IGE/T_OGE(z)) Σ ε_i W_i(ω_motor)`: each rotor's share `W_i` times its `ε_i` |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
 //! ([`PlantEffects::extra_wrench`]): its truth then lists `rotor-drag` (that drag at the
@@ -138,6 +139,8 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::Wind => effects.wind.is_some(),
             EffectKind::ThrustGain => effects.thrust_gain.is_some(),
             EffectKind::RotorInertia => effects.rotor_inertia.is_some(),
+            EffectKind::RotorInflow => effects.rotor_inflow.is_some(),
+            EffectKind::RotorImbalance => effects.rotor_imbalance.is_some(),
             _ => false,
         })
         .collect()
@@ -301,6 +304,7 @@ pub(crate) fn truth_parts(
         linear_drag: effects.linear_drag,
         quadratic_drag: effects.quadratic_drag,
         rotor_drag: effects.acting_rotor_drag(),
+        rotor_inflow: effects.rotor_inflow,
         ..none
     };
     let scaled = |w: &Wrench, k: f64| Wrench {
@@ -357,6 +361,26 @@ pub(crate) fn truth_parts(
                         )
                     }),
                 },
+                EffectKind::RotorInflow => drag_only(
+                    PlantEffects {
+                        rotor_inflow: effects.rotor_inflow,
+                        ..none
+                    },
+                    None,
+                ),
+                EffectKind::RotorImbalance => {
+                    let ratio = effects
+                        .ground_effect
+                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
+                    let eps = effects
+                        .rotor_imbalance
+                        .map_or([0.0; 4], |b| b.relative_errors);
+                    let k = (1.0 + epsilon) * ratio;
+                    let w = &inputs.motor_speeds;
+                    model.wrench_from_thrusts(&std::array::from_fn(|i| {
+                        k * eps[i] * model.k_f * w[i] * w[i]
+                    }))
+                }
                 _ => Wrench::zero(),
             };
             w.to_array()
