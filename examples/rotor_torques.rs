@@ -1,4 +1,5 @@
-//! Does the diagnosed model predict a held-out flight better? The proof scaffold of issue #26.
+//! Does the diagnosed model predict a held-out flight better than the rigid body and than
+//! holding the body rate? The nano-quadrotor rotor effects hidden by default.
 //!
 //! For each of `--flights` vehicles (a Crazyflie with its own payload):
 //!
@@ -52,7 +53,11 @@ struct Args {
     seed: u64,
     /// Hidden plant effects (comma-separated names of docs/CONVENTIONS.md §7; `none`: the
     /// ideal plant).
-    #[arg(long, value_delimiter = ',', default_value = "motor-lag,rotor-drag")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "motor-lag,rotor-inertia,rotor-inflow,rotor-imbalance"
+    )]
     hidden: Vec<String>,
     /// Sensing profile of every flight (ideal, realistic, realistic-calibrated).
     #[arg(long, default_value = "realistic")]
