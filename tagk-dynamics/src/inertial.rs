@@ -397,11 +397,7 @@ impl InertialParams {
         if !self.is_finite() {
             return *self;
         }
-        let eps = if min_eigenvalue.is_finite() {
-            min_eigenvalue.max(0.0)
-        } else {
-            0.0
-        };
+        let eps = eigenvalue_floor(min_eigenvalue);
         let eig = self.pseudo_inertia().symmetric_eigen();
         if eig.eigenvalues.min() >= eps {
             return *self;
@@ -436,11 +432,7 @@ impl InertialParams {
         if !self.is_finite() {
             return *self;
         }
-        let eps = if min_eigenvalue.is_finite() {
-            min_eigenvalue.max(0.0)
-        } else {
-            0.0
-        };
+        let eps = eigenvalue_floor(min_eigenvalue);
         if self.pseudo_inertia().symmetric_eigenvalues().min() >= eps {
             return *self;
         }
@@ -552,6 +544,15 @@ impl InertialParams {
         }
         let c = factor(&x);
         Self::from_pseudo_inertia(&(c * c.transpose() + lifted))
+    }
+}
+
+/// A smallest allowed pseudo-inertia eigenvalue as given, clamped to `≥ 0` (0 if not finite).
+fn eigenvalue_floor(min_eigenvalue: f64) -> f64 {
+    if min_eigenvalue.is_finite() {
+        min_eigenvalue.max(0.0)
+    } else {
+        0.0
     }
 }
 

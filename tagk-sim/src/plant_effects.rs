@@ -518,7 +518,8 @@ impl RotorInflow {
     /// `Σ f_i` \[N\] and torque `Σ rᵢ × f_i` \[N m\], with `f_i = −k_in ωᵢ v_a,i e_z`. The
     /// inputs are the air-relative body-frame velocity of the origin `v_air_b` \[m/s\], the
     /// body rate `body_rate` \[rad/s\], the rotor speeds `rotor_speeds` \[rad/s\] and the hub
-    /// positions `rotor_positions` (body frame) \[m\].
+    /// positions `rotor_positions` (body frame) \[m\]. It is [`RotorDrag::wrench`] with
+    /// `K = diag(0, 0, k_in)`: one law, written once.
     pub fn wrench(
         &self,
         v_air_b: &Vector3<f64>,
@@ -526,14 +527,10 @@ impl RotorInflow {
         rotor_speeds: &[f64; 4],
         rotor_positions: &[Vector3<f64>; 4],
     ) -> Wrench {
-        let mut w = Wrench::zero();
-        for (omega, r) in rotor_speeds.iter().zip(rotor_positions) {
-            let v_axial = v_air_b.z + body_rate.cross(r).z;
-            let f = Vector3::new(0.0, 0.0, -self.coefficient * omega * v_axial);
-            w.force += f;
-            w.torque += r.cross(&f);
+        RotorDrag {
+            coefficients: [0.0, 0.0, self.coefficient],
         }
-        w
+        .wrench(v_air_b, body_rate, rotor_speeds, rotor_positions)
     }
 }
 

@@ -304,7 +304,7 @@ fn wrench_before_the_trait(
         let (mut fi, mut ti) = (Vector3::zeros(), Vector3::zeros());
         for (w, r) in rotor.iter().zip(&model.rotor_positions) {
             let axial = v_air_b.z + (s.body_rate.x * r.y - s.body_rate.y * r.x);
-            let hub = Vector3::new(0.0, 0.0, -inflow.coefficient * w * axial);
+            let hub = Vector3::new(0.0, 0.0, -(inflow.coefficient * axial) * w);
             fi += hub;
             ti += r.cross(&hub);
         }
