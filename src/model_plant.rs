@@ -31,7 +31,9 @@
 //! (`start_…`) are transients of the log, not physics: they are not flown.
 //!
 //! Skipped, with a reason ([`SkippedEffect`]): the accelerometer bias (`accel-bias`), a sensor
-//! error, not a force on the vehicle. Refused ([`ModelPlantError::NotFlyable`]): a custom
+//! error, not a force on the vehicle. A drag-like coefficient (a drag, the inflow, the rotor
+//! inertia) below 0 within its noise is flown as 0 and named there too. One significantly below
+//! 0 is refused ([`ModelPlantError::NegativeDrag`]): it would feed the motion energy. Refused ([`ModelPlantError::NotFlyable`]): a custom
 //! effect (`spec`): its columns are log signals, not a law of the state the plant can evaluate.
 //! Fly a user's effect through `tagk_sim::PlantEffect` instead.
 
@@ -67,18 +69,34 @@ pub enum ModelPlantError {
         /// The coefficient or scanned parameter missing.
         name: &'static str,
     },
+    /// A drag-like coefficient significantly negative: it would feed the motion energy.
+    #[error(
+        "effect `{effect}`: {name} = {value:.3e} is significantly below 0 (95 % interval [{lo:.3e}, {hi:.3e}]): a drag cannot push along the motion; refit without the effect or with another drag law"
+    )]
+    NegativeDrag {
+        /// The effect's name.
+        effect: String,
+        /// The coefficient's name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// Its 95 % interval's lower end.
+        lo: f64,
+        /// Its 95 % interval's upper end.
+        hi: f64,
+    },
     /// The simulator refused the vehicle, the parameters or a coefficient.
     #[error("{0}")]
     Sim(#[from] SimError),
 }
 
-/// An effect of the model file that is not flown, and why.
+/// An effect of the model file that is not flown, or a coefficient of it flown as 0, and why.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SkippedEffect {
-    /// The effect's name.
+    /// The effect's name, with the coefficient's for a coefficient flown as 0 (`linear-drag d_z`).
     pub effect: String,
     /// Why it is not flown.
-    pub reason: &'static str,
+    pub reason: String,
 }
 
 /// The ground effect with a fitted gain: the rotors' thrust factor `1 + c_ge (T_IGE/T_OGE − 1)`.
@@ -140,6 +158,43 @@ fn coef(effect: &ModelEffect, name: &'static str) -> Result<f64, ModelPlantError
         })
 }
 
+/// The drag-like coefficient `name` of `effect` (a drag, an inflow, a rotor inertia: physically
+/// `≥ 0`), required. A negative value whose 95 % interval reaches 0 is noise about a small
+/// drag: it is flown as 0, and `zeroed` says so. A value significantly below 0 is refused.
+fn drag_coef(
+    effect: &ModelEffect,
+    name: &'static str,
+    zeroed: &mut Vec<SkippedEffect>,
+) -> Result<f64, ModelPlantError> {
+    let value = coef(effect, name)?;
+    if value >= 0.0 {
+        return Ok(value);
+    }
+    let found = effect.coefficients.iter().find(|c| c.name == name);
+    let interval = found.and_then(|c| {
+        c.interval
+            .or_else(|| c.std_error.map(|se| [value - 1.96 * se, value + 1.96 * se]))
+    });
+    match interval {
+        Some([lo, hi]) if hi < 0.0 => Err(ModelPlantError::NegativeDrag {
+            effect: effect.name.clone(),
+            name,
+            value,
+            lo,
+            hi,
+        }),
+        _ => {
+            zeroed.push(SkippedEffect {
+                effect: format!("{} {name}", effect.name),
+                reason: format!(
+                    "{value:.3e} is below 0 within its noise: a drag cannot push along the motion; flown as 0"
+                ),
+            });
+            Ok(0.0)
+        }
+    }
+}
+
 /// The scanned parameter `name` of `effect`, required.
 fn scanned(effect: &ModelEffect, name: &'static str) -> Result<f64, ModelPlantError> {
     match &effect.scanned {
@@ -178,7 +233,7 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
         if wanted == ACCEL_BIAS || wanted == "accelerometer-bias" {
             skipped.push(SkippedEffect {
                 effect: effect.name.clone(),
-                reason: "a sensor error (accelerometer offset), not a force on the vehicle",
+                reason: "a sensor error (accelerometer offset), not a force on the vehicle".into(),
             });
             continue;
         }
@@ -188,9 +243,10 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 reason: "not an effect of the vocabulary (docs/CONVENTIONS.md §7)",
             })?;
         let c = |name| coef(effect, name);
+        let mut d = |name| drag_coef(effect, name, &mut skipped);
         match kind {
             EffectKind::LinearDrag => {
-                builtins.push((kind, vec![c("d_x")?, c("d_y")?, c("d_z")?]));
+                builtins.push((kind, vec![d("d_x")?, d("d_y")?, d("d_z")?]));
             }
             EffectKind::QuadraticDrag => {
                 let rho = QuadraticDrag::crazyflie().air_density;
@@ -198,15 +254,15 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 builtins.push((
                     kind,
                     vec![
-                        cd_area(c("c_x")?),
-                        cd_area(c("c_y")?),
-                        cd_area(c("c_z")?),
+                        cd_area(d("c_x")?),
+                        cd_area(d("c_y")?),
+                        cd_area(d("c_z")?),
                         rho,
                     ],
                 ));
             }
             EffectKind::RotorDrag => {
-                let (kh, kz) = (c("k_h")?, c("k_z")?);
+                let (kh, kz) = (d("k_h")?, d("k_z")?);
                 builtins.push((kind, vec![kh, kh, kz]));
             }
             EffectKind::BodyBias => builtins.push((
@@ -223,31 +279,34 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 gain: c("c_ge")?,
             })),
             EffectKind::MotorLag => builtins.push((kind, vec![scanned(effect, "tau")?])),
-            EffectKind::RotorInertia => rotor_inertia = Some(c("J_r")?),
+            EffectKind::RotorInertia => rotor_inertia = Some(d("J_r")?),
             // The diagnosis's delay is positive for an early actuator log; the plant's delays
             // (makes late) the logged wrench.
             EffectKind::TimeDelay => builtins.push((kind, vec![-scanned(effect, "delay")?])),
             EffectKind::Wind => {
                 if effect.coefficient("kv_wx").is_some() {
                     // The rotor drag (at the hubs, or scaled by Σ|ω_i|) and `K v_w`.
-                    let kz = c("k_z")?;
+                    let kz = d("k_z")?;
                     let (drag, kxy) = match effect.coefficient("k_h") {
-                        Some(kh) => (vec![kh, kh, kz], kh),
+                        Some(_) => {
+                            let kh = d("k_h")?;
+                            (vec![kh, kh, kz], kh)
+                        }
                         None => {
-                            let (kx, ky) = (c("k_x")?, c("k_y")?);
+                            let (kx, ky) = (d("k_x")?, d("k_y")?);
                             (vec![kx, ky, kz], 0.5 * (kx + ky))
                         }
                     };
                     builtins.push((EffectKind::RotorDrag, drag));
                     builtins.push((kind, vec![c("kv_wx")? / kxy, c("kv_wy")? / kxy, 0.0]));
                 } else {
-                    let d = [c("d_x")?, c("d_y")?, c("d_z")?];
-                    let mean = 0.5 * (d[0] + d[1]);
-                    builtins.push((EffectKind::LinearDrag, d.to_vec()));
+                    let drag = [d("d_x")?, d("d_y")?, d("d_z")?];
+                    let mean = 0.5 * (drag[0] + drag[1]);
+                    builtins.push((EffectKind::LinearDrag, drag.to_vec()));
                     builtins.push((kind, vec![c("F_wx")? / mean, c("F_wy")? / mean, 0.0]));
                 }
             }
-            EffectKind::RotorInflow => builtins.push((kind, vec![c("k_in")?])),
+            EffectKind::RotorInflow => builtins.push((kind, vec![d("k_in")?])),
             // The contrasts; their common part is the thrust gain's (or the mass's).
             EffectKind::RotorImbalance => {
                 let d = [c("d_eps1")?, c("d_eps2")?, c("d_eps3")?];
@@ -405,5 +464,38 @@ mod tests {
             matches!(err, ModelPlantError::Missing { name: "tau", .. }),
             "{err}"
         );
+    }
+
+    /// A negative drag within its noise is flown as 0 and named; one significantly below 0 is
+    /// refused; without an interval a negative drag is taken as noise.
+    #[test]
+    fn a_negative_drag_is_flown_as_zero_within_its_noise_and_refused_beyond() {
+        let mut drag = effect(
+            "linear-drag",
+            &[("d_x", 0.01), ("d_y", 0.01), ("d_z", -2e-3)],
+        );
+        drag.coefficients[2].std_error = Some(1.5e-3);
+        let plant = model_plant(&model(vec![drag.clone()])).unwrap();
+        let d = plant.plant.effects.linear_drag.unwrap().coefficients;
+        assert_eq!(d, [0.01, 0.01, 0.0]);
+        assert_eq!(plant.skipped.len(), 1);
+        assert_eq!(plant.skipped[0].effect, "linear-drag d_z");
+        assert!(plant.skipped[0].reason.contains("flown as 0"));
+        drag.coefficients[2].std_error = Some(5e-4);
+        let err = model_plant(&model(vec![drag.clone()])).unwrap_err();
+        assert!(
+            matches!(err, ModelPlantError::NegativeDrag { name: "d_z", .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("significantly below 0"), "{err}");
+        // An interval, when given, decides.
+        drag.coefficients[2].interval = Some([-3e-3, 1e-4]);
+        assert!(model_plant(&model(vec![drag.clone()])).is_ok());
+        drag.coefficients[2].std_error = None;
+        drag.coefficients[2].interval = None;
+        assert!(model_plant(&model(vec![drag])).is_ok());
+        let inertia = effect("rotor-inertia", &[("J_r", -1e-9)]);
+        let plant = model_plant(&model(vec![inertia])).unwrap();
+        assert_eq!(plant.plant.effects.rotor_inertia.unwrap().inertia, 0.0);
     }
 }
