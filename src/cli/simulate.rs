@@ -7,8 +7,8 @@ use std::path::PathBuf;
 
 use tagk_diagnose::{ModelFile, ModelFileError};
 use tagk_dynamics::EffectKind;
-use tagk_dynamics::QuadrotorModel;
 use tagk_dynamics::vehicle::Vehicle;
+use tagk_dynamics::{QuadrotorModel, SafetyGate};
 use tagk_sim::{
     Adaptation, EstimatorKind, EstimatorSpec, LogRate, NoiseLevel, Payload, PayloadSchedule,
     PayloadShape, PlantEffects, SensingProfile, SimConfig, SimError, TrajectoryKind,
@@ -139,7 +139,8 @@ impl SimulateArgs {
                 let plant = model_plant(&model)?;
                 let mut config = plant.configure(config);
                 if let Some(vehicle) = &model.vehicle {
-                    config.gate.max_com_offset = vehicle.airframe_radius;
+                    config.gate =
+                        SafetyGate::for_vehicle(vehicle.airframe_radius, &config.vehicle.params);
                 }
                 Ok((config, plant.skipped))
             }
@@ -187,7 +188,7 @@ impl SimulateArgs {
         if let Some(name) = &self.vehicle {
             let vehicle = Vehicle::from_name_or_path(name)?;
             base.vehicle = QuadrotorModel::from_vehicle(&vehicle)?;
-            base.gate.max_com_offset = vehicle.airframe_radius;
+            base.gate = SafetyGate::for_vehicle(vehicle.airframe_radius, &base.vehicle.params);
         }
         Ok(SimConfig {
             trajectory: self.trajectory,

@@ -40,6 +40,23 @@ impl SafetyGate {
             max_inertia_eigenvalue: 1e-4,
         }
     }
+
+    /// The paper's gate scaled to another vehicle: `L_arm` is its airframe radius \[m\], and
+    /// `α` keeps the Crazyflie's ratio to the largest eigenvalue of the inertia about the
+    /// origin (`1e-4 / 2.93e-5 ≈ 3.4`) times the vehicle's, `nominal` \[kg m²\]. The
+    /// Crazyflie's own numbers give [`SafetyGate::crazyflie`] (to rounding). A vehicle ten
+    /// times heavier in inertia gets a ten times larger `α`: the paper's `1e-4` would refuse
+    /// its every estimate.
+    pub fn for_vehicle(airframe_radius: f64, nominal: &InertialParams) -> Self {
+        let crazyflie = Self::crazyflie();
+        let largest = |p: &InertialParams| p.inertia_origin().symmetric_eigenvalues().max();
+        let ratio = crazyflie.max_inertia_eigenvalue
+            / largest(&crate::quadrotor::QuadrotorModel::crazyflie_2_1().params);
+        Self {
+            max_com_offset: airframe_radius,
+            max_inertia_eigenvalue: ratio * largest(nominal),
+        }
+    }
 }
 
 /// Why a parameter vector failed the [`SafetyGate`]; the first failed check is reported, in

@@ -702,3 +702,25 @@ fn nearest_consistent_moves_along_the_least_determined_direction() {
         bad.project_to_consistent(0.0)
     );
 }
+
+/// The gate scaled to a vehicle keeps the Crazyflie's numbers for the Crazyflie and scales
+/// `α` with the largest inertia eigenvalue: a body with ten times the inertia gets ten times
+/// the bound, and its own nominal parameters pass.
+#[test]
+fn the_safety_gate_scales_with_the_vehicle() {
+    let cf = QuadrotorModel::crazyflie_2_1().params;
+    let gate = SafetyGate::for_vehicle(0.0325, &cf);
+    let paper = SafetyGate::crazyflie();
+    assert_eq!(gate.max_com_offset, paper.max_com_offset);
+    assert!((gate.max_inertia_eigenvalue - paper.max_inertia_eigenvalue).abs() < 1e-18);
+    let mut big: [f64; 10] = cf.as_slice().try_into().unwrap();
+    big[0] *= 10.0;
+    for v in &mut big[4..] {
+        *v *= 10.0;
+    }
+    let big = InertialParams::from_array(big);
+    assert!(big.safety_gate(&paper).is_err(), "the paper's α refuses it");
+    let scaled = SafetyGate::for_vehicle(0.1, &big);
+    assert!((scaled.max_inertia_eigenvalue / paper.max_inertia_eigenvalue - 10.0).abs() < 1e-12);
+    assert_eq!(big.safety_gate(&scaled), Ok(()));
+}
