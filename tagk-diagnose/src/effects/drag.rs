@@ -225,11 +225,7 @@ impl Effect for RotorDrag {
         (0..6).collect()
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
-        if s.rotor_speeds().is_some() {
-            Ok(())
-        } else {
-            Err("needs rotor speeds (columns w1..w4)".into())
-        }
+        super::needs_rotor_speeds(s)
     }
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
         let Some(w) = s.rotor_speeds() else {

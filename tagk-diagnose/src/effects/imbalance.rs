@@ -37,9 +37,7 @@ impl Effect for RotorImbalance {
         vec![2, 3, 4, 5]
     }
     fn check(&self, s: &Signals) -> Result<(), String> {
-        if s.rotor_speeds().is_none() {
-            return Err("needs rotor speeds (columns w1..w4)".into());
-        }
+        super::needs_rotor_speeds(s)?;
         if s.rotor_mixer().is_none() {
             return Err("needs the rotor mixer (a wrench computed from the rotor speeds)".into());
         }

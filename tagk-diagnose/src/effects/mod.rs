@@ -293,6 +293,15 @@ pub fn cut_to_window(
     columns
 }
 
+/// `Err(reason)` unless the log has rotor speeds: the check of every effect computed from them.
+pub(crate) fn needs_rotor_speeds(s: &Signals) -> Result<(), String> {
+    if s.rotor_speeds().is_some() {
+        Ok(())
+    } else {
+        Err("needs rotor speeds (columns w1..w4)".into())
+    }
+}
+
 /// Plausible unless a coefficient is significantly negative (beyond 3 standard errors).
 pub(crate) fn nonneg(names: &[&str], coef: &[f64], se: &[f64], what: &str) -> Plausibility {
     for (k, n) in names.iter().enumerate() {
