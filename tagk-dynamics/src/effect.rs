@@ -108,7 +108,7 @@ impl EffectKind {
             EffectKind::RotorInertia => &["motor-inertia", "gyroscopic"],
             EffectKind::RotorInflow => &["inflow"],
             EffectKind::RotorImbalance => &["per-rotor-thrust"],
-            EffectKind::BatteryVoltage => &["battery", "vbat"],
+            EffectKind::BatteryVoltage => &["battery"],
             _ => &[],
         }
     }
