@@ -20,6 +20,7 @@
 //! | `rotor-inertia` | `J_r` \[kg m²\] | `rotor-inertia`, `J_r` times `1 + κ` (as the inertia) |
 //! | `rotor-inflow` | `k_in` \[kg/rad\] | `rotor-inflow`, the same `k_in` |
 //! | `rotor-imbalance` | `d_eps1, d_eps2, d_eps3` \[1\] | `rotor-imbalance`, `ε = (d₁, d₂, d₃, −d₁ − d₂ − d₃)` |
+//! | `battery-voltage` | `beta` \[1\] | `battery-voltage`, the same `β` at `V_ref = 3.8 V`; the Crazyflie battery (it logs `vbat`) |
 //!
 //! `thrust-gain` is fitted on the thrust alone: the diagnosis's torques stay in units of the
 //! logged torque, so its inertia is the true one over `1 + κ`. The plant's gain scales the
@@ -312,6 +313,12 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 let d = [c("d_eps1")?, c("d_eps2")?, c("d_eps3")?];
                 builtins.push((kind, vec![d[0], d[1], d[2], -(d[0] + d[1] + d[2])]));
             }
+            // The diagnosis's reference voltage is the plant's default; the battery's
+            // discharge and sag are the Crazyflie's (not identified).
+            EffectKind::BatteryVoltage => builtins.push((
+                kind,
+                vec![c("beta")?, tagk_dynamics::BATTERY_REFERENCE_VOLTAGE],
+            )),
             _ => {
                 return Err(ModelPlantError::NotFlyable {
                     effect: effect.name.clone(),

@@ -154,7 +154,7 @@ fn every_flyable_effect_round_trips() {
         "rigid body floor: force {:.3e} N, torque {:.3e} N m",
         floor[0], floor[1]
     );
-    let cases: [(&str, &[&str], &[&str]); 11] = [
+    let cases: [(&str, &[&str], &[&str]); 12] = [
         ("linear-drag", &[], &[]),
         ("quadratic-drag", &[], &[]),
         ("rotor-drag", &[], &[]),
@@ -167,6 +167,8 @@ fn every_flyable_effect_round_trips() {
         // A helix climbs and descends: the rotors see an axial air speed.
         ("rotor-inflow", &["--trajectory", "helix"], &[]),
         ("rotor-imbalance", &[], &[]),
+        // The flown plant logs `vbat` again (the Crazyflie battery at the model's β).
+        ("battery-voltage", &[], &[]),
     ];
     let mut failures = Vec::new();
     for (effect, sim_extra, diag_extra) in cases {
@@ -175,7 +177,12 @@ fn every_flyable_effect_round_trips() {
             let bound = TOLERANCE * r.imprint[g] + FLOOR_FACTOR * floor[g];
             // The plant's body-bias force does not come back: the diagnosis reads a constant
             // body force as the accelerometer's offset, a sensor error (docs/MODEL_FILE.md).
-            let exempt = effect == "body-bias" && g == 0;
+            // The battery's torque does not come back either: the inertia is fitted in units
+            // of the logged torque (β on the thrust alone), the plant scales the torques by
+            // `b ≈ 0.99`, and the model file has no mean voltage to rescale the inertia
+            // (measured: torque imprint 1.2e-6 N m, 1 % of the torques; miss 6.7e-7).
+            let exempt =
+                (effect == "body-bias" && g == 0) || (effect == "battery-voltage" && g == 1);
             println!(
                 "{effect:15} {:6}: imprint {:.3e}, miss {:.3e} ({:.1} %), bound {:.3e}{}; {}",
                 ["force", "torque"][g],
@@ -183,7 +190,9 @@ fn every_flyable_effect_round_trips() {
                 r.miss[g],
                 100.0 * r.miss[g] / r.imprint[g],
                 bound,
-                if exempt {
+                if exempt && effect == "battery-voltage" {
+                    " (inertia in logged-torque units)"
+                } else if exempt {
                     " (not flown: sensor offset)"
                 } else {
                     ""

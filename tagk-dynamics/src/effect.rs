@@ -7,6 +7,14 @@
 //! relative to the air in the body frame \[m/s\], rotor speeds `ωᵢ` \[rad/s\].
 
 use core::fmt;
+
+/// The log's battery-voltage column \[V\] (an extra column): the simulator writes it with a
+/// `battery-voltage` effect, and the diagnosis's `battery-voltage` candidate reads it.
+pub const BATTERY_COLUMN: &str = "vbat";
+
+/// The reference voltage `V_ref` \[V\] of `battery-voltage` (a 1S LiPo mid-flight): the rotor
+/// map is nominal at this battery voltage. The simulator's default and the diagnosis share it.
+pub const BATTERY_REFERENCE_VOLTAGE: f64 = 3.8;
 use core::str::FromStr;
 
 /// A physical effect missing from the rigid-body model.
@@ -48,11 +56,15 @@ pub enum EffectKind {
     /// Per-rotor coefficients: rotor `i` makes `(1 + εᵢ)` times its nominal thrust `k_f ωᵢ²`
     /// and reaction torque `k_m ωᵢ²` (a weak or damaged rotor; dimensionless `εᵢ`).
     RotorImbalance,
+    /// Battery-voltage dependence of the rotor map: with the logged battery voltage `V` \[V\],
+    /// the rotors make `(1 + β (V − V_ref)/V_ref)` times their nominal thrust `k_f ωᵢ²` and
+    /// reaction torque `k_m ωᵢ²` (dimensionless `β`, reference voltage `V_ref` \[V\]).
+    BatteryVoltage,
 }
 
 impl EffectKind {
     /// Every effect, in a fixed order (the order of help texts and reports).
-    pub const ALL: [EffectKind; 12] = [
+    pub const ALL: [EffectKind; 13] = [
         EffectKind::LinearDrag,
         EffectKind::QuadraticDrag,
         EffectKind::RotorDrag,
@@ -65,6 +77,7 @@ impl EffectKind {
         EffectKind::RotorInertia,
         EffectKind::RotorInflow,
         EffectKind::RotorImbalance,
+        EffectKind::BatteryVoltage,
     ];
 
     /// The canonical kebab-case name, e.g. `"rotor-drag"`.
@@ -82,6 +95,7 @@ impl EffectKind {
             EffectKind::RotorInertia => "rotor-inertia",
             EffectKind::RotorInflow => "rotor-inflow",
             EffectKind::RotorImbalance => "rotor-imbalance",
+            EffectKind::BatteryVoltage => "battery-voltage",
         }
     }
 
@@ -94,6 +108,7 @@ impl EffectKind {
             EffectKind::RotorInertia => &["motor-inertia", "gyroscopic"],
             EffectKind::RotorInflow => &["inflow"],
             EffectKind::RotorImbalance => &["per-rotor-thrust"],
+            EffectKind::BatteryVoltage => &["battery"],
             _ => &[],
         }
     }
@@ -120,6 +135,9 @@ impl EffectKind {
             }
             EffectKind::RotorImbalance => {
                 "per-rotor thrust and torque coefficients, (1 + eps_i) k_f w_i^2 (a weak rotor)"
+            }
+            EffectKind::BatteryVoltage => {
+                "rotor map falling with the battery voltage, (1 + beta (V - V_ref)/V_ref) k_f w_i^2"
             }
         }
     }

@@ -19,7 +19,7 @@ mod window;
 /// The nalgebra version this crate's API uses (re-exported so callers match it).
 pub use nalgebra;
 
-pub use effect::{EffectKind, UnknownEffect};
+pub use effect::{BATTERY_COLUMN, BATTERY_REFERENCE_VOLTAGE, EffectKind, UnknownEffect};
 pub use error::DynamicsError;
 pub use inertial::{GateViolation, InertialParams, SafetyGate};
 pub use log::{FlightLog, LogError, LogSample};

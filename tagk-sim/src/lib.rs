@@ -20,7 +20,7 @@ pub use monte_carlo::{
     CellSummary, ErrorCurves, Sweep, SweepObserver, SweepResult, Traces, trial_seed,
 };
 pub use plant::{Plant, PlantState};
-pub use plant_effects::{PlantEffect, PlantEffects};
+pub use plant_effects::{BatteryVoltage, PlantEffect, PlantEffects};
 pub use sim::{
     Adaptation, Controller, ExperimentProfile, FlightStack, FlightTruth, LogRate,
     MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule, PayloadShape, Sensing,

@@ -199,6 +199,14 @@ impl Plant {
         speeds.map(|w| if w.is_nan() { 0.0 } else { w.clamp(0.0, hi) })
     }
 
+    /// The battery voltage \[V\] at `state` under command `cmd` \[rad/s\] at time `time` \[s\]
+    /// ([`crate::plant_effects::BatteryVoltage::voltage`] at the acting rotor speeds); `None`
+    /// without a `battery-voltage` effect.
+    pub fn battery_voltage(&self, state: &PlantState, cmd: &[f64; 4], time: f64) -> Option<f64> {
+        let b = self.effects.battery_voltage?;
+        Some(b.voltage(time, &self.acting_rotor_speeds(state, cmd)))
+    }
+
     fn wrench_at(&self, s: &PlantState, rotor: &[f64; 4], time: f64) -> Wrench {
         let es = EffectState {
             time,

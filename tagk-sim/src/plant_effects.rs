@@ -23,6 +23,7 @@
 //! | `rotor-inertia` | [`RotorInertia`] (rotor dynamics, applied by the plant) | `rotor_inertia` |
 //! | `rotor-inflow` | [`RotorInflow`] | `rotor_inflow` |
 //! | `rotor-imbalance` | [`RotorImbalance`] (per-rotor factors) | `rotor_imbalance` |
+//! | `battery-voltage` | [`BatteryVoltage`] (thrust factor; logs `vbat`) | `battery_voltage` |
 //!
 //! # The extension point: [`PlantEffect`]
 //!
@@ -584,6 +585,84 @@ impl PlantEffect for RotorImbalance {
     }
 }
 
+/// Battery-voltage dependence of the rotor map (the vocabulary's `battery-voltage`): the
+/// rotors make `(1 + β (V − V_ref)/V_ref)` times their nominal thrust `k_f ωᵢ²` and reaction
+/// torque `k_m ωᵢ²`. A common factor ([`PlantEffect::thrust_factor`]).
+///
+/// The battery voltage \[V\] is a simple discharge and sag model ([`BatteryVoltage::voltage`]):
+/// `V = V₀ − r t − s Σ ωᵢ²`. The open-circuit voltage falls linearly in time (a near-constant
+/// hover current drains charge linearly); the sag is an internal resistance times a current
+/// taken proportional to the total nominal thrust. The simulator logs `V` as the column `vbat`
+/// ([`tagk_dynamics::BATTERY_COLUMN`]).
+///
+/// Defaults (Crazyflie 2.x, 1S 250 mAh LiPo):
+/// - `β = 1`: a reasoned value, not a measurement. Stock Crazyflies log no rotor speed; the
+///   speeds come from a command calibrated at one voltage. The motor voltage is duty × `V` and
+///   the thrust grows about with its square (Bitcraze thrust-stand tests), so `β ≤ 2`; a loaded
+///   motor's speed grows less than its voltage, so `β` is smaller. With measured speeds `β = 0`.
+/// - `V_ref = 3.8 V` ([`tagk_dynamics::BATTERY_REFERENCE_VOLTAGE`]), `V₀ = 4.1 V`.
+/// - `r = 1.5e-3 V/s`: 4.15 → 3.5 V over a 7-minute flight.
+/// - `s = 2.8e-8 V s²/rad²`: Bitcraze's PWM-to-thrust table drops 0.34 V at 28.6 g of thrust,
+///   1.2 V/N, times `k_f = 2.3e-8 N s²`. Near hover it sags 0.33 V.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BatteryVoltage {
+    /// `β`, the relative thrust change per relative voltage change (dimensionless).
+    pub beta: f64,
+    /// `V_ref` \[V\], the voltage at which the nominal coefficients hold (`> 0`).
+    pub reference_voltage: f64,
+    /// `V₀` \[V\], the open-circuit voltage at time 0 (`> 0`).
+    pub initial_voltage: f64,
+    /// `r` \[V/s\], the open-circuit voltage's fall per second (`≥ 0`).
+    pub discharge_rate: f64,
+    /// `s` \[V s²/rad²\], the sag per unit of `Σ ωᵢ²` (`≥ 0`).
+    pub sag: f64,
+}
+
+impl BatteryVoltage {
+    /// The Crazyflie 2.x defaults (type docs).
+    pub fn crazyflie() -> Self {
+        Self {
+            beta: 1.0,
+            reference_voltage: tagk_dynamics::BATTERY_REFERENCE_VOLTAGE,
+            initial_voltage: 4.1,
+            discharge_rate: 1.5e-3,
+            sag: 2.8e-8,
+        }
+    }
+
+    /// The battery voltage \[V\] at time `t` \[s\] with rotor speeds `rotor` \[rad/s\]:
+    /// `V₀ − r t − s Σ ωᵢ²`, floored at 0.
+    pub fn voltage(&self, t: f64, rotor: &[f64; 4]) -> f64 {
+        let sq: f64 = rotor.iter().map(|w| w * w).sum();
+        (self.initial_voltage - self.discharge_rate * t - self.sag * sq).max(0.0)
+    }
+
+    /// The factor `1 + β (V − V_ref)/V_ref` at voltage `v` \[V\].
+    pub fn factor(&self, v: f64) -> f64 {
+        1.0 + self.beta * (v - self.reference_voltage) / self.reference_voltage
+    }
+}
+
+impl Default for BatteryVoltage {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
+impl PlantEffect for BatteryVoltage {
+    fn name(&self) -> &str {
+        EffectKind::BatteryVoltage.name()
+    }
+    /// No wrench of its own: it scales the rotors.
+    fn wrench(&self, _s: &EffectState<'_>) -> Wrench {
+        Wrench::zero()
+    }
+    /// `1 + β (V − V_ref)/V_ref` at the state's time and rotor speeds.
+    fn thrust_factor(&self, s: &EffectState<'_>) -> f64 {
+        self.factor(self.voltage(s.time, &s.rotor_speeds))
+    }
+}
+
 impl PlantEffect for RotorInflow {
     fn name(&self) -> &str {
         EffectKind::RotorInflow.name()
@@ -778,6 +857,9 @@ pub struct PlantEffects {
     /// Per-rotor thrust and torque coefficients.
     #[serde(default)]
     pub rotor_imbalance: Option<RotorImbalance>,
+    /// Battery-voltage dependence of the rotor map (logs `vbat`).
+    #[serde(default)]
+    pub battery_voltage: Option<BatteryVoltage>,
 }
 
 impl PlantEffects {
@@ -823,6 +905,9 @@ impl PlantEffects {
             EffectKind::RotorImbalance => {
                 self.rotor_imbalance = Some(RotorImbalance::crazyflie());
             }
+            EffectKind::BatteryVoltage => {
+                self.battery_voltage = Some(BatteryVoltage::crazyflie());
+            }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -844,6 +929,7 @@ impl PlantEffects {
             EffectKind::RotorInertia => "J_r (one rotor) [kg m^2]",
             EffectKind::RotorInflow => "k_in [N s^2/(m rad)]",
             EffectKind::RotorImbalance => "eps_1, eps_2, eps_3, eps_4 [1] (rotors M1..M4)",
+            EffectKind::BatteryVoltage => "beta [1], v_ref [V]",
             _ => "",
         }
     }
@@ -867,6 +953,7 @@ impl PlantEffects {
             EffectKind::QuadraticDrag => 4,
             EffectKind::BodyBias => 6,
             EffectKind::RotorImbalance => 4,
+            EffectKind::BatteryVoltage => 2,
             _ => 1,
         };
         if c.len() != expected {
@@ -918,6 +1005,14 @@ impl PlantEffects {
             EffectKind::RotorImbalance => {
                 e.rotor_imbalance = Some(RotorImbalance {
                     relative_errors: [c[0], c[1], c[2], c[3]],
+                });
+            }
+            // The battery's discharge and sag keep their defaults.
+            EffectKind::BatteryVoltage => {
+                e.battery_voltage = Some(BatteryVoltage {
+                    beta: c[0],
+                    reference_voltage: c[1],
+                    ..BatteryVoltage::crazyflie()
                 });
             }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
@@ -999,6 +1094,36 @@ impl PlantEffects {
                 reason: "must be non-negative and finite",
             });
         }
+        if let Some(b) = &self.battery_voltage {
+            finite("battery_voltage.beta", &[b.beta])?;
+            let positive = [
+                ("battery_voltage.reference_voltage", b.reference_voltage),
+                ("battery_voltage.initial_voltage", b.initial_voltage),
+            ];
+            let non_negative = [
+                ("battery_voltage.discharge_rate", b.discharge_rate),
+                ("battery_voltage.sag", b.sag),
+            ];
+            if let Some(&(name, value)) =
+                positive.iter().find(|(_, v)| !(*v > 0.0 && v.is_finite()))
+            {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be positive and finite",
+                });
+            }
+            if let Some(&(name, value)) = non_negative
+                .iter()
+                .find(|(_, v)| !(*v >= 0.0 && v.is_finite()))
+            {
+                return Err(SimError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be non-negative and finite",
+                });
+            }
+        }
         if let Some(b) = &self.rotor_imbalance {
             finite("rotor_imbalance.relative_errors", &b.relative_errors)?;
             if let Some(&value) = b.relative_errors.iter().find(|e| **e <= -1.0) {
@@ -1029,7 +1154,8 @@ impl PlantEffects {
     /// The wrench-like effects that are on, as [`PlantEffect`]s, in the order the plant
     /// applies them: `thrust-gain`, `ground-effect` (thrust factors), then the acting rotor
     /// drag ([`PlantEffects::acting_rotor_drag`]), `linear-drag`, `quadratic-drag`,
-    /// `body-bias`, `rotor-inflow` (wrenches), `rotor-imbalance` (per-rotor factors). Motor
+    /// `body-bias`, `rotor-inflow` (wrenches), `rotor-imbalance` (per-rotor factors),
+    /// `battery-voltage` (a thrust factor). Motor
     /// lag, wind and time delay are not among them (module docs).
     pub fn acting(&self) -> Vec<std::sync::Arc<dyn PlantEffect>> {
         let mut v: Vec<std::sync::Arc<dyn PlantEffect>> = Vec::new();
@@ -1055,6 +1181,9 @@ impl PlantEffects {
             v.push(std::sync::Arc::new(e));
         }
         if let Some(e) = self.rotor_imbalance {
+            v.push(std::sync::Arc::new(e));
+        }
+        if let Some(e) = self.battery_voltage {
             v.push(std::sync::Arc::new(e));
         }
         v

@@ -268,6 +268,11 @@ fn wrench_before_the_trait(
     if let Some(g) = &e.ground_effect {
         k *= g.thrust_ratio(s.position.z);
     }
+    // Added after the trait: the battery's factor at time 0 (the plants here are new).
+    if let Some(b) = &e.battery_voltage {
+        let v = b.initial_voltage - b.sag * rotor.iter().map(|w| w * w).sum::<f64>();
+        k *= 1.0 + b.beta * (v - b.reference_voltage) / b.reference_voltage;
+    }
     // Added after the trait: the per-rotor factors of a rotor imbalance.
     let thrusts: [f64; 4] = match &e.rotor_imbalance {
         None => rotor.map(|w| k * model.k_f * w * w),
@@ -433,4 +438,68 @@ fn rotor_imbalance_scales_each_rotor_alone() {
             .with_coefficients(EffectKind::RotorImbalance, &[-1.0, 0.0, 0.0, 0.0])
             .is_err()
     );
+}
+
+/// A battery-voltage effect, written out by hand per rotor: the voltage
+/// `V = V₀ − r t − s Σ ωᵢ²`, the factor `b = 1 + β (V − V_ref)/V_ref`, `T_i = b k_f ω_i²` at the
+/// Crazyflie's hubs `(±L, ±L)`, `τ_z = Σ s_i (k_m/k_f) T_i`; at time 0 and after 2 s of flight
+/// (the open-circuit voltage has fallen by `2 r`). The simulator's logged `vbat` is `V` too.
+#[test]
+fn battery_voltage_scales_every_rotor_by_the_voltage() {
+    let model = QuadrotorModel::crazyflie_2_1();
+    let l = tagk_dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
+    let hubs = [(l, -l), (-l, -l), (-l, l), (l, l)];
+    let spins = [1.0, -1.0, 1.0, -1.0];
+    let (beta, v_ref) = (1.3, 3.7);
+    let effects = PlantEffects::none()
+        .with_coefficients(EffectKind::BatteryVoltage, &[beta, v_ref])
+        .unwrap();
+    let battery = effects.battery_voltage.unwrap();
+    let (v0, r, sag) = (4.1, 1.5e-3, 2.8e-8);
+    assert_eq!(
+        (battery.initial_voltage, battery.discharge_rate, battery.sag),
+        (v0, r, sag)
+    );
+    let speeds = [1900.0, 2100.0, 1800.0, 2300.0];
+    let mut plant = Plant::new(
+        model,
+        model.params,
+        effects,
+        PlantState::at_rest(Vector3::new(0.0, 0.0, 1.0)),
+    )
+    .unwrap();
+    for step in 0..2 {
+        if step == 1 {
+            for _ in 0..1000 {
+                plant.step(&speeds, 2e-3);
+            }
+            assert!((plant.time() - 2.0).abs() < 1e-9);
+        }
+        let t = plant.time();
+        let sq: f64 = speeds.iter().map(|w| w * w).sum();
+        let v = v0 - r * t - sag * sq;
+        assert!((v - battery.voltage(t, &speeds)).abs() < 1e-12);
+        let b = 1.0 + beta * (v - v_ref) / v_ref;
+        let w = plant.accelerations(&speeds).wrench;
+        let (mut fz, mut tx, mut ty, mut tz) = (0.0, 0.0, 0.0, 0.0);
+        for i in 0..4 {
+            let thrust = b * 2.3e-8 * speeds[i] * speeds[i];
+            fz += thrust;
+            tx += hubs[i].1 * thrust;
+            ty -= hubs[i].0 * thrust;
+            tz += spins[i] * (7.8e-10 / 2.3e-8) * thrust;
+        }
+        assert!((w.force.z - fz).abs() < 1e-12, "{} {fz}", w.force.z);
+        assert!((w.torque.x - tx).abs() < 1e-14 && (w.torque.y - ty).abs() < 1e-14);
+        assert!((w.torque.z - tz).abs() < 1e-15, "{} {tz}", w.torque.z);
+        // A sagged battery: fewer newtons than nominal.
+        assert!(fz < 2.3e-8 * sq, "t = {t}: {fz}");
+    }
+    for bad in [[1.0, 0.0], [1.0, -3.8], [f64::NAN, 3.8]] {
+        assert!(
+            PlantEffects::none()
+                .with_coefficients(EffectKind::BatteryVoltage, &bad)
+                .is_err()
+        );
+    }
 }

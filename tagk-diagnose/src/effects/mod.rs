@@ -12,6 +12,7 @@
 //! [`Effect`]; a product of log columns is a [`CustomEffect`].
 
 mod actuator;
+mod battery;
 mod custom;
 mod drag;
 mod external;
@@ -447,6 +448,7 @@ pub fn builtin_with(
             limit: options.inflow_limit,
         }),
         EffectKind::RotorImbalance => Arc::new(imbalance::RotorImbalance),
+        EffectKind::BatteryVoltage => Arc::new(battery::BatteryVoltage),
         other => return Err(DiagnoseError::NoCandidate(other)),
     };
     Ok(effect)
@@ -460,6 +462,10 @@ pub fn builtin_with(
 /// and for rotor drag's hub moments. Measured with it proposed: false effects in 12 and 10
 /// more of the diagnosis benchmark's 300 flights (seeds 7, 11), mostly where a `body-bias`
 /// torque was hidden, and `rotor-drag` + `motor-lag` found with an extra `rotor-imbalance`.
+///
+/// `battery-voltage` is proposed: it is available only on a log with a `vbat` column (none in
+/// the diagnosis benchmark, whose reports are unchanged bit for bit). On 8 simulated flights
+/// with a logged voltage and no voltage effect it was never added (a test).
 pub const NOT_PROPOSED: [EffectKind; 1] = [EffectKind::RotorImbalance];
 
 /// Every built-in candidate with default tunables, in [`EffectKind::ALL`] order without

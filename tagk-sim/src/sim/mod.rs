@@ -109,6 +109,9 @@ struct Flight<'a> {
     events: Vec<EventRecord>,
     updates: Vec<UpdateRecord>,
     log: FlightLog,
+    /// The battery voltage \[V\] at every log sample (only with a `battery-voltage` effect;
+    /// logged as the extra column `vbat`).
+    vbat: Vec<f64>,
     /// Rotor speeds and wrench commanded at every control step so far (kept only for a log
     /// with a `time-delay` effect, whose wrench stream lags the motion).
     commands: Vec<([f64; 4], [f64; 6])>,
@@ -345,6 +348,7 @@ impl<'a> Flight<'a> {
             events: Vec::new(),
             updates: Vec::new(),
             log: FlightLog::new(),
+            vbat: Vec::new(),
             commands: Vec::new(),
             truth: (config.record_truth && config.record_log).then(|| TruthRecord {
                 effects: acting_effects(&config.effects),
@@ -439,11 +443,17 @@ impl<'a> Flight<'a> {
             for (i, (s, acc)) in steps.iter().enumerate() {
                 let stamp = k as f64 + (i + 1) as f64 / steps.len() as f64;
                 let t_s = k as f64 * dt + (i + 1) as f64 * self.substep;
+                if let Some(v) = self.plant.battery_voltage(s, &cmd, t_s) {
+                    self.vbat.push(v);
+                }
                 self.record_truth(k, stamp, t_s, (s, acc), None, &cmd);
             }
         } else if self.config.record_log {
             self.log_sample(k, &mid_state, &frame, &wrench_measured, measured_speeds);
             let t_s = k as f64 * dt + 0.5 * dt;
+            if let Some(v) = self.plant.battery_voltage(&mid_state, &cmd, t_s) {
+                self.vbat.push(v);
+            }
             if let Some(start) = &start {
                 let interval = (start, steps.as_slice());
                 let mid = (&mid_state, &mid_acc);
@@ -596,7 +606,9 @@ impl<'a> Flight<'a> {
             return;
         };
         let (now, logged) = (truth.read_back[k], truth.read_back[j]);
-        let parts = |(state, acc): (&PlantState, &Accelerations)| {
+        let start = k as f64 * self.config.control_dt;
+        let substep = self.substep;
+        let parts = |(state, acc): (&PlantState, &Accelerations), time: f64| {
             let inputs = TruthInputs {
                 state,
                 acc,
@@ -606,6 +618,7 @@ impl<'a> Flight<'a> {
                     .rotor_accelerations(state, &self.plant.clamp_speeds(cmd)),
                 now,
                 logged,
+                time,
             };
             truth_parts(
                 &self.config.vehicle,
@@ -614,10 +627,15 @@ impl<'a> Flight<'a> {
                 &inputs,
             )
         };
-        let at_sample = parts(sample);
+        let at_sample = parts(sample, t);
         let over_interval = interval.map(|((s0, a0), steps)| {
-            let points: Vec<TruthParts> = std::iter::once(parts((s0, a0)))
-                .chain(steps.iter().map(|(s, a)| parts((s, a))))
+            let points: Vec<TruthParts> = std::iter::once(parts((s0, a0), start))
+                .chain(
+                    steps
+                        .iter()
+                        .enumerate()
+                        .map(|(i, (s, a))| parts((s, a), start + (i + 1) as f64 * substep)),
+                )
                 .collect();
             let rate_change = steps
                 .last()
@@ -798,7 +816,11 @@ impl<'a> Flight<'a> {
     }
 
     /// The metrics of the flight flown and everything it recorded.
-    fn finish(self) -> SimOutput {
+    fn finish(mut self) -> SimOutput {
+        if self.config.effects.battery_voltage.is_some() && self.vbat.len() == self.log.len() {
+            let vbat = std::mem::take(&mut self.vbat);
+            self.log.add_extra(tagk_dynamics::BATTERY_COLUMN, vbat);
+        }
         let tracking = self.tracking;
         let aborted = is_aborted(&tracking);
         let event_steps: Vec<usize> = self.events.iter().map(|e| e.step).collect();

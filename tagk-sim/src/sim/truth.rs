@@ -32,6 +32,7 @@
 //! | `body-bias` | the constant force and torque |
 //! | `rotor-inertia` | the torque `J_r Ḣ e_z + J_r H (Ω × e_z)` of the spinning rotors; without a motor lag only its gyroscopic part (the jumps at new commands are impulses, not in any instant's wrench) |
 //! | `rotor-imbalance` | `(1 + ε) (T_IGE/T_OGE(z)) Σ ε_i W_i(ω_motor)`: each rotor's share `W_i` times its `ε_i` |
+//! | `battery-voltage` | `(1 + ε) (T_IGE/T_OGE(z)) (b − 1) Σ (1 + ε_i) W_i(ω_motor)`, `b = 1 + β (V − V_ref)/V_ref` at the instant's time |
 //!
 //! A `wind` with no drag effect acts through the plant's implicit Crazyflie rotor drag
 //! ([`PlantEffects::extra_wrench`]): its truth then lists `rotor-drag` (that drag at the
@@ -141,6 +142,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::RotorInertia => effects.rotor_inertia.is_some(),
             EffectKind::RotorInflow => effects.rotor_inflow.is_some(),
             EffectKind::RotorImbalance => effects.rotor_imbalance.is_some(),
+            EffectKind::BatteryVoltage => effects.battery_voltage.is_some(),
             _ => false,
         })
         .collect()
@@ -156,6 +158,8 @@ pub(crate) struct TruthInputs<'a> {
     pub(crate) motor_accelerations: [f64; 4],
     pub(crate) now: Wrench,
     pub(crate) logged: Wrench,
+    /// The plant's time at `state` \[s\] (the battery's discharge reads it).
+    pub(crate) time: f64,
 }
 
 /// The wrenches of one instant: the total acting and each effect's.
@@ -379,6 +383,22 @@ pub(crate) fn truth_parts(
                     let w = &inputs.motor_speeds;
                     model.wrench_from_thrusts(&std::array::from_fn(|i| {
                         k * eps[i] * model.k_f * w[i] * w[i]
+                    }))
+                }
+                EffectKind::BatteryVoltage => {
+                    let ratio = effects
+                        .ground_effect
+                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
+                    let eps = effects
+                        .rotor_imbalance
+                        .map_or([0.0; 4], |b| b.relative_errors);
+                    let w = &inputs.motor_speeds;
+                    let b = effects
+                        .battery_voltage
+                        .map_or(1.0, |b| b.factor(b.voltage(inputs.time, w)));
+                    let k = (1.0 + epsilon) * ratio * (b - 1.0);
+                    model.wrench_from_thrusts(&std::array::from_fn(|i| {
+                        k * (1.0 + eps[i]) * model.k_f * w[i] * w[i]
                     }))
                 }
                 _ => Wrench::zero(),
