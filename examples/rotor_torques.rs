@@ -26,20 +26,15 @@
 
 use std::path::PathBuf;
 
-use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use tagk::diagnose::{
     AlignOptions, CONSTANT_RATE, DiagnoseError, DiagnosisPlan, HorizonError, ModelContext,
     ModelFile, Predictor, Signals, predict_logs,
 };
-use tagk::diagnosis_benchmark::{FlightSpec, run_diagnosis};
+use tagk::diagnosis_benchmark::{FlightSpec, draw_path, draw_payload, mix, run_diagnosis};
 use tagk::dynamics::EffectKind;
-use tagk::dynamics::nalgebra::Vector3;
-use tagk::dynamics::quadrotor::CRAZYFLIE_ARM_OFFSET;
-use tagk::sim::{
-    Payload, PayloadShape, PlantEffects, SensingProfile, SimConfig, TrajectoryKind, simulate,
-};
+use tagk::sim::{Payload, PlantEffects, SensingProfile, simulate};
 
 /// Flights with hidden effects, diagnosed, scored on held-out flights against the rigid body
 /// and the constant-rate reference.
@@ -73,22 +68,6 @@ struct Args {
     out: PathBuf,
 }
 
-/// SplitMix64: the stream of flight `index` from the seed.
-fn mix(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// A unit vector uniform on the sphere.
-fn unit_sphere(rng: &mut ChaCha8Rng) -> Vector3<f64> {
-    let z: f64 = rng.random_range(-1.0..1.0);
-    let az: f64 = rng.random_range(0.0..std::f64::consts::TAU);
-    let r = (1.0 - z * z).sqrt();
-    Vector3::new(r * az.cos(), r * az.sin(), z)
-}
-
 /// One flight of the vehicle: its path, yaw rate and simulator seed drawn from `rng`.
 fn flight(
     rng: &mut ChaCha8Rng,
@@ -99,14 +78,7 @@ fn flight(
     effects: PlantEffects,
     hidden: &[String],
 ) -> FlightSpec {
-    let sim_seed: u64 = rng.random();
-    let trajectory = TrajectoryKind::ALL[rng.random_range(0..TrajectoryKind::ALL.len())];
-    let yaw_rate = if rng.random_bool(0.5) {
-        0.0
-    } else {
-        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        sign * rng.random_range(0.1..0.6)
-    };
+    let (sim_seed, trajectory, yaw_rate) = draw_path(rng);
     FlightSpec {
         index,
         sim_seed,
@@ -201,7 +173,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         effects = effects.with(kind)?;
     }
     std::fs::create_dir_all(&args.out)?;
-    let vehicle = SimConfig::default().vehicle;
     let horizons = [args.horizon];
     println!(
         "{} vehicles, hidden {}, {} s flights, {} sensing, seed {}; mean {}-step errors on a held-out flight",
@@ -225,14 +196,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut failed = Vec::new();
     for index in 0..args.flights {
         let mut rng = ChaCha8Rng::seed_from_u64(mix(mix(args.seed) ^ index as u64));
-        let payload = Payload {
-            mass: vehicle.params.mass() * rng.random_range(0.05..0.25),
-            offset: (unit_sphere(&mut rng) * (CRAZYFLIE_ARM_OFFSET * rng.random_range(0.0..0.3)))
-                .into(),
-            shape: PayloadShape::PointMass,
-            attach_time: 0.0,
-            remove_time: None,
-        };
+        let payload = draw_payload(&mut rng, &effects);
         let identify = flight(
             &mut rng,
             args.sensing,

@@ -264,8 +264,9 @@ impl FlightSpec {
     }
 }
 
-/// SplitMix64 of `x`: the seed of one flight's stream from the benchmark seed and its index.
-fn mix(x: u64) -> u64 {
+/// SplitMix64 of `x`: the seed of one flight's stream from the benchmark seed and its index
+/// (and of the other experiments' flights).
+pub fn mix(x: u64) -> u64 {
     let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -356,14 +357,7 @@ fn draw_kinds(rng: &mut ChaCha8Rng, count: usize, known_mass: bool) -> Vec<Effec
 /// these ranges).
 pub fn draw_flight(options: &BenchmarkOptions, index: usize) -> Result<FlightSpec, SimError> {
     let mut rng = flight_rng(options.seed, index);
-    let sim_seed: u64 = rng.random();
-    let trajectory = TrajectoryKind::ALL[rng.random_range(0..TrajectoryKind::ALL.len())];
-    let yaw_rate = if rng.random_bool(0.5) {
-        0.0
-    } else {
-        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        sign * rng.random_range(0.1..0.6)
-    };
+    let (sim_seed, trajectory, yaw_rate) = draw_path(&mut rng);
     let duration = if options.quick {
         rng.random_range(8.0..12.0)
     } else {
@@ -460,11 +454,25 @@ pub fn draw_flight(options: &BenchmarkOptions, index: usize) -> Result<FlightSpe
     Ok(spec)
 }
 
+/// A flight's simulator seed, reference path (uniform over [`TrajectoryKind::ALL`]) and yaw
+/// rate (0 with probability ½, else ±U\[0.1, 0.6\] rad/s), drawn in that order from `rng`.
+pub fn draw_path(rng: &mut ChaCha8Rng) -> (u64, TrajectoryKind, f64) {
+    let sim_seed: u64 = rng.random();
+    let trajectory = TrajectoryKind::ALL[rng.random_range(0..TrajectoryKind::ALL.len())];
+    let yaw_rate = if rng.random_bool(0.5) {
+        0.0
+    } else {
+        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        sign * rng.random_range(0.1..0.6)
+    };
+    (sim_seed, trajectory, yaw_rate)
+}
+
 /// The payload: a point mass of U\[5, 25\] % of the vehicle's mass at U\[0, 30\] % of
 /// `L_arm` in a direction uniform on the sphere, attached at t = 0 and kept. It is redrawn (at
 /// most 100 times, then none) until the loaded vehicle hovers within 80 % of the true rotors'
 /// maximum thrust.
-fn draw_payload(rng: &mut ChaCha8Rng, effects: &PlantEffects) -> Payload {
+pub fn draw_payload(rng: &mut ChaCha8Rng, effects: &PlantEffects) -> Payload {
     let vehicle = SimConfig::default().vehicle;
     let gain = 1.0 + effects.thrust_gain.map_or(0.0, |g| g.relative_error);
     let mut draw = || {
