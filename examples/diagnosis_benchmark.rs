@@ -17,7 +17,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use tagk::diagnosis_benchmark::{
     BenchmarkOptions, DEFAULT_DETECTABLE, DEFAULT_FLIGHTS, DEFAULT_SEED, FlightResult,
-    QUICK_FLIGHTS, Summary, run_flight,
+    QUICK_FLIGHTS, Summary, replay_flight, run_flight,
 };
 
 /// Markers of the generated block in a README (`--readme`).
@@ -58,6 +58,13 @@ struct Args {
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Fly only flight N again, write its log as CSV to `--log` (default `flight-N.csv`) and
+    /// print its draw and the `tagk diagnose` command that reproduces its diagnosis.
+    #[arg(long, value_name = "N")]
+    replay: Option<usize>,
+    /// The CSV file of `--replay`.
+    #[arg(long, value_name = "FILE", requires = "replay")]
+    log: Option<PathBuf>,
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -70,6 +77,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         detectable: args.detectable,
         quick: args.quick,
     };
+    if let Some(index) = args.replay {
+        let flight = replay_flight(&options, index)
+            .map_err(|f| format!("flight {index}: {} failed: {}", f.stage, f.message))?;
+        let path = args
+            .log
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("flight-{index}.csv")));
+        flight.log.write_csv_path(&path)?;
+        println!("{}", serde_json::to_string_pretty(&flight.spec)?);
+        println!("{}", flight.diagnose_command(&path.display().to_string()));
+        return Ok(());
+    }
     let flights = args.flights.unwrap_or(if args.quick {
         QUICK_FLIGHTS
     } else {

@@ -338,7 +338,7 @@ fn the_document_states_the_code_s_constants_and_columns() {
         use tagk::diagnose::{
             ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, DiagnoseOptions,
             FLOOR_RESOLUTION, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE,
-            MIN_GAIN,
+            MIN_GAIN, WHITENESS_FALSE_ALARM,
         };
         let defaults = DiagnoseOptions::default();
         states(7, "mass change [%]", 100.0 * MAX_MASS_CHANGE);
@@ -351,6 +351,7 @@ fn the_document_states_the_code_s_constants_and_columns() {
         states(7, "variance inflation", MAX_INFLATION);
         states(7, "adequacy factor", ADEQUACY_FACTOR);
         states(7, "adequate autocorrelation", ADEQUATE_AUTOCORRELATION);
+        states(7, "whiteness false alarm", WHITENESS_FALSE_ALARM);
         states(7, "consistency tolerance", CONSISTENCY_TOLERANCE);
         states(7, "floor resolution", FLOOR_RESOLUTION);
         states(7, "alpha", defaults.alpha);

@@ -118,6 +118,10 @@ pub struct GroundTruth {
     /// The diagnosis' whiteness limit for this log's length (`tagk_diagnose::whiteness_limit`):
     /// the largest `Σ ρ_k²` of an adequate channel's residual.
     pub whiteness_limit: f64,
+    /// Whiteness of the true model's residual per channel, `Σ ρ_k²` at the diagnosis' lags
+    /// (`tagk_diagnose::residual_autocorrelation`; dimensionless): how coloured the noise
+    /// itself is, to set against [`Self::whiteness_limit`].
+    pub noise_whiteness: [f64; 6],
 }
 
 /// The least-squares projection onto the rigid-body regressor's columns of stacked,
@@ -288,6 +292,7 @@ impl GroundTruth {
         }
         // The noise: the true model's residual on the logged signals.
         let mut sum_sq = [0.0; 6];
+        let mut residual_series: [Vec<f64>; 6] = std::array::from_fn(|_| Vec::with_capacity(n));
         for i in 0..n {
             let [w, x, y, z] = log.attitude[i];
             let q = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
@@ -306,6 +311,7 @@ impl GroundTruth {
                 // The effects' wrenches act beside the actuators: b = Y θ − Σ w_e.
                 let r = log.wrench[i][c] - yt[c] + effects;
                 sum_sq[c] += r * r;
+                residual_series[c].push(r);
             }
         }
         let residual_rms = sum_sq.map(|s| (s / n as f64).sqrt());
@@ -368,6 +374,9 @@ impl GroundTruth {
             detectable_threshold: detectable,
             constant_heading: spec.yaw_rate == 0.0,
             whiteness_limit: whiteness_limit(n),
+            noise_whiteness: residual_series
+                .each_ref()
+                .map(|r| residual_autocorrelation(r).iter().map(|x| x * x).sum()),
         })
     }
 }

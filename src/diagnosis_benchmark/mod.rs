@@ -516,6 +516,54 @@ pub fn run_diagnosis(log: FlightLog, known_mass: Option<f64>) -> Result<Report, 
     crate::cli::diagnose::diagnose_owned_log(log, &args)
 }
 
+/// One flight of the benchmark flown again, to look at it outside the benchmark: its draw,
+/// its log and the mass the diagnosis is given (`None`: the flight's mass is unknown).
+#[derive(Debug, Clone)]
+pub struct ReplayedFlight {
+    /// What was drawn.
+    pub spec: FlightSpec,
+    /// The logged flight, as the diagnosis reads it.
+    pub log: FlightLog,
+    /// The true total mass \[kg\] when the flight gives it to the diagnosis (`--mass`).
+    pub known_mass: Option<f64>,
+}
+
+impl ReplayedFlight {
+    /// The `tagk diagnose` command that reproduces the benchmark's diagnosis of this flight
+    /// on its log written to `path`.
+    pub fn diagnose_command(&self, path: &str) -> String {
+        match self.known_mass {
+            Some(m) => format!("tagk diagnose {path} --mass {m:e}"),
+            None => format!("tagk diagnose {path}"),
+        }
+    }
+}
+
+/// Draws and flies flight `index` of the benchmark of `options` again (the same bits as in
+/// [`run_flight`]), without diagnosing it.
+///
+/// # Errors
+/// The stage that failed: `draw`, `simulator`, `aborted` or `truth`.
+pub fn replay_flight(
+    options: &BenchmarkOptions,
+    index: usize,
+) -> Result<ReplayedFlight, FlightFailure> {
+    let spec = draw_flight(options, index).map_err(|e| failure("draw", e.to_string()))?;
+    let config = spec.sim_config();
+    let output = caught("simulator", || tagk_sim::simulate(&config))?;
+    if output.metrics.aborted {
+        return Err(failure("aborted", "tracking error above 30 cm".into()));
+    }
+    let truth = GroundTruth::of_flight(&spec, &output, options.detectable)
+        .map_err(|e| failure("truth", e))?;
+    let known_mass = spec.known_mass.then_some(truth.mass);
+    Ok(ReplayedFlight {
+        spec,
+        log: output.log,
+        known_mass,
+    })
+}
+
 /// Where a flight failed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FlightFailure {

@@ -84,6 +84,9 @@ pub struct DiagnosisOutcome {
     pub held_out_rms: [f64; 6],
     /// `Report::stopped`: why the staircase stopped.
     pub stopped: String,
+    /// `Report::equivalents`: `(final-model effect, candidate that explains the data as
+    /// well in its place)`.
+    pub equivalents: Vec<(String, String)>,
 }
 
 impl DiagnosisOutcome {
@@ -97,6 +100,11 @@ impl DiagnosisOutcome {
             adequate: report.adequate,
             held_out_rms: last.held_out_rms,
             stopped: report.stopped.clone(),
+            equivalents: report
+                .equivalents
+                .iter()
+                .map(|e| (e.effect.clone(), e.alternative.clone()))
+                .collect(),
         }
     }
 }
@@ -124,6 +132,10 @@ pub struct EffectScore {
     pub found_in_family: bool,
     /// The final-model effect that stands for it (its own name first), if any.
     pub reported_as: Option<String>,
+    /// Found, or named by the report as explaining the data as well as an effect of the final
+    /// model in its place (`Report::equivalents`: its own name or a stand-in). The report
+    /// then says the data cannot tell the two apart.
+    pub found_or_equivalent: bool,
 }
 
 /// One reported coefficient against its true value.
@@ -157,6 +169,12 @@ pub struct FlightScore {
     pub known_mass: bool,
     /// Noise σ per channel `fx..tz` \[N, N m\] ([`GroundTruth::noise`]).
     pub noise: [f64; 6],
+    /// Whiteness `Σ ρ_k²` of the true model's residual per channel
+    /// ([`GroundTruth::noise_whiteness`]), against the diagnosis' limit
+    /// [`Self::whiteness_limit`] (dimensionless).
+    pub noise_whiteness: [f64; 6],
+    /// The diagnosis' whiteness limit for this log ([`GroundTruth::whiteness_limit`]).
+    pub whiteness_limit: f64,
     /// Every true effect (plant effects, then sensor truths).
     pub effects: Vec<EffectScore>,
     /// The final model's effects.
@@ -187,8 +205,9 @@ pub struct FlightScore {
     pub adequate_reported: bool,
     /// What `adequate` should say: every detectable true effect is in the final model *and* the
     /// final model is at the true noise ([`Self::at_true_noise`]). An effect counts by name or
-    /// stand-in, a drag law also by another drag law (the laws cannot always be told apart in a
-    /// log).
+    /// stand-in, or when the report names it as an equivalent of a final-model effect
+    /// ([`EffectScore::found_or_equivalent`]). A drag law also counts by another drag law (the
+    /// laws cannot always be told apart in a log).
     pub adequate_expected: bool,
     /// The final model's held-out residual RMS is within the diagnosis' adequacy factor
     /// (`tagk_diagnose::ADEQUACY_FACTOR`) of the true noise on every channel (the true
@@ -224,6 +243,9 @@ pub struct FlightScore {
     pub diagnosis_implausible: Vec<String>,
     /// Why the staircase stopped (`Report::stopped`).
     pub stopped: String,
+    /// The report's equivalents: `(final-model effect, candidate that explains the data as
+    /// well in its place)`.
+    pub equivalents: Vec<(String, String)>,
 }
 
 impl FlightScore {
@@ -408,6 +430,10 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                 })
                 .cloned();
             let family = finals.iter().find(|f| in_family(&t.name, f)).cloned();
+            let equivalent = outcome.equivalents.iter().any(|(_, alternative)| {
+                *alternative == t.name
+                    || STAND_INS.contains(&(t.name.as_str(), alternative.as_str()))
+            });
             EffectScore {
                 name: t.name.clone(),
                 family: t.family.clone(),
@@ -416,6 +442,7 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
                 detectable: t.detectable,
                 whiteness: t.whiteness,
                 found: exact.is_some(),
+                found_or_equivalent: exact.is_some() || equivalent,
                 found_in_family: family.is_some() || exact.is_some(),
                 reported_as: exact.or(family),
             }
@@ -459,8 +486,10 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         let truth_ii = truth.params[t];
         (estimate(j) - truth_ii).abs() / truth_ii.abs()
     });
-    // Found by name or stand-in, or a drag law found in its family.
-    let accounted = |e: &EffectScore| e.found || (e.family == DRAG_FAMILY && e.found_in_family);
+    // Found by name or stand-in, named as an equivalent of a final-model effect (the report
+    // says the data cannot tell them apart), or a drag law found in its family.
+    let accounted =
+        |e: &EffectScore| e.found_or_equivalent || (e.family == DRAG_FAMILY && e.found_in_family);
     let adequate_expected_by_effects = effects.iter().all(|e| !e.detectable || accounted(e));
     let factor = crate::diagnose::ADEQUACY_FACTOR;
     let at_true_noise = (0..6).all(|c| outcome.held_out_rms[c] <= factor * truth.noise[c]);
@@ -478,6 +507,8 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
         sensing: truth.sensing,
         known_mass: truth.known_mass,
         noise: truth.noise,
+        noise_whiteness: truth.noise_whiteness,
+        whiteness_limit: truth.whiteness_limit,
         effects,
         final_effects: finals.clone(),
         false_effects,
@@ -510,6 +541,7 @@ pub fn score_flight(truth: &GroundTruth, outcome: &DiagnosisOutcome) -> FlightSc
             .map(|f| format!("{}: {}", f.effect, f.plausibility_note))
             .collect(),
         stopped: outcome.stopped.clone(),
+        equivalents: outcome.equivalents.clone(),
     }
 }
 

@@ -150,6 +150,7 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 #[derive(Default)]
 struct Counts {
     found: (usize, usize),
+    found_or_equivalent: (usize, usize),
     in_family: (usize, usize),
     clean: (usize, usize),
     any_false: (usize, usize),
@@ -170,6 +171,8 @@ impl Counts {
             for e in s.effects.iter().filter(|e| e.detectable) {
                 c.found.1 += 1;
                 c.found.0 += usize::from(e.found);
+                c.found_or_equivalent.1 += 1;
+                c.found_or_equivalent.0 += usize::from(e.found_or_equivalent);
                 c.in_family.1 += 1;
                 c.in_family.0 += usize::from(e.found_in_family);
             }
@@ -276,6 +279,12 @@ impl Summary {
             row(
                 "'adequate' wrong, judged by the effects found alone",
                 c.adequate_wrong_by_effects,
+                "—",
+                None,
+            ),
+            row(
+                "detectable effects found, or named as an equivalent of a final-model effect",
+                c.found_or_equivalent,
                 "—",
                 None,
             ),

@@ -65,6 +65,7 @@ fn truth() -> GroundTruth {
         detectable_threshold: 1.0,
         constant_heading: false,
         whiteness_limit: 0.02,
+        noise_whiteness: [0.0; 6],
     }
 }
 
@@ -113,6 +114,7 @@ fn exact_outcome() -> DiagnosisOutcome {
         adequate: true,
         held_out_rms: [1e-3, 1e-3, 1e-3, 1e-5, 1e-5, 1e-5],
         stopped: "at the floor".into(),
+        equivalents: Vec::new(),
     }
 }
 

@@ -841,6 +841,9 @@ fn section_staircase(html: &mut String, report: &Report) {
         text(&report.stopped),
         text(&report.final_model.label)
     );
+    for e in &report.equivalents {
+        let _ = write!(html, "<p class=\"equivalent\">{}</p>", text(&e.sentence()));
+    }
     if let Some(cmd) = &report.final_model.command {
         let _ = write!(
             html,

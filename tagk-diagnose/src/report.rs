@@ -107,6 +107,9 @@ pub struct Report {
     /// `true` when the final model is adequate: what remains of the measured wrench is the
     /// sensors' noise on every channel.
     pub adequate: bool,
+    /// Effects of the final model that another candidate replaces as well: the data cannot
+    /// tell them apart ([`crate::diagnose::Equivalent`]).
+    pub equivalents: Vec<crate::diagnose::Equivalent>,
     /// Ranking for the starting model.
     pub ranking: Vec<RankingEntry>,
     /// Channel fit of the starting model.
@@ -335,6 +338,7 @@ fn loop_from(
         steps: discovery.steps,
         noise_floor: discovery.noise_floor,
         stopped: discovery.stopped,
+        equivalents: discovery.equivalents,
         adequate: discovery.adequate,
         ranking: last.ranking.iter().map(RankingEntry::from).collect(),
         channels: last.channels.clone(),
@@ -726,6 +730,9 @@ pub fn staircase_table(r: &Report) -> String {
         }
     }
     s.push_str(&format!("final model: {}\n", r.final_model.label));
+    for e in &r.equivalents {
+        s.push_str(&format!("  {}\n", e.sentence()));
+    }
     if let Some(cmd) = &r.final_model.command {
         s.push_str(&format!("reproduce it: {cmd}\n"));
     } else if !r.final_model.effects.is_empty() {

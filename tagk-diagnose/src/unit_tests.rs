@@ -928,3 +928,60 @@ fn rigid_columns_by_block_equal_stored_columns_bit_for_bit() {
     assert_eq!(bits(&qa.beta), bits(&qb.beta));
     assert_eq!(qa.se, qb.se);
 }
+
+/// `P(χ²_k > x)` for an even `k` in closed form, `e^{−x/2} Σ_{i<k/2} (x/2)^i / i!`: an
+/// independent check of `stats::chi2_quantile`.
+fn chi2_survival_even(x: f64, k: usize) -> f64 {
+    let h = 0.5 * x;
+    let mut term = 1.0;
+    let mut sum = 1.0;
+    for i in 1..k / 2 {
+        term *= h / i as f64;
+        sum += term;
+    }
+    (-h).exp() * sum
+}
+
+#[test]
+fn the_whiteness_limit_is_the_family_wise_ljung_box_bound() {
+    use crate::diagnose::{ADEQUATE_AUTOCORRELATION, WHITENESS_FALSE_ALARM, whiteness_limit};
+    // 20 lags from n = 80 on; the bound rules until it falls to the effect size.
+    for n in [200usize, 1000, 1843, 2000] {
+        let limit = whiteness_limit(n);
+        let x = limit * n as f64;
+        if limit > ADEQUATE_AUTOCORRELATION {
+            // The tail beyond the bound is the per-channel share of the family's rate.
+            let tail = chi2_survival_even(x, 20);
+            let share = WHITENESS_FALSE_ALARM / 6.0;
+            assert!(
+                (tail / share - 1.0).abs() < 1e-6,
+                "n {n}: {tail} vs {share}"
+            );
+        } else {
+            assert!(chi2_survival_even(ADEQUATE_AUTOCORRELATION * n as f64, 20) < 1e-3 / 6.0);
+        }
+    }
+}
+
+#[test]
+fn white_noise_fails_the_whiteness_test_about_once_in_a_thousand_logs() {
+    use crate::diagnose::{residual_autocorrelation, whiteness_limit};
+    use rand_chacha::ChaCha8Rng;
+    use rand_chacha::rand_core::SeedableRng;
+    // 3000 logs of six white channels of 400 samples: the family-wise rate is 0.1 %, so
+    // about 3 logs fail; a per-channel 0.1 % would fail about 18.
+    let n = 400;
+    let limit = whiteness_limit(n);
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let mut failed = 0;
+    for _ in 0..3000 {
+        let mut any = false;
+        for _ in 0..6 {
+            let r: Vec<f64> = (0..n).map(|_| crate::testdata::gauss(&mut rng)).collect();
+            let sum: f64 = residual_autocorrelation(&r).iter().map(|x| x * x).sum();
+            any |= sum > limit;
+        }
+        failed += usize::from(any);
+    }
+    assert!(failed <= 9, "{failed} of 3000 white logs failed");
+}

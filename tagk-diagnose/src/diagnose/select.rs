@@ -1017,6 +1017,42 @@ pub(crate) fn usable_candidates(
 }
 
 impl Context<'_> {
+    /// Scores and judges the candidate `e` alone, its parameter scanned when it has one
+    /// (`base`: the model's own score).
+    ///
+    /// # Errors
+    /// Why its columns cannot enter the regression here, at the scan's start or its best
+    /// value (a user's effect may give unusable columns at one of them).
+    pub fn judge_single(
+        &self,
+        engine: &GramEngine<'_>,
+        fit_engine: &GramEngine<'_>,
+        e: &EffectRef,
+        base: &Score,
+        judge: &Judge<'_>,
+    ) -> Result<SetEval, String> {
+        let start = Member {
+            effect: e.clone(),
+            param: e
+                .scan()
+                .map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2])),
+        };
+        self.check_design(&start)?;
+        let mut member = Member {
+            effect: e.clone(),
+            param: None,
+        };
+        let mut scans = ScanResult::default();
+        if e.scan().is_some() {
+            scans = self.scan(fit_engine, std::slice::from_ref(&member), 0);
+            member.param = scans.best;
+            self.check_design(&member)?;
+        }
+        let mut set = self.judge_set(engine, fit_engine, vec![member], base, judge, false);
+        set.scans[0] = scans;
+        Ok(set)
+    }
+
     /// Scores and judges the set `members` (each scanned member's parameter re-scanned in the
     /// set when `rescan`), with `base` the model's own score.
     pub fn judge_set(
@@ -1260,34 +1296,10 @@ pub(crate) fn search(
     let mut unavailable = unavailable;
     let mut singles = Vec::new();
     for e in &candidates {
-        // A candidate whose columns cannot enter the regression here is unavailable.
-        let start = Member {
-            effect: e.clone(),
-            param: e
-                .scan()
-                .map(|sp| sp.start.unwrap_or(sp.grid[sp.grid.len() / 2])),
-        };
-        if let Err(reason) = ctx.check_design(&start) {
-            unavailable.push((e.name().to_string(), reason));
-            continue;
+        match ctx.judge_single(engine, &fit_engine, e, &base, &judge) {
+            Ok(set) => singles.push(set),
+            Err(reason) => unavailable.push((e.name().to_string(), reason)),
         }
-        // The scan's best value must give usable columns too (a user's effect may not).
-        let mut member = Member {
-            effect: e.clone(),
-            param: None,
-        };
-        let mut scans = ScanResult::default();
-        if e.scan().is_some() {
-            scans = ctx.scan(&fit_engine, std::slice::from_ref(&member), 0);
-            member.param = scans.best;
-            if let Err(reason) = ctx.check_design(&member) {
-                unavailable.push((e.name().to_string(), reason));
-                continue;
-            }
-        }
-        let mut set = ctx.judge_set(engine, &fit_engine, vec![member], &base, &judge, false);
-        set.scans[0] = scans;
-        singles.push(set);
     }
     // The pool of pairs and triples: the best singles by in-sample gain (an effect whose
     // signal lies in one part of the flight, or that needs a partner to be physical, can be
@@ -1430,11 +1442,16 @@ pub(crate) fn search(
 }
 
 /// How much two sets' held-out gains (noise units) may differ by chance: twice the square root
-/// of the larger gain (the score is a sum of squares in units of the noise), at least 1 % of
-/// it.
+/// of the larger gain (the score is a sum of squares in units of the noise; at least 1).
+pub(crate) fn chance_margin(gain: f64) -> f64 {
+    2.0 * gain.max(1.0).sqrt()
+}
+
+/// How much two sets' held-out gains (noise units) may differ for the search to call them
+/// alike: [`chance_margin`], at least 1 % of the larger gain (on a long or noise-free log,
+/// differences of a percent are not worth another effect).
 pub(crate) fn comparison_margin(gain: f64) -> f64 {
-    let g = gain.max(1.0);
-    (2.0 * g.sqrt()).max(0.01 * g)
+    chance_margin(gain).max(0.01 * gain.max(1.0))
 }
 
 /// The prior cost of an effect when the data cannot choose between sets. A sensor offset is

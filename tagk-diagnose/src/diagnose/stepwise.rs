@@ -8,12 +8,17 @@
 //! earns its place is dropped and the staircase rebuilt. The noise is measured again on the
 //! final model's residual: if it is clearly lower on some channel (a missing effect's
 //! high-frequency part had inflated it), the search runs again against it (at most twice).
+//!
+//! Last, each added effect is swapped for every other candidate within the final model. A
+//! candidate that passes the same rules and explains the data as well is reported beside it
+//! ([`Discovery::equivalents`]): its held-out gain is within chance of the effect's, and the
+//! data cannot tell the two apart.
 
 use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::diagnose::select::{Judge, Member, mean_thrust};
+use crate::diagnose::select::{Judge, Member, chance_margin, mean_thrust, usable_candidates};
 use crate::diagnose::{
     Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_with_fit, limits_of,
     noise_floor,
@@ -80,10 +85,42 @@ pub struct Discovery {
     pub stopped: String,
     /// `true` when the final model is adequate ([`Diagnosis::adequate`]).
     pub adequate: bool,
+    /// Effects of the final model that another candidate replaces as well: the data cannot
+    /// tell them apart (empty when every added effect is the only one that fits its place).
+    pub equivalents: Vec<Equivalent>,
     /// The diagnosis of every step's model (the first is the starting model's, the last the
     /// final model's).
     #[serde(skip)]
     pub diagnoses: Vec<Diagnosis>,
+}
+
+/// An added effect of the final model and another candidate that explains the data as well
+/// in its place.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Equivalent {
+    /// The final model's effect.
+    pub effect: String,
+    /// The candidate that replaces it as well.
+    pub alternative: String,
+    /// Held-out gain of the effect within the final model, in noise units (the sum over the
+    /// channels of the held-out squared residual it removes over the noise variance, whole
+    /// log; dimensionless).
+    pub gain: f64,
+    /// Held-out gain of the alternative in its place (noise units).
+    pub alternative_gain: f64,
+}
+
+impl Equivalent {
+    /// What the report says of it, in a sentence (without the names' markup).
+    pub fn sentence(&self) -> String {
+        format!(
+            "{} in place of {} explains the data as well (held-out gain {} against {} noise units): the data cannot tell them apart",
+            self.alternative,
+            self.effect,
+            crate::format::significant(self.alternative_gain, 4),
+            crate::format::significant(self.gain, 4)
+        )
+    }
 }
 
 impl Discovery {
@@ -145,7 +182,8 @@ pub fn discover_from(
         }
         round += 1;
         if floor.source == FloorSource::Given || round >= 3 {
-            return Ok(finish(run, floor));
+            let same = equivalents(&run, s, opts, &floor);
+            return Ok(finish(run, floor, same));
         }
         let last = run
             .diagnoses
@@ -153,7 +191,8 @@ pub fn discover_from(
             .expect("a staircase has its first step");
         let again = noise_floor(s, &last.fit, &run.model, None, opts.airframe_radius);
         if !(0..6).any(|c| again.rms[c] < 0.85 * floor.rms[c]) {
-            return Ok(finish(run, floor));
+            let same = equivalents(&run, s, opts, &floor);
+            return Ok(finish(run, floor, same));
         }
         for c in 0..6 {
             if again.rms[c] < floor.rms[c] {
@@ -246,8 +285,71 @@ impl Run {
     }
 }
 
+/// The added effects of the final model that another candidate replaces as well
+/// ([`Equivalent`]): each added effect is taken out, and every usable candidate judged in its
+/// place by the search's rules. One that is admissible and whose held-out gain is within
+/// chance of the effect's own ([`chance_margin`]: twice the square root of the gain) is an
+/// equivalent.
+fn equivalents(
+    run: &Run,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+) -> Vec<Equivalent> {
+    let Some(last) = run.diagnoses.last() else {
+        return Vec::new();
+    };
+    let fit = &last.fit;
+    let limits = limits_of(&run.model, opts);
+    let mut found = Vec::new();
+    for name in &run.added {
+        let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
+            continue;
+        };
+        let ctx = Context::without_effect(s, &run.model, fit, k, floor, opts.folds);
+        let engine = ctx.engine();
+        let fit_engine = ctx.fit_engine();
+        let base = ctx.score(&engine, &[]);
+        let (candidates, _) = usable_candidates(&ctx.model, s, opts);
+        let judge = Judge {
+            limits: &limits,
+            current: run.diagnoses[0].fit.theta,
+            mean_thrust: mean_thrust(s),
+            tests: opts.candidates.len().max(1) as f64,
+            alpha: opts.alpha,
+        };
+        let own = ctx.judge_set(
+            &engine,
+            &fit_engine,
+            vec![Member {
+                effect: run.model.effects()[k].clone(),
+                param: fit.params[k],
+            }],
+            &base,
+            &judge,
+            false,
+        );
+        for c in candidates.iter().filter(|c| c.name() != name) {
+            let Ok(set) = ctx.judge_single(&engine, &fit_engine, c, &base, &judge) else {
+                continue;
+            };
+            if set.admissible()
+                && (set.gain - own.gain).abs() <= chance_margin(set.gain.max(own.gain))
+            {
+                found.push(Equivalent {
+                    effect: name.clone(),
+                    alternative: c.name().to_string(),
+                    gain: own.gain,
+                    alternative_gain: set.gain,
+                });
+            }
+        }
+    }
+    found
+}
+
 /// Every step against the final noise; the discovery.
-fn finish(mut run: Run, floor: NoiseFloor) -> Discovery {
+fn finish(mut run: Run, floor: NoiseFloor, equivalents: Vec<Equivalent>) -> Discovery {
     for step in &mut run.steps {
         for (c, ch) in step.channels.iter_mut().enumerate() {
             ch.floor = floor.rms[c];
@@ -269,6 +371,7 @@ fn finish(mut run: Run, floor: NoiseFloor) -> Discovery {
         noise_floor: floor,
         stopped: run.stopped,
         adequate,
+        equivalents,
         diagnoses: run.diagnoses,
     }
 }
@@ -389,9 +492,12 @@ fn prune(
         *run = rebuilt;
     }
     if !dropped.is_empty() {
+        // The verdict of the model that is left: the one before the drop may have been
+        // adequate where this one is not.
+        let last = &run.diagnoses[run.diagnoses.len() - 1];
         run.stopped = format!(
             "{}; dropped once the others were in: {}",
-            run.stopped,
+            stop_reason(last),
             dropped.join(", ")
         );
     }
