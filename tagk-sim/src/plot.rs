@@ -151,7 +151,8 @@ fn decimals_of(v: f64) -> usize {
 const AXIS_PAD: f64 = 0.03;
 
 /// Ticks of a linear axis holding the data range `[lo, hi]`: 1-2-5 steps, 4 to 7 intervals,
-/// the outer labelled ticks bracketing the data. An empty or single-valued range is widened.
+/// the outer labelled ticks bracketing the data. An empty or single-valued range is widened;
+/// a range beyond `f64` falls back to `[0, 1]`.
 pub fn linear_ticks(lo: f64, hi: f64) -> AxisTicks {
     let (mut lo, mut hi) = if lo.is_finite() && hi.is_finite() && lo <= hi {
         (lo, hi)
@@ -164,6 +165,10 @@ pub fn linear_ticks(lo: f64, hi: f64) -> AxisTicks {
         hi += d;
     }
     let span = hi - lo;
+    if !span.is_finite() {
+        // Beyond f64's range: no tick could bracket it.
+        return linear_ticks(0.0, 1.0);
+    }
     // The smallest 1-2-5 step giving at most 7 intervals.
     let mut k = (span / 7.0).log10().floor() as i32 - 1;
     let (step, mantissa) = 'search: loop {
@@ -173,6 +178,9 @@ pub fn linear_ticks(lo: f64, hi: f64) -> AxisTicks {
             if n <= 7.0 {
                 break 'search (step, m);
             }
+        }
+        if k > 310 {
+            return linear_ticks(0.0, 1.0);
         }
         k += 1;
     };
