@@ -518,7 +518,8 @@ where
 }
 
 /// A polyline in data coordinates with series `i`'s dash pattern, and its markers at about a
-/// dozen points (staggered by series so that coinciding series show every marker).
+/// dozen points (staggered by series so that coinciding series show every marker) and at
+/// its last point.
 fn draw_styled<DB: DrawingBackend, CT>(
     ctx: &mut ChartContext<'_, DB, CT>,
     i: usize,
@@ -548,7 +549,13 @@ where
     }
     let every = (pts.len() / 12).max(1);
     let offset = (i * every / 5).min(pts.len().saturating_sub(1));
-    let at: Vec<(f64, f64)> = pts.iter().copied().skip(offset).step_by(every).collect();
+    let mut at: Vec<(f64, f64)> = pts.iter().copied().skip(offset).step_by(every).collect();
+    // The last point always: a dash gap can hide a series' end (a CDF's last step to 1).
+    if let Some(last) = pts.last()
+        && at.last() != Some(last)
+    {
+        at.push(*last);
+    }
     let r = 4 * scale as i32;
     let st = c.stroke_width(2 * scale);
     let e = |p: (f64, f64)| EmptyElement::at(p);
