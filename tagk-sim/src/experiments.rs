@@ -14,7 +14,7 @@ pub use crate::estimators::{
     table_ii_estimators, table_ii_estimators_for, tagk_tuned, tagk_tuned_realistic, tuned,
 };
 use crate::monte_carlo::{ErrorCurves, Sweep, SweepObserver, SweepResult};
-use crate::plot::{ChartSeries, LineChart, Path3, cdf, line_chart, path_chart_3d};
+use crate::plot::{ChartSeries, LineChart, Path3, cdf_steps, line_chart, path_chart_3d};
 use crate::sim::{
     Adaptation, ExperimentProfile, NoiseLevel, PayloadSchedule, SimConfig, TrialMetrics, simulate,
 };
@@ -105,44 +105,63 @@ fn error_curve_sweep(
     sweep
 }
 
-/// Plots the mean parameter error over time of the first `cells` cells of `result` (curves
-/// from `curves`, control step `dt` \[s\]) with the payload events marked, as
-/// `parameter_error_time.{png,svg}` in `dir`.
-fn parameter_error_chart(
-    dir: &Path,
-    title: String,
+/// y-axis label of the parameter-error figures (docs/CONVENTIONS.md §5: the norm over the
+/// 10 SI entries of θ).
+const PARAMETER_ERROR: &str = "parameter error ‖Δθ‖₂ [SI units]";
+
+/// The mean parameter error over time of each `(label, curve)` (one value per control step
+/// `dt` \[s\]), the payload events marked: `parameter_error_time`.
+fn parameter_error_chart(title: String, curves: Vec<(String, Vec<f64>)>, dt: f64) -> LineChart {
+    LineChart {
+        title,
+        x_label: "time t [s]".into(),
+        y_label: PARAMETER_ERROR.into(),
+        log_y: true,
+        series: curves
+            .into_iter()
+            .map(|(label, curve)| ChartSeries {
+                label,
+                points: curve
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| (i as f64 * dt, *e))
+                    .collect(),
+            })
+            .collect(),
+        markers: EVENTS.to_vec(),
+        ..LineChart::default()
+    }
+}
+
+/// The labels and mean error curves of the first `cells` cells of `result`.
+fn labelled_curves(
     result: &SweepResult,
     curves: &ErrorCurves,
     cells: usize,
-    dt: f64,
-) -> Result<(), SimError> {
-    line_chart(
-        &dir.join("parameter_error_time"),
-        &LineChart {
-            title,
-            x_label: "time t [s]".into(),
-            y_label: "parameter error ‖Δθ‖₂".into(),
-            log_y: true,
-            series: result
-                .cells
-                .iter()
-                .take(cells)
-                .enumerate()
-                .map(|(i, c)| ChartSeries {
-                    label: c.label.clone(),
-                    points: curves
-                        .curve(i)
-                        .iter()
-                        .enumerate()
-                        .map(|(i, e)| (i as f64 * dt, *e))
-                        .collect(),
-                })
-                .collect(),
-            markers: EVENTS.to_vec(),
-            x_categories: vec![],
-        },
-    )
+) -> Vec<(String, Vec<f64>)> {
+    result
+        .cells
+        .iter()
+        .take(cells)
+        .enumerate()
+        .map(|(i, c)| (c.label.clone(), curves.curve(i)))
+        .collect()
 }
+
+/// Category names of the noise-level axis: the level and its velocity noise σ in cm/s
+/// (`low (0.05)`).
+fn noise_categories() -> Vec<String> {
+    NoiseLevel::ALL
+        .map(|n| {
+            let cm_s = format!("{:.3}", n.sigma_velocity() * 100.0);
+            let cm_s = cm_s.trim_end_matches('0').trim_end_matches('.');
+            format!("{} ({cm_s})", n.name())
+        })
+        .to_vec()
+}
+
+/// x-axis label of the noise-level charts.
+const NOISE_AXIS: &str = "noise level (velocity noise σ [cm/s])";
 
 fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec<ChartSeries> {
     let mut labels: Vec<String> = Vec::new();
@@ -166,35 +185,97 @@ fn by_noise(result: &SweepResult, f: impl Fn(&crate::CellSummary) -> f64) -> Vec
         .collect()
 }
 
-/// The position-error CDF of every cell at one noise level, as a figure at `path` (`.svg`
-/// and `.png` added by [`line_chart`]).
-fn cdf_chart(
-    path: &Path,
-    title: String,
-    result: &SweepResult,
-    noise: NoiseLevel,
-) -> Result<(), SimError> {
+/// The position-error CDF of every cell of `result` at one noise level, as steps on a log
+/// x axis (the errors of good and failing estimators differ by decades).
+fn cdf_chart(title: String, result: &SweepResult, noise: NoiseLevel) -> LineChart {
     let series = result
         .cells
         .iter()
         .filter(|c| c.noise == noise)
         .map(|c| ChartSeries {
             label: c.label.clone(),
-            points: cdf(&c.position_errors),
+            points: cdf_steps(&c.position_errors),
         })
         .collect();
-    line_chart(
-        path,
-        &LineChart {
-            title,
-            x_label: "mean position error of a trial ē [cm]".into(),
-            y_label: "fraction of trials (aborted excluded)".into(),
-            log_y: false,
-            series,
-            markers: vec![],
-            x_categories: vec![],
-        },
-    )
+    LineChart {
+        title,
+        x_label: "mean position error of a trial ē [cm]".into(),
+        y_label: "fraction of trials, aborted excluded [–]".into(),
+        log_x: true,
+        series,
+        ..LineChart::default()
+    }
+}
+
+/// A metric figure of [`run_noise_sweep`]: file stem, title, y-axis label, log axis, value.
+type Metric = (
+    &'static str,
+    &'static str,
+    &'static str,
+    bool,
+    fn(&crate::CellSummary) -> f64,
+);
+
+/// The nine figures of [`run_noise_sweep`], by file stem: five metrics against the noise
+/// level, then the position-error CDF at each level.
+fn noise_sweep_charts(result: &SweepResult) -> Vec<(String, LineChart)> {
+    let metrics: [Metric; 5] = [
+        (
+            "position_error",
+            "Mean position error",
+            "position error [cm]",
+            true,
+            |c| c.position_error_cm,
+        ),
+        ("success", "Success rate", "success [%]", false, |c| {
+            c.success_pct
+        }),
+        ("aborted", "Abort rate", "aborted [%]", false, |c| {
+            c.aborted_pct
+        }),
+        (
+            "parameter_error",
+            "Parameter error",
+            PARAMETER_ERROR,
+            true,
+            |c| c.parameter_error,
+        ),
+        (
+            "t1_error",
+            "(t+1) error: first estimate after an event",
+            "(t+1) error ‖Δθ‖₂ [SI units]",
+            true,
+            |c| c.t1_error,
+        ),
+    ];
+    let mut charts: Vec<(String, LineChart)> = metrics
+        .into_iter()
+        .map(|(name, title, ylab, log, f)| {
+            (
+                name.to_string(),
+                LineChart {
+                    title: title.into(),
+                    x_label: NOISE_AXIS.into(),
+                    y_label: ylab.into(),
+                    log_y: log,
+                    series: by_noise(result, f),
+                    x_categories: noise_categories(),
+                    ..LineChart::default()
+                },
+            )
+        })
+        .collect();
+    for noise in NoiseLevel::ALL {
+        charts.push((
+            format!("cdf_{}", noise.name()),
+            cdf_chart(
+                format!("Position-error CDF, noise {}", noise.name()),
+                result,
+                noise,
+            ),
+        ));
+    }
+    charts
 }
 
 /// One cell of `results.json`: the cell's summary and its mean error curve (empty when the
@@ -285,56 +366,8 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
     std::fs::write(dir.join("table_accuracy.md"), result.markdown_accuracy())?;
-    let x = "noise level";
-    for (name, title, ylab, log, f) in [
-        (
-            "position_error",
-            "Mean position error",
-            "position error [cm]",
-            true,
-            (|c: &crate::CellSummary| c.position_error_cm) as fn(&crate::CellSummary) -> f64,
-        ),
-        ("success", "Success rate", "success [%]", false, |c| {
-            c.success_pct
-        }),
-        ("aborted", "Abort rate", "aborted [%]", false, |c| {
-            c.aborted_pct
-        }),
-        (
-            "parameter_error",
-            "Parameter error",
-            "parameter error ‖Δθ‖₂",
-            true,
-            |c| c.parameter_error,
-        ),
-        (
-            "t1_error",
-            "(t+1) error",
-            "‖Δθ‖₂ of the first estimate after an event",
-            true,
-            |c| c.t1_error,
-        ),
-    ] {
-        line_chart(
-            &dir.join(name),
-            &LineChart {
-                title: title.into(),
-                x_label: x.into(),
-                y_label: ylab.into(),
-                log_y: log,
-                series: by_noise(&result, f),
-                markers: vec![],
-                x_categories: NoiseLevel::ALL.map(|n| n.name().to_string()).to_vec(),
-            },
-        )?;
-    }
-    for noise in NoiseLevel::ALL {
-        cdf_chart(
-            &dir.join(format!("cdf_{}", noise.name())),
-            format!("Position-error CDF, noise {}", noise.name()),
-            &result,
-            noise,
-        )?;
+    for (name, chart) in noise_sweep_charts(&result) {
+        line_chart(&dir.join(name), &chart)?;
     }
     Ok(ExperimentReport { result, dir })
 }
@@ -429,22 +462,20 @@ pub fn run_single_trial<O: SweepObserver + ?Sized>(
     let mut curves = ErrorCurves::new();
     let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
     write_common(&result, Some(&curves), &dir)?;
-    parameter_error_chart(
-        &dir,
-        format!(
-            "Parameter error over time (mean of {} trials)",
-            result.trials
+    line_chart(
+        &dir.join("parameter_error_time"),
+        &parameter_error_chart(
+            format!(
+                "Parameter error over time (mean of {} trials)",
+                result.trials
+            ),
+            labelled_curves(&result, &curves, result.cells.len()),
+            sweep.base.control_dt,
         ),
-        &result,
-        &curves,
-        result.cells.len(),
-        sweep.base.control_dt,
     )?;
-    cdf_chart(
+    line_chart(
         &dir.join("position_error_cdf"),
-        "Position-error CDF".into(),
-        &result,
-        noise,
+        &cdf_chart("Position-error CDF".into(), &result, noise),
     )?;
     Ok(SingleTrialReport {
         trials,
@@ -485,11 +516,13 @@ pub fn run_early_adaptation<O: SweepObserver + ?Sized>(
     sweep.noise_levels = vec![noise];
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
-    cdf_chart(
+    line_chart(
         &dir.join("position_error_cdf"),
-        "Position-error CDF: baselines alone and with early TAG-K".into(),
-        &result,
-        noise,
+        &cdf_chart(
+            "Position-error CDF: baselines alone and with early TAG-K".into(),
+            &result,
+            noise,
+        ),
     )?;
     Ok(ExperimentReport { result, dir })
 }
@@ -530,16 +563,16 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
     let mut curves = ErrorCurves::new();
     let result = c.run_sweep(&sweep, &mut (&mut curves, observer))?;
     write_common(&result, Some(&curves), &dir)?;
-    parameter_error_chart(
-        &dir,
-        format!(
-            "Kaczmarz variants across payload events ({} trials)",
-            result.trials
+    line_chart(
+        &dir.join("parameter_error_time"),
+        &parameter_error_chart(
+            format!(
+                "Kaczmarz variants across payload events ({} trials)",
+                result.trials
+            ),
+            labelled_curves(&result, &curves, 4),
+            sweep.base.control_dt,
         ),
-        &result,
-        &curves,
-        4,
-        sweep.base.control_dt,
     )?;
     let burn: Vec<(f64, &crate::CellSummary)> = result
         .cells
@@ -553,30 +586,7 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
         .collect();
     let mut burn_sorted = burn.clone();
     burn_sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-    line_chart(
-        &dir.join("burn_in_sweep"),
-        &LineChart {
-            title: "TAG-K burn-in sweep".into(),
-            x_label: "burn-in fraction t_b / T".into(),
-            y_label: "mean parameter error ‖Δθ‖₂".into(),
-            log_y: true,
-            series: vec![
-                ChartSeries {
-                    label: "parameter error".into(),
-                    points: burn_sorted
-                        .iter()
-                        .map(|(b, c)| (*b, c.parameter_error))
-                        .collect(),
-                },
-                ChartSeries {
-                    label: "(t+1) error".into(),
-                    points: burn_sorted.iter().map(|(b, c)| (*b, c.t1_error)).collect(),
-                },
-            ],
-            markers: vec![],
-            x_categories: vec![],
-        },
-    )?;
+    line_chart(&dir.join("burn_in_sweep"), &burn_in_chart(&burn_sorted))?;
     let burn_in = burn_sorted
         .into_iter()
         .map(|(b, c)| (b, c.clone()))
@@ -585,6 +595,27 @@ pub fn run_kaczmarz_ablation<O: SweepObserver + ?Sized>(
         burn_in,
         sweep: ExperimentReport { result, dir },
     })
+}
+
+/// The TAG-K burn-in sweep: mean and (t+1) parameter error against `t_b / T`.
+fn burn_in_chart(burn: &[(f64, &crate::CellSummary)]) -> LineChart {
+    LineChart {
+        title: "TAG-K burn-in sweep".into(),
+        x_label: "burn-in fraction t_b / T [–]".into(),
+        y_label: "mean parameter error ‖Δθ‖₂ [SI units]".into(),
+        log_y: true,
+        series: vec![
+            ChartSeries {
+                label: "parameter error".into(),
+                points: burn.iter().map(|(b, c)| (*b, c.parameter_error)).collect(),
+            },
+            ChartSeries {
+                label: "(t+1) error".into(),
+                points: burn.iter().map(|(b, c)| (*b, c.t1_error)).collect(),
+            },
+        ],
+        ..LineChart::default()
+    }
 }
 
 /// One row of Table III.
@@ -664,28 +695,241 @@ pub fn run_dimension_sweep(
     }
     w.flush()?;
     std::fs::write(dir.join("table.json"), serde_json::to_string_pretty(&rows)?)?;
-    let names = ["RLS", "KF", "TAG-K"];
-    line_chart(
-        &dir.join("update_time"),
-        &LineChart {
-            title: format!("Per-update time, m = {m} (median)"),
-            x_label: "parameter dimension n".into(),
-            y_label: "update time [µs]".into(),
-            log_y: true,
-            series: names
-                .iter()
-                .map(|nm| ChartSeries {
-                    label: (*nm).into(),
-                    points: rows
-                        .iter()
-                        .filter(|r| r.estimator == *nm)
-                        .map(|r| (r.n as f64, r.median_us))
-                        .collect(),
+    line_chart(&dir.join("update_time"), &update_time_chart(&rows, m))?;
+    Ok((rows, dir))
+}
+
+/// Table III's figure: the median update time of RLS, KF and TAG-K against `n` (window `m`).
+fn update_time_chart(rows: &[TimingRow], m: usize) -> LineChart {
+    LineChart {
+        title: format!("Per-update time, m = {m} (median)"),
+        x_label: "parameter dimension n [–]".into(),
+        y_label: "update time [µs]".into(),
+        log_y: true,
+        series: ["RLS", "KF", "TAG-K"]
+            .iter()
+            .map(|nm| ChartSeries {
+                label: (*nm).into(),
+                points: rows
+                    .iter()
+                    .filter(|r| r.estimator == *nm)
+                    .map(|r| (r.n as f64, r.median_us))
+                    .collect(),
+            })
+            .collect(),
+        ..LineChart::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::CellSummary;
+    use crate::plot::check::{covers, edges_blank};
+    use crate::plot::{PNG_SCALE, chart_axes, render_line_chart, render_paths_3d};
+
+    /// A synthetic cell: the errors of issue #30's figures, by noise level `k` and row `j`.
+    fn cell(k: usize, j: usize, label: &str) -> CellSummary {
+        let noise = NoiseLevel::ALL[k];
+        let (pos, perr) = match label {
+            "oracle" => (0.2 + 0.05 * k as f64, f64::NAN),
+            "nominal" => (1.05 + 0.03 * k as f64, f64::NAN),
+            "TAG-K" if k == 3 => (22.7, 2.4e-3),
+            l if l.starts_with("TAG-K (") => (0.81 + 0.02 * k as f64, 2.0e-3 + 1e-4 * k as f64),
+            _ => (2.0 + 0.1 * j as f64, 4.0e-3 + 3e-4 * j as f64),
+        };
+        CellSummary {
+            noise,
+            adaptation: Adaptation::Nominal,
+            label: label.into(),
+            trials: 8,
+            position_error_cm: pos,
+            position_error_all_cm: pos,
+            position_error_all_se: 0.01,
+            parameter_error_se: 1e-5,
+            t1_error_clean: 1.5 * perr,
+            t1_error_mixed: 2.5 * perr,
+            t1_error_se: 1e-5,
+            t1_mixed_pct: 50.0,
+            success_paper_pct: 100.0,
+            parameter_error: perr,
+            rel_mass: 0.1,
+            rel_first_moment: 0.1,
+            rel_inertia: 0.1,
+            t1_error: 2.0 * perr,
+            success_pct: if label == "oracle" {
+                100.0
+            } else {
+                12.5 * j as f64
+            },
+            success_after_update_pct: 100.0,
+            aborted_pct: 0.0,
+            update_median_us: 3.0,
+            update_p95_us: 5.0,
+            position_errors: (0..8)
+                .map(|i| {
+                    if i == 3 {
+                        f64::NAN
+                    } else {
+                        pos * (0.8 + 0.05 * i as f64)
+                    }
                 })
                 .collect(),
-            markers: vec![],
-            x_categories: vec![],
-        },
-    )?;
-    Ok((rows, dir))
+        }
+    }
+
+    const LABELS: [&str; 8] = [
+        "RLS-low",
+        "RLS-high",
+        "KF-low",
+        "KF-high",
+        "TAG-K",
+        "TAG-K (scaled, tol 3σ, fz+τ rows, events 5σ)",
+        "nominal",
+        "oracle",
+    ];
+
+    fn sweep_result() -> SweepResult {
+        SweepResult {
+            cells: (0..4)
+                .flat_map(|k| LABELS.iter().enumerate().map(move |(j, l)| cell(k, j, l)))
+                .collect(),
+            trials: 8,
+            seed: 1,
+            elapsed_s: 1.0,
+            threads: 1,
+        }
+    }
+
+    /// `[min, max]` of the values a chart can draw, straight from its series.
+    fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+        values
+            .filter(|v| v.is_finite() && (!log || *v > 0.0))
+            .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)))
+    }
+
+    /// The chart's labelled ticks hold its data on both axes, both axis names carry a unit,
+    /// and it renders at the PNG's scale with nothing running off the figure.
+    fn check_chart(name: &str, chart: &LineChart) {
+        let axes = chart_axes(chart);
+        let pts = || chart.series.iter().flat_map(|s| s.points.iter());
+        let (ylo, yhi) = range(pts().map(|p| p.1), chart.log_y);
+        covers(&axes.y, ylo, yhi).unwrap_or_else(|e| panic!("{name}, y axis: {e}"));
+        let (xlo, xhi) = range(pts().map(|p| p.0), chart.log_x);
+        if chart.x_categories.is_empty() {
+            covers(&axes.x, xlo, xhi).unwrap_or_else(|e| panic!("{name}, x axis: {e}"));
+        } else {
+            let names: Vec<&str> = axes.x.labelled.iter().map(|(_, l)| l.as_str()).collect();
+            assert_eq!(names, chart.x_categories, "{name}");
+            assert!(xlo >= 0.0 && xhi <= (names.len() - 1) as f64, "{name}");
+        }
+        for label in [&chart.x_label, &chart.y_label] {
+            let unit = label
+                .split_once('[')
+                .is_some_and(|(_, u)| u.contains(']') && !u.starts_with(']'));
+            assert!(unit, "{name}: no unit in {label:?}");
+        }
+        let r = render_line_chart(chart, PNG_SCALE).unwrap();
+        assert_eq!((r.width, r.height), (1800, 1120));
+        assert!(
+            edges_blank(&r, 2 * PNG_SCALE),
+            "{name}: drawn off the figure"
+        );
+    }
+
+    #[test]
+    fn every_figure_labels_its_data_and_renders() {
+        let result = sweep_result();
+        let charts = noise_sweep_charts(&result);
+        assert_eq!(charts.len(), 9);
+        for (name, chart) in &charts {
+            check_chart(name, chart);
+        }
+        // The CDFs are staircases from 0 to 1.
+        for (name, chart) in charts.iter().filter(|(n, _)| n.starts_with("cdf")) {
+            for s in &chart.series {
+                let p = &s.points;
+                assert_eq!((p[0].1, p[p.len() - 1].1), (0.0, 1.0), "{name}");
+                assert!(p.windows(2).all(|w| w[0].0 == w[1].0 || w[0].1 == w[1].1));
+            }
+        }
+        check_chart(
+            "position_error_cdf",
+            &cdf_chart("cdf".into(), &result, NoiseLevel::High),
+        );
+        let curves: Vec<(String, Vec<f64>)> = LABELS[..4]
+            .iter()
+            .enumerate()
+            .map(|(j, l)| {
+                let curve = (0..2000)
+                    .map(|i| match i {
+                        0..500 => 6.5e-9,
+                        500..510 => 1.3e-2,
+                        510..1300 => 1e-4 * (1.0 + j as f64),
+                        _ => 3.4e-6 * (1.0 + 3.0 * j as f64),
+                    })
+                    .collect();
+                (l.to_string(), curve)
+            })
+            .collect();
+        check_chart(
+            "parameter_error_time",
+            &parameter_error_chart("error".into(), curves, 0.01),
+        );
+        let tagk: Vec<(f64, CellSummary)> = [0.0, 0.25, 0.5, 0.75, 0.9]
+            .iter()
+            .map(|b| {
+                let mut c = cell(1, 5, LABELS[5]);
+                c.parameter_error = 2.9e-5 - 1e-6 * b;
+                c.t1_error = 4.0e-5 - 4e-6 * b;
+                (*b, c)
+            })
+            .collect();
+        let burn: Vec<(f64, &CellSummary)> = tagk.iter().map(|(b, c)| (*b, c)).collect();
+        check_chart("burn_in_sweep", &burn_in_chart(&burn));
+        let rows: Vec<TimingRow> = [40, 60, 80, 100, 120]
+            .iter()
+            .flat_map(|n| {
+                [("RLS", 0.0037), ("KF", 0.0036), ("TAG-K", 0.0011)].map(|(e, k)| TimingRow {
+                    estimator: e.into(),
+                    n: *n,
+                    m: 30,
+                    median_us: k * (*n as f64).powf(1.8) / 0.5,
+                    p95_us: 0.0,
+                })
+            })
+            .collect();
+        check_chart("update_time", &update_time_chart(&rows, 30));
+    }
+
+    #[test]
+    fn the_path_figure_labels_its_data_and_renders() {
+        let paths: Vec<Path3> = LABELS
+            .iter()
+            .enumerate()
+            .map(|(j, l)| Path3 {
+                label: l.to_string(),
+                points: (0..400)
+                    .map(|i| {
+                        let t = i as f64 * 0.0157;
+                        (
+                            0.3 + 0.7 * t.sin(),
+                            0.45 + 0.25 * (2.0 * t).sin(),
+                            1.3 + 0.01 * j as f64,
+                        )
+                    })
+                    .collect(),
+                marks: vec![(0.3, 0.45, 1.3)],
+            })
+            .collect();
+        let axes = crate::plot::paths_3d_axes(&paths);
+        for (i, t) in axes.iter().enumerate() {
+            let coord = |p: &(f64, f64, f64)| [p.0, p.1, p.2][i];
+            let (lo, hi) = range(paths.iter().flat_map(|p| p.points.iter().map(coord)), false);
+            covers(t, lo, hi).unwrap_or_else(|e| panic!("axis {i}: {e}"));
+        }
+        let r = render_paths_3d("paths", &paths, PNG_SCALE).unwrap();
+        assert_eq!((r.width, r.height), (1800, 1400));
+        assert!(edges_blank(&r, 2 * PNG_SCALE));
+    }
 }

@@ -633,7 +633,7 @@ fn figures_render_with_the_embedded_font() {
             points: vec![(0.0, 1.0), (1.0, 10.0)],
         }],
         markers: vec![0.5],
-        x_categories: vec![],
+        ..Default::default()
     };
     plot::line_chart(&dir.join("c"), &chart).unwrap();
     assert!(std::fs::metadata(dir.join("c.png")).unwrap().len() > 1000);
