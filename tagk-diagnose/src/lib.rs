@@ -24,6 +24,8 @@ pub mod scales;
 mod signals;
 mod stats;
 pub mod streams;
+pub mod validation;
+pub mod window;
 
 pub use accel_offset::AccelerometerOffset;
 pub use diagnose::{
@@ -36,7 +38,7 @@ pub use diagnose::{
     second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, expression::Expression, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
     Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
     effect_columns, is_sensor_effect, subsample,
 };
@@ -73,6 +75,8 @@ pub use report::{
 pub use sampling::{SamplingFindings, sampling_text};
 pub use scales::{ScaleFinding, Severity};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
+pub use validation::{Validation, ValidationStep, validation_rms};
+pub use window::{TimeWindow, keep_windows};
 pub use streams::{
     AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift,
     shift_contradiction, streams_table,
