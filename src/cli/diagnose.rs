@@ -57,8 +57,9 @@ pub struct DiagnoseArgs {
     /// Custom candidate effect: NAME=EXPR@CH[,CH...], an expression of log columns on
     /// wrench channels; repeatable. Quote it for the shell, e.g. --custom
     /// drag_x='vbx*abs(vbx)'@fx or vbat=vbat*fz@fz. EXPR: columns (vx, wz, w1, an extra
-    /// column), vbx..vbz (body-frame velocity), d(COL) (time derivative), numbers, PI,
-    /// + - * / ^, pow min max (two arguments), abs sign sqrt sin cos tan atan tanh exp ln.
+    /// column), vbx..vbz (body-frame velocity), d(COL) (time derivative), numbers, PI, the
+    /// operators + - * / ^, pow min max (two arguments), abs sign sqrt sin cos tan atan tanh
+    /// exp ln.
     /// Units are checked: a sum of different units is refused. The coefficient's unit is
     /// the channel's over the expression's (docs/CONVENTIONS.md §7.4).
     #[arg(long = "custom", value_name = "SPEC")]

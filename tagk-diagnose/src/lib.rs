@@ -38,9 +38,9 @@ pub use diagnose::{
     second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
-    ACCEL_BIAS, BuiltinOptions, CustomEffect, expression::Expression, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
+    ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
     Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
-    effect_columns, is_sensor_effect, subsample,
+    effect_columns, expression::Expression, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
@@ -75,8 +75,6 @@ pub use report::{
 pub use sampling::{SamplingFindings, sampling_text};
 pub use scales::{ScaleFinding, Severity};
 pub use signals::{CHANNEL_NAMES, CHANNEL_UNITS, Channel, MIN_SEGMENT_ROWS, RotorMixer, Signals};
-pub use validation::{Validation, ValidationStep, validation_rms};
-pub use window::{TimeWindow, keep_windows};
 pub use streams::{
     AlignOptions, StreamAlignment, align_streams, align_streams_owned, parse_shift,
     shift_contradiction, streams_table,
@@ -85,6 +83,8 @@ pub use streams::{
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;
 pub use tagk_dynamics::alignment::{DelayEstimate, Sensor};
+pub use validation::{Validation, ValidationStep, validation_rms};
+pub use window::{TimeWindow, keep_windows};
 
 #[cfg(test)]
 mod sampled_tests;

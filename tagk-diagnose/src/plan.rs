@@ -197,6 +197,9 @@ pub struct ResolvedPlan {
 ///   ([`custom`](Self::custom)) and your own [`Effect`]s ([`candidate`](Self::candidate));
 /// - the known mass ([`known_mass`](Self::known_mass)), the airframe radius, the noise per
 ///   channel, resampling, stream alignment, the online pass and the number of steps.
+/// - time windows of the flights ([`window`](Self::window)) and a second flight that scores
+///   every model of the staircase ([`validation_file`](Self::validation_file),
+///   [`validation_log`](Self::validation_log)).
 ///
 /// One flight is diagnosed alone: a log with gaps is split at them and its segments are
 /// fitted jointly. Several flights are fitted jointly ([`run_logs`]): a flight with gaps joins
@@ -927,22 +930,20 @@ impl DiagnosisPlan {
                         available,
                     },
                     Some(merge),
-                ) => {
-                    match merge.unread_columns.iter().find(|u| u.column == column) {
-                        Some(u) => DiagnoseError::UnreadColumn {
-                            effect,
-                            column,
-                            stream: u.stream.clone(),
-                            line: u.line,
-                            value: u.value.clone(),
-                        },
-                        None => DiagnoseError::UnknownColumn {
-                            effect,
-                            column,
-                            available,
-                        },
-                    }
-                }
+                ) => match merge.unread_columns.iter().find(|u| u.column == column) {
+                    Some(u) => DiagnoseError::UnreadColumn {
+                        effect,
+                        column,
+                        stream: u.stream.clone(),
+                        line: u.line,
+                        value: u.value.clone(),
+                    },
+                    None => DiagnoseError::UnknownColumn {
+                        effect,
+                        column,
+                        available,
+                    },
+                },
                 (e, _) => e,
             })
     }

@@ -792,7 +792,11 @@ pub fn report_table(r: &Report) -> String {
     s.push('\n');
     s.push_str(&staircase_table(r));
     if !r.windows.is_empty() {
-        let w: Vec<String> = r.windows.iter().map(|[a, b]| format!("{a}..{b} s")).collect();
+        let w: Vec<String> = r
+            .windows
+            .iter()
+            .map(|[a, b]| format!("{a}..{b} s"))
+            .collect();
         s.push_str(&format!("\nwindows kept (log time): {}\n", w.join(", ")));
     }
     if let Some(v) = &r.validation {

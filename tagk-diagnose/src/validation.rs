@@ -155,7 +155,11 @@ fn refit_nuisance(residual: &mut [[f64; 6]], cols: &[ColData]) {
     for c in 0..6 {
         for a in 0..m {
             let Some(va) = &cols[a][c] else { continue };
-            rhs[a] += va.iter().zip(residual.iter()).map(|(x, r)| x * r[c]).sum::<f64>();
+            rhs[a] += va
+                .iter()
+                .zip(residual.iter())
+                .map(|(x, r)| x * r[c])
+                .sum::<f64>();
             for b in 0..m {
                 if let Some(vb) = &cols[b][c] {
                     gram[(a, b)] += va.iter().zip(vb).map(|(x, y)| x * y).sum::<f64>();

@@ -44,7 +44,8 @@ fn vy(t: f64) -> f64 {
 fn expressions_match_hand_computation() {
     let log = sinusoid_log();
     let s = Signals::from_log(&log).unwrap();
-    let cases: [(&str, fn(f64) -> f64); 7] = [
+    type Exact = fn(f64) -> f64;
+    let cases: [(&str, Exact); 7] = [
         ("vx*abs(vx)", |t| vx(t) * vx(t).abs()),
         ("sign(vx)*sqrt(abs(vx*vy)) + 2*vy", |t| {
             vx(t).signum() * (vx(t) * vy(t)).abs().sqrt() + 2.0 * vy(t)
@@ -82,7 +83,10 @@ fn expressions_match_hand_computation() {
 fn a_nan_is_an_error_naming_the_time() {
     let log = sinusoid_log();
     let s = Signals::from_log(&log).unwrap();
-    let err = Expression::parse("sqrt(vy)").unwrap().evaluate(&s).unwrap_err();
+    let err = Expression::parse("sqrt(vy)")
+        .unwrap()
+        .evaluate(&s)
+        .unwrap_err();
     // vy = 0.3 cos(0.7 t) < 0 from t = π/1.4 ≈ 2.244 s: the first sample is 2.25 s.
     assert!(err.contains("NaN at t = 2.25 s"), "{err}");
 }
@@ -94,12 +98,14 @@ fn derivative_of_a_column_matches_the_closed_form() {
     let log = sinusoid_log();
     let s = Signals::from_log(&log).unwrap();
     let d = Expression::parse("d(vx)").unwrap().evaluate(&s).unwrap();
-    let der = Expression::parse("der( vx )").unwrap().evaluate(&s).unwrap();
+    let der = Expression::parse("der( vx )")
+        .unwrap()
+        .evaluate(&s)
+        .unwrap();
     assert_eq!(d, der);
     let mut worst = 0.0f64;
-    for k in 5..395 {
-        let t = log.t[k];
-        worst = worst.max((d[k] - 1.2 * (1.5 * t).cos()).abs());
+    for (t, x) in log.t.iter().zip(&d).skip(5).take(390) {
+        worst = worst.max((x - 1.2 * (1.5 * t).cos()).abs());
     }
     // A local quadratic over ±5 samples: bias ≈ A ω³ h² (10 + 1)/10 / 6 ≈ 2.5e-4 m/s².
     assert!(worst < 1e-3, "worst error {worst:e} m/s²");
@@ -128,7 +134,9 @@ fn units_are_inferred_and_mistakes_refused() {
     let drag = CustomEffect::parse("drag_x='vbx*abs(vbx)'@fx,tz").unwrap();
     assert_eq!(drag.coefficient_units(), ["kg/m", "kg"]);
     assert_eq!(
-        CustomEffect::parse("v=vbat*fz@fz").unwrap().coefficient_units(),
+        CustomEffect::parse("v=vbat*fz@fz")
+            .unwrap()
+            .coefficient_units(),
         ["?"]
     );
     // Refused, naming the term.
@@ -150,7 +158,12 @@ fn units_are_inferred_and_mistakes_refused() {
         assert!(DiagnosisPlan::new().custom(spec).validate().is_err());
     }
     // Syntax errors and derivatives of anything but a column.
-    for spec in ["bad=vx*@fx", "bad=d(vx*vy)@fx", "bad=foo(vx)@fx", "bad=vx@qq"] {
+    for spec in [
+        "bad=vx*@fx",
+        "bad=d(vx*vy)@fx",
+        "bad=foo(vx)@fx",
+        "bad=vx@qq",
+    ] {
         assert!(
             matches!(
                 CustomEffect::parse(spec),
@@ -213,7 +226,10 @@ fn custom_quadratic_drag_recovers_the_simulated_coefficient() {
         c.value, c.unit
     );
     assert_eq!(c.unit, "kg/m");
-    assert!(lo <= truth && truth <= hi, "{truth:e} outside [{lo:e}, {hi:e}]");
+    assert!(
+        lo <= truth && truth <= hi,
+        "{truth:e} outside [{lo:e}, {hi:e}]"
+    );
     // The interval is the diagnosis' (floored at the data's resolution); the value itself is
     // within 2 % of the simulated coefficient.
     assert!(
@@ -261,10 +277,16 @@ fn windows_keep_exactly_their_rows_and_bad_ones_are_refused() {
             "{text}"
         );
     }
-    for w in [TimeWindow { start: 2.0, end: 9.0 }, TimeWindow {
-        start: 1.0001,
-        end: 1.0002,
-    }] {
+    for w in [
+        TimeWindow {
+            start: 2.0,
+            end: 9.0,
+        },
+        TimeWindow {
+            start: 1.0001,
+            end: 1.0002,
+        },
+    ] {
         let err = keep_windows(log.clone(), &[w]).unwrap_err();
         assert!(matches!(err, DiagnoseError::BadWindow { .. }), "{err}");
     }
