@@ -116,6 +116,25 @@ fn derivative_of_a_column_matches_the_closed_form() {
     assert!((dw[200] - 0.2 * 2.0f64.cos()).abs() < 1e-4);
 }
 
+/// One source of truth: on a log without accelerations, `d(vx)` is the acceleration the
+/// diagnosis derives itself (level attitude: the body x axis is the world's).
+#[test]
+fn derivative_is_the_diagnosis_own_acceleration() {
+    let mut log = sinusoid_log();
+    log.accel = None;
+    let s = Signals::from_log(&log).unwrap();
+    assert!(s.derived_accel);
+    let d = Expression::parse("d(vx)").unwrap().evaluate(&s).unwrap();
+    for (k, a) in s.accel_proper.iter().enumerate() {
+        assert!(
+            (d[k] - a.x).abs() < 1e-12,
+            "sample {k}: {} against {}",
+            d[k],
+            a.x
+        );
+    }
+}
+
 #[test]
 fn units_are_inferred_and_mistakes_refused() {
     let unit = |text: &str| {

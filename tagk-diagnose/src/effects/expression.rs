@@ -10,7 +10,8 @@
 //! - `vbx`, `vby`, `vbz`: the body-frame velocity `Rᵀ v` \[m/s\], smoothed as the built-in drag
 //!   effects read it;
 //! - `d(col)` or `der(col)`: the time derivative of a column, by the Savitzky–Golay
-//!   differentiator that derives accelerations from logs ([`crate::deriv`]);
+//!   differentiator that derives accelerations from logs
+//!   ([`tagk_dynamics::deriv::savitzky_golay_derivative`]);
 //! - numbers (`2`, `0.5`, `1e-3`) and `PI`;
 //! - `+ - * / ^`, and `pow(a, b)`, `min(a, b)`, `max(a, b)`;
 //! - `abs`, `sign`, `sqrt`, `sin`, `cos`, `tan`, `atan`, `exp`, `ln`, `tanh`.
