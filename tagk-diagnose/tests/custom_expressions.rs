@@ -324,6 +324,21 @@ fn a_window_in_a_diagnosis_fits_only_its_rows() {
         .unwrap();
     assert_eq!(report.before.samples, expected);
     assert_eq!(report.windows, vec![[5.0, 15.0]]);
+    // Several flights: the window applies to each.
+    let other = common::sim_log(Some(tagk_sim::EffectKind::LinearDrag), 6);
+    let expected_other = other
+        .t
+        .iter()
+        .filter(|&&t| (5.0..=15.0).contains(&t))
+        .count();
+    let joint = DiagnosisPlan::new()
+        .named_log("a", log.clone())
+        .named_log("b", other)
+        .window(TimeWindow::new(5.0, 15.0).unwrap())
+        .max_steps(0)
+        .run()
+        .unwrap();
+    assert_eq!(joint.before.samples, expected + expected_other);
     let err = DiagnosisPlan::new()
         .log(log)
         .window(TimeWindow::new(20.0, 90.0).unwrap())
