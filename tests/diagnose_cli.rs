@@ -124,12 +124,11 @@ fn effect_names_aliases_and_custom_columns_are_checked() {
 
     let mut args = DiagnoseArgs::new(&path);
     args.custom = vec!["vbat=vbat*fz@fz".into()];
-    assert_eq!(
-        plan(&args, &log).unwrap_err(),
-        DiagnoseError::UnknownColumn {
-            effect: "vbat".into(),
-            column: "vbat".into()
-        }
+    let err = plan(&args, &log).unwrap_err();
+    assert!(
+        matches!(&err, DiagnoseError::UnknownColumn { effect, column, available }
+            if effect == "vbat" && column == "vbat" && available.contains("vx")),
+        "{err}"
     );
     let mut args = DiagnoseArgs::new(&path);
     args.custom = vec!["thrust=fz*fz@fz".into()];
@@ -514,4 +513,82 @@ fn partial_residuals_line_up_with_the_missing_column() {
         html.contains(&format!("vs column {} of {top}", fx.column)),
         "no partial-residual plot"
     );
+}
+
+/// `--custom` takes an expression, `--window` keeps a time window and `--validate` scores the
+/// models on a second flight: on the terminal, in the JSON (new keys) and in the HTML; the
+/// help documents the three.
+#[test]
+fn expressions_windows_and_validation_from_the_command_line() {
+    let dir = tmpdir("expr");
+    let log = write_drag_log(&dir);
+    let second = write_drag_log_seeded(&dir, 4, "second.csv");
+    let json = dir.join("out.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .arg("diagnose")
+        .arg(&log)
+        .args(["--custom", "drag_x=vbx*abs(vbx)@fx", "--with", "drag_x"])
+        .args(["--window", "2..20", "--max-steps", "0", "--validate"])
+        .arg(&second)
+        .arg("--json")
+        .arg(&json)
+        .arg("--report")
+        .arg(dir.join("html"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("validation on"), "{stdout}");
+    assert!(
+        stdout.contains("windows kept (log time): 2..20 s"),
+        "{stdout}"
+    );
+    // The command that reproduces the model keeps the window, the validation log and the
+    // quoted expression.
+    assert!(stdout.contains("--window 2..20"), "{stdout}");
+    assert!(stdout.contains("'drag_x=vbx*abs(vbx)@fx'"), "{stdout}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["windows"][0][0].as_f64(), Some(2.0));
+    let steps = v["validation"]["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 2, "rigid body, then the --with model");
+    assert_eq!(steps[1]["rms"].as_array().unwrap().len(), 6);
+    let samples = v["before"]["samples"].as_u64().unwrap();
+    assert!(
+        samples <= 901 && samples > 850,
+        "{samples} samples in 2..20 s at 50 Hz"
+    );
+    let html = std::fs::read_to_string(dir.join("html").join("index.html")).unwrap();
+    assert!(html.contains("<h2>Validation on"), "no validation section");
+    // A bad window and a unit mistake are typed errors naming what is wrong.
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_tagk"))
+            .arg("diagnose")
+            .arg(&log)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let bad = run(&["--window", "20..2"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("20..2"));
+    let bad = run(&["--custom", "oops=vx+wx@fx"]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("oops") && err.contains("different units"),
+        "{err}"
+    );
+    let help = Command::new(env!("CARGO_BIN_EXE_tagk"))
+        .args(["diagnose", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    for needle in ["--window", "--validate", "d(COL)", "abs(vbx)"] {
+        assert!(help.contains(needle), "{needle} not in help");
+    }
 }

@@ -7,7 +7,7 @@ pub use crate::diagnose::KnownMass;
 use crate::diagnose::format::shell_join;
 use crate::diagnose::{
     AlignOptions, DEFAULT_ONLINE_STRIDE, DiagnoseError, DiagnosisPlan, EffectKind, FlightLog,
-    NextStep, Report, ResolvedPlan, parse_shift, report_table,
+    NextStep, Report, ResolvedPlan, TimeWindow, parse_shift, report_table,
 };
 use crate::dynamics::log_input::{ColumnMapping, InputError, MergeReport};
 use crate::dynamics::vehicle::Vehicle;
@@ -54,10 +54,27 @@ pub struct DiagnoseArgs {
     /// at the noise. It reports the online mass against the batch mass.
     #[arg(long)]
     pub online: bool,
-    /// Custom candidate effect from log signals: NAME=COL[*COL...]@CH[,CH...]
-    /// (e.g. vbat=vbat*fz@fz); repeatable.
+    /// Custom candidate effect: NAME=EXPR@CH[,CH...], an expression of log columns on
+    /// wrench channels; repeatable. Quote it for the shell, e.g. --custom
+    /// drag_x='vbx*abs(vbx)'@fx or vbat=vbat*fz@fz. EXPR: columns (vx, wz, w1, an extra
+    /// column), vbx..vbz (body-frame velocity), d(COL) (time derivative), numbers, PI, the
+    /// operators + - * / ^, pow min max (two arguments), abs sign sqrt sin cos tan atan tanh
+    /// exp ln.
+    /// Units are checked: a sum of different units is refused. The coefficient's unit is
+    /// the channel's over the expression's (docs/CONVENTIONS.md §7.4).
     #[arg(long = "custom", value_name = "SPEC")]
     pub custom: Vec<String>,
+    /// Keep only this time window of each log, START..END in seconds of log time (the t
+    /// column; e.g. 5..40); repeatable: rows within any window are kept, the time between
+    /// windows is a gap. A window outside the log or without a row is refused.
+    #[arg(long = "window", value_name = "START..END")]
+    pub window: Vec<TimeWindow>,
+    /// Score every model of the staircase on this second log of the same vehicle (read
+    /// with the same --columns mapping and --vehicle; no window applies): its residual RMS
+    /// per channel, the models not refitted. In the summary, the JSON (validation) and the
+    /// HTML report.
+    #[arg(long, value_name = "FILE")]
+    pub validate: Option<PathBuf>,
     /// Vehicle description: a preset (crazyflie-2.1; tagk vehicle list) or a vehicle file
     /// (TOML, docs/VEHICLE.md). A log without the wrench fx..tz then gets it from its rotor
     /// speeds w1..w4 (rad/s) (a logged wrench is used as it is); the vehicle's airframe
@@ -130,6 +147,15 @@ fn effects_help() -> String {
         };
         text.push_str(&format!("  {:<15} {}{also}\n", kind.name(), kind.summary()));
     }
+    text.push_str(concat!(
+        "\nCustom terms (--custom NAME=EXPR@CH[,CH...]; docs/CONVENTIONS.md §7.4):\n",
+        "  --custom drag_x='vbx*abs(vbx)'@fx    signed square of the body-frame speed on fx\n",
+        "  --custom lag='d(wz)'@tz             time derivative of a column (as accelerations)\n",
+        "  --custom vbat=vbat*fz@fz            product of columns (the older syntax)\n",
+        "  Units: each column's SI unit; a sum, min or max of different units, or sin/exp/...\n",
+        "  of a quantity that is not a pure number, is refused. -x^2 is (-x)^2.\n",
+        "Windows and validation: --window 5..40 (repeatable), --validate SECOND_LOG.csv\n",
+    ));
     text.push_str("\nFit measures of the tables:\n");
     for line in crate::diagnose::FIT_MEASURES.lines() {
         text.push_str(&format!("  {line}\n"));
@@ -149,6 +175,8 @@ impl DiagnoseArgs {
             report: None,
             online: false,
             custom: Vec::new(),
+            window: Vec::new(),
+            validate: None,
             vehicle: None,
             mass: None,
             airframe_radius: None,
@@ -205,6 +233,12 @@ impl DiagnoseArgs {
         }
         for c in &self.custom {
             args.extend(["--custom".into(), c.clone()]);
+        }
+        for w in &self.window {
+            args.extend(["--window".into(), w.to_string()]);
+        }
+        if let Some(v) = &self.validate {
+            args.extend(["--validate".into(), path(v)]);
         }
         if let Some(f) = &self.noise_floor {
             let v: Vec<String> = f.iter().map(|x| format!("{x:e}")).collect();
@@ -297,6 +331,12 @@ impl DiagnoseArgs {
             .accept_scales(self.accept_scales);
         for spec in &self.custom {
             plan = plan.custom(spec);
+        }
+        for w in &self.window {
+            plan = plan.window(*w);
+        }
+        if let Some(v) = &self.validate {
+            plan = plan.validation_file(v);
         }
         if let Some(v) = vehicle {
             plan = plan.vehicle(v);

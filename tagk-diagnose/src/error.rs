@@ -34,13 +34,26 @@ pub enum DiagnoseError {
     /// An effect of the vocabulary without a diagnosis candidate in this version.
     #[error("effect `{0}` has no diagnosis candidate")]
     NoCandidate(EffectKind),
-    /// A custom effect multiplies a column the log does not have.
-    #[error("custom effect `{effect}`: the log has no column `{column}`")]
+    /// A custom effect reads a column the log does not have.
+    #[error("custom effect `{effect}`: the log has no column `{column}` (available: {available})")]
     UnknownColumn {
         /// Effect name.
         effect: String,
         /// The missing column.
         column: String,
+        /// The signals the log offers, comma separated.
+        available: String,
+    },
+    /// A custom effect's expression mixes units: a sum, difference, `min` or `max` of
+    /// different units, or a function that needs a pure number given a quantity.
+    #[error("custom effect `{effect}`: `{expression}`: {reason}")]
+    CustomUnits {
+        /// Effect name.
+        effect: String,
+        /// The expression.
+        expression: String,
+        /// The unit mistake.
+        reason: String,
     },
     /// A custom effect multiplies a column of the log that was not read as a signal: an
     /// unmapped column with a cell that is not a number
@@ -74,6 +87,15 @@ pub enum DiagnoseError {
     /// not a positive finite number).
     #[error("invalid model: {0}")]
     InvalidModel(String),
+    /// A time window (`--window START..END`) that is malformed, empty, reversed or outside
+    /// the log.
+    #[error("bad window `{window}`: {reason}")]
+    BadWindow {
+        /// The window as given.
+        window: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A malformed `--custom` specification.
     #[error("bad custom effect `{spec}`: {reason}")]
     BadCustomSpec {

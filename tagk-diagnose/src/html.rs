@@ -1070,6 +1070,26 @@ pub fn render(report: &Report) -> String {
             f,
         );
     }
+    if let Some(v) = &report.validation {
+        let _ = write!(
+            html,
+            "<h2>Validation on {}</h2><p>{} samples; each model as fitted on the diagnosed log (not refitted): residual RMS per channel (N, N m)</p><table><tr><th>model</th>",
+            escape(&v.log),
+            v.samples
+        );
+        for c in crate::signals::CHANNEL_NAMES {
+            let _ = write!(html, "<th>{c}</th>");
+        }
+        html.push_str("</tr>");
+        for step in &v.steps {
+            let _ = write!(html, "<tr><td>{}</td>", escape(&step.model));
+            for r in step.rms {
+                let _ = write!(html, "<td>{r:.3e}</td>");
+            }
+            html.push_str("</tr>");
+        }
+        html.push_str("</table>");
+    }
     if let Some(o) = &report.online {
         let t: Vec<f64> = (0..o.mass_history.len()).map(|k| k as f64).collect();
         let _ = write!(

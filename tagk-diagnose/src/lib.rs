@@ -24,6 +24,8 @@ pub mod scales;
 mod signals;
 mod stats;
 pub mod streams;
+pub mod validation;
+pub mod window;
 
 pub use accel_offset::AccelerometerOffset;
 pub use diagnose::{
@@ -38,7 +40,7 @@ pub use diagnose::{
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
     Plausibility, ScanSpec, builtin, builtin_by_name, builtin_effects, builtin_with, cut_to_window,
-    effect_columns, is_sensor_effect, subsample,
+    effect_columns, expression::Expression, is_sensor_effect, subsample,
 };
 pub use error::{DiagnoseError, LogError};
 pub use fit::resolution_of;
@@ -81,6 +83,8 @@ pub use streams::{
 /// built-in candidates are keyed by it ([`builtin`]).
 pub use tagk_dynamics::EffectKind;
 pub use tagk_dynamics::alignment::{DelayEstimate, Sensor};
+pub use validation::{Validation, ValidationStep, validation_rms};
+pub use window::{TimeWindow, keep_windows};
 
 #[cfg(test)]
 mod sampled_tests;

@@ -290,7 +290,7 @@ impl From<&Coefficient> for ModelCoefficient {
 pub struct ModelEffect {
     /// The effect's name: built in (docs/CONVENTIONS.md §7) or custom.
     pub name: String,
-    /// A custom effect's specification `NAME=COL[*COL…]@CH[,CH…]` (none for a built-in).
+    /// A custom effect's specification `NAME=EXPR@CH[,CH…]` ([`crate::CustomEffect`]) (none for a built-in).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spec: Option<String>,
     /// The scanned parameter, if the effect has one.

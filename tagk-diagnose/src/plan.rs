@@ -21,8 +21,9 @@ use crate::log::{FlightLog, MIN_ROWS};
 use crate::online::{OnlineOptions, online_pass_with};
 use crate::report::{Report, run_logs, run_loop};
 use crate::sampling::SamplingFindings;
-use crate::signals::{CHANNEL_NAMES, Signals};
+use crate::signals::Signals;
 use crate::streams::{AlignOptions, StreamAlignment, align_streams_owned};
+use crate::window::{TimeWindow, keep_windows, window_mask};
 
 /// Samples between two windows of the online TAG-K pass of `tagk diagnose --online`: the
 /// window length, so that windows touch without overlapping.
@@ -114,7 +115,7 @@ impl From<EffectRef> for EffectChoice {
     }
 }
 
-/// A custom candidate effect: a specification `NAME=COL[*COL...]@CH[,CH...]` or a
+/// A custom candidate effect: a specification `NAME=EXPR@CH[,CH...]` or a
 /// [`CustomEffect`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum CustomChoice {
@@ -137,16 +138,7 @@ impl CustomChoice {
     fn build(&self) -> Result<(CustomEffect, String), DiagnoseError> {
         match self {
             CustomChoice::Spec(spec) => Ok((CustomEffect::parse(spec)?, spec.clone())),
-            CustomChoice::Effect(e) => {
-                let channels: Vec<&str> = e.channels().iter().map(|c| CHANNEL_NAMES[*c]).collect();
-                let spec = format!(
-                    "{}={}@{}",
-                    e.name(),
-                    e.factors().join("*"),
-                    channels.join(",")
-                );
-                Ok((e.clone(), spec))
-            }
+            CustomChoice::Effect(e) => Ok((e.clone(), e.spec())),
         }
     }
 }
@@ -205,6 +197,9 @@ pub struct ResolvedPlan {
 ///   ([`custom`](Self::custom)) and your own [`Effect`]s ([`candidate`](Self::candidate));
 /// - the known mass ([`known_mass`](Self::known_mass)), the airframe radius, the noise per
 ///   channel, resampling, stream alignment, the online pass and the number of steps.
+/// - time windows of the flights ([`window`](Self::window)) and a second flight that scores
+///   every model of the staircase ([`validation_file`](Self::validation_file),
+///   [`validation_log`](Self::validation_log)).
 ///
 /// One flight is diagnosed alone: a log with gaps is split at them and its segments are
 /// fitted jointly. Several flights are fitted jointly ([`run_logs`]): a flight with gaps joins
@@ -281,6 +276,8 @@ pub struct DiagnosisPlan {
     online: Option<usize>,
     max_steps: usize,
     accept_scales: bool,
+    windows: Vec<TimeWindow>,
+    validation: Option<Box<Input>>,
 }
 
 impl Default for DiagnosisPlan {
@@ -308,6 +305,8 @@ impl DiagnosisPlan {
             online: None,
             max_steps: DiagnoseOptions::default().max_steps,
             accept_scales: false,
+            windows: Vec::new(),
+            validation: None,
         }
     }
 
@@ -389,8 +388,9 @@ impl DiagnosisPlan {
         self
     }
 
-    /// Adds a custom candidate: a product of log columns on some channels. Its name may not
-    /// be a built-in effect's, and the log must have its columns.
+    /// Adds a custom candidate: an expression of log columns on some channels
+    /// ([`crate::effects::expression`]). Its name may not be a built-in effect's, and the log
+    /// must have its columns.
     pub fn custom(mut self, effect: impl Into<CustomChoice>) -> Self {
         self.custom.push(effect.into());
         self
@@ -444,6 +444,35 @@ impl DiagnosisPlan {
     /// Several flights get no online pass.
     pub fn online(mut self, stride: usize) -> Self {
         self.online = Some(stride);
+        self
+    }
+
+    /// Keeps only the rows of each flight within this time window (log time, both ends
+    /// included; [`crate::window`]). Several windows keep the rows within any of them; the
+    /// time between them is a gap. A window outside a flight, or without a row, is refused
+    /// ([`DiagnoseError::BadWindow`]) when the plan runs.
+    pub fn window(mut self, window: TimeWindow) -> Self {
+        self.windows.push(window);
+        self
+    }
+
+    /// Scores every model of the staircase on a second flight in this file, read like the
+    /// plan's flights (the same mapping and vehicle): the report's
+    /// [`validation`](Report::validation). The models are not refitted on it
+    /// ([`crate::validation`]). Windows do not apply to it.
+    pub fn validation_file(mut self, path: impl Into<PathBuf>) -> Self {
+        self.validation = Some(Box::new(Input::File(path.into())));
+        self
+    }
+
+    /// [`DiagnosisPlan::validation_file`] with a flight in memory, named `name`.
+    pub fn validation_log(mut self, name: impl Into<String>, log: FlightLog) -> Self {
+        self.validation = Some(Box::new(Input::Flight(Box::new(Flight {
+            name: name.into(),
+            log,
+            merge: None,
+            source: None,
+        }))));
         self
     }
 
@@ -625,33 +654,101 @@ impl DiagnosisPlan {
         }
         let inputs = std::mem::take(&mut self.inputs);
         for input in inputs {
-            let flight = match input {
-                Input::Flight(flight) => *flight,
-                Input::File(path) => match &self.columns {
-                    None => {
-                        let name = path.display().to_string();
-                        let read = FlightLog::read_csv_path(&path)?;
-                        // Columns not read are reported as a merge of one stream reports
-                        // them (a custom effect naming one is told why it is missing).
-                        let merge = (!read.unread_columns.is_empty()).then(|| MergeReport {
-                            primary: name.clone(),
-                            unread_columns: read.unread_columns,
-                            ..MergeReport::default()
-                        });
-                        Flight {
-                            source: Some(SampleSource::of_file(name.clone(), read.lines)),
-                            name,
-                            log: read.log,
-                            merge,
-                        }
-                    }
-                    Some(_) => self.read_streams(std::slice::from_ref(&path))?,
-                },
-                Input::Streams(paths) => self.read_streams(&paths)?,
-            };
+            let flight = self.read_input(input)?;
             self.inputs.push(Input::Flight(Box::new(flight)));
         }
         Ok(self)
+    }
+
+    /// One input read into memory.
+    fn read_input(&self, input: Input) -> Result<Flight, DiagnoseError> {
+        Ok(match input {
+            Input::Flight(flight) => *flight,
+            Input::File(path) => match &self.columns {
+                None => {
+                    let name = path.display().to_string();
+                    let read = FlightLog::read_csv_path(&path)?;
+                    // Columns not read are reported as a merge of one stream reports
+                    // them (a custom effect naming one is told why it is missing).
+                    let merge = (!read.unread_columns.is_empty()).then(|| MergeReport {
+                        primary: name.clone(),
+                        unread_columns: read.unread_columns,
+                        ..MergeReport::default()
+                    });
+                    Flight {
+                        source: Some(SampleSource::of_file(name.clone(), read.lines)),
+                        name,
+                        log: read.log,
+                        merge,
+                    }
+                }
+                Some(_) => self.read_streams(std::slice::from_ref(&path))?,
+            },
+            Input::Streams(paths) => self.read_streams(&paths)?,
+        })
+    }
+
+    /// The flight cut to the plan's windows ([`crate::window`]), its sample sources with it.
+    fn windowed(&self, mut flight: Flight) -> Result<Flight, DiagnoseError> {
+        if self.windows.is_empty() {
+            return Ok(flight);
+        }
+        let keep = window_mask(&flight.log, &self.windows)?;
+        flight.log = keep_windows(flight.log, &self.windows)?;
+        if let Some(source) = &mut flight.source
+            && source.lines.len() == keep.len()
+        {
+            source.lines = source
+                .lines
+                .iter()
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(l, _)| *l)
+                .collect();
+        }
+        Ok(flight)
+    }
+
+    /// Every model of `report`'s staircase scored on the validation flight, conditioned as
+    /// the plan's flights (wrench, glitches, resampling, alignment), without the windows.
+    fn validation(
+        &self,
+        report: &Report,
+        plan: &ResolvedPlan,
+    ) -> Result<Option<crate::validation::Validation>, DiagnoseError> {
+        let Some(input) = &self.validation else {
+            return Ok(None);
+        };
+        let flight = self.read_input((**input).clone())?;
+        let name = if flight.name.is_empty() {
+            "validation log".to_string()
+        } else {
+            flight.name.clone()
+        };
+        let named = |e: DiagnoseError| in_file(&name, e);
+        let c = self.condition(&name, flight.log, flight.source.as_ref(), named, named)?;
+        let (s, _) = Signals::from_owned_log_split(c.log).map_err(named)?;
+        let effects: Vec<EffectRef> = plan
+            .with
+            .iter()
+            .chain(&plan.options.candidates)
+            .cloned()
+            .collect();
+        let steps = report
+            .step_fits
+            .iter()
+            .map(|fit| {
+                Ok(crate::validation::ValidationStep {
+                    model: fit.label.clone(),
+                    rms: crate::validation::validation_rms(fit, &effects, &s)?,
+                })
+            })
+            .collect::<Result<Vec<_>, DiagnoseError>>()?;
+        Ok(Some(crate::validation::Validation {
+            log: name,
+            samples: s.len(),
+            steps,
+        }))
     }
 
     /// One flight from its stream files, through the mapping (the identity without one).
@@ -826,25 +923,35 @@ impl DiagnosisPlan {
     pub fn resolve_flight(&self, flight: &Flight) -> Result<ResolvedPlan, DiagnoseError> {
         self.resolve(&flight.log)
             .map_err(|e| match (e, &flight.merge) {
-                (DiagnoseError::UnknownColumn { effect, column }, Some(merge)) => {
-                    match merge.unread_columns.iter().find(|u| u.column == column) {
-                        Some(u) => DiagnoseError::UnreadColumn {
-                            effect,
-                            column,
-                            stream: u.stream.clone(),
-                            line: u.line,
-                            value: u.value.clone(),
-                        },
-                        None => DiagnoseError::UnknownColumn { effect, column },
-                    }
-                }
+                (
+                    DiagnoseError::UnknownColumn {
+                        effect,
+                        column,
+                        available,
+                    },
+                    Some(merge),
+                ) => match merge.unread_columns.iter().find(|u| u.column == column) {
+                    Some(u) => DiagnoseError::UnreadColumn {
+                        effect,
+                        column,
+                        stream: u.stream.clone(),
+                        line: u.line,
+                        value: u.value.clone(),
+                    },
+                    None => DiagnoseError::UnknownColumn {
+                        effect,
+                        column,
+                        available,
+                    },
+                },
                 (e, _) => e,
             })
     }
 
     /// One flight alone: split at its gaps, its segments fitted jointly.
-    fn run_one(&self, mut flight: Flight) -> Result<Report, DiagnoseError> {
+    fn run_one(&self, flight: Flight) -> Result<Report, DiagnoseError> {
         let plan = self.resolve_flight(&flight)?;
+        let mut flight = self.windowed(flight)?;
         let inputs: Vec<MergeReport> = flight.merge.take().into_iter().collect();
         let name = flight.name;
         // A flight without a name is a log in memory: its errors stay as they are.
@@ -876,6 +983,8 @@ impl DiagnosisPlan {
             };
             report.online = Some(online_pass_with(&s, &report.last().fit, &online)?);
         }
+        report.windows = self.windows.iter().map(|w| [w.start, w.end]).collect();
+        report.validation = self.validation(&report, &plan)?;
         Ok(report)
     }
 
@@ -892,13 +1001,13 @@ impl DiagnosisPlan {
         let mut glitches = Vec::new();
         let mut excluded = 0;
         let mut from_rotor_speeds = false;
-        for Flight {
-            name,
-            log,
-            merge,
-            source,
-        } in flights
-        {
+        for flight in flights {
+            let Flight {
+                name,
+                log,
+                merge,
+                source,
+            } = self.windowed(flight)?;
             inputs.extend(merge);
             let in_file = |e: DiagnoseError| in_file(&name, e);
             from_rotor_speeds |= !log.has_wrench() || log.rotor_speeds.is_some();
@@ -955,6 +1064,8 @@ impl DiagnosisPlan {
         report.scale_checks = findings;
         report.glitches = glitches;
         report.glitch_samples_excluded = excluded;
+        report.windows = self.windows.iter().map(|w| [w.start, w.end]).collect();
+        report.validation = self.validation(&report, &plan)?;
         Ok(report)
     }
 

@@ -165,6 +165,15 @@ pub struct Report {
     /// step. What `tagk diagnose --save-steps` writes ([`crate::ModelFile::steps`]).
     #[serde(skip)]
     pub step_fits: Vec<std::sync::Arc<crate::fit::Fit>>,
+    /// The time windows the diagnosis kept (`[start, end]` in log time \[s\], each log's
+    /// rows within one of them; [`crate::DiagnosisPlan::window`]); not written when empty
+    /// (the whole log).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub windows: Vec<[f64; 2]>,
+    /// Every model of [`Report::step_fits`] scored on a validation log
+    /// ([`crate::DiagnosisPlan::validation_file`]); not written when none was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<crate::validation::Validation>,
 }
 
 /// One log's own staircase in a joint diagnosis of several logs of one vehicle.
@@ -358,6 +367,8 @@ fn loop_from(
         glitches: Vec::new(),
         glitch_samples_excluded: 0,
         step_fits,
+        windows: Vec::new(),
+        validation: None,
     })
 }
 
@@ -787,6 +798,18 @@ pub fn report_table(r: &Report) -> String {
     }
     s.push('\n');
     s.push_str(&staircase_table(r));
+    if !r.windows.is_empty() {
+        let w: Vec<String> = r
+            .windows
+            .iter()
+            .map(|[a, b]| format!("{a}..{b} s"))
+            .collect();
+        s.push_str(&format!("\nwindows kept (log time): {}\n", w.join(", ")));
+    }
+    if let Some(v) = &r.validation {
+        s.push('\n');
+        s.push_str(&v.text());
+    }
     if !r.logs.is_empty() {
         s.push_str(&format!(
             "\n=== each log alone (joint staircase: {}) ===\n",

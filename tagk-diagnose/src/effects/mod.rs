@@ -9,12 +9,13 @@
 //! The built-in candidates, one per [`EffectKind`] (the effect vocabulary shared with the
 //! simulator), are reached through the registry: [`builtin`], [`builtin_with`] (tunables in
 //! [`BuiltinOptions`]), [`builtin_effects`] and [`builtin_by_name`]. Your own effect implements
-//! [`Effect`]; a product of log columns is a [`CustomEffect`].
+//! [`Effect`]; an expression of log columns ([`expression`]) is a [`CustomEffect`].
 
 mod actuator;
 mod battery;
 mod custom;
 mod drag;
+pub mod expression;
 mod external;
 mod ground;
 mod imbalance;
