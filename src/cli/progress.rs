@@ -28,7 +28,7 @@ impl Progress {
     pub fn counting(visible: bool, len: u64, unit: &str) -> Self {
         let bar = Self::on_stderr(visible, ProgressBar::new(len));
         if let Ok(style) = ProgressStyle::with_template(&format!(
-            "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit} ({{per_sec}}, eta {{eta}}) {{msg}}"
+            "{{elapsed_precise}} [{{wide_bar}}] {{pos}}/{{len}} {unit}, eta {{eta}} {{msg}}"
         )) {
             bar.set_style(style);
         }

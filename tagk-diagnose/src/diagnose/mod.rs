@@ -110,7 +110,10 @@ pub struct SearchProgress<'a> {
 ///
 /// It is called on the thread that runs the diagnosis. The default tells nobody.
 #[derive(Clone, Default)]
-pub struct ProgressHook(Option<Arc<dyn Fn(&SearchProgress<'_>) + Send + Sync>>);
+pub struct ProgressHook(Option<Arc<ProgressFn>>);
+
+/// The function of a [`ProgressHook`].
+type ProgressFn = dyn Fn(&SearchProgress<'_>) + Send + Sync;
 
 impl ProgressHook {
     /// A hook that calls `f` at each step of the search.
