@@ -30,6 +30,9 @@ struct DemoArgs {
     /// Output folder for tables, figures, the flight log and the diagnosis report.
     #[arg(long, default_value = "out/demo")]
     out: std::path::PathBuf,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -56,7 +59,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         &options,
         tagk::sim::ExperimentProfile::Paper,
         false,
-        &mut common::Progress::new(true),
+        &mut common::Progress::new(!args.quiet),
     )?;
     common::print_sweep_summary(&flights);
 
