@@ -30,9 +30,18 @@ struct DemoArgs {
     /// Output folder for tables, figures, the flight log and the diagnosis report.
     #[arg(long, default_value = "out/demo")]
     out: std::path::PathBuf,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("demo", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args = DemoArgs::parse();
     std::fs::create_dir_all(&args.out)?;
 
@@ -50,7 +59,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &options,
         tagk::sim::ExperimentProfile::Paper,
         false,
-        &mut common::Progress::new(true),
+        &mut common::Progress::new(!args.quiet),
     )?;
     common::print_sweep_summary(&flights);
 

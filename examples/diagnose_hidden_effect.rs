@@ -30,7 +30,13 @@ struct Args {
     out: Option<std::path::PathBuf>,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("diagnose_hidden_effect", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args = <Args as clap::Parser>::parse();
     let out_dir = args.out;
 

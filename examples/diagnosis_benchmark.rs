@@ -67,7 +67,13 @@ struct Args {
     log: Option<PathBuf>,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("diagnosis_benchmark", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args = <Args as clap::Parser>::parse();
     if !(args.detectable.is_finite() && args.detectable > 0.0) {
         return Err(format!("--detectable {}: must be positive", args.detectable).into());

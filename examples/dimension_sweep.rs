@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use tagk::sim::experiments::run_dimension_sweep;
+use tagk::sim::experiments::run_dimension_sweep_with_progress;
 
 /// Table III: per-update time for n in 40..120, m = 30, synthetic windows.
 #[derive(Debug, Clone, Parser)]
@@ -22,11 +22,20 @@ struct Args {
     /// generated from their own fixed seed).
     #[arg(long, default_value_t = 2024)]
     seed: u64,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 fn main() {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
     let args = Args::parse();
-    match run_dimension_sweep(args.out.as_deref(), args.updates) {
+    let bar = tagk::cli::progress::Progress::counting(!args.quiet, 0, "(estimator, n) pairs");
+    let result = run_dimension_sweep_with_progress(args.out.as_deref(), args.updates, |d, t| {
+        bar.set(d as u64, t as u64);
+    });
+    bar.finish();
+    match result {
         Ok((rows, dir)) => {
             println!(
                 "{:<8} {:>5} {:>4} {:>12} {:>12}",

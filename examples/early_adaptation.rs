@@ -23,6 +23,7 @@ struct Args {
 }
 
 fn main() {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
     let args: Args = common::parse_args(tagk::sim::experiments::EARLY_ADAPTATION_TRIALS);
     let mut progress = args.common.progress();
     match run_early_adaptation(&args.common.options(), args.noise, &mut progress) {

@@ -7,20 +7,26 @@
 //! /usr/bin/time -v target/release/examples/log_sampling flight.csv   # peak memory
 //! ```
 
+use std::path::PathBuf;
+
 use tagk::dynamics::log::FlightLog;
 
-fn main() {
-    let Some(path) = std::env::args().nth(1) else {
-        eprintln!("usage: log_sampling FILE.csv");
-        std::process::exit(2);
-    };
+/// Reads a flight log (the project's CSV format) and prints its size, how it is sampled (gaps,
+/// irregular steps) and the time the reader took.
+#[derive(Debug, clap::Parser)]
+struct Args {
+    /// The flight log (CSV, docs/CONVENTIONS.md §6).
+    log: PathBuf,
+}
+
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    let args = <Args as clap::Parser>::parse();
+    let path = args.log.display().to_string();
     let start = std::time::Instant::now();
     let log = match FlightLog::from_csv_path(&path) {
         Ok(log) => log,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::exit(1);
-        }
+        Err(e) => return tagk::cli::terminal::report_error("log_sampling", &e),
     };
     let read = start.elapsed().as_secs_f64();
     let columns = 20
@@ -34,4 +40,5 @@ fn main() {
         (log.len() * columns * 8) as f64 / 1e6
     );
     println!("{}", log.sampling());
+    std::process::ExitCode::SUCCESS
 }

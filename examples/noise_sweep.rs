@@ -31,6 +31,7 @@ struct Args {
 }
 
 fn main() {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
     let args: Args = common::parse_args(tagk::sim::experiments::NOISE_SWEEP_TRIALS);
     let mut progress = args.common.progress();
     match run_noise_sweep(

@@ -28,7 +28,13 @@ struct Args {
     horizon: usize,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("predict_ahead", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args = <Args as clap::Parser>::parse();
     let fly = |seed| -> Result<_, Box<dyn std::error::Error>> {
         let config = common::hidden_effect_flight(EffectKind::LinearDrag, seed)?;

@@ -66,6 +66,9 @@ struct Args {
     /// Folder for the diagnosed final models.
     #[arg(long, default_value = "out/rotor_torques")]
     out: PathBuf,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 /// One flight of the vehicle: its path, yaw rate and simulator seed drawn from `rng`.
@@ -163,7 +166,13 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("rotor_torques", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = <Args as clap::Parser>::parse();
     let mut effects = PlantEffects::none();
     args.hidden.retain(|n| !n.is_empty() && n != "none");
@@ -194,6 +203,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let step = std::cell::RefCell::new(f64::NAN);
     let mut scored = Vec::new();
     let mut failed = Vec::new();
+    let bar = tagk::cli::progress::Progress::counting(!args.quiet, args.flights as u64, "vehicles");
     for index in 0..args.flights {
         let mut rng = ChaCha8Rng::seed_from_u64(mix(mix(args.seed) ^ index as u64));
         let payload = draw_payload(&mut rng, &effects);
@@ -258,10 +268,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 diagnosed.label,
             ))
         })();
+        bar.inc();
         match outcome {
             Ok((s, label)) => {
                 let (d, r, c) = (s.diagnosed, s.rigid, s.constant_rate);
-                println!(
+                bar.suspend(|| println!(
                     "{index:>3} {:>9.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>15.2} {:>15.2}  {label}",
                     d.body_rate,
                     r.body_rate,
@@ -274,15 +285,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     c.velocity,
                     d.body_rate / c.body_rate,
                     d.body_rate / r.body_rate,
-                );
+                ));
                 scored.push(s);
             }
             Err(e) => {
-                println!("{index:>3} failed: {e}");
+                bar.suspend(|| println!("{index:>3} failed: {e}"));
                 failed.push(index);
             }
         }
     }
+    bar.finish();
     let n = scored.len();
     // Medians over the flights whose ratio is defined (not both models unpredictable); a
     // target is met only by a diagnosed model that predicts (finite errors).

@@ -19,8 +19,12 @@
 //! (`λ = 0.96`) runs twice, without and with the wind-up guard `trace(P) ≤ p₀ n`.
 //!
 //! ```text
-//! cargo run --release --example soak [-- --updates 1000000 --seed 7]
+//! cargo run --release --example soak [-- --updates 1000000 --seed 7 --windup 2000]
+//! cargo run --release --example soak -- --updates 20000   # a shortened run (seconds)
 //! ```
+//!
+//! `-- --help` lists the options; a progress bar on stderr counts the updates (`--quiet`
+//! hides it).
 //!
 //! A shortened version (a few thousand updates) runs in the test suite (`tests/soak.rs`).
 
@@ -266,6 +270,20 @@ pub struct SoakResult {
 
 /// Runs `updates` windows of the stream of `seed` through `subject`.
 pub fn soak(subject: &mut Subject, updates: usize, seed: u64) -> SoakResult {
+    soak_with_progress(subject, updates, seed, |_| {})
+}
+
+/// Updates between two calls of a progress callback.
+const PROGRESS_EVERY: usize = 1024;
+
+/// [`soak`], calling `progress(n)` with the updates run since its last call (every
+/// [`PROGRESS_EVERY`] updates, and at the end); the result is the same.
+pub fn soak_with_progress(
+    subject: &mut Subject,
+    updates: usize,
+    seed: u64,
+    mut progress: impl FnMut(usize),
+) -> SoakResult {
     let mut stream = Stream::new(seed);
     let payload = stream.payload_mass();
     let tolerance = MASS_TOLERANCE * payload;
@@ -285,7 +303,10 @@ pub fn soak(subject: &mut Subject, updates: usize, seed: u64) -> SoakResult {
         final_error: 0.0,
     };
     let mut pending_since: Option<usize> = None;
-    for _ in 0..updates {
+    for i in 0..updates {
+        if i % PROGRESS_EVERY == 0 && i > 0 {
+            progress(PROGRESS_EVERY);
+        }
         let k = stream.next_window();
         let phase = k % CYCLE;
         if phase == 0 && k > 0 {
@@ -318,6 +339,9 @@ pub fn soak(subject: &mut Subject, updates: usize, seed: u64) -> SoakResult {
             r.max_trace = Some(r.max_trace.map_or(tr, |m: f64| m.max(tr)));
         }
     }
+    if updates > 0 {
+        progress(updates - (updates - 1) / PROGRESS_EVERY * PROGRESS_EVERY);
+    }
     r
 }
 
@@ -344,22 +368,30 @@ pub fn windup(subject: &mut Subject, flat: usize, seed: u64) -> (f64, f64) {
     (max_trace, error)
 }
 
-fn arg(name: &str, default: u64) -> u64 {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map(|v| {
-            v.parse()
-                .unwrap_or_else(|_| panic!("{name} takes a whole number"))
-        })
-        .unwrap_or(default)
+/// Soak test: many updates of every estimator on one long, realistic stream (noise,
+/// outliers, payload steps, rank-deficient stretches); NaNs, covariance bounds and recovery
+/// after each payload step, then the covariance wind-up over a long rank-deficient stretch.
+#[derive(Debug, clap::Parser)]
+struct Args {
+    /// Updates (windows) per estimator; shorten the run with fewer (e.g. 20000).
+    #[arg(long, default_value_t = 1_000_000)]
+    updates: usize,
+    /// Seed of the stream and of the randomised estimators.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Rank-deficient windows in a row in the wind-up run.
+    #[arg(long, default_value_t = 2000)]
+    windup: usize,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[allow(dead_code)] // the test suite includes this file for `soak` and does not call `main`
 fn main() {
-    let updates = arg("--updates", 1_000_000) as usize;
-    let seed = arg("--seed", 7);
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    let args = <Args as clap::Parser>::parse();
+    let (updates, seed, flat) = (args.updates, args.seed, args.windup);
     println!(
         "soak: {updates} updates per estimator, seed {seed}; payload step every {CYCLE} windows, \
          rank-deficient windows {FLAT_START}..{FLAT_END} of each cycle, outliers of \
@@ -378,34 +410,52 @@ fn main() {
         "final err",
         "time s"
     );
+    let estimators = subjects(seed).len();
+    let covariances = subjects(seed)
+        .iter()
+        .filter(|(_, s)| !matches!(s, Subject::Kaczmarz(_)))
+        .count();
+    let total = estimators * updates + covariances * (FLAT_START + flat);
+    let bar = tagk::cli::progress::Progress::counting(!args.quiet, total as u64, "updates");
     for (name, mut subject) in subjects(seed) {
+        bar.message(name.clone());
         let start = std::time::Instant::now();
-        let r = soak(&mut subject, updates, seed);
-        println!(
-            "{:<15} {:>9} {:>9} {:>11} {:>11} {:>10} {:>10.1}% {:>10.1}% {:>9.1}",
-            name,
-            r.non_finite,
-            r.rejected,
-            r.max_trace.map_or("-".into(), |t| format!("{t:.2e}")),
-            format!("{}/{}", r.recovered, r.steps),
-            r.worst_recovery,
-            100.0 * r.worst_flat_error,
-            100.0 * r.final_error,
-            start.elapsed().as_secs_f64()
-        );
+        let r = soak_with_progress(&mut subject, updates, seed, |n| bar.inc_by(n as u64));
+        bar.suspend(|| {
+            println!(
+                "{:<15} {:>9} {:>9} {:>11} {:>11} {:>10} {:>10.1}% {:>10.1}% {:>9.1}",
+                name,
+                r.non_finite,
+                r.rejected,
+                r.max_trace.map_or("-".into(), |t| format!("{t:.2e}")),
+                format!("{}/{}", r.recovered, r.steps),
+                r.worst_recovery,
+                100.0 * r.worst_flat_error,
+                100.0 * r.final_error,
+                start.elapsed().as_secs_f64()
+            )
+        });
     }
-    let flat = arg("--windup", 2000) as usize;
-    println!("\nwind-up: {FLAT_START} excited windows, then {flat} rank-deficient ones in a row:");
+    bar.suspend(|| {
+        println!(
+            "\nwind-up: {FLAT_START} excited windows, then {flat} rank-deficient ones in a row:"
+        )
+    });
     for (name, mut subject) in subjects(seed)
         .into_iter()
         .filter(|(_, s)| !matches!(s, Subject::Kaczmarz(_)))
     {
+        bar.message(format!("wind-up {name}"));
         let (trace, error) = windup(&mut subject, flat, seed);
-        println!(
-            "{name:<15} max tr(P) {trace:.2e}, mass error at the end {:.1}% of the payload",
-            100.0 * error
-        );
+        bar.inc_by((FLAT_START + flat) as u64);
+        bar.suspend(|| {
+            println!(
+                "{name:<15} max tr(P) {trace:.2e}, mass error at the end {:.1}% of the payload",
+                100.0 * error
+            )
+        });
     }
+    bar.finish();
     println!(
         "\nrecovered: payload steps after which the mass came within tolerance before the \
          rank-deficient stretch; worst win: most windows that took; flat err: largest mass \

@@ -45,6 +45,7 @@ struct Args {
 }
 
 fn main() {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
     let args = <Args as clap::Parser>::parse();
     let seed = args.seed;
     let windows = args.windows as usize;

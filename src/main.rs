@@ -38,10 +38,15 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
     let cli = Cli::parse();
     let result: Result<(), Box<dyn std::error::Error>> = match &cli.command {
         Command::Simulate(args) => tagk::cli::simulate::run_simulate(args)
-            .map(|summary| println!("{summary}"))
+            .map(|summary| {
+                if !args.quiet {
+                    println!("{summary}");
+                }
+            })
             .map_err(Into::into),
         Command::Diagnose(args) => tagk::cli::diagnose::run_diagnose(args).map_err(Into::into),
         Command::Compare(args) => tagk::cli::compare::run_compare(args).map_err(Into::into),
@@ -49,22 +54,6 @@ fn main() -> ExitCode {
             .map(|text| print!("{text}"))
             .map_err(Into::into),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(err) => {
-            let message = err.to_string();
-            eprintln!("tagk: {message}");
-            // A cause the message already quotes (`file: line 3 ...` and its `line 3 ...`) is
-            // not printed a second time.
-            let mut source = err.source();
-            while let Some(cause) = source {
-                let text = cause.to_string();
-                if !message.contains(&text) {
-                    eprintln!("  caused by: {text}");
-                }
-                source = cause.source();
-            }
-            ExitCode::FAILURE
-        }
-    }
+    // Each message once: a cause the message already quotes is not printed again.
+    tagk::cli::terminal::exit_code("tagk", result)
 }

@@ -6,7 +6,7 @@
 #[path = "../examples/soak.rs"]
 mod soak;
 
-use soak::{CYCLE, soak, subjects};
+use soak::{CYCLE, soak, soak_with_progress, subjects};
 
 #[test]
 fn every_estimator_survives_a_short_soak() {
@@ -37,4 +37,17 @@ fn the_windup_guard_bounds_the_covariance_of_rls_high() {
     let guarded = trace_of("RLS-high+guard");
     assert!(free > 1e6, "{free:e}");
     assert!(guarded <= 1e4 * (1.0 + 1e-9), "{guarded:e}");
+}
+
+/// The progress callback counts every update once, and the soak's result is the same with it.
+#[test]
+fn the_soak_progress_counts_every_update() {
+    for updates in [1, 1024, 2500] {
+        let (_, mut plain) = subjects(5).swap_remove(0);
+        let (_, mut observed) = subjects(5).swap_remove(0);
+        let mut counted = 0;
+        let r = soak_with_progress(&mut observed, updates, 5, |n| counted += n);
+        assert_eq!(counted, updates);
+        assert_eq!(r, soak(&mut plain, updates, 5));
+    }
 }

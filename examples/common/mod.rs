@@ -5,11 +5,9 @@
 
 use std::path::PathBuf;
 
-use indicatif::{ProgressBar, ProgressStyle};
 use tagk::sim::experiments::{ExperimentOptions, ExperimentReport};
 use tagk::sim::{
     Adaptation, EffectKind, NoiseLevel, PayloadSchedule, PlantEffects, SimConfig, SimError,
-    SweepObserver,
 };
 
 /// Options every experiment takes.
@@ -61,56 +59,9 @@ impl CommonArgs {
     }
 }
 
-/// An indicatif progress bar over a sweep's trials (a sweep observer), or over any count.
-pub struct Progress {
-    bar: ProgressBar,
-}
-
-impl Progress {
-    /// A visible bar over trials (or a hidden one).
-    pub fn new(visible: bool) -> Self {
-        Self::counting(visible, 0, "trials")
-    }
-
-    /// A visible bar over `len` items called `unit` (or a hidden one).
-    pub fn counting(visible: bool, len: u64, unit: &str) -> Self {
-        let bar = if visible {
-            let b = ProgressBar::new(len);
-            if let Ok(style) = ProgressStyle::with_template(&format!(
-                "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit} ({{per_sec}}, eta {{eta}})"
-            )) {
-                b.set_style(style);
-            }
-            b
-        } else {
-            ProgressBar::hidden()
-        };
-        Self { bar }
-    }
-
-    /// One item done.
-    pub fn inc(&self) {
-        self.bar.inc(1);
-    }
-
-    /// Clears the bar.
-    pub fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
-}
-
-impl SweepObserver for Progress {
-    fn trial_finished(&self, _done: usize, total: usize) {
-        if self.bar.length() != Some(total as u64) {
-            self.bar.set_length(total as u64);
-        }
-        self.inc();
-    }
-
-    fn sweep_finished(&mut self) {
-        self.finish();
-    }
-}
+/// The progress bar on stderr (a sweep observer, or over any count; hidden with `--quiet`
+/// and when stderr is not a terminal).
+pub use tagk::cli::progress::Progress;
 
 /// Prints a sweep's table and where its files went (the common tail of every experiment).
 pub fn print_table(report: &ExperimentReport) {

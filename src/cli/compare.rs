@@ -14,6 +14,8 @@ use crate::diagnose::{
 use crate::dynamics::log_input::ColumnMapping;
 use crate::dynamics::vehicle::Vehicle;
 
+use super::progress::Progress;
+
 /// Arguments of tagk compare.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CompareArgs {
@@ -63,7 +65,7 @@ pub struct CompareArgs {
     /// Write an HTML page with the error against the horizon and the overlays to this file.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
-    /// Do not print the tables.
+    /// Do not print the tables, nor the progress (shown on a terminal only).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -125,22 +127,33 @@ pub fn overlay_horizons(args: &CompareArgs) -> Vec<usize> {
 /// A model file that cannot be read; the logs' errors ([`read_logs`]); the prediction's
 /// ([`predict_logs`]).
 pub fn compare(args: &CompareArgs) -> Result<Comparison, DiagnoseError> {
+    compare_with_progress(args, &Progress::new(false))
+}
+
+/// [`compare`], with `bar` counting the models predicted.
+fn compare_with_progress(args: &CompareArgs, bar: &Progress) -> Result<Comparison, DiagnoseError> {
     let horizons = default_horizons(args.horizon);
     let overlays = overlay_horizons(args);
+    let total = (args.models.len() + usize::from(!args.no_baseline)) as u64;
+    bar.set(0, total);
     let mut models = Vec::new();
     let mut first_logs = None;
     for path in &args.models {
+        bar.message(format!("{}", path.display()));
         let model = ModelFile::from_path(path)?;
         let logs = read_logs(args, &model)?;
         let prediction = predict_logs(&logs, Predictor::Model(&model), &horizons, &overlays)?;
         models.push(ModelPrediction::new(path.display().to_string(), prediction));
         first_logs.get_or_insert(logs);
+        bar.inc();
     }
     if !args.no_baseline
         && let Some(logs) = &first_logs
     {
+        bar.message(CONSTANT_RATE);
         let prediction = predict_logs(logs, Predictor::ConstantRate, &horizons, &overlays)?;
         models.push(ModelPrediction::new(CONSTANT_RATE, prediction));
+        bar.inc();
     }
     Ok(Comparison { models })
 }
@@ -151,7 +164,10 @@ pub fn compare(args: &CompareArgs) -> Result<Comparison, DiagnoseError> {
 /// # Errors
 /// As [`compare`]; [`DiagnoseError::Output`] for a file that cannot be written.
 pub fn run_compare(args: &CompareArgs) -> Result<(), DiagnoseError> {
-    let comparison = compare(args)?;
+    let bar = Progress::counting(!args.quiet, 0, "models");
+    let comparison = compare_with_progress(args, &bar);
+    bar.finish();
+    let comparison = comparison?;
     let write = |path: &PathBuf, text: String| {
         std::fs::write(path, text).map_err(|e| DiagnoseError::Output {
             path: path.display().to_string(),

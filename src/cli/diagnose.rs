@@ -125,7 +125,7 @@ pub struct DiagnoseArgs {
     /// Most effects the stepwise search adds.
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_steps: usize,
-    /// Do not print the terminal summary.
+    /// Do not print the terminal summary, nor the progress (shown on a terminal only).
     #[arg(long)]
     pub quiet: bool,
     /// Go on when a scale or consistency check fails (a gain of 57.3 between the gyro and
@@ -478,8 +478,32 @@ pub fn merge_summary(m: &MergeReport) -> String {
 /// column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     check_outputs(args)?;
+    let bar = super::progress::Progress::spinner(!args.quiet, "reading the log");
+    let result = diagnose_with_progress(args, &bar);
+    bar.finish();
+    write_outputs(&result?, args)
+}
+
+/// [`run_diagnose`] up to the report, its model files saved, with `bar` telling where it is
+/// (reading, the search's step and candidate, saving).
+fn diagnose_with_progress(
+    args: &DiagnoseArgs,
+    bar: &super::progress::Progress,
+) -> Result<Report, DiagnoseError> {
     let vehicle = load_vehicle(args)?;
-    let plan = args.with_inputs(args.settings(vehicle.clone())?, &args.logs)?;
+    let shown = bar.clone();
+    let hook = crate::diagnose::ProgressHook::new(move |p| {
+        shown.message(format!(
+            "step {}: judging {} ({}/{})",
+            p.effects + 1,
+            p.judging,
+            p.done + 1,
+            p.total
+        ));
+    });
+    let plan = args
+        .with_inputs(args.settings(vehicle.clone())?, &args.logs)?
+        .progress(hook);
     plan.validate()?;
     let plan = plan.read()?;
     let flights: Vec<_> = plan.flights().collect();
@@ -487,27 +511,33 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
         // Argument errors first, then what was read; the wrench's errors name the file.
         plan.resolve_flight(flight)?;
         if !args.quiet {
-            if let Some(merge) = &flight.merge {
-                println!("{}", merge_summary(merge));
-            }
-            if let Some(v) = vehicle.as_ref().filter(|_| !flight.log.has_wrench()) {
-                println!(
-                    "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
-                    v.name
-                );
-            }
+            bar.suspend(|| {
+                if let Some(merge) = &flight.merge {
+                    println!("{}", merge_summary(merge));
+                }
+                if let Some(v) = vehicle.as_ref().filter(|_| !flight.log.has_wrench()) {
+                    println!(
+                        "wrench: computed from the rotor speeds w1..w4 with vehicle `{}`",
+                        v.name
+                    );
+                }
+            });
         }
     } else if !args.quiet {
         // Several flights: each merge's warnings (the whole reports are in the JSON and HTML).
-        for flight in &flights {
-            for w in flight.merge.iter().flat_map(|m| &m.warnings) {
-                println!("{}: warning: {w}", flight.name);
+        bar.suspend(|| {
+            for flight in &flights {
+                for w in flight.merge.iter().flat_map(|m| &m.warnings) {
+                    println!("{}: warning: {w}", flight.name);
+                }
             }
-        }
+        });
     }
+    bar.message("conditioning the log and fitting the rigid body");
     let report = args.finish(plan.run_read()?);
+    bar.message("saving");
     save_models(&report, args, vehicle)?;
-    write_outputs(&report, args)
+    Ok(report)
 }
 
 /// What a model file records besides the fit, from the arguments: the vehicle, the logs'

@@ -1,10 +1,13 @@
 //! Command-line pieces shared by the `tagk` binary and the examples: the `simulate`, `diagnose`
 //! and `vehicle` subcommands and clap parsers for the simulator's names (trajectories, noise levels,
-//! estimators, effects) that list the accepted values in `--help`.
+//! estimators, effects) that list the accepted values in `--help`; the progress bar
+//! ([`progress`]); errors printed once and quiet broken pipes ([`terminal`]).
 
 pub mod compare;
 pub mod diagnose;
+pub mod progress;
 pub mod simulate;
+pub mod terminal;
 pub mod vehicle;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};

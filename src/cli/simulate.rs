@@ -105,6 +105,9 @@ pub struct SimulateArgs {
     /// Output CSV path (the flight-log format of docs/CONVENTIONS.md §6).
     #[arg(long, short, default_value = "flight.csv")]
     pub output: PathBuf,
+    /// Print nothing but errors: no progress bar (shown on a terminal only), no summary.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Why `tagk simulate` failed.
@@ -295,10 +298,19 @@ impl fmt::Display for SimulateSummary {
 /// errors.
 pub fn run_simulate(args: &SimulateArgs) -> Result<SimulateSummary, SimulateError> {
     let (cfg, skipped) = args.config_and_skipped()?;
-    let out = tagk_sim::simulate(&cfg)?;
-    out.log
-        .write_csv_path(&args.output)
-        .map_err(SimError::from)?;
+    let bar = super::progress::Progress::counting(!args.quiet, 0, "control steps");
+    let out = tagk_sim::simulate_with_progress(&cfg, |done, total| {
+        bar.set(done as u64, total as u64);
+    });
+    bar.message(format!("writing {}", args.output.display()));
+    let written = out.map_err(SimulateError::from).and_then(|out| {
+        out.log
+            .write_csv_path(&args.output)
+            .map_err(SimError::from)?;
+        Ok(out)
+    });
+    bar.finish();
+    let out = written?;
     Ok(SimulateSummary {
         samples: out.log.len(),
         output: args.output.clone(),

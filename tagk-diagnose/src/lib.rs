@@ -33,9 +33,10 @@ pub use diagnose::{
     ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, Equivalent,
     FLOOR_RESOLUTION, FailureWindow, FloorSource, INCONSISTENCY_STANDARD_ERRORS,
     MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, MIN_GAIN,
-    NoiseFloor, Parameter, PartialResidual, RegimeStat, Step, StepChannel, Unavailable,
-    WHITENESS_FALSE_ALARM, Whiteness, consistency_margin, consistent_within_tolerance, diagnose,
-    discover, discover_from, residual_autocorrelation, second_moment_eigen, whiteness_limit,
+    NoiseFloor, Parameter, PartialResidual, ProgressHook, RegimeStat, SearchProgress, Step,
+    StepChannel, Unavailable, WHITENESS_FALSE_ALARM, Whiteness, consistency_margin,
+    consistent_within_tolerance, diagnose, discover, discover_from, residual_autocorrelation,
+    second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,

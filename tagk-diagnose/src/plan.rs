@@ -12,7 +12,7 @@ use tagk_dynamics::EffectKind;
 use tagk_dynamics::log_input::{ColumnMapping, MergeReport, ReadOptions, read_streams};
 use tagk_dynamics::vehicle::Vehicle;
 
-use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::{DiagnoseOptions, ProgressHook};
 use crate::effects::{CustomEffect, Effect, EffectRef, builtin, builtin_by_name};
 use crate::error::{DiagnoseError, LogError};
 use crate::fit::Model;
@@ -278,6 +278,7 @@ pub struct DiagnosisPlan {
     accept_scales: bool,
     windows: Vec<TimeWindow>,
     validation: Option<Box<Input>>,
+    progress: ProgressHook,
 }
 
 impl Default for DiagnosisPlan {
@@ -307,7 +308,15 @@ impl DiagnosisPlan {
             accept_scales: false,
             windows: Vec::new(),
             validation: None,
+            progress: ProgressHook::default(),
         }
+    }
+
+    /// Tells `hook` where the search for missing effects is ([`DiagnoseOptions::progress`]),
+    /// e.g. for a progress bar. The report is the same without it.
+    pub fn progress(mut self, hook: ProgressHook) -> Self {
+        self.progress = hook;
+        self
     }
 
     /// Goes on when a scale or consistency check fails ([`crate::scales`]): the finding is
@@ -575,6 +584,7 @@ impl DiagnosisPlan {
         options.candidates.extend(self.candidates.iter().cloned());
         options.noise_floor = noise_floor;
         options.max_steps = self.max_steps;
+        options.progress = self.progress.clone();
         options.validate()?;
         Ok(ResolvedPlan {
             base,

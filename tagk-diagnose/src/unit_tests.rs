@@ -984,3 +984,45 @@ fn white_noise_fails_the_whiteness_test_about_once_in_a_thousand_logs() {
     }
     assert!(failed <= 9, "{failed} of 3000 white logs failed");
 }
+
+/// The progress hook is told every usable candidate of each search, in order, counted from
+/// 0, and the report is the same bits without it.
+#[test]
+fn the_progress_hook_sees_every_candidate_and_changes_nothing() {
+    use std::sync::{Arc, Mutex};
+    let log = synthetic_log(&crazyflie(), 2000, 1e-3, 5, &|_, vb| {
+        [-0.02 * vb.x, 0.0, 0.0, 0.0, 0.0, 0.0]
+    });
+    let plain = crate::DiagnosisPlan::new().log(log.clone()).run().unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let sink = Arc::clone(&seen);
+    let hook = crate::ProgressHook::new(move |p| {
+        sink.lock()
+            .unwrap()
+            .push((p.effects, p.judging.to_string(), p.done, p.total));
+    });
+    let hooked = crate::DiagnosisPlan::new()
+        .log(log)
+        .progress(hook)
+        .run()
+        .unwrap();
+    assert_eq!(plain.to_json().unwrap(), hooked.to_json().unwrap());
+    let seen = seen.lock().unwrap();
+    // The first search, from the rigid body: each candidate once, `done` counting up.
+    let first: Vec<_> = seen
+        .iter()
+        .take_while(|(effects, judging, _, _)| *effects == 0 && judging != "pairs")
+        .collect();
+    assert!(first.len() >= 5, "{seen:?}");
+    for (k, (_, name, done, total)) in first.iter().enumerate() {
+        assert_eq!(*done, k, "{seen:?}");
+        assert_eq!(*total, first.len(), "{seen:?}");
+        assert!(crate::builtin_by_name(name).is_ok(), "{name}");
+    }
+    // The drag found, the search goes on from a model with one effect.
+    assert!(seen.iter().any(|(effects, ..)| *effects >= 1), "{seen:?}");
+    assert!(
+        seen.iter().all(|(_, _, done, total)| done < total),
+        "{seen:?}"
+    );
+}

@@ -97,6 +97,52 @@ pub struct DiagnoseOptions {
     pub noise_floor: Option<[f64; 6]>,
     /// Most effects [`discover`] adds (default 5).
     pub max_steps: usize,
+    /// Told before each candidate or set of candidates the search judges (default: nobody).
+    /// For a progress display; the diagnosis is the same without it.
+    pub progress: ProgressHook,
+}
+
+/// Where the search for missing effects is: what [`ProgressHook`] is told.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SearchProgress<'a> {
+    /// Effects in the model the search starts from (0: the rigid body).
+    pub effects: usize,
+    /// What is judged now: a candidate's name, or `pairs` and `triples` for the sets.
+    pub judging: &'a str,
+    /// Judged so far at this stage (candidates alone, then the pairs, then the triples).
+    pub done: usize,
+    /// To judge at this stage.
+    pub total: usize,
+}
+
+/// A function told where the search is ([`SearchProgress`]), e.g. to move a progress bar.
+///
+/// It is called on the thread that runs the diagnosis. The default tells nobody.
+#[derive(Clone, Default)]
+pub struct ProgressHook(Option<Arc<ProgressFn>>);
+
+/// The function of a [`ProgressHook`].
+type ProgressFn = dyn Fn(&SearchProgress<'_>) + Send + Sync;
+
+impl ProgressHook {
+    /// A hook that calls `f` at each step of the search.
+    pub fn new(f: impl Fn(&SearchProgress<'_>) + Send + Sync + 'static) -> Self {
+        Self(Some(Arc::new(f)))
+    }
+
+    /// Tells the function, if there is one.
+    pub(crate) fn report(&self, progress: &SearchProgress<'_>) {
+        if let Some(f) = &self.0 {
+            f(progress);
+        }
+    }
+}
+
+impl std::fmt::Debug for ProgressHook {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let state = if self.0.is_some() { "set" } else { "none" };
+        write!(f, "ProgressHook({state})")
+    }
 }
 
 impl Default for DiagnoseOptions {
@@ -111,6 +157,7 @@ impl Default for DiagnoseOptions {
             candidates: builtin_effects(),
             noise_floor: None,
             max_steps: 5,
+            progress: ProgressHook::default(),
         }
     }
 }

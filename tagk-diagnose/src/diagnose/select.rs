@@ -1295,7 +1295,17 @@ pub(crate) fn search(
     };
     let mut unavailable = unavailable;
     let mut singles = Vec::new();
-    for e in &candidates {
+    let effects = ctx.model.effects().len();
+    let tell = |judging: &str, done: usize, total: usize| {
+        opts.progress.report(&super::SearchProgress {
+            effects,
+            judging,
+            done,
+            total,
+        });
+    };
+    for (done, e) in candidates.iter().enumerate() {
+        tell(e.name(), done, candidates.len());
         match ctx.judge_single(engine, &fit_engine, e, &base, &judge) {
             Ok(set) => singles.push(set),
             Err(reason) => unavailable.push((e.name().to_string(), reason)),
@@ -1315,8 +1325,12 @@ pub(crate) fn search(
         .collect();
     let mut sets: Vec<SetEval> = singles.clone();
     let start_of = |i: usize| singles[i].members[0].clone();
+    let pairs = pool.len() * pool.len().saturating_sub(1) / 2;
+    let mut done = 0;
     for a in 0..pool.len() {
         for b in a + 1..pool.len() {
+            tell("pairs", done, pairs);
+            done += 1;
             if same_family(start_of(pool[a]).name(), start_of(pool[b]).name()) {
                 continue;
             }
@@ -1325,9 +1339,14 @@ pub(crate) fn search(
         }
     }
     let triple_pool: Vec<usize> = pool.iter().copied().take(TRIPLE_POOL).collect();
-    for a in 0..triple_pool.len() {
-        for b in a + 1..triple_pool.len() {
-            for c in b + 1..triple_pool.len() {
+    let t = triple_pool.len();
+    let triples = t * t.saturating_sub(1) * t.saturating_sub(2) / 6;
+    let mut done = 0;
+    for a in 0..t {
+        for b in a + 1..t {
+            for c in b + 1..t {
+                tell("triples", done, triples);
+                done += 1;
                 let members = vec![
                     start_of(triple_pool[a]),
                     start_of(triple_pool[b]),

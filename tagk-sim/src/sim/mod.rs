@@ -151,12 +151,29 @@ struct TruthRecord {
 /// designed for the nominal vehicle. Estimator rejections and gate violations during the
 /// flight are not errors: the controller keeps its previous parameters.
 pub fn simulate(config: &SimConfig) -> Result<SimOutput, SimError> {
+    simulate_with_progress(config, |_, _| {})
+}
+
+/// [`simulate`], calling `progress(done, total)` after each control step: `done` of `total`
+/// control steps flown.
+///
+/// It is for a progress display; the flight is the same bits as [`simulate`]'s. A flight that
+/// aborts early never reports `done == total`.
+///
+/// # Errors
+/// As [`simulate`].
+pub fn simulate_with_progress(
+    config: &SimConfig,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<SimOutput, SimError> {
     config.validate()?;
     // Validated: finite, and within the memory budget, so it fits a usize.
     let steps = usize::try_from(config.control_steps().unwrap_or(1)).unwrap_or(usize::MAX);
     let mut flight = Flight::new(config, steps)?;
     for k in 0..steps {
-        if flight.step(k)?.is_break() {
+        let flow = flight.step(k)?;
+        progress(k + 1, steps);
+        if flow.is_break() {
             break;
         }
     }
