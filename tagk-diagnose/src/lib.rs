@@ -29,11 +29,13 @@ pub use accel_offset::AccelerometerOffset;
 pub use diagnose::{
     ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate, CandidateStatus,
     ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, FLOOR_RESOLUTION,
-    FailureWindow, FloorSource, INCONSISTENCY_STANDARD_ERRORS, MAX_CONSTANT_FORCE_OF_THRUST,
-    MAX_INFLATION, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter,
-    PartialResidual, RegimeStat, Step, StepChannel, Unavailable, Whiteness, consistency_margin,
-    consistent_within_tolerance, diagnose, discover, discover_from, residual_autocorrelation,
-    second_moment_eigen, whiteness_limit,
+    FailureWindow, FloorSource, INCONSISTENCY_STANDARD_ERRORS, INPUT_CORRELATION_LAGS,
+    InputCorrelation, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE,
+    MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter, PartialResidual, RegimeStat,
+    ResidualInput, Step, StepChannel, Unavailable, Whiteness, Z_99, consistency_margin,
+    consistent_within_tolerance, diagnose, discover, discover_from, input_correlation,
+    input_correlation_lags, residual_autocorrelation, residual_inputs, second_moment_eigen,
+    whiteness_limit,
 };
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,
