@@ -784,7 +784,7 @@ fn section_correlations(html: &mut String, d: &Diagnosis) {
 /// farthest outside its band.
 fn section_input_correlations(html: &mut String, d: &Diagnosis) {
     let xc = &d.input_correlation;
-    if xc.is_empty() || xc.len() % 6 != 0 {
+    if xc.is_empty() || !xc.len().is_multiple_of(6) {
         return;
     }
     let per = xc.len() / 6;
@@ -795,20 +795,31 @@ fn section_input_correlations(html: &mut String, d: &Diagnosis) {
          −{l} … {l} samples, its lag (positive: the input leads the residual) and its size in units \
          of the pair's 99 % band (±2.576 √(P/N), Bartlett's P: wider for a smooth residual and a \
          smooth input). Red: outside the band, the residual still depends on that input, so the \
-         model misses how it acts. Velocities are body-frame, signed.</p><table id=\"xcorr\"><tr><th>residual</th>",
-        l = (xc[0].correlation.len().saturating_sub(1)) / 2
+         model misses how it acts. Velocities are body-frame, signed. Grey rows: channels whose \
+         held-out residual is within {f}× their noise; a stem outside the band there is the \
+         sensors' (the measured wrench is built from the measured rotor speeds: their noise is \
+         in both at lag 0), not missing physics.</p><table id=\"xcorr\"><tr><th>residual</th><th>held-out / noise</th>",
+        l = (xc[0].correlation.len().saturating_sub(1)) / 2,
+        f = crate::ADEQUACY_FACTOR
     );
     for x in &xc[..per] {
         let _ = write!(html, "<th>{} [{}]</th>", escape(&x.input), escape(&x.unit));
     }
     html.push_str("</tr>");
     for c in 0..6 {
-        let _ = write!(html, "<tr><td>{}</td>", CHANNEL_NAMES[c]);
+        let ratio = d.adequacy.get(c).map_or(f64::NAN, |a| a.ratio);
+        let quiet = ratio <= crate::ADEQUACY_FACTOR;
+        let _ = write!(
+            html,
+            "<tr class=\"{}\"><td>{}</td><td>{ratio:.2}</td>",
+            if quiet { "quiet" } else { "" },
+            CHANNEL_NAMES[c]
+        );
         for x in &xc[c * per..(c + 1) * per] {
             let _ = write!(
                 html,
                 "<td class=\"{}\">{:+.2} @ {:+.2} s ({:.1}×)</td>",
-                if x.outside() { "warn" } else { "" },
+                if x.outside() && !quiet { "warn" } else { "" },
                 x.peak,
                 x.peak_lag,
                 x.peak_over_band
@@ -831,8 +842,17 @@ fn section_input_correlations(html: &mut String, d: &Diagnosis) {
             .collect();
         html.push_str(&correlation_plot(
             &format!(
-                "residual {} vs {} (the farthest of {per} inputs)",
-                CHANNEL_NAMES[c], x.input
+                "residual {} vs {} (the farthest of {per} inputs){}",
+                CHANNEL_NAMES[c],
+                x.input,
+                if d.adequacy
+                    .get(c)
+                    .is_some_and(|a| a.ratio <= crate::ADEQUACY_FACTOR)
+                {
+                    ", at its noise"
+                } else {
+                    ""
+                }
             ),
             "lag [s]",
             &lags,
@@ -969,7 +989,7 @@ fn section_staircase(html: &mut String, report: &Report) {
 /// The report as one HTML document.
 pub fn render(report: &Report) -> String {
     let mut html = String::from(
-        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.quiet{color:#999}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
     );
     // The staircase's first step, and — separately — whether the final model is adequate: a
     // model with nothing left to add need not be at its noise.

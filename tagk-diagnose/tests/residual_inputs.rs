@@ -229,6 +229,8 @@ fn residual_panels_are_scaled_to_the_residual() {
                 !page.contains("class=\"failure\""),
                 "shading on a noise-free log"
             );
+            // The noise line, far above a residual at the rounding level, is named, not drawn.
+            assert!(page.contains("off scale"), "noise line not named off scale");
         }
     }
 }

@@ -14,7 +14,11 @@
 //! `±z √(P/N)` with `z = 2.576` (99 % per lag, as `resid`). `P = 1` when either series is
 //! white: then the band is the familiar `±z/√N`. A smooth input and a smooth residual widen it.
 //!
-//! Lags run across the joins of several logs (a few samples of `N`).
+//! **Reading it.** A residual at its noise can still correlate with the rotor speeds at lag 0.
+//! The measured wrench is built from the measured rotor speeds, so their noise is in both.
+//! That is the sensors', not missing physics: read the correlations with the channel's
+//! distance from its noise ([`crate::ChannelAdequacy`]). Lags run across the joins of several
+//! logs (a few samples of `N`).
 
 use serde::Serialize;
 
