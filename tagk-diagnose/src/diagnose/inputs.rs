@@ -319,6 +319,7 @@ mod tests {
             outside += usize::from(rho[lags].abs() > band);
             outside_white_band += usize::from(rho[lags].abs() > Z_99 / (n as f64).sqrt());
         }
+        eprintln!("outside: {outside} of {trials} (Bartlett band), {outside_white_band} (±z/√N)");
         // 1 % expected (4 of 400); the white band misses far more (P ≈ 9 here).
         assert!(outside <= 12, "{outside} of {trials} outside the band");
         assert!(outside_white_band >= 100, "{outside_white_band}");
