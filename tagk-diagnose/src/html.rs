@@ -225,7 +225,9 @@ fn frame(
 ) {
     let _ = write!(
         out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" class="plot"><rect x="0" y="0" width="{W}" height="{H}" fill="white"/><text x="{}" y="15" font-size="13" text-anchor="middle" font-family="sans-serif">{}{}</text>"#,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" class="plot" data-ylo="{:e}" data-yhi="{:e}"><rect x="0" y="0" width="{W}" height="{H}" fill="white"/><text x="{}" y="15" font-size="13" text-anchor="middle" font-family="sans-serif">{}{}</text>"#,
+        ya.lo,
+        ya.hi,
         W / 2.0,
         svg_text(title),
         svg_text(&ya.scale_note())
@@ -276,7 +278,9 @@ fn frame(
 }
 
 /// A line plot as an SVG element; `spans` are shaded x-intervals, `hlines` dashed horizontal
-/// reference lines `(y, label)` (e.g. the noise floor), named in the legend.
+/// reference lines `(y, label)` (e.g. the noise floor), named in the legend. The y-range is
+/// the series' own: a reference line widens it at most to three times the data's range; one
+/// farther off is left out and its legend entry says so, with its value.
 fn line_plot(
     title: &str,
     xlabel: &str,
@@ -285,12 +289,16 @@ fn line_plot(
     hlines: &[(f64, &str)],
 ) -> String {
     let (xlo, xhi) = extent(series.iter().flat_map(|s| s.x.iter().copied()));
-    let (ylo, yhi) = extent(
-        series
-            .iter()
-            .flat_map(|s| s.y.iter().copied())
-            .chain(hlines.iter().map(|h| h.0)),
-    );
+    let (dlo, dhi) = extent(series.iter().flat_map(|s| s.y.iter().copied()));
+    let span = dhi - dlo;
+    let shown: Vec<(f64, &str)> = hlines
+        .iter()
+        .filter(|h| {
+            h.0.is_finite() && (!dlo.is_finite() || (h.0 >= dlo - span && h.0 <= dhi + span))
+        })
+        .copied()
+        .collect();
+    let (ylo, yhi) = extent([dlo, dhi].into_iter().chain(shown.iter().map(|h| h.0)));
     // A few whole-number abscissae (steps, updates) get one tick each.
     let whole = series
         .iter()
@@ -303,8 +311,12 @@ fn line_plot(
     let ya = Axis::new(ylo, yhi, 5);
     let mut legend: Vec<(&str, &str, &str)> =
         series.iter().map(|s| (s.label, s.color, s.dash)).collect();
-    if let Some((_, label)) = hlines.first() {
+    let off_scale;
+    if let Some((_, label)) = shown.first() {
         legend.push((label, "#36c", "4 3"));
+    } else if let Some((y, label)) = hlines.first() {
+        off_scale = format!("{label} {:.1e}: off scale", y.abs());
+        legend.push((&off_scale, "#36c", "4 3"));
     }
     if spans.iter().any(|s| !s.transient) {
         legend.push(("large residual", "#f3b4b4", ""));
@@ -330,7 +342,7 @@ fn line_plot(
             y1 - y0
         );
     }
-    for (y, _) in hlines {
+    for (y, _) in &shown {
         let py = ya.map(*y, y1, y0);
         let _ = write!(
             out,
@@ -397,9 +409,17 @@ fn scatter_plot(title: &str, xlabel: &str, x: &[f64], y: &[f64], color: &str) ->
     out
 }
 
-/// A correlation plot as MATLAB's `resid` draws it: one stem per lag, the 95 % band of an
-/// uncorrelated residual (`±1.96/√N`) shaded, the stems outside it in red.
-fn correlation_plot(title: &str, xlabel: &str, lags: &[f64], rho: &[f64], band: f64) -> String {
+/// A correlation plot as MATLAB's `resid` draws it: one stem per lag, the band of an
+/// uncorrelated residual (`±band`, named `band_label` in the legend) shaded, the stems outside
+/// it in red.
+fn correlation_plot(
+    title: &str,
+    xlabel: &str,
+    lags: &[f64],
+    rho: &[f64],
+    band: f64,
+    band_label: &str,
+) -> String {
     let (lo, hi) = extent(rho.iter().copied().chain([band, -band]));
     let (xlo, xhi) = extent(lags.iter().copied());
     let xa = Axis::new(xlo, xhi, 6);
@@ -411,7 +431,7 @@ fn correlation_plot(title: &str, xlabel: &str, lags: &[f64], rho: &[f64], band: 
         &xa,
         &ya,
         xlabel,
-        &[("95 % band", "#9bd", ""), ("outside", "#c22", "")],
+        &[(band_label, "#9bd", ""), ("outside", "#c22", "")],
     );
     let (x0, x1, y0, y1) = (ML, W - MR, MT, H - MB);
     let (pb_hi, pb_lo) = (ya.map(band, y1, y0), ya.map(-band, y1, y0));
@@ -723,10 +743,9 @@ fn section_diagnosis(html: &mut String, title: &str, d: &Diagnosis) {
     }
 }
 
-/// MATLAB `resid`'s two panels per channel: the residual's autocorrelation at lags
-/// `0..=MAX_LAG` and its cross-correlation with the input at lags `−MAX_LAG..=MAX_LAG`, each
-/// with the 95 % band of an uncorrelated residual `±z₀.₉₇₅/√N`. The input is the top
-/// candidate's driving signal when there is one, else the measured thrust `fz`.
+/// MATLAB `resid`'s two kinds of panel: per channel the residual's autocorrelation at lags
+/// `0..=MAX_LAG` with the 95 % band of a white residual `±z₀.₉₇₅/√N`; then its
+/// cross-correlation with each actual input ([`section_input_correlations`]).
 fn section_correlations(html: &mut String, d: &Diagnosis) {
     let n = d.t.len();
     if n < 8 {
@@ -752,36 +771,94 @@ fn section_correlations(html: &mut String, d: &Diagnosis) {
             &lags,
             &rho,
             band,
+            "95 % band",
         ));
     }
     html.push_str("</div>");
-    let thrust: Vec<f64>;
-    let (input_name, input): (&str, &[f64]) = match &d.top_driver {
-        Some((name, sig)) => (name.as_str(), sig),
-        None => {
-            thrust = d.measured.iter().map(|w| w[2]).collect();
-            ("measured thrust fz", &thrust)
-        }
-    };
+    section_input_correlations(html, d);
+}
+
+/// MATLAB `resid`'s cross-correlation of the residual with each actual input
+/// ([`crate::input_correlation`]): a matrix of channels × inputs (the largest correlation, its
+/// lag and its size in units of the 99 % band), and per channel the stems of the input
+/// farthest outside its band.
+fn section_input_correlations(html: &mut String, d: &Diagnosis) {
+    let xc = &d.input_correlation;
+    if xc.is_empty() || !xc.len().is_multiple_of(6) {
+        return;
+    }
+    let per = xc.len() / 6;
     let _ = write!(
         html,
-        "<h3>Residual–input cross-correlation (input: {})</h3><p class=\"note\">Positive lags: the \
-         input leads the residual. Stems outside the band: the residual still depends on the input, \
-         so the model misses how the input acts.</p><div class=\"grid\">",
-        escape(input_name)
+        "<h3>Residual–input cross-correlation (each actual input, as MATLAB <code>resid</code>)</h3>\
+         <p class=\"note\">Per channel and input: the correlation of largest magnitude over lags \
+         −{l} … {l} samples, its lag (positive: the input leads the residual) and its size in units \
+         of the pair's 99 % band (±2.576 √(P/N), Bartlett's P: wider for a smooth residual and a \
+         smooth input). Red: outside the band, the residual still depends on that input, so the \
+         model misses how it acts. Velocities are body-frame, signed. Grey rows: channels whose \
+         held-out residual is within {f}× their noise; a stem outside the band there is the \
+         sensors' (the measured wrench is built from the measured rotor speeds: their noise is \
+         in both at lag 0), not missing physics.</p><table id=\"xcorr\"><tr><th>residual</th><th>held-out / noise</th>",
+        l = (xc[0].correlation.len().saturating_sub(1)) / 2,
+        f = crate::ADEQUACY_FACTOR
     );
-    let lags: Vec<f64> = (-(max_lag as i64)..=max_lag as i64)
-        .map(|k| k as f64 * dt)
-        .collect();
+    for x in &xc[..per] {
+        let _ = write!(html, "<th>{} [{}]</th>", escape(&x.input), escape(&x.unit));
+    }
+    html.push_str("</tr>");
     for c in 0..6 {
-        let r = d.fit.residual_channel(c);
-        let rho = stats::cross_correlation(input, &r, max_lag);
+        let ratio = d.adequacy.get(c).map_or(f64::NAN, |a| a.ratio);
+        let quiet = ratio <= crate::ADEQUACY_FACTOR;
+        let _ = write!(
+            html,
+            "<tr class=\"{}\"><td>{}</td><td>{ratio:.2}</td>",
+            if quiet { "quiet" } else { "" },
+            CHANNEL_NAMES[c]
+        );
+        for x in &xc[c * per..(c + 1) * per] {
+            let _ = write!(
+                html,
+                "<td class=\"{}\">{:+.2} @ {:+.2} s ({:.1}×)</td>",
+                if x.outside() && !quiet { "warn" } else { "" },
+                x.peak,
+                x.peak_lag,
+                x.peak_over_band
+            );
+        }
+        html.push_str("</tr>");
+    }
+    html.push_str("</table><div class=\"grid\">");
+    for c in 0..6 {
+        let row = &xc[c * per..(c + 1) * per];
+        let Some(x) = row
+            .iter()
+            .max_by(|a, b| a.peak_over_band.total_cmp(&b.peak_over_band))
+        else {
+            continue;
+        };
+        let l = (x.correlation.len().saturating_sub(1)) / 2;
+        let lags: Vec<f64> = (0..x.correlation.len())
+            .map(|k| (k as f64 - l as f64) * x.lag_step)
+            .collect();
         html.push_str(&correlation_plot(
-            &format!("residual {} vs input", CHANNEL_NAMES[c]),
+            &format!(
+                "residual {} vs {} (the farthest of {per} inputs){}",
+                CHANNEL_NAMES[c],
+                x.input,
+                if d.adequacy
+                    .get(c)
+                    .is_some_and(|a| a.ratio <= crate::ADEQUACY_FACTOR)
+                {
+                    ", at its noise"
+                } else {
+                    ""
+                }
+            ),
             "lag [s]",
             &lags,
-            &rho,
-            band,
+            &x.correlation,
+            x.band,
+            "99 % band",
         ));
     }
     html.push_str("</div>");
@@ -915,7 +992,7 @@ fn section_staircase(html: &mut String, report: &Report) {
 /// The report as one HTML document.
 pub fn render(report: &Report) -> String {
     let mut html = String::from(
-        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>tagk diagnose report</title><style>body{font-family:sans-serif;margin:20px;max-width:1450px}table{border-collapse:collapse;margin:8px 16px 8px 0;display:inline-table;vertical-align:top}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}.grid{display:flex;flex-wrap:wrap;gap:6px}.warn{color:#a00}.quiet{color:#999}.verdict{font-weight:bold;font-size:1.1em}.note{color:#444;max-width:1100px}pre{background:#f4f4f4;padding:8px;white-space:pre-wrap}</style></head><body><h1 id=\"title\">tagk diagnose report</h1>",
     );
     // The staircase's first step, and — separately — whether the final model is adequate: a
     // model with nothing left to add need not be at its noise.

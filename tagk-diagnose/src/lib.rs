@@ -32,11 +32,12 @@ pub use diagnose::{
     ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate, CandidateStatus,
     ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, Equivalent,
     FLOOR_RESOLUTION, FailureWindow, FloorSource, INCONSISTENCY_STANDARD_ERRORS,
-    MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION, MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, MIN_GAIN,
-    NoiseFloor, Parameter, PartialResidual, ProgressHook, RegimeStat, SearchProgress, Step,
-    StepChannel, Unavailable, WHITENESS_FALSE_ALARM, Whiteness, consistency_margin,
-    consistent_within_tolerance, diagnose, discover, discover_from, residual_autocorrelation,
-    second_moment_eigen, whiteness_limit,
+    INPUT_CORRELATION_LAGS, InputCorrelation, MAX_CONSTANT_FORCE_OF_THRUST, MAX_INFLATION,
+    MAX_MASS_CHANGE, MAX_MASS_FROM_VEHICLE, MIN_GAIN, NoiseFloor, Parameter, PartialResidual,
+    ProgressHook, RegimeStat, ResidualInput, SearchProgress, Step, StepChannel, Unavailable,
+    WHITENESS_FALSE_ALARM, Whiteness, Z_99, consistency_margin, consistent_within_tolerance,
+    diagnose, discover, discover_from, input_correlation, input_correlation_lags,
+    residual_autocorrelation, residual_inputs, second_moment_eigen, whiteness_limit,
 };
 pub use effects::{
     ACCEL_BIAS, BuiltinOptions, CustomEffect, Effect, EffectColumn, EffectRef, NOT_PROPOSED,

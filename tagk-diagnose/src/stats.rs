@@ -205,7 +205,9 @@ pub fn rms(x: &[f64]) -> f64 {
 
 /// Sample cross-correlation of two series at lags `−max_lag..=max_lag` (index `k + max_lag`):
 /// `ρ_xy(k) = Σᵢ x̃ᵢ ỹᵢ₊ₖ / √(Σ x̃² Σ ỹ²)` of the mean-removed series (positive `k`: `x` leads
-/// `y`), the normalisation of MATLAB's `resid`. Zeros when either series is constant.
+/// `y`), the normalisation of MATLAB's `resid`. Zeros when either series is constant. The
+/// plain reference the residual–input correlation is checked against.
+#[cfg(test)]
 pub fn cross_correlation(x: &[f64], y: &[f64], max_lag: usize) -> Vec<f64> {
     let n = x.len().min(y.len());
     let mut out = vec![0.0; 2 * max_lag + 1];

@@ -7,6 +7,7 @@
 //! adequate: what remains is the noise. [`discover`] repeats it: rigid body → + the chosen
 //! effects → … until no set is admissible.
 
+mod inputs;
 mod noise;
 mod parameters;
 mod ranking;
@@ -26,6 +27,10 @@ use crate::fit::{ChannelFit, Fit, FittedEffect, Model, fit_model, is_start_nuisa
 use crate::signals::{CHANNEL_NAMES, Signals};
 use crate::stats;
 
+pub use inputs::{
+    INPUT_CORRELATION_LAGS, InputCorrelation, ResidualInput, Z_99, input_correlation,
+    input_correlation_lags, residual_inputs,
+};
 pub use noise::{FLOOR_RESOLUTION, FloorSource, NoiseFloor};
 pub use parameters::Parameter;
 pub use ranking::{Candidate, CandidateStatus, Unavailable};
@@ -306,8 +311,12 @@ pub struct Diagnosis {
     pub failure_windows: Vec<FailureWindow>,
     /// Residual statistics by regime.
     pub regimes: Vec<RegimeStat>,
-    /// Plain-language findings ("the fx/fy residual grows with body-frame speed").
+    /// Plain-language findings ("the fx/fy residual grows with body-frame speed"): none on
+    /// the channels whose held-out residual is within [`ADEQUACY_FACTOR`] of their noise.
     pub findings: Vec<String>,
+    /// Cross-correlation of each channel's residual (whitened, as [`Diagnosis::whiteness`])
+    /// with each actual input, against its 99 % band ([`input_correlation`]), channel-major.
+    pub input_correlation: Vec<InputCorrelation>,
     /// Candidate effects, best first.
     pub ranking: Vec<Candidate>,
     /// Candidates that could not be evaluated.
@@ -541,7 +550,10 @@ pub(crate) fn diagnose_with_fit(
     // fails and whether it is adequate.
     let (base, whitened) = ctx.base_with_residual(&engine);
     let held_out_rms = ctx.held_out_rms(&base);
-    let failures = residual::where_it_fails(s, &whitened);
+    let at_noise: [bool; 6] =
+        std::array::from_fn(|c| held_out_rms[c] <= ADEQUACY_FACTOR * floor.rms[c]);
+    let failures = residual::where_it_fails(s, &whitened, &floor.rms, &at_noise);
+    let input_correlation = inputs::input_correlation(s, &whitened)?;
     let adequacy = adequacy(&failures.whiteness, whitened.len(), &held_out_rms, floor);
     // Not kept through the search (6 n values).
     drop(whitened);
@@ -573,6 +585,7 @@ pub(crate) fn diagnose_with_fit(
             adequate,
             failures,
             effects,
+            input_correlation,
         },
     )
 }
@@ -585,6 +598,8 @@ struct Assessment {
     adequate: bool,
     failures: residual::FailureAnalysis,
     effects: Vec<FittedEffect>,
+    /// The residual–input cross-correlations.
+    input_correlation: Vec<InputCorrelation>,
 }
 
 /// The diagnosis from a model's fit, its held-out error and its ranking: the parameters
@@ -604,6 +619,7 @@ fn assemble(
         adequate,
         failures,
         effects,
+        input_correlation,
     } = assessed;
     let params = parameters::parameter_report(
         &fit,
@@ -635,6 +651,7 @@ fn assemble(
         failure_windows: failures.failure_windows,
         regimes: failures.regimes,
         findings: failures.findings,
+        input_correlation,
         ranking: missing.ranking,
         unavailable: missing.unavailable,
         recommended: missing.recommended.first().cloned(),

@@ -30,7 +30,8 @@ pub struct FailureWindow {
     pub t_end: f64,
     /// Channels flagged.
     pub channels: Vec<String>,
-    /// Peak ratio of the window's residual RMS to the channel's typical (median-window) RMS.
+    /// Peak ratio of the window's residual RMS to the larger of the channel's typical
+    /// (median-window) RMS and its noise.
     pub peak_ratio: f64,
     /// `true` for a window at the very start of the log: the start transient (take-off,
     /// filters settling) rather than a failure of the model in flight.
@@ -69,21 +70,31 @@ pub(crate) struct FailureAnalysis {
 /// measured wrench carries the motion sensors' noise raised by the inverse lag): whiteness,
 /// failure windows, regimes, and the findings — regime trends of the structured (clearly
 /// non-white) channels, the non-white channels, the failure windows.
-pub(crate) fn where_it_fails(s: &Signals, residual: &[[f64; 6]]) -> FailureAnalysis {
+///
+/// `noise` is each channel's noise σ (N, N m; [`crate::NoiseFloor::rms`]). A channel
+/// `at_noise` (its held-out residual within [`crate::ADEQUACY_FACTOR`] of its noise) has no
+/// findings and no failure windows: what remains there is the noise.
+pub(crate) fn where_it_fails(
+    s: &Signals,
+    residual: &[[f64; 6]],
+    noise: &[f64; 6],
+    at_noise: &[bool; 6],
+) -> FailureAnalysis {
     let rounding = at_rounding_level(s, residual);
     let whiteness = whiteness(residual, &rounding);
-    let failure_windows = failure_windows(&s.t, residual, &rounding);
+    let quiet: [bool; 6] = std::array::from_fn(|c| rounding[c] || at_noise[c]);
+    let failure_windows = failure_windows(&s.t, residual, &quiet, noise);
     let regimes = regimes(s, residual);
     let structured: Vec<bool> = whiteness
         .iter()
-        .zip(rounding)
-        .map(|(w, r)| {
-            !r && w.lags_outside * 4 >= w.autocorrelation.len().max(1) && w.lags_outside >= 5
+        .zip(quiet)
+        .map(|(w, q)| {
+            !q && w.lags_outside * 4 >= w.autocorrelation.len().max(1) && w.lags_outside >= 5
         })
         .collect();
     let mut findings = regime_findings(&regimes, &structured);
-    for wn in &whiteness {
-        if !wn.white {
+    for (wn, q) in whiteness.iter().zip(quiet) {
+        if !wn.white && !q {
             findings.push(format!(
                 "the {} residual is not white ({} of {} lags outside the 95 % band; lag-1 autocorrelation {:.2})",
                 wn.channel,
@@ -187,10 +198,16 @@ fn whiteness(residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<Whiteness> {
         .collect()
 }
 
-/// Sliding windows (about 1 s, half overlapping) whose residual mean square exceeds the
-/// channel's median window by a threshold corrected for autocorrelation; overlapping flagged
-/// windows are merged. Channels at the rounding level are skipped.
-fn failure_windows(t: &[f64], residual: &[[f64; 6]], rounding: &[bool; 6]) -> Vec<FailureWindow> {
+/// Sliding windows (about 1 s, half overlapping) whose residual mean square exceeds both the
+/// channel's median window and its noise variance `noise²` by a threshold corrected for
+/// autocorrelation; overlapping flagged windows are merged. `skip`ped channels (at the
+/// rounding level, or at their noise) have none.
+fn failure_windows(
+    t: &[f64],
+    residual: &[[f64; 6]],
+    skip: &[bool; 6],
+    noise: &[f64; 6],
+) -> Vec<FailureWindow> {
     let n = t.len();
     let dt = if n > 1 {
         (t[n - 1] - t[0]) / (n - 1) as f64
@@ -201,7 +218,7 @@ fn failure_windows(t: &[f64], residual: &[[f64; 6]], rounding: &[bool; 6]) -> Ve
     let step = (win / 2).max(1);
     // flags[i] = set of channels flagged for the window starting at i
     let mut intervals: Vec<(usize, usize, usize, f64)> = Vec::new(); // (start, end, channel, ratio)
-    for c in (0..6).filter(|&c| !rounding[c]) {
+    for c in (0..6).filter(|&c| !skip[c]) {
         let r = channel(residual, c);
         let mut starts = Vec::new();
         let mut ms = Vec::new();
@@ -211,7 +228,8 @@ fn failure_windows(t: &[f64], residual: &[[f64; 6]], rounding: &[bool; 6]) -> Ve
             ms.push(r[i..i + win].iter().map(|x| x * x).sum::<f64>() / win as f64);
             i += step;
         }
-        let typical = stats::median(&ms);
+        // Large against the rest of the flight and against the noise alike.
+        let typical = stats::median(&ms).max(noise[c] * noise[c]);
         if typical <= 0.0 {
             continue;
         }
