@@ -26,7 +26,13 @@ fn cargo() -> String {
 fn packages() -> Vec<Value> {
     let out = Command::new(cargo())
         .current_dir(root())
-        .args(["metadata", "--no-deps", "--format-version", "1", "--offline"])
+        .args([
+            "metadata",
+            "--no-deps",
+            "--format-version",
+            "1",
+            "--offline",
+        ])
         .output()
         .expect("cargo runs");
     assert!(
@@ -72,7 +78,13 @@ fn every_publishable_crate_has_its_registry_metadata() {
             continue;
         }
         published += 1;
-        for key in ["description", "license", "readme", "documentation", "rust_version"] {
+        for key in [
+            "description",
+            "license",
+            "readme",
+            "documentation",
+            "rust_version",
+        ] {
             if p[key].as_str().is_none_or(|v| v.trim().is_empty()) {
                 problems.push(format!("{name}: no `{key}`"));
             }
@@ -102,19 +114,36 @@ fn every_publishable_crate_has_its_registry_metadata() {
         if let Some(readme) = p["readme"].as_str() {
             let path = crate_dir(p).join(readme);
             if !path.starts_with(crate_dir(p)) || !path.is_file() {
-                problems.push(format!("{name}: README {readme} is not a file of the crate"));
+                problems.push(format!(
+                    "{name}: README {readme} is not a file of the crate"
+                ));
             }
         }
         // Features beyond the defaults: docs.rs builds only the defaults unless told.
+        // The defaults and every feature they enable (`std` enables `alloc`).
         let features = p["features"].as_object().unwrap();
-        let defaults: Vec<&str> = features
-            .get("default")
-            .and_then(Value::as_array)
-            .map(|d| d.iter().filter_map(Value::as_str).collect())
-            .unwrap_or_default();
+        let mut defaults: Vec<&str> = features
+            .keys()
+            .filter(|f| *f == "default")
+            .map(String::as_str)
+            .collect();
+        let mut i = 0;
+        while i < defaults.len() {
+            for f in features[defaults[i]]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(Value::as_str)
+            {
+                if features.contains_key(f) && !defaults.contains(&f) {
+                    defaults.push(f);
+                }
+            }
+            i += 1;
+        }
         let optional: Vec<&String> = features
             .keys()
-            .filter(|f| *f != "default" && !defaults.contains(&f.as_str()))
+            .filter(|f| !defaults.contains(&f.as_str()))
             .collect();
         let docs_rs = &p["metadata"]["docs"]["rs"];
         let all = docs_rs["all-features"].as_bool() == Some(true);
@@ -211,7 +240,14 @@ fn tagk_dynamics_without_defaults_leaves_out_urdf_and_toml() {
         String::from_utf8_lossy(&out.stderr)
     );
     let tree = String::from_utf8_lossy(&out.stdout);
-    for heavy in ["urdf-rs ", "regex ", "toml ", "serde-xml-rs ", "quick-xml ", "RustyXML "] {
+    for heavy in [
+        "urdf-rs ",
+        "regex ",
+        "toml ",
+        "serde-xml-rs ",
+        "quick-xml ",
+        "RustyXML ",
+    ] {
         assert!(
             !tree.lines().any(|l| l.starts_with(heavy)),
             "{heavy}in tagk-dynamics --no-default-features:\n{tree}"
