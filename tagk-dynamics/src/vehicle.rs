@@ -770,6 +770,7 @@ mod tests {
         assert_eq!(Vehicle::preset("crazyflie-2.1").unwrap(), v);
     }
 
+    #[cfg(feature = "toml")]
     #[test]
     fn template_round_trips() {
         let v = Vehicle::crazyflie_2_1();
@@ -811,6 +812,7 @@ mod tests {
         assert!((b.torque - Vector3::new(tx, ty, tz)).norm() < 1e-15);
     }
 
+    #[cfg(feature = "toml")]
     fn key_of(text: &str) -> String {
         match Vehicle::from_toml_str(text) {
             Err(VehicleError::InvalidKey { key, .. }) => key,
@@ -818,6 +820,7 @@ mod tests {
         }
     }
 
+    #[cfg(feature = "toml")]
     #[test]
     fn errors_name_key_line_and_column() {
         let good = Vehicle::crazyflie_2_1().to_toml_string();
