@@ -22,6 +22,45 @@ pub struct UpdateInfo {
 /// and `b` has `m` entries. `m` may change between calls up to [`capacity`](Self::capacity).
 /// A failed update returns a typed [`EstimatorError`] and leaves every part of the state as it
 /// was. The trait is object-safe: simulators hold `Box<dyn OnlineEstimator<f64> + Send>`.
+///
+/// # Examples
+///
+/// One driver for any estimator behind the trait: it feeds a fixed stream, then checks the
+/// estimate against the least-squares solution computed by hand.
+///
+/// ```
+/// use tagk_core::{GreedyKaczmarz, KaczmarzConfig, OnlineEstimator, TagK};
+///
+/// // b = a θ for θ = (0.5, 3): rows (1, 0), (0, 1), (1, 1), windows of 2 rows.
+/// let a = [1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 0.0];
+/// let b = [0.5, 3.0, 3.5, 0.5];
+/// fn drive(est: &mut dyn OnlineEstimator<f64>, a: &[f64], b: &[f64]) -> Vec<f64> {
+///     for _ in 0..50 {
+///         for (aw, bw) in a.chunks(4).zip(b.chunks(2)) {
+///             est.update(aw, bw).expect("a valid window");
+///         }
+///     }
+///     est.estimate().to_vec()
+/// }
+/// let cfg = KaczmarzConfig::default();
+/// let mut estimators: Vec<Box<dyn OnlineEstimator<f64>>> = vec![
+///     Box::new(TagK::<f64, Vec<f64>>::new(2, 2, cfg)?),
+///     Box::new(GreedyKaczmarz::<f64, Vec<f64>>::new(2, 2, cfg)?),
+/// ];
+/// for est in &mut estimators {
+///     let theta = drive(est.as_mut(), &a, &b);
+///     // The system is consistent: the least-squares solution is θ = (0.5, 3).
+///     assert!((theta[0] - 0.5).abs() < 1e-9 && (theta[1] - 3.0).abs() < 1e-9, "{theta:?}");
+///     assert_eq!(est.dim(), 2);
+///     assert_eq!(est.capacity(), 2);
+///     // A window longer than the capacity is refused, and reset restarts from a given θ.
+///     assert!(est.update(&[1.0; 6], &[1.0; 3]).is_err());
+///     est.reset(&[0.0, 0.0])?;
+///     assert_eq!(est.estimate(), &[0.0, 0.0]);
+/// }
+/// assert_eq!(estimators[0].name(), "TAG-K");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub trait OnlineEstimator<T: Real = f64> {
     /// A short, stable name for tables and plots (for example `"TAG-K"` or `"RLS-low"`).
     fn name(&self) -> &str;

@@ -324,6 +324,49 @@ pub type TailAveragedKaczmarz<T, S> = Kaczmarz<T, S, false, true>;
 /// Greedy randomised Kaczmarz (GRK, Bai & Wu 2018).
 pub type GreedyKaczmarz<T, S> = Kaczmarz<T, S, true, false>;
 /// TAG-K: greedy row selection (GRK) plus tail averaging, warm-started from the previous average.
+///
+/// # Examples
+///
+/// Recover `θ` from a stream of consistent windows, and check it against the exact solution.
+/// The same seed gives the same bits; a rejected window changes nothing.
+///
+/// ```
+/// use tagk_core::{EstimatorError, KaczmarzConfig, OnlineEstimator, TagK};
+///
+/// // θ = (2, −1) seen through windows of 3 rows; row k of window w is (cos φ, sin φ).
+/// let theta = [2.0, -1.0];
+/// let window = |w: usize| -> (Vec<f64>, Vec<f64>) {
+///     let mut a = Vec::new();
+///     let mut b = Vec::new();
+///     for k in 0..3 {
+///         let phi = 0.7 * (3 * w + k) as f64;
+///         a.extend([phi.cos(), phi.sin()]);
+///         b.push(phi.cos() * theta[0] + phi.sin() * theta[1]);
+///     }
+///     (a, b)
+/// };
+/// let config = KaczmarzConfig::default().with_seed(42);
+/// let mut est = TagK::<f64, Vec<f64>>::new(2, 3, config)?;
+/// let mut twin = TagK::<f64, Vec<f64>>::new(2, 3, config)?;
+/// for w in 0..200 {
+///     let (a, b) = window(w);
+///     let info = est.update(&a, &b)?;
+///     assert_eq!(info.rows, 3);
+///     twin.update(&a, &b)?;
+/// }
+/// // The windows are consistent, so the estimate reaches θ itself.
+/// for (e, t) in est.estimate().iter().zip(&theta) {
+///     assert!((e - t).abs() < 1e-9, "{e} vs {t}");
+/// }
+/// assert_eq!(est.estimate(), twin.estimate()); // same seed, same bits
+///
+/// // A window with a NaN is refused with a typed error and leaves θ̂ as it was.
+/// let before = est.estimate().to_vec();
+/// let refused = est.update(&[f64::NAN, 0.0], &[1.0]);
+/// assert!(matches!(refused, Err(EstimatorError::NonFiniteRegressor { row: 0, .. })));
+/// assert_eq!(est.estimate(), &before[..]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub type TagK<T, S> = Kaczmarz<T, S, true, true>;
 
 /// Disjoint views of the buffer.

@@ -90,6 +90,68 @@ pub struct NextStep {
 /// The top-level `recommended`, `ranking` and `channels` describe the model the search
 /// started from (`after` when effects were added, otherwise `before`); `recommended` is the
 /// first step of the staircase.
+///
+/// # Examples
+///
+/// The loop on a log of a body whose actuators fight a hidden linear drag (hidden: `flight`,
+/// as in [`Signals`]' example): the report recommends the drag, its staircase adds it, and
+/// it names the next command.
+///
+/// ```
+/// # use tagk_diagnose::{FlightLog, LogSample};
+/// # use tagk_dynamics::nalgebra::{UnitQuaternion, Vector3};
+/// # use tagk_dynamics::{GRAVITY_WORLD, InertialParams, newton_euler};
+/// # // Closed-form motion of a 35 g body at 100 Hz; the actuators also fight a linear drag
+/// # // of 0.01 N s/m. `with_accel`: log the accelerations, or leave them to be derived.
+/// # fn motion(t: f64) -> (Vector3<f64>, Vector3<f64>, UnitQuaternion<f64>, Vector3<f64>, Vector3<f64>) {
+/// #     let v = Vector3::new(0.5 * (0.8 * t).cos(), 0.4 * (1.1 * t).cos(), 0.1 * (0.5 * t).cos());
+/// #     let acc = Vector3::new(-0.4 * (0.8 * t).sin(), -0.44 * (1.1 * t).sin(), -0.05 * (0.5 * t).sin());
+/// #     let q = UnitQuaternion::from_euler_angles(0.2 * (1.3 * t).sin(), 0.15 * (0.9 * t).sin(), 0.3 * t);
+/// #     let w = Vector3::new(0.26 * (1.3 * t).cos(), 0.135 * (0.9 * t).cos(), 0.3);
+/// #     let wd = Vector3::new(-0.338 * (1.3 * t).sin(), -0.1215 * (0.9 * t).sin(), 0.0);
+/// #     (v, acc, q, w, wd)
+/// # }
+/// # fn flight(samples: usize, with_accel: bool) -> FlightLog {
+/// #     let theta = InertialParams::from_array([0.035, 0.0, 0.0, 0.0, 1.7e-5, 0.0, 1.7e-5, 0.0, 0.0, 2.9e-5]);
+/// #     let mut log = FlightLog::new();
+/// #     for k in 0..samples {
+/// #         let t = k as f64 * 0.01;
+/// #         let (v, acc, q, w, wd) = motion(t);
+/// #         let a_body = q.inverse_transform_vector(&(acc - GRAVITY_WORLD));
+/// #         let mut wrench = newton_euler(&theta, &a_body, &w, &wd).to_array();
+/// #         let v_body = q.inverse_transform_vector(&v);
+/// #         for c in 0..3 {
+/// #             wrench[c] += 0.01 * v_body[c];
+/// #         }
+/// #         let p = Vector3::new(0.625 * (0.8 * t).sin(), 0.4 / 1.1 * (1.1 * t).sin(), 1.0 + 0.2 * (0.5 * t).sin());
+/// #         log.push(&LogSample {
+/// #             t,
+/// #             position: p.into(),
+/// #             velocity: v.into(),
+/// #             attitude: [q.w, q.i, q.j, q.k],
+/// #             omega: w.into(),
+/// #             wrench,
+/// #             accel: with_accel.then(|| acc.into()),
+/// #             omega_dot: with_accel.then(|| wd.into()),
+/// #             rotor_speeds: None,
+/// #         });
+/// #     }
+/// #     log
+/// # }
+/// use tagk_diagnose::{DiagnoseOptions, EffectKind, Model, Signals, run_loop};
+///
+/// let s = Signals::from_log(&flight(1500, true))?;
+/// let report = run_loop(&s, &Model::rigid_body(), &[], &DiagnoseOptions::default())?;
+/// let drag = EffectKind::LinearDrag.name();
+/// assert_eq!(report.recommended.as_deref(), Some(drag));
+/// assert_eq!(report.final_model.added, [drag]);
+/// assert!(report.adequate && report.after.is_none()); // nothing was added with `--with`
+/// assert_eq!(report.next_step().map(|n| n.command), Some(format!("--with {drag}")));
+/// // The JSON form carries the same recommendation.
+/// let json: serde_json::Value = serde_json::from_str(&report.to_json()?).expect("valid JSON");
+/// assert_eq!(json["recommended"], drag);
+/// # Ok::<(), tagk_diagnose::DiagnoseError>(())
+/// ```
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
     /// The first step of the staircase: the effect to add next (`null` when the starting

@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod alignment;
+pub mod conventions;
 pub mod deriv;
 pub mod effect;
 mod error;
@@ -12,6 +13,7 @@ pub mod math;
 pub mod quadrotor;
 mod rigid_body;
 pub mod tree;
+#[cfg(feature = "urdf")]
 pub mod urdf;
 pub mod vehicle;
 mod window;
@@ -29,6 +31,7 @@ pub use rigid_body::{
     proper_acceleration, rigid_body_regressor, try_forward_dynamics, write_rigid_body_regressor,
 };
 pub use tree::{Body, JointKind, KinematicTree, Pose, TreeWorkspace};
+#[cfg(feature = "urdf")]
 pub use urdf::UrdfOptions;
 pub use vehicle::{Vehicle, VehicleError};
 pub use window::{A_FRAME_LEN, B_FRAME_LEN, WindowBuilder};

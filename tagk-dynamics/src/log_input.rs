@@ -628,12 +628,14 @@ fn nearest<'a>(
         .map(|(_, c)| c)
 }
 
+#[cfg(feature = "toml")]
 /// The edits a key may be away from a known key to be taken as a typo of it: one for keys of
 /// up to three characters (`wx`, `w1`), two for longer ones (`omgea`).
 fn typo_edits(key: &str) -> usize {
     if key.chars().count() <= 3 { 1 } else { 2 }
 }
 
+#[cfg(feature = "toml")]
 /// `" (did you mean `omega`?)"` for the known key nearest `key`, or empty.
 fn did_you_mean<'a>(key: &str, known: impl IntoIterator<Item = &'a str>) -> String {
     nearest(key, known, typo_edits(key).max(2))
@@ -641,6 +643,7 @@ fn did_you_mean<'a>(key: &str, known: impl IntoIterator<Item = &'a str>) -> Stri
         .unwrap_or_default()
 }
 
+#[cfg(feature = "toml")]
 /// An error for an unknown key of a table whose keys are all known.
 fn unknown_key(what: &str, key: &str, known: &[&str]) -> String {
     format!(
@@ -655,6 +658,7 @@ fn project_columns() -> impl Iterator<Item = &'static str> {
     std::iter::once("t").chain(Group::ALL.iter().flat_map(|g| g.columns().iter().copied()))
 }
 
+#[cfg(feature = "toml")]
 /// Every key of `[units]` that is not an extra column: `t`, `time`, the project columns and
 /// the group keys.
 fn unit_keys() -> impl Iterator<Item = &'static str> {
@@ -663,6 +667,7 @@ fn unit_keys() -> impl Iterator<Item = &'static str> {
         .chain(Group::ALL.iter().map(|g| g.key()))
 }
 
+#[cfg(feature = "toml")]
 fn str_list(v: &toml::Value, what: &str) -> Result<Vec<String>, String> {
     match v {
         toml::Value::String(s) => Ok(vec![s.clone()]),
@@ -678,11 +683,13 @@ fn str_list(v: &toml::Value, what: &str) -> Result<Vec<String>, String> {
     }
 }
 
+#[cfg(feature = "toml")]
 fn table<'a>(v: &'a toml::Value, what: &str) -> Result<&'a toml::Table, String> {
     v.as_table()
         .ok_or_else(|| format!("`{what}` must be a table"))
 }
 
+#[cfg(feature = "toml")]
 /// Parses a `[columns]` table (`what` is its key path, `global` for the top-level one, which
 /// alone may hold `q` and `ignore`).
 fn parse_columns(t: &toml::Table, global: bool, what: &str) -> Result<ColumnsParsed, String> {
@@ -739,6 +746,7 @@ fn parse_columns(t: &toml::Table, global: bool, what: &str) -> Result<ColumnsPar
     Ok(out)
 }
 
+#[cfg(feature = "toml")]
 #[derive(Default)]
 struct ColumnsParsed {
     columns: BTreeMap<String, Vec<String>>,
@@ -746,6 +754,7 @@ struct ColumnsParsed {
     ignore: Vec<String>,
 }
 
+#[cfg(feature = "toml")]
 /// The factor to SI of one `[units]` value: a unit name, a number ("multiply by this to get
 /// SI"), or `{ unit = "erpm", pole_pairs = N }`; with the quantity of a named unit.
 fn parse_unit_value(v: &toml::Value, key: &str) -> Result<(f64, Option<Quantity>), String> {
@@ -813,6 +822,7 @@ fn parse_unit_value(v: &toml::Value, key: &str) -> Result<(f64, Option<Quantity>
     }
 }
 
+#[cfg(feature = "toml")]
 fn parse_units(t: &toml::Table, what: &str) -> Result<BTreeMap<String, f64>, String> {
     let mut out = BTreeMap::new();
     for (k, v) in t {
@@ -859,6 +869,7 @@ fn key_quantity(key: &str) -> Option<Quantity> {
         .map(|g| g.quantity())
 }
 
+#[cfg(feature = "toml")]
 /// Checks that a stream file named in `[streams] files` stays inside the mapping file's
 /// folder: relative, and no `..` that leaves it.
 fn confined(file: &str) -> Result<PathBuf, String> {
@@ -891,6 +902,7 @@ fn confined(file: &str) -> Result<PathBuf, String> {
 }
 
 impl ColumnMapping {
+    #[cfg(feature = "toml")]
     /// Reads a mapping file (TOML, the module docs); `files` are resolved against its folder.
     ///
     /// # Errors
@@ -912,6 +924,7 @@ impl ColumnMapping {
         Ok(m)
     }
 
+    #[cfg(feature = "toml")]
     /// Parses a mapping from TOML text.
     ///
     /// # Errors
@@ -942,6 +955,7 @@ impl ColumnMapping {
         Ok(m)
     }
 
+    #[cfg(feature = "toml")]
     fn parse_frames(&mut self, t: &toml::Table) -> Result<(), String> {
         const KNOWN: [&str; 5] = [
             "world",
@@ -981,6 +995,7 @@ impl ColumnMapping {
         Ok(())
     }
 
+    #[cfg(feature = "toml")]
     fn parse_streams(&mut self, t: &toml::Table) -> Result<(), String> {
         for (k, v) in t {
             match k.as_str() {
@@ -1050,6 +1065,7 @@ impl ColumnMapping {
         self
     }
 
+    #[cfg(feature = "toml")]
     /// Sets the unit of a project column or group (`"t"`, `"rotor_speeds"`).
     ///
     /// # Errors

@@ -13,7 +13,7 @@ use nalgebra::{
 };
 
 use crate::math::axis_angle;
-use crate::{DynamicsError, GRAVITY_WORLD, InertialParams, newton_euler, rigid_body_regressor};
+use crate::{DynamicsError, InertialParams, newton_euler, rigid_body_regressor};
 
 /// The kind of a movable joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -209,6 +209,7 @@ pub struct KinematicTree {
 }
 
 impl KinematicTree {
+    #[cfg(feature = "urdf")]
     /// Assembles a tree from bodies in depth-first preorder (the URDF loader's output).
     pub(crate) fn from_parts(
         name: String,
@@ -229,7 +230,7 @@ impl KinematicTree {
             base_link,
             bodies,
             subtree_end,
-            gravity: GRAVITY_WORLD,
+            gravity: crate::GRAVITY_WORLD,
             links,
             base_params,
         }

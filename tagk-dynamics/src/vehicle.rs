@@ -28,7 +28,9 @@
 //! # Ok::<(), tagk_dynamics::vehicle::VehicleError>(())
 //! ```
 
+#[cfg(feature = "toml")]
 use std::fmt::Write as _;
+#[cfg(feature = "toml")]
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -219,6 +221,7 @@ pub enum VehicleError {
     },
 }
 
+#[cfg(feature = "toml")]
 /// The file's keys, as written (validated into a [`Vehicle`]).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -236,6 +239,7 @@ struct VehicleFile {
     rotor: Vec<RotorFile>,
 }
 
+#[cfg(feature = "toml")]
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RotorFile {
@@ -261,6 +265,7 @@ fn positive(key: &str, x: f64, unit: &str) -> Result<f64, VehicleError> {
     }
 }
 
+#[cfg(feature = "toml")]
 /// 1-based line and column (in characters) of byte offset `at` in `text`.
 fn line_column(text: &str, at: usize) -> (usize, usize) {
     let at = at.min(text.len());
@@ -317,6 +322,7 @@ impl Vehicle {
         }
     }
 
+    #[cfg(feature = "toml")]
     /// A preset by name, or else a vehicle file at that path (what `--vehicle NAME|FILE`
     /// accepts).
     ///
@@ -331,6 +337,7 @@ impl Vehicle {
         }
     }
 
+    #[cfg(feature = "toml")]
     /// Reads and validates a vehicle file. Without a `name` key, the vehicle is named after
     /// the file (its name without extension).
     ///
@@ -354,6 +361,7 @@ impl Vehicle {
         })
     }
 
+    #[cfg(feature = "toml")]
     /// Parses and validates a vehicle description (the TOML format of `docs/VEHICLE.md`).
     /// Without a `name` key the vehicle is named `vehicle`.
     ///
@@ -364,6 +372,7 @@ impl Vehicle {
         Self::parse(text, "vehicle")
     }
 
+    #[cfg(feature = "toml")]
     fn parse(text: &str, default_name: &str) -> Result<Self, VehicleError> {
         let file: VehicleFile = toml::from_str(text).map_err(|e| {
             let (line, column) = e
@@ -380,6 +389,7 @@ impl Vehicle {
         Ok(v)
     }
 
+    #[cfg(feature = "toml")]
     fn from_file(f: VehicleFile, default_name: &str) -> Result<Self, VehicleError> {
         let rotors: [Rotor; ROTOR_COUNT] = f
             .rotor
@@ -570,6 +580,7 @@ impl Vehicle {
         ]))
     }
 
+    #[cfg(feature = "toml")]
     /// The vehicle as a commented TOML template that [`Vehicle::from_toml_str`] reads back to
     /// the same vehicle (numbers in Rust's shortest round-trip notation).
     pub fn to_toml_string(&self) -> String {
@@ -759,6 +770,7 @@ mod tests {
         assert_eq!(Vehicle::preset("crazyflie-2.1").unwrap(), v);
     }
 
+    #[cfg(feature = "toml")]
     #[test]
     fn template_round_trips() {
         let v = Vehicle::crazyflie_2_1();
@@ -800,6 +812,7 @@ mod tests {
         assert!((b.torque - Vector3::new(tx, ty, tz)).norm() < 1e-15);
     }
 
+    #[cfg(feature = "toml")]
     fn key_of(text: &str) -> String {
         match Vehicle::from_toml_str(text) {
             Err(VehicleError::InvalidKey { key, .. }) => key,
@@ -807,6 +820,7 @@ mod tests {
         }
     }
 
+    #[cfg(feature = "toml")]
     #[test]
     fn errors_name_key_line_and_column() {
         let good = Vehicle::crazyflie_2_1().to_toml_string();

@@ -139,6 +139,67 @@ impl Discovery {
 ///
 /// # Errors
 /// As [`crate::diagnose()`].
+///
+/// # Examples
+///
+/// A log of a body whose actuators fight a hidden linear drag (hidden: `flight`, as in
+/// [`Signals`]' example). The search adds the drag and stops at the noise, and the drag
+/// removes more than 99 % of the held-out force residual.
+///
+/// ```
+/// # use tagk_diagnose::{FlightLog, LogSample};
+/// # use tagk_dynamics::nalgebra::{UnitQuaternion, Vector3};
+/// # use tagk_dynamics::{GRAVITY_WORLD, InertialParams, newton_euler};
+/// # // Closed-form motion of a 35 g body at 100 Hz; the actuators also fight a linear drag
+/// # // of 0.01 N s/m. `with_accel`: log the accelerations, or leave them to be derived.
+/// # fn motion(t: f64) -> (Vector3<f64>, Vector3<f64>, UnitQuaternion<f64>, Vector3<f64>, Vector3<f64>) {
+/// #     let v = Vector3::new(0.5 * (0.8 * t).cos(), 0.4 * (1.1 * t).cos(), 0.1 * (0.5 * t).cos());
+/// #     let acc = Vector3::new(-0.4 * (0.8 * t).sin(), -0.44 * (1.1 * t).sin(), -0.05 * (0.5 * t).sin());
+/// #     let q = UnitQuaternion::from_euler_angles(0.2 * (1.3 * t).sin(), 0.15 * (0.9 * t).sin(), 0.3 * t);
+/// #     let w = Vector3::new(0.26 * (1.3 * t).cos(), 0.135 * (0.9 * t).cos(), 0.3);
+/// #     let wd = Vector3::new(-0.338 * (1.3 * t).sin(), -0.1215 * (0.9 * t).sin(), 0.0);
+/// #     (v, acc, q, w, wd)
+/// # }
+/// # fn flight(samples: usize, with_accel: bool) -> FlightLog {
+/// #     let theta = InertialParams::from_array([0.035, 0.0, 0.0, 0.0, 1.7e-5, 0.0, 1.7e-5, 0.0, 0.0, 2.9e-5]);
+/// #     let mut log = FlightLog::new();
+/// #     for k in 0..samples {
+/// #         let t = k as f64 * 0.01;
+/// #         let (v, acc, q, w, wd) = motion(t);
+/// #         let a_body = q.inverse_transform_vector(&(acc - GRAVITY_WORLD));
+/// #         let mut wrench = newton_euler(&theta, &a_body, &w, &wd).to_array();
+/// #         let v_body = q.inverse_transform_vector(&v);
+/// #         for c in 0..3 {
+/// #             wrench[c] += 0.01 * v_body[c];
+/// #         }
+/// #         let p = Vector3::new(0.625 * (0.8 * t).sin(), 0.4 / 1.1 * (1.1 * t).sin(), 1.0 + 0.2 * (0.5 * t).sin());
+/// #         log.push(&LogSample {
+/// #             t,
+/// #             position: p.into(),
+/// #             velocity: v.into(),
+/// #             attitude: [q.w, q.i, q.j, q.k],
+/// #             omega: w.into(),
+/// #             wrench,
+/// #             accel: with_accel.then(|| acc.into()),
+/// #             omega_dot: with_accel.then(|| wd.into()),
+/// #             rotor_speeds: None,
+/// #         });
+/// #     }
+/// #     log
+/// # }
+/// use tagk_diagnose::{DiagnoseOptions, EffectKind, Model, Signals, discover};
+///
+/// let s = Signals::from_log(&flight(1500, true))?;
+/// let found = discover(&Model::rigid_body(), &s, &DiagnoseOptions::default())?;
+/// assert_eq!(found.added, [EffectKind::LinearDrag.name()]);
+/// assert!(found.adequate);
+/// let (first, last) = (&found.steps[0], &found.steps[found.steps.len() - 1]);
+/// for c in 0..3 {
+///     assert!(last.held_out_rms[c] < 0.01 * first.held_out_rms[c]);
+/// }
+/// assert_eq!(found.last().model, found.final_model);
+/// # Ok::<(), tagk_diagnose::DiagnoseError>(())
+/// ```
 pub fn discover(
     start: &Model,
     s: &Signals,
