@@ -3,7 +3,8 @@
 //! sideways.
 
 use std::collections::BTreeMap;
-use std::process::Command;
+
+mod common;
 
 /// `(crate, layer, allowed normal/build dependencies, additionally allowed dev-dependencies)`,
 /// exactly the table of `ARCHITECTURE.md`.
@@ -50,24 +51,7 @@ const RULES: &[(&str, u8, &[&str], &[&str])] = &[
 /// Each workspace member with its workspace dependencies as `(name, kind)`; kind is
 /// `"normal"`, `"dev"` or `"build"`.
 fn workspace_dependencies() -> BTreeMap<String, Vec<(String, String)>> {
-    let out = Command::new(env!("CARGO"))
-        .args([
-            "metadata",
-            "--no-deps",
-            "--format-version",
-            "1",
-            "--offline",
-        ])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("cargo metadata runs");
-    assert!(
-        out.status.success(),
-        "cargo metadata failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata is JSON");
-    let packages = meta["packages"].as_array().expect("packages");
+    let packages = common::workspace_packages();
     let members: Vec<String> = packages
         .iter()
         .map(|p| p["name"].as_str().unwrap().to_string())

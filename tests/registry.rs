@@ -14,6 +14,8 @@ use std::process::Command;
 
 use serde_json::Value;
 
+mod common;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -24,24 +26,7 @@ fn cargo() -> String {
 
 /// `cargo metadata --no-deps`: the workspace's own packages.
 fn packages() -> Vec<Value> {
-    let out = Command::new(cargo())
-        .current_dir(root())
-        .args([
-            "metadata",
-            "--no-deps",
-            "--format-version",
-            "1",
-            "--offline",
-        ])
-        .output()
-        .expect("cargo runs");
-    assert!(
-        out.status.success(),
-        "cargo metadata failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let meta: Value = serde_json::from_slice(&out.stdout).expect("cargo metadata prints JSON");
-    meta["packages"].as_array().expect("a package list").clone()
+    common::workspace_packages()
 }
 
 /// `publish = false` reads as an empty registry list.

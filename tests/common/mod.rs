@@ -75,3 +75,26 @@ pub fn foreign_flight_with(vehicle: &str) -> Vec<&str> {
     args[k + 1] = vehicle;
     args
 }
+
+/// `cargo metadata --no-deps --offline` of the workspace: its own packages, as JSON.
+pub fn workspace_packages() -> Vec<serde_json::Value> {
+    let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args([
+            "metadata",
+            "--no-deps",
+            "--format-version",
+            "1",
+            "--offline",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("cargo metadata prints JSON");
+    meta["packages"].as_array().expect("a package list").clone()
+}

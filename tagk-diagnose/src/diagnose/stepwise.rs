@@ -18,12 +18,15 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::diagnose::select::{Judge, Member, chance_margin, mean_thrust, usable_candidates};
+use crate::diagnose::select::{
+    Judge, Member, Score, SetEval, chance_margin, mean_thrust, usable_candidates,
+};
 use crate::diagnose::{
     Context, DiagnoseOptions, Diagnosis, FloorSource, NoiseFloor, diagnose_with_fit, limits_of,
     noise_floor,
 };
 use crate::error::DiagnoseError;
+use crate::fit::GramEngine;
 use crate::fit::{Coefficient, Model, fit_model};
 use crate::signals::{CHANNEL_NAMES, CHANNEL_UNITS, Signals};
 
@@ -346,6 +349,67 @@ impl Run {
     }
 }
 
+/// Judges each added effect of `run`'s final model within it, by the search's rules against the
+/// starting model's rigid body. `f` gets the effect's name, the context of the final model
+/// without it (with its engines and its score) and the effect's own verdict there.
+fn judge_each_added(
+    run: &Run,
+    s: &Signals,
+    opts: &DiagnoseOptions,
+    floor: &NoiseFloor,
+    mut f: impl FnMut(&str, &JudgedWithout<'_, '_>),
+) {
+    let Some(last) = run.diagnoses.last() else {
+        return;
+    };
+    let fit = &last.fit;
+    let limits = limits_of(&run.model, opts);
+    let judge = Judge {
+        limits: &limits,
+        current: run.diagnoses[0].fit.theta,
+        mean_thrust: mean_thrust(s),
+        tests: opts.candidates.len().max(1) as f64,
+        alpha: opts.alpha,
+    };
+    for name in &run.added {
+        let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
+            continue;
+        };
+        let ctx = Context::without_effect(s, &run.model, fit, k, floor, opts.folds);
+        let engine = ctx.engine();
+        let fit_engine = ctx.fit_engine();
+        let base = ctx.score(&engine, &[]);
+        let member = Member {
+            effect: run.model.effects()[k].clone(),
+            param: fit.params[k],
+        };
+        let own = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
+        f(
+            name,
+            &JudgedWithout {
+                ctx: &ctx,
+                engine: &engine,
+                fit_engine: &fit_engine,
+                base: &base,
+                judge: &judge,
+                own,
+            },
+        );
+    }
+}
+
+/// The final model without one of its added effects, and that effect's verdict within it
+/// ([`judge_each_added`]).
+struct JudgedWithout<'c, 's> {
+    ctx: &'c Context<'s>,
+    engine: &'c GramEngine<'c>,
+    fit_engine: &'c GramEngine<'c>,
+    base: &'c Score,
+    judge: &'c Judge<'c>,
+    /// The effect's own verdict.
+    own: SetEval,
+}
+
 /// The added effects of the final model that another candidate replaces as well
 /// ([`Equivalent`]): each added effect is taken out, and every usable candidate judged in its
 /// place by the search's rules. One that is admissible and whose held-out gain is within
@@ -357,55 +421,28 @@ fn equivalents(
     opts: &DiagnoseOptions,
     floor: &NoiseFloor,
 ) -> Vec<Equivalent> {
-    let Some(last) = run.diagnoses.last() else {
-        return Vec::new();
-    };
-    let fit = &last.fit;
-    let limits = limits_of(&run.model, opts);
     let mut found = Vec::new();
-    for name in &run.added {
-        let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
-            continue;
-        };
-        let ctx = Context::without_effect(s, &run.model, fit, k, floor, opts.folds);
-        let engine = ctx.engine();
-        let fit_engine = ctx.fit_engine();
-        let base = ctx.score(&engine, &[]);
-        let (candidates, _) = usable_candidates(&ctx.model, s, opts);
-        let judge = Judge {
-            limits: &limits,
-            current: run.diagnoses[0].fit.theta,
-            mean_thrust: mean_thrust(s),
-            tests: opts.candidates.len().max(1) as f64,
-            alpha: opts.alpha,
-        };
-        let own = ctx.judge_set(
-            &engine,
-            &fit_engine,
-            vec![Member {
-                effect: run.model.effects()[k].clone(),
-                param: fit.params[k],
-            }],
-            &base,
-            &judge,
-            false,
-        );
+    judge_each_added(run, s, opts, floor, |name, w| {
+        let (candidates, _) = usable_candidates(&w.ctx.model, s, opts);
         for c in candidates.iter().filter(|c| c.name() != name) {
-            let Ok(set) = ctx.judge_single(&engine, &fit_engine, c, &base, &judge) else {
+            let Ok(set) = w
+                .ctx
+                .judge_single(w.engine, w.fit_engine, c, w.base, w.judge)
+            else {
                 continue;
             };
             if set.admissible()
-                && (set.gain - own.gain).abs() <= chance_margin(set.gain.max(own.gain))
+                && (set.gain - w.own.gain).abs() <= chance_margin(set.gain.max(w.own.gain))
             {
                 found.push(Equivalent {
-                    effect: name.clone(),
+                    effect: name.to_string(),
                     alternative: c.name().to_string(),
-                    gain: own.gain,
+                    gain: w.own.gain,
                     alternative_gain: set.gain,
                 });
             }
         }
-    }
+    });
     found
 }
 
@@ -481,52 +518,30 @@ fn prune(
     fits: &mut Fits,
 ) -> Result<(), DiagnoseError> {
     let mut dropped = Vec::new();
-    let thrust = mean_thrust(s);
     for _ in 0..run.added.len() {
-        let last = &run.diagnoses[run.diagnoses.len() - 1];
-        let fit = &last.fit;
-        let limits = limits_of(&run.model, opts);
-        let judge = Judge {
-            limits: &limits,
-            current: run.diagnoses[0].fit.theta,
-            mean_thrust: thrust,
-            tests: opts.candidates.len().max(1) as f64,
-            alpha: opts.alpha,
-        };
+        let fit = run.diagnoses[run.diagnoses.len() - 1].fit.clone();
         let mut weakest: Option<(f64, String, String)> = None;
-        for name in &run.added {
-            let Some(k) = run.model.effects().iter().position(|e| e.name() == name) else {
-                continue;
-            };
-            let ctx = Context::without_effect(s, &run.model, fit, k, floor, opts.folds);
-            let engine = ctx.engine();
-            let fit_engine = ctx.fit_engine();
-            let base = ctx.score(&engine, &[]);
-            let member = Member {
-                effect: run.model.effects()[k].clone(),
-                param: fit.params[k],
-            };
-            let set = ctx.judge_set(&engine, &fit_engine, vec![member], &base, &judge, false);
+        judge_each_added(run, s, opts, floor, |name, w| {
             // The final fit's own verdict on the effect's coefficients counts too — but for a
             // wind whose force is within its noise: its drag is still needed (the report
             // carries the verdict).
             let own = fit
                 .effects
                 .iter()
-                .find(|f| &f.effect == name)
+                .find(|f| f.effect == name)
                 .filter(|f| !f.plausible && !f.plausibility_note.contains("a drag without wind"))
                 .map(|f| format!("implausible in the final fit: {}", f.plausibility_note));
-            let why = set.verdicts[0]
+            let why = w.own.verdicts[0]
                 .refusal
                 .as_ref()
                 .map(|r| r.describe())
                 .or(own);
             if let Some(why) = why
-                && weakest.as_ref().is_none_or(|(g, _, _)| set.gain < *g)
+                && weakest.as_ref().is_none_or(|(g, _, _)| w.own.gain < *g)
             {
-                weakest = Some((set.gain, name.clone(), why));
+                weakest = Some((w.own.gain, name.to_string(), why));
             }
-        }
+        });
         let Some((_, name, why)) = weakest else {
             break;
         };
