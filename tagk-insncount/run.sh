@@ -16,7 +16,9 @@
 #
 # Each architecture's counts are compared with the committed baseline-<arch>.txt beside this
 # script: the run fails when a TAG-K count exceeds its baseline by more than 5 %. Tables go to
-# target/insncount/<arch>.md. Environment:
+# <target>/insncount/<arch>.md, where <target> is cargo's target directory (CARGO_TARGET_DIR
+# or the workspace's target/, as `cargo metadata` reports it): the checkout itself may be
+# read-only. Environment:
 #   TAGK_INSNCOUNT_BLESS=1        write the measured counts as the new baselines
 #   TAGK_INSNCOUNT_SKIP_INSTALL=1 never call apt-get
 #   TAGK_INSNCOUNT_PLUGIN_SRC     insncount.c of an instruction-counting QEMU plugin (CI
@@ -24,11 +26,16 @@
 #                                 aarch64 checks bits but counts nothing)
 #   TAGK_KERNELS=portable         count the portable kernels instead (tagk-core reads it; the
 #                                 tables go to <arch>-portable.md, no baseline is checked)
+#   TAGK_INSNCOUNT_OUT            where the tables go (default <target>/insncount)
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/.." && pwd)
-OUT=$ROOT/target/insncount
+# Cargo's target directory, wherever CARGO_TARGET_DIR or a config puts it.
+TARGET=$(cd "$ROOT" && cargo metadata --format-version 1 --no-deps --offline 2>/dev/null \
+  | grep -o '"target_directory":"[^"]*"' | cut -d'"' -f4)
+[[ -n $TARGET ]] || TARGET=${CARGO_TARGET_DIR:-$ROOT/target}
+OUT=${TAGK_INSNCOUNT_OUT:-$TARGET/insncount}
 U1=20 U2=60
 CASES=("tagk 10" "tagk 120" "tagk-f32 10" "tagk-f32 120" "rls-low 10" "rls-low 120" "kf-low 10" "kf-low 120")
 TOLERANCE_PERCENT=5
@@ -129,7 +136,7 @@ check() {
 }
 
 # --- x86-64: callgrind (the AVX2 kernels) ---------------------------------------------------
-X86_BIN=$ROOT/target/release/tagk-insncount
+X86_BIN=$TARGET/release/tagk-insncount
 # The host build, and its fingerprints run natively (the CPU's best kernels: AVX-512 where it
 # has it) into $OUT/x86_64-native.bits.
 native() {
@@ -173,7 +180,7 @@ aarch64() {
     export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
     unset RUSTUP_TOOLCHAIN RUSTFLAGS CARGO_BUILD_TARGET CARGO_TARGET_DIR || true
     /usr/bin/cargo build --release --quiet -p tagk-insncount --target aarch64-unknown-linux-gnu \
-      -Zbuild-std=std,panic_abort --target-dir target/aarch64
+      -Zbuild-std=std,panic_abort --target-dir "$TARGET/aarch64"
   )
   # tagk-core's own test of the SIMD kernels against the portable ones, bit for bit (many
   # window shapes, f64 and f32), run on the NEON kernels under qemu-aarch64.
@@ -185,9 +192,9 @@ aarch64() {
     export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
     unset RUSTUP_TOOLCHAIN RUSTFLAGS CARGO_BUILD_TARGET CARGO_TARGET_DIR || true
     /usr/bin/cargo test --release --quiet -p tagk-core --lib --target aarch64-unknown-linux-gnu \
-      -Zbuild-std=std,panic_abort --target-dir target/aarch64
+      -Zbuild-std=std,panic_abort --target-dir "$TARGET/aarch64"
   )
-  local bin=$ROOT/target/aarch64/aarch64-unknown-linux-gnu/release/tagk-insncount c est n
+  local bin=$TARGET/aarch64/aarch64-unknown-linux-gnu/release/tagk-insncount c est n
   local src=${TAGK_INSNCOUNT_PLUGIN_SRC:-}
   if [[ -n $src && -f $src ]]; then
     # The Cortex-M7 tool's plugin, built for the installed QEMU (user-mode plugins load alike).
