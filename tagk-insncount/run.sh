@@ -17,8 +17,8 @@
 # Each architecture's counts are compared with the committed baseline-<arch>.txt beside this
 # script: the run fails when a TAG-K count exceeds its baseline by more than 5 %. Tables go to
 # <target>/insncount/<arch>.md, where <target> is cargo's target directory (CARGO_TARGET_DIR
-# or the workspace's target/, as `cargo metadata` reports it): nothing is written into the
-# checkout. Environment:
+# or the workspace's target/, as `cargo metadata` reports it); nothing else is written but a
+# blessed baseline. Environment:
 #   TAGK_INSNCOUNT_BLESS=1        write the measured counts as the new baselines
 #   TAGK_INSNCOUNT_SKIP_INSTALL=1 never call apt-get
 #   TAGK_INSNCOUNT_PLUGIN_SRC     insncount.c of an instruction-counting QEMU plugin (CI
