@@ -430,12 +430,11 @@ impl MotorLag {
                     for (c, d) in data.iter_mut().enumerate().skip(2) {
                         *d = Some(lagged.start_column(&lagged.start_rotor, m, |v| v[r][c - 2]));
                     }
-                    cols.push(EffectColumn {
-                        name: format!("start_w{}", r + 1),
-                        unit: "rad/s".into(),
+                    cols.push(EffectColumn::new(
+                        &format!("start_w{}", r + 1),
+                        "rad/s",
                         data,
-                        fixed: None,
-                    });
+                    ));
                 }
                 for c in 2..6 {
                     let which = usize::from(interval_mean(s, c));
@@ -708,12 +707,7 @@ impl Effect for ThrustGain {
     fn columns(&self, s: &Signals, _p: Option<f64>) -> Vec<EffectColumn> {
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         data[2] = Some(s.channel(2));
-        vec![EffectColumn {
-            name: "kappa".into(),
-            unit: "1".into(),
-            data,
-            fixed: None,
-        }]
+        vec![EffectColumn::new("kappa", "1", data)]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         // One coefficient, or one per log in a joint fit.

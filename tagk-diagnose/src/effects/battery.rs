@@ -65,12 +65,7 @@ impl Effect for BatteryVoltage {
         };
         let mut data: [Option<Vec<f64>>; 6] = Default::default();
         data[2] = Some(s.channel(2).iter().zip(&x).map(|(f, x)| f * x).collect());
-        vec![EffectColumn {
-            name: "beta".into(),
-            unit: "1".into(),
-            data,
-            fixed: None,
-        }]
+        vec![EffectColumn::new("beta", "1", data)]
     }
     fn plausibility(&self, coef: &[f64], _se: &[f64], _p: Option<f64>) -> Plausibility {
         // A motor's thrust grows about with its voltage squared: β ≤ 2, and never negative.

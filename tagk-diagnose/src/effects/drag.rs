@@ -258,18 +258,8 @@ impl Effect for RotorDrag {
             }
         }
         vec![
-            EffectColumn {
-                name: "k_h".into(),
-                unit: "N s²/(m rad)".into(),
-                data: horizontal,
-                fixed: None,
-            },
-            EffectColumn {
-                name: "k_z".into(),
-                unit: "N s²/(m rad)".into(),
-                data: vertical,
-                fixed: None,
-            },
+            EffectColumn::new("k_h", "N s²/(m rad)", horizontal),
+            EffectColumn::new("k_z", "N s²/(m rad)", vertical),
         ]
     }
     fn plausibility(&self, coef: &[f64], se: &[f64], _p: Option<f64>) -> Plausibility {

@@ -203,12 +203,7 @@ impl Effect for Wind {
         if let Some([x, y]) = crate::effects::drag::hub_wind_columns(s) {
             let mut cols = crate::effects::drag::RotorDrag.columns(s, None);
             for (name, data) in [("kv_wx", x), ("kv_wy", y)] {
-                cols.push(EffectColumn {
-                    name: name.into(),
-                    unit: "N s/rad".into(),
-                    data,
-                    fixed: None,
-                });
+                cols.push(EffectColumn::new(name, "N s/rad", data));
             }
             return cols;
         }
@@ -253,12 +248,11 @@ impl Effect for Wind {
             }
         }
         for (j, [x, y, z]) in wind.into_iter().enumerate() {
-            cols.push(EffectColumn {
-                name: names[3 + j].0.to_string(),
-                unit: names[3 + j].1.into(),
-                data: [Some(x), Some(y), Some(z), None, None, None],
-                fixed: None,
-            });
+            cols.push(EffectColumn::new(
+                names[3 + j].0,
+                names[3 + j].1,
+                [Some(x), Some(y), Some(z), None, None, None],
+            ));
         }
         cols
     }

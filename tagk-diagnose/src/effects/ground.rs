@@ -58,12 +58,7 @@ impl Effect for GroundEffect {
                     .collect(),
             );
         }
-        vec![EffectColumn {
-            name: "c_ge".into(),
-            unit: "1".into(),
-            data,
-            fixed: None,
-        }]
+        vec![EffectColumn::new("c_ge", "1", data)]
     }
     fn columns_at(
         &self,

@@ -57,12 +57,7 @@ impl Effect for RotorImbalance {
                     let m = &mixer.matrix[r];
                     *slot = Some(sq.iter().map(|x| m[j] * x[j] - m[3] * x[3]).collect());
                 }
-                EffectColumn {
-                    name: (*name).to_string(),
-                    unit: "1".into(),
-                    data,
-                    fixed: None,
-                }
+                EffectColumn::new(name, "1", data)
             })
             .collect()
     }

@@ -133,12 +133,7 @@ impl Effect for RotorInflow {
                 }
             }
         }
-        vec![EffectColumn {
-            name: "k_in".into(),
-            unit: "N s²/(m rad)".into(),
-            data,
-            fixed: None,
-        }]
+        vec![EffectColumn::new("k_in", "N s²/(m rad)", data)]
     }
     fn columns_at(
         &self,

@@ -59,16 +59,21 @@ pub struct EffectColumn {
 }
 
 impl EffectColumn {
-    /// A column acting on one channel.
-    pub fn on(name: &str, unit: &str, channel: Channel, values: Vec<f64>) -> Self {
-        let mut data: [Option<Vec<f64>>; 6] = Default::default();
-        data[channel] = Some(values);
+    /// A fitted column with its values per channel (`None`: zero on that channel).
+    pub fn new(name: &str, unit: &str, data: [Option<Vec<f64>>; 6]) -> Self {
         Self {
             name: name.to_string(),
             unit: unit.to_string(),
             data,
             fixed: None,
         }
+    }
+
+    /// A column acting on one channel.
+    pub fn on(name: &str, unit: &str, channel: Channel, values: Vec<f64>) -> Self {
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        data[channel] = Some(values);
+        Self::new(name, unit, data)
     }
 
     /// The same column with its coefficient fixed at `value` (see [`EffectColumn::fixed`]).

@@ -116,12 +116,7 @@ impl Effect for RotorInertia {
         data[3] = Some(tx);
         data[4] = Some(ty);
         data[5] = Some(h_dot);
-        vec![EffectColumn {
-            name: "J_r".into(),
-            unit: "kg m²".into(),
-            data,
-            fixed: None,
-        }]
+        vec![EffectColumn::new("J_r", "kg m²", data)]
     }
     /// The gyroscopic part at the predicted body rate; `Ḣ` and `H` from the log at sample `i`
     /// (input-driven: the rotor speeds are the log's).

@@ -315,6 +315,17 @@ pub(crate) fn truth_parts(
         force: w.force * k,
         torque: w.torque * k,
     };
+    // The ground effect's thrust ratio at the state's height, and the rotors' imbalance.
+    let ground_ratio = || {
+        effects
+            .ground_effect
+            .map_or(1.0, |g| g.thrust_ratio(s.position.z))
+    };
+    let imbalance = || {
+        effects
+            .rotor_imbalance
+            .map_or([0.0; 4], |b| b.relative_errors)
+    };
     let effect_wrenches = kinds
         .iter()
         .map(|kind| {
@@ -323,10 +334,7 @@ pub(crate) fn truth_parts(
                 EffectKind::MotorLag => motor - inputs.now,
                 EffectKind::ThrustGain => scaled(&motor, epsilon),
                 EffectKind::GroundEffect => {
-                    let ratio = effects
-                        .ground_effect
-                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
-                    scaled(&motor, (1.0 + epsilon) * (ratio - 1.0))
+                    scaled(&motor, (1.0 + epsilon) * (ground_ratio() - 1.0))
                 }
                 EffectKind::LinearDrag => drag_only(
                     PlantEffects {
@@ -373,12 +381,7 @@ pub(crate) fn truth_parts(
                     None,
                 ),
                 EffectKind::RotorImbalance => {
-                    let ratio = effects
-                        .ground_effect
-                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
-                    let eps = effects
-                        .rotor_imbalance
-                        .map_or([0.0; 4], |b| b.relative_errors);
+                    let (ratio, eps) = (ground_ratio(), imbalance());
                     let k = (1.0 + epsilon) * ratio;
                     let w = &inputs.motor_speeds;
                     model.wrench_from_thrusts(&std::array::from_fn(|i| {
@@ -386,12 +389,7 @@ pub(crate) fn truth_parts(
                     }))
                 }
                 EffectKind::BatteryVoltage => {
-                    let ratio = effects
-                        .ground_effect
-                        .map_or(1.0, |g| g.thrust_ratio(s.position.z));
-                    let eps = effects
-                        .rotor_imbalance
-                        .map_or([0.0; 4], |b| b.relative_errors);
+                    let (ratio, eps) = (ground_ratio(), imbalance());
                     let w = &inputs.motor_speeds;
                     let b = effects
                         .battery_voltage
