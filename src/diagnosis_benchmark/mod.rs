@@ -549,13 +549,7 @@ pub fn replay_flight(
     index: usize,
 ) -> Result<ReplayedFlight, FlightFailure> {
     let spec = draw_flight(options, index).map_err(|e| failure("draw", e.to_string()))?;
-    let config = spec.sim_config();
-    let output = caught("simulator", || tagk_sim::simulate(&config))?;
-    if output.metrics.aborted {
-        return Err(failure("aborted", "tracking error above 30 cm".into()));
-    }
-    let truth = GroundTruth::of_flight(&spec, &output, options.detectable)
-        .map_err(|e| failure("truth", e))?;
+    let (output, truth) = fly_drawn(options, &spec, &mut 0, &mut FlightTimings::default())?;
     let known_mass = spec.known_mass.then_some(truth.mass);
     Ok(ReplayedFlight {
         spec,
@@ -645,22 +639,21 @@ pub fn run_flight(options: &BenchmarkOptions, index: usize) -> (FlightResult, Fl
     (result, timings)
 }
 
-/// [`run_flight`]'s stages: the score, or the first stage's failure. Fills in the spec, the
-/// samples logged and the timings on the way.
-fn score_drawn_flight(
+/// Flies the drawn flight `spec` and computes its ground truth: the simulator's output and
+/// the truth, or the stage that failed (`simulator`, `aborted`, `truth`). Records the samples
+/// logged and the simulation's time on the way.
+fn fly_drawn(
     options: &BenchmarkOptions,
-    index: usize,
-    result: &mut FlightResult,
+    spec: &FlightSpec,
+    samples: &mut usize,
     timings: &mut FlightTimings,
-) -> Result<FlightScore, FlightFailure> {
-    let drawn = draw_flight(options, index).map_err(|e| failure("draw", e.to_string()))?;
-    let spec = result.spec.insert(drawn);
+) -> Result<(tagk_sim::SimOutput, GroundTruth), FlightFailure> {
     let start = Instant::now();
     let config = spec.sim_config();
     let flown = caught("simulator", || tagk_sim::simulate(&config));
     timings.simulate = start.elapsed().as_secs_f64();
     let output = flown?;
-    result.samples = output.log.len();
+    *samples = output.log.len();
     if output.metrics.aborted {
         return Err(failure(
             "aborted",
@@ -673,6 +666,20 @@ fn score_drawn_flight(
     }
     let truth = GroundTruth::of_flight(spec, &output, options.detectable)
         .map_err(|e| failure("truth", e))?;
+    Ok((output, truth))
+}
+
+/// [`run_flight`]'s stages: the score, or the first stage's failure. Fills in the spec, the
+/// samples logged and the timings on the way.
+fn score_drawn_flight(
+    options: &BenchmarkOptions,
+    index: usize,
+    result: &mut FlightResult,
+    timings: &mut FlightTimings,
+) -> Result<FlightScore, FlightFailure> {
+    let drawn = draw_flight(options, index).map_err(|e| failure("draw", e.to_string()))?;
+    let spec = result.spec.insert(drawn).clone();
+    let (output, truth) = fly_drawn(options, &spec, &mut result.samples, timings)?;
     let known_mass = spec.known_mass.then_some(truth.mass);
     let start = Instant::now();
     let log = output.log;
