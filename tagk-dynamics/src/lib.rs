@@ -7,6 +7,7 @@ pub mod effect;
 mod error;
 pub mod front_end;
 mod inertial;
+pub mod joint_effect;
 pub mod log;
 pub mod log_input;
 pub mod math;
@@ -24,6 +25,7 @@ pub use nalgebra;
 pub use effect::{BATTERY_COLUMN, BATTERY_REFERENCE_VOLTAGE, EffectKind, UnknownEffect};
 pub use error::DynamicsError;
 pub use inertial::{GateViolation, InertialParams, SafetyGate};
+pub use joint_effect::{COULOMB_VELOCITY_SCALE, JointEffectKind, JointEffects, UnknownJointEffect};
 pub use log::{FlightLog, LogError, LogSample};
 pub use quadrotor::QuadrotorModel;
 pub use rigid_body::{
