@@ -1,21 +1,29 @@
-//! Soak test: 10⁶ updates of every estimator on one long, realistic stream — sensor noise,
-//! outliers, payload steps and rank-deficient stretches — checking that nothing turns NaN, that
-//! the covariance of RLS and the Kalman filter stays bounded (with and without the wind-up
-//! guard) and that the estimate comes back within tolerance after every payload step.
+//! Soak test: 10⁶ updates of every estimator on one long, realistic stream.
 //!
-//! The stream (seeded, the same for every estimator): windows of 5 frames of the rigid-body
-//! regressor (`A` 30 × 10, as the TAG-K paper's estimator builds them), the wrench `A θ` plus
-//! Gaussian noise (5 mN, 50 µN m), and on each row with probability 10⁻³ an outlier of 100 σ.
-//! It runs in cycles of [`CYCLE`] windows: at the start of each cycle a payload of 40 % of the
-//! vehicle mass at a quarter of the arm length is attached (even cycles) or dropped (odd
-//! cycles); windows [`FLAT_START`]..[`FLAT_END`] of a cycle are a **rank-deficient stretch**
-//! (steady hover: no rotation, constant acceleration, so only a few directions of `θ` are
-//! excited), the rest random excitation about hover.
+//! The stream has sensor noise, outliers, payload steps and rank-deficient stretches.
+//! The soak checks that nothing turns NaN. It checks that the covariance of RLS and the Kalman
+//! filter stays bounded, with and without the wind-up guard. And it checks that the estimate
+//! comes back within tolerance after every payload step.
 //!
-//! Checks per estimator: finite estimates at every update; the largest covariance trace
-//! (RLS, KF); for every payload step, the number of windows until the mass error is within
-//! [`MASS_TOLERANCE`] of the payload mass, which must happen before the rank-deficient stretch;
-//! the largest mass error inside the stretches (the estimate must hold, not drift). RLS-high
+//! The stream is seeded, the same for every estimator. Its windows hold 5 frames of the
+//! rigid-body regressor (`A` 30 × 10, as the TAG-K paper's estimator builds them). The target
+//! is the wrench `A θ` plus Gaussian noise (5 mN, 50 µN m). Each row has, with probability
+//! 10⁻³, an outlier of 100 σ.
+//! It runs in cycles of [`CYCLE`] windows. At the start of each cycle a payload of 40 % of the
+//! vehicle mass, at a quarter of the arm length, is attached (even cycles) or dropped (odd
+//! cycles). Windows [`FLAT_START`]..[`FLAT_END`] of a cycle are a **rank-deficient stretch**:
+//! steady hover, no rotation, constant acceleration, so only a few directions of `θ` are
+//! excited. The rest is random excitation about hover.
+//!
+//! Checks per estimator:
+//! - finite estimates at every update;
+//! - the largest covariance trace (RLS, KF);
+//! - for every payload step, the number of windows until the mass error is within
+//!   [`MASS_TOLERANCE`] of the payload mass, which must happen before the rank-deficient
+//!   stretch;
+//! - the largest mass error inside the stretches (the estimate must hold, not drift).
+//!
+//! RLS-high
 //! (`λ = 0.96`) runs twice, without and with the wind-up guard `trace(P) ≤ p₀ n`.
 //!
 //! ```text

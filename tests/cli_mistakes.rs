@@ -1,6 +1,10 @@
-//! Mistakes a user makes on the command line of `tagk diagnose` (issue #25): printed commands
-//! that must be safe to paste, outputs that cannot be written, a mass out of any physical
-//! range, several logs that are the same data or not the same vehicle, errors printed once.
+//! Mistakes a user makes on the command line of `tagk diagnose` (issue #25).
+//!
+//! - printed commands that must be safe to paste;
+//! - outputs that cannot be written;
+//! - a mass out of any physical range;
+//! - several logs that are the same data or not the same vehicle;
+//! - errors printed once.
 
 mod common;
 
@@ -302,9 +306,10 @@ fn the_same_data_twice_is_refused() {
     assert!(!dir.join("out.json").exists());
 }
 
-/// A heavier vehicle among three logs (a 17 g payload on a 35 g body, from take-off) is named
-/// with its own mass and interval against the others', left out of the joint fit, and its
-/// `agrees` is false — in the terminal, the JSON and the HTML. The joint mass is the others'.
+/// A heavier vehicle among three logs: a 17 g payload on a 35 g body, from take-off.
+///
+/// It is named with its own mass and interval against the others' and left out of the joint
+/// fit. Its `agrees` is false in the terminal, the JSON and the HTML. The joint mass is the others'.
 #[test]
 fn a_heavier_vehicle_among_three_logs_is_named_and_not_blended() {
     let dir = tmpdir("heavier");

@@ -1,17 +1,26 @@
-//! The round trip of issue #13: a simulator log rewritten into a "foreign" layout (three
-//! streams in three files: gyro in deg/s FRD, rotor speeds in rpm and no wrench, motion capture
-//! in mm / NED with an `xyzw` quaternion at half the rate on a shifted clock; time stamps in ms
-//! and µs) and read back with the Crazyflie vehicle and a column mapping gives the same
-//! diagnosis and the same fitted θ as the original log; the accelerometer (specific force, FRD,
-//! in g) read back with the motion capture's attitude gives the simulator's own world
-//! acceleration; and a known clock offset of the rotor stream is found by the `time-delay`
-//! effect.
+//! The round trip of issue #13: a simulator log rewritten into a "foreign" layout.
 //!
-//! The simulator logs at 50 Hz (its control rate) and cannot log at its 500 Hz integration
-//! rate, so the streams are written at the log rate or below: the gyro stream (primary) at the
-//! log's time stamps, the rotor stream at the same rate, the motion capture at 25 Hz on time
-//! stamps shifted by 10 ms (values linearly interpolated from the log: what a camera system
-//! on its own clock would record, up to the interpolation error).
+//! The layout has three streams in three files:
+//! - the gyro in deg/s, FRD;
+//! - the rotor speeds in rpm, and no wrench;
+//! - the motion capture in mm / NED with an `xyzw` quaternion, at half the rate on a shifted
+//!   clock.
+//!
+//! Time stamps are in ms and µs.
+//! Read back with the Crazyflie vehicle and a column mapping, it gives the same diagnosis and
+//! the same fitted θ as the original log.
+//! The accelerometer (specific force, FRD, in g), read back with the motion capture's
+//! attitude, gives the simulator's own world acceleration.
+//! And the `time-delay` effect finds a known clock offset of the rotor stream.
+//!
+//! The simulator logs at 50 Hz, its control rate, and this log cannot have its 500 Hz
+//! integration rate. So the streams are written at the log rate or below:
+//! - the gyro stream (primary) at the log's time stamps;
+//! - the rotor stream at the same rate;
+//! - the motion capture at 25 Hz on time stamps shifted by 10 ms.
+//!
+//! The motion capture's values are linearly interpolated from the log. That is what a camera
+//! system on its own clock would record, up to the interpolation error.
 
 mod common;
 
@@ -135,10 +144,12 @@ fn specific_force(log: &FlightLog, i: usize) -> Vector3<f64> {
     tagk::dynamics::proper_acceleration(&r, &Vector3::from(a))
 }
 
-/// Writes `log` as `imu.csv` (gyro; and, if the log has accelerations, the accelerometer
-/// `acc_x..acc_z` in g, FRD, as an autopilot logs it), `motors.csv` (rpm; its clock
-/// `rotor_clock_offset` s late) and `mocap.csv` (25 Hz, 10 ms later clock) plus `map.toml`;
-/// returns the mapping path.
+/// Writes `log` as three files plus `map.toml`, and returns the mapping path.
+///
+/// - `imu.csv`: the gyro and, if the log has accelerations, the accelerometer `acc_x..acc_z`
+///   in g, FRD, as an autopilot logs it;
+/// - `motors.csv`: rpm, its clock `rotor_clock_offset` s late;
+/// - `mocap.csv`: 25 Hz, on a clock 10 ms later.
 fn write_foreign(log: &FlightLog, dir: &Path, rotor_clock_offset: f64) -> PathBuf {
     write_foreign_with(log, dir, rotor_clock_offset, None)
 }
@@ -379,11 +390,12 @@ fn trimmed(original: &FlightLog, offset: usize, len: usize) -> FlightLog {
     r
 }
 
-/// Issue #13's accelerometer: the log's accelerations written as an autopilot's accelerometer
-/// (specific force, FRD, in g) and read back through the mapping with the attitude of the
-/// motion capture give the simulator's own world acceleration, within the bound of the
-/// attitude's interpolation; and the diagnosis of the read-back log is that of the original
-/// with its exact accelerations.
+/// Issue #13's accelerometer.
+///
+/// The log's accelerations are written as an autopilot's accelerometer (specific force, FRD,
+/// in g). Read back through the mapping with the motion capture's attitude, they give the
+/// simulator's own world acceleration, within the bound of the attitude's interpolation.
+/// The read-back log's diagnosis is that of the original with its exact accelerations.
 #[test]
 fn the_accelerometer_read_back_is_the_simulators_world_acceleration() {
     let dir = tmpdir("accelerometer");
@@ -753,11 +765,12 @@ fn the_readme_walkthrough_runs_on_the_shipped_files() {
     }
 }
 
-/// The same flight without the accelerometer columns (a log that has only motion capture for
-/// the translation): the reader derives nothing, the diagnosis differentiates the 25 Hz motion
-/// capture's velocity (Savitzky–Golay), which smooths `fz` enough that every drag candidate
-/// fits a negative vertical coefficient and is rejected as implausible: no effect is found,
-/// the honest verdict on such a log (the README says so).
+/// The same flight without the accelerometer columns: only motion capture for the translation.
+///
+/// The reader derives nothing. The diagnosis differentiates the 25 Hz motion capture's
+/// velocity (Savitzky–Golay). That smooths `fz` enough that every drag candidate fits a
+/// negative vertical coefficient and is rejected as implausible. No effect is found: the
+/// honest verdict on such a log (the README says so).
 #[test]
 fn without_the_accelerometer_the_derived_accelerations_still_run() {
     let dir = tmpdir("derived");
@@ -785,12 +798,14 @@ fn without_the_accelerometer_the_derived_accelerations_still_run() {
     }
 }
 
-/// The proof at the issue's rates: a simulator log recorded at its 500 Hz integration rate
-/// (`LogRate::Physics`: instantaneous IMU samples, no `ω̇`), rewritten with the IMU (gyro and
-/// accelerometer) and the rotor speeds at 500 Hz and the motion capture at 100 Hz in their own
-/// files, read back through the mapping and the vehicle: the same staircase as the original
-/// log, and θ within the fit's 95 % interval of the original's (the interpolation of the
-/// 100 Hz motion capture is the only difference).
+/// The proof at the issue's rates.
+///
+/// A simulator log is recorded at its 500 Hz integration rate (`LogRate::Physics`:
+/// instantaneous IMU samples, no `ω̇`). It is rewritten into files of their own: the IMU (gyro
+/// and accelerometer) and the rotor speeds at 500 Hz, the motion capture at 100 Hz. Read back
+/// through the mapping and the vehicle, it gives the same staircase as the original log. Its θ
+/// lies within the fit's 95 % interval of the original's. The interpolation of the 100 Hz
+/// motion capture is the only difference.
 #[test]
 fn at_500_hz_imu_and_100_hz_motion_capture_the_diagnosis_is_the_same() {
     let dir = tmpdir("rates");

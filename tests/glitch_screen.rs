@@ -1,9 +1,13 @@
-//! Issue #25, the glitch screen: a valid simulator log with a run of three bad `fz` samples,
-//! one bad rotor speed and an attitude jump the gyro does not show gets each named by the
-//! file and line the user opens (terminal, JSON, HTML); a merged log names the line of its
-//! time base's stream and says plainly when a channel's line is not known; a quaternion's
-//! sign flip is no glitch; and valid logs give none, nor a scale finding (the false-alarm
-//! count over 50 realistic flights of different seeds, release only).
+//! Issue #25, the glitch screen.
+//!
+//! A valid simulator log gets a run of three bad `fz` samples, one bad rotor speed and an
+//! attitude jump the gyro does not show. Each is named by the file and line the user opens
+//! (terminal, JSON, HTML).
+//! A merged log names the line of its time base's stream. It says plainly when a channel's
+//! line is not known.
+//! A quaternion's sign flip is no glitch.
+//! Valid logs give none, nor a scale finding: the false-alarm count over 50 realistic flights
+//! of different seeds (release only).
 
 mod common;
 

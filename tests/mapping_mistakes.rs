@@ -1,7 +1,8 @@
-//! Issue #25's table, the rows about mappings and streams, on the shipped foreign flight
-//! (`examples/data/foreign-flight`, three streams and `map.toml`) with one mistake at a time:
-//! `tagk diagnose` refuses with a message naming the cause on its standard error, or warns in
-//! the terminal, the JSON and the HTML report.
+//! Issue #25's table, the rows about mappings and streams.
+//!
+//! They run on the shipped foreign flight (`examples/data/foreign-flight`, three streams and
+//! `map.toml`) with one mistake at a time. `tagk diagnose` refuses with a message naming the
+//! cause on its standard error, or warns in the terminal, the JSON and the HTML report.
 
 mod common;
 

@@ -1,9 +1,12 @@
-//! Issue #25, items 2 and 3: a valid simulator log with one mistake in it — a gyro in rad/s
-//! read as deg/s, an accelerometer in g read as m/s², a velocity in mm/s, swapped rotor spins
-//! in the vehicle file, one glitch in `fz` — is told in plain words (a typed error, or the
-//! glitch excluded and named in the terminal, the JSON and the HTML report), and the checks
-//! stay silent on the valid logs: several seeds of realistic logs here, the diagnosis
-//! benchmark's 300 flights in the release-only measurement at the end.
+//! Issue #25, items 2 and 3: a valid simulator log with one mistake in it is told in plain
+//! words.
+//!
+//! The mistakes: a gyro in rad/s read as deg/s, an accelerometer in g read as m/s², a velocity
+//! in mm/s, swapped rotor spins in the vehicle file, one glitch in `fz`.
+//! Each gives a typed error, or the glitch is excluded and named in the terminal, the JSON and
+//! the HTML report.
+//! The checks stay silent on valid logs: several seeds of realistic logs here, and the
+//! diagnosis benchmark's 300 flights in the release-only measurement at the end.
 
 mod common;
 
@@ -76,9 +79,11 @@ fn a_gyro_in_rad_s_read_as_deg_s_is_named() {
     assert_eq!(report.scale_checks[0].severity, Severity::Accepted);
 }
 
-/// Without a vehicle file, on the README's realistic example (whose gyro noise hid the
-/// attitude's rate from a comparison of rates: correlation 0.24): a gyro in rad/s mapped as
-/// deg/s, and one in deg/s mapped as rad/s, are named by the gyro's rotation over windows.
+/// Without a vehicle file, on the README's realistic example, gyro unit mistakes are named.
+///
+/// That log's gyro noise hid the attitude's rate from a comparison of rates (correlation
+/// 0.24). A gyro in rad/s mapped as deg/s, and one in deg/s mapped as rad/s, are named by the
+/// gyro's rotation over windows.
 #[test]
 fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
     let dir = tmpdir("gyro-realistic");
@@ -98,9 +103,11 @@ fn a_gyro_unit_mistake_is_named_on_a_realistic_log_without_a_vehicle() {
     }
 }
 
-/// A log in the project's own format whose `ax..az` hold the world-frame specific force
-/// (`p̈ − g`, +9.81 m/s² on z at hover), as a public benchmark stores them, is refused with
-/// the cause before the fit, as a mapped log is by its reader.
+/// A log in the project's own format whose `ax..az` hold the world-frame specific force is
+/// refused.
+///
+/// A public benchmark stores them so: `p̈ − g`, +9.81 m/s² on z at hover. The log is refused
+/// with the cause before the fit, as a mapped log is by its reader.
 #[test]
 fn a_native_log_with_the_specific_force_in_ax_az_is_refused() {
     let dir = tmpdir("native-sf");

@@ -95,11 +95,12 @@ fn args() -> DiagnoseArgs {
     a
 }
 
-/// Motion capture late against the onboard IMU and motor telemetry (the usual case: the pose
-/// comes over a network), on a log without an accelerometer, whose forces then come from the
-/// motion-capture velocity while the torques come from the gyro: the gyro's offset against the
-/// attitude is measured, the pose and the velocity are moved onto the IMU's clock, and the
-/// staircase finds the drag and no timing effect.
+/// Motion capture late against the onboard IMU and motor telemetry: the usual case, the pose
+/// comes over a network.
+///
+/// The log has no accelerometer, so its forces come from the motion-capture velocity and its
+/// torques from the gyro. The gyro's offset against the attitude is measured. The pose and the
+/// velocity are moved onto the IMU's clock. The staircase finds the drag and no timing effect.
 #[test]
 fn late_motion_capture_is_moved_onto_the_imu_clock() {
     let mut log = flight();
@@ -241,10 +242,12 @@ fn given_shifts_and_no_align_are_honoured_and_reproduced() {
     }
 }
 
-/// A `--shift` that contradicts the measured offset (issue #25): the pose and the velocity 3
-/// samples late, shifted by the right amount, get no warning; with the wrong sign, or a gyro shift that the
-/// gyro's own timing against the pose contradicts, the stream timing says so (terminal
-/// table; the JSON's `streams[].warning`; the HTML prints the table).
+/// A `--shift` that contradicts the measured offset (issue #25).
+///
+/// The pose and the velocity are 3 samples late. Shifted by the right amount, they get no
+/// warning. With the wrong sign, or with a gyro shift that the gyro's own timing against the
+/// pose contradicts, the stream timing says so. It does in the terminal's table, the JSON's
+/// `streams[].warning` and the HTML's table.
 #[test]
 fn a_given_shift_that_contradicts_the_measured_offset_is_flagged() {
     let log = flight();

@@ -3,15 +3,15 @@
 //!
 //! Proof: a simulator log (medium noise) written with its rotor speeds `w1..w4` and WITHOUT
 //! the wrench columns `fx..tz`:
-//! - with a vehicle file whose `k_f` is 15 % too large, `--mass 0.035` recommends
-//!   `thrust-gain` (ranked first), and adding it (`--with thrust-gain`) fits the gain
-//!   `1/1.15 − 1 = −13.04 %` within ±0.5 points, after which nothing more is recommended;
-//! - with the correct vehicle, nothing is recommended and the fitted θ equals the fit of the
-//!   original log (with its wrench columns) to 1e-9 relative (the simulator logs the wrench of
-//!   its rotor speeds with the same formula, so the wrench is recomputed bit for bit);
-//! - a log with a hidden 20 ms motor lag, written without the wrench, read with the preset:
-//!   `motor-lag` is ranked first and recommended, acting on the rotor speeds (thrust ∝ lagged
-//!   ω²) with a fitted time constant within a factor 1.5 of 20 ms;
+//! - With a vehicle file whose `k_f` is 15 % too large, `--mass 0.035` recommends
+//!   `thrust-gain` (ranked first). Adding it (`--with thrust-gain`) fits the gain
+//!   `1/1.15 − 1 = −13.04 %` within ±0.5 points. After that nothing more is recommended.
+//! - With the correct vehicle, nothing is recommended. The fitted θ equals the fit of the
+//!   original log (with its wrench columns) to 1e-9 relative. The simulator logs the wrench of
+//!   its rotor speeds with the same formula, so the wrench is recomputed bit for bit.
+//! - A log with a hidden 20 ms motor lag is written without the wrench and read with the
+//!   preset. `motor-lag` is ranked first and recommended, acting on the rotor speeds
+//!   (thrust ∝ lagged ω²). Its fitted time constant is within a factor 1.5 of 20 ms.
 //! - without a vehicle, the log is refused with an error naming the body wrench and the
 //!   columns that could provide it.
 

@@ -55,9 +55,9 @@ pub const PAPER_P0: f64 = 1e3;
 
 /// Covariance wind-up guard of [`Rls`](crate::Rls).
 ///
-/// With forgetting (`λ < 1`) and windows that do not excite every direction of `θ`, the
-/// covariance grows by `1/λ` per window in the unexcited directions, without bound
-/// ("wind-up"), until a single new window swings the estimate violently or `P` overflows.
+/// With forgetting (`λ < 1`), windows may leave some directions of `θ` unexcited.
+/// In those directions the covariance grows by `1/λ` per window, without bound ("wind-up").
+/// Then a single new window swings the estimate violently, or `P` overflows.
 /// The guard is **off** by default so the TAG-K paper's baselines stay as published.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum WindupGuard {

@@ -1,9 +1,10 @@
 //! The state and the block update shared by RLS and the Kalman filter, over one buffer of
 //! caller-provided (or owned) storage.
 //!
-//! Given the prior covariance `P̃ = P + q·I` (`q = σ_Q²` for the Kalman filter, `0` for RLS),
-//! a window `A` (`m × n`, row-major), the residual `r = b − A θ` and a diagonal term `d`
-//! (`λ` for RLS, `σ_R²` for the Kalman filter), the portable kernel computes
+//! The inputs are the prior covariance `P̃ = P + q·I`, a window `A` (`m × n`, row-major), the
+//! residual `r = b − A θ` and a diagonal term `d`.
+//! For the Kalman filter `q = σ_Q²` and `d = σ_R²`; for RLS `q = 0` and `d = λ`.
+//! From them the portable kernel computes
 //!
 //! 1. `W = A P̃` (`m × n`, one dot product per entry: rows of the symmetric `P`);
 //! 2. `S = W Aᵀ + d·I` (lower triangle) and `S = L Lᵀ` ([`cholesky_in_place`]);
@@ -16,12 +17,12 @@
 //! refused window leaves the state exactly as it was. The `faer` backend (host, `f64`) runs
 //! the same algorithm with faer's products; see `faer_kernel.rs`.
 //!
-//! **Extreme dynamic range.** When a window pins a direction far below the rounding level of
-//! the prior (`p₀ ‖a‖² / d ≳ 10¹²`, e.g. the first window of "KF-low": `P₀ = 10³`,
-//! `σ_R² = 10⁻¹⁰`), either the Cholesky factorisation of the numerically singular `S` fails,
-//! or the subtraction of step 4 leaves a diagonal entry with no correct digit
-//! (`P⁺_kk ≤ 10⁴ ε₆₄ · P̃_kk`, `ε₆₄ = 2.2·10⁻¹⁶`; the check costs `n` comparisons of values
-//! the update computes anyway). That window is then redone in information form,
+//! **Extreme dynamic range.** A window can pin a direction far below the rounding level of the
+//! prior (`p₀ ‖a‖² / d ≳ 10¹²`). The first window of "KF-low" does: `P₀ = 10³`,
+//! `σ_R² = 10⁻¹⁰`. Then either the Cholesky factorisation of the numerically singular `S`
+//! fails, or step 4's subtraction leaves a diagonal entry with no correct digit
+//! (`P⁺_kk ≤ 10⁴ ε₆₄ · P̃_kk`, `ε₆₄ = 2.2·10⁻¹⁶`).
+//! The check costs `n` comparisons of values the update computes anyway. That window is then redone in information form,
 //! `P⁺ = (P̃⁻¹ + Aᵀ A / d)⁻¹`, `Δθ = P⁺ Aᵀ r / d`, with Cholesky factorisations of `n × n`
 //! matrices (about `n³ + m n²`, on such windows only). The threshold is the same number in
 //! `f32`, where it catches only a complete cancellation (a diagonal entry that is zero or
@@ -43,11 +44,14 @@ use tagk_core::{ConfigError, EstimatorError, Real, Storage, UpdateInfo, validate
 use crate::Backend;
 
 /// Length of the buffer an [`Rls`](crate::Rls) or [`KalmanFilter`](crate::KalmanFilter) of
-/// dimension `n` and window capacity `m_max` needs with every feature:
-/// `2n² + 4n + 2·m_max·n + m_max² + 3·m_max` scalars (the estimate twice, so that an update
-/// commits by switching copies; the covariance and an `n × n` second copy, where the faer
-/// backend computes its posterior and the information-form fallback its `P⁺`; the block
-/// update's workspace). The `Vec` constructors allocate this much.
+/// dimension `n` and window capacity `m_max` needs with every feature.
+///
+/// It is `2n² + 4n + 2·m_max·n + m_max² + 3·m_max` scalars.
+/// The estimate is kept twice, so that an update commits by switching copies.
+/// The covariance has an `n × n` second copy: the faer backend computes its posterior there,
+/// and the information-form fallback its `P⁺`.
+/// The rest is the block update's workspace.
+/// The `Vec` constructors allocate this much.
 ///
 /// A `const fn`, so firmware can size a static array: `[0.0; covariance_buffer_len(120, 30)]`.
 /// [`compact_covariance_buffer_len`] is about `n²` scalars less, without the fallback.
@@ -642,10 +646,11 @@ pub(crate) struct Fallback<'a, T> {
 }
 
 impl<T: Real> Fallback<'_, T> {
-    /// The fallback of the module docs: `P⁺ = (P̃⁻¹ + Aᵀ A / d)⁻¹` into `p_out` (full, not
-    /// yet scaled by `s` nor checked) and, if `dtheta` is given,
-    /// `Δθ = P⁺ Aᵀ r / d` into it (`r_i = r[i·stride]`), with `P̃ = p_prev + q·I`. Plain
-    /// loops: this path is rare.
+    /// The fallback of the module docs, with `P̃ = p_prev + q·I`.
+    ///
+    /// It writes `P⁺ = (P̃⁻¹ + Aᵀ A / d)⁻¹` into `p_out`, full, not yet scaled by `s` nor
+    /// checked. If `dtheta` is given, it writes `Δθ = P⁺ Aᵀ r / d` into it
+    /// (`r_i = r[i·stride]`). Plain loops: this path is rare.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn run(
         self,

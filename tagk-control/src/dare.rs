@@ -18,10 +18,10 @@
 //!   equations*). Its `k`-th iterate equals the `2ᵏ`-th iterate of the difference equation
 //!   started from `P = 0`, so it converges quadratically. It cannot use a warm start.
 //!
-//! Both are generic over nalgebra dimensions: `SMatrix<f64, 12, 12>` / `SMatrix<f64, 12, 4>`
-//! (statically sized: no heap allocation on success) and `DMatrix<f64>` (workspace allocated
-//! once per call, nothing inside the loop) go through the same code; the hot kernels have a
-//! constant-size fast path for `n = 12`.
+//! Both are generic over nalgebra dimensions, and both sizes go through the same code.
+//! `SMatrix<f64, 12, 12>` / `SMatrix<f64, 12, 4>` are statically sized: no heap allocation on
+//! success. `DMatrix<f64>` allocates its workspace once per call, nothing inside the loop.
+//! The hot kernels have a constant-size fast path for `n = 12`.
 //! Linear systems are solved by Cholesky (for `R + BᵀPB`) and partially pivoted LU
 //! (for `I + GH` in the doubling); no inverse is formed.
 

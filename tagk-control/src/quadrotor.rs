@@ -49,9 +49,10 @@
 //!
 //! Hovering means `p̈ = 0`, `ω = ω̇ = 0`, so `a = −Rᵀ g_w` and the required actuator wrench
 //! is `f = m a`, `τ = h × a` (docs/CONVENTIONS.md §3). A quadrotor can push only along body
-//! `z`, so `f ∥ e_z` forces a level attitude (any yaw): `a = (0, 0, g)`, `f_z = m g`,
-//! `τ = h × (0, 0, g) = g (h_y, −h_x, 0)`: the rotors must cancel the gravity torque about
-//! the origin `c × m g_b`, so with a centre-of-mass offset the four trim thrusts differ.
+//! `z`, so `f ∥ e_z` forces a level attitude (any yaw).
+//! Then `a = (0, 0, g)`, `f_z = m g` and `τ = h × (0, 0, g) = g (h_y, −h_x, 0)`.
+//! The rotors must cancel the gravity torque about the origin, `c × m g_b`.
+//! So with a centre-of-mass offset the four trim thrusts differ.
 //! They are `M_mix⁻¹ [m g, g h_y, −g h_x, 0]`.
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, UnitQuaternion, Vector3};

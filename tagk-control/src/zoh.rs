@@ -14,8 +14,9 @@
 //! where `K` is the smallest order with `θ^{K+1}/(K+1)! ≤ 1e-17` (the truncation error of both
 //! series is below that times `e^θ`), then `s` doublings `Γ(2t) = Γ(t) + Φ(t) Γ(t)`,
 //! `Φ(2t) = Φ(t)²`. For the 50 Hz hover quadrotor `θ ≈ 0.2`: no doubling and `K = 12`, i.e.
-//! 13 products of 12×12 matrices — about 1.5× faster than nalgebra's Padé exponential of
-//! the 16×16 augmented matrix (bench `linearize/*`), against which it is tested.
+//! 13 products of 12×12 matrices.
+//! That is about 1.5× faster than nalgebra's Padé exponential of the 16×16 augmented matrix
+//! (bench `linearize/*`), against which it is tested.
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
 

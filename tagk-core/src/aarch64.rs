@@ -1,11 +1,11 @@
 //! NEON kernels of the greedy iterations on aarch64 (NEON is part of the base instruction
 //! set there, so they are chosen at compile time, with or without `std`).
 //!
-//! The Gram matrix is built from a transposed copy of the window in sixteen `q` accumulators:
-//! `f64` in 4 × 8 tiles, with the prior residual computed in the transposing pass; `f32` in
-//! 8 × 8 tiles (its residual from the portable loop); the greedy loop
-//! is the eight-lane loop of the `lanes` module, `f64` as four `q` registers per chunk and
-//! `f32` as two. Same operations in the same order as [`crate::greedy::Portable`] (multiplies and adds
+//! The Gram matrix is built from a transposed copy of the window in sixteen `q` accumulators.
+//! `f64` uses 4 × 8 tiles and computes the prior residual in the transposing pass.
+//! `f32` uses 8 × 8 tiles and takes its residual from the portable loop.
+//! The greedy loop is the eight-lane loop of the `lanes` module: four `q` registers per chunk
+//! in `f64`, two in `f32`. Same operations in the same order as [`crate::greedy::Portable`] (multiplies and adds
 //! separate, never fused), so estimates are bit-identical to x86-64's and a microcontroller's.
 
 use core::any::TypeId;

@@ -10,9 +10,9 @@
 //! - Vectors of the window (residual `r`, row norms, coefficients) are padded with zeros to
 //!   `p = padded(m)` entries, a multiple of 8. They are handled as chunks of 8 lanes. The Gram
 //!   matrix is `p × p` with row stride `p`: rows `≥ m` unspecified, zero in columns `≥ m`.
-//! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j` (eight
-//!   accumulators fit a Cortex-M7's registers), combined as `t_l = s_l + s_{l+4}`, then
-//!   `(t₀ + t₂) + (t₁ + t₃)`; `M = max_j r_j² · (1/‖a_j‖²)`.
+//! - `S = Σ_j r_j²` runs over eight partial sums (`j mod 8`), each in order of `j`.
+//!   Eight accumulators fit a Cortex-M7's registers. They combine as `t_l = s_l + s_{l+4}`,
+//!   then `(t₀ + t₂) + (t₁ + t₃)`. And `M = max_j r_j² · (1/‖a_j‖²)`.
 //! - Threshold `θ = M · ½ + S · (½/‖A‖_F²)`; candidate weights `w_j = r_j²` where
 //!   `r_j² · (1/‖a_j‖²) ≥ θ`, else 0 (Bai & Wu's set, multiplied through by `‖r‖²`).
 //! - Rows are sampled in lane-major order: lane `l = j mod 8` first, then chunk
@@ -22,8 +22,8 @@
 //!     `x_l ← x_l + x_{l−d}`, `d = 1, 2, 4` (lanes `l ≥ d`, from the values before the step).
 //!   - Running sums `P_{c,l} = x_{l−1} + V_{c,l}` (`l ≥ 1`; `P_{c,0} = V_{c,0}`); total `x_7`.
 //! - With `target = u · total`, `u ∈ [0, 1)`, the row drawn is the first in that order with
-//!   `w_j > 0` and `P_j > target`; on round-off, the last in that order with `w_j > 0`; if
-//!   every weight is zero, the first `j` of largest ratio.
+//!   `w_j > 0` and `P_j > target`. On round-off it is the last in that order with `w_j > 0`.
+//!   If every weight is zero, it is the first `j` of largest ratio.
 //! - `α = r_i · (1/‖a_i‖²)`; `r ← r − α g_i` is a multiply then a subtraction (never fused),
 //!   then `r_i ← 0` exactly.
 
@@ -266,10 +266,12 @@ impl Draws<'_> {
 /// The per-window kernels. Implementations must follow the arithmetic order in the module
 /// documentation to the last bit.
 pub(crate) trait Kernels<T: Real>: Copy {
-    /// `G = A Aᵀ` (`p × p`, stride `p`; rows `< m` exact and zero in columns `≥ m`, rows
-    /// `≥ m` unspecified), each entry summed in order of the column index `k`, and
-    /// `r = b − A x` (`p` entries, zero from `m` on), each product summed as
-    /// [`crate::linalg::dot`] does. `at` is scratch of `n·p` entries (and
+    /// `G = A Aᵀ` and `r = b − A x`.
+    ///
+    /// `G` is `p × p` with stride `p`: rows `< m` exact and zero in columns `≥ m`, rows `≥ m`
+    /// unspecified. Each entry is summed in order of the column index `k`.
+    /// `r` has `p` entries, zero from `m` on, each product summed as [`crate::linalg::dot`]
+    /// does. `at` is scratch of `n·p` entries (and
     /// `linalg::TRANSPOSED_SLACK` more, which may be read).
     #[allow(clippy::too_many_arguments)]
     fn gram_and_residual(

@@ -11,9 +11,10 @@
 //! | [`GreedyKaczmarz`] (GRK) | Bai & Wu's greedy rule (below) | last iterate |
 //! | [`TagK`] (TAG-K) | as GRK | average of the iterates after the burn-in |
 //!
-//! **Greedy rule** (Bai & Wu 2018, with `r = b − A x`):
-//! `ε = ½ (max_i (r_i²/‖a_i‖²)/‖r‖² + 1/‖A‖_F²)`, candidates `U = {i : r_i² ≥ ε ‖r‖² ‖a_i‖²}`,
-//! and `i ∈ U` drawn with probability `r_i² / Σ_{j∈U} r_j²`. (The TAG-K paper writes the test
+//! **Greedy rule** (Bai & Wu 2018, with `r = b − A x`).
+//! The threshold is `ε = ½ (max_i (r_i²/‖a_i‖²)/‖r‖² + 1/‖A‖_F²)`.
+//! The candidates are `U = {i : r_i² ≥ ε ‖r‖² ‖a_i‖²}`.
+//! A row `i ∈ U` is drawn with probability `r_i² / Σ_{j∈U} r_j²`. (The TAG-K paper writes the test
 //! without squares; the squared form is the dimensionally consistent one used here.)
 //!
 //! **Tail averaging.** With `T` iterations and burn-in `t_b`, the estimate is
@@ -30,9 +31,9 @@
 //!   Gram matrix `G = A Aᵀ`, built once per window with register-tiled kernels (`m(m+1)/2`
 //!   dot products of length `n`, i.e. `m²n` flops), plus `O(m)` branch-free work per
 //!   iteration for selection and the residual update. No residual is ever recomputed from
-//!   `A`. (Computing Gram columns lazily, only for the rows chosen, was measured and
-//!   rejected: greedy selection visits about half of the rows at `n = 10` and 80 % at
-//!   `n = 120` in a window of 30, and one-at-a-time dot products are latency-bound.)
+//!   `A`. Computing Gram columns lazily, only for the rows chosen, was measured and
+//!   rejected. In a window of 30, greedy selection visits about half of the rows at
+//!   `n = 10` and 80 % at `n = 120`; one-at-a-time dot products are latency-bound.
 //! - Randomised variants: `2n` flops per iteration (a dot product and an update of `x`), the
 //!   row drawn by binary search over cumulative row norms.
 //! - Finish: `x̄ = x₀ + Aᵀc̄` (or `x₀ + Aᵀc`): `2mn` flops.
@@ -126,9 +127,11 @@ impl Default for KaczmarzConfig {
     }
 }
 
-/// TAG-K as the paper runs it (its Table II/III configuration, used by the firmware and the
-/// experiments): `T = m` projections per window, tail average over the last half
-/// (`t_b = ⌊m/2⌋`), warm start from the previous average, zero tolerance, seed 0. The same
+/// TAG-K as the paper runs it: its Table II/III configuration, used by the firmware and the
+/// experiments.
+///
+/// It makes `T = m` projections per window and averages the last half (`t_b = ⌊m/2⌋`).
+/// It warm-starts from the previous average, with zero tolerance and seed 0. The same
 /// value as [`KaczmarzConfig::default`], named so that the paper's setting has one home.
 pub fn tagk_paper_config() -> KaczmarzConfig {
     KaczmarzConfig::default()

@@ -1,6 +1,9 @@
-//! The greedy loop of [`crate::greedy::iterate_portable`] written once over chunks of eight
-//! lanes ([`Lanes8`]), for the SIMD units without AVX-512's masks and 512-bit registers: AVX2
-//! (`f64` as two `ymm`, `f32` as one) and NEON (`f64` as four `q` registers, `f32` as two).
+//! The greedy loop of [`crate::greedy::iterate_portable`], written once over chunks of eight
+//! lanes ([`Lanes8`]).
+//!
+//! It serves the SIMD units without AVX-512's masks and 512-bit registers.
+//! On AVX2 a chunk is two `ymm` in `f64`, one in `f32`.
+//! On NEON it is four `q` registers in `f64`, two in `f32`.
 //!
 //! A chunk of eight lanes is exactly a chunk of the documented order (see the `greedy`
 //! module). So every operation below is one of the portable loop's, lane for lane, in the same
@@ -77,9 +80,10 @@ pub(crate) trait Lanes8: Copy {
     /// The scalar of a lane.
     type T: Real;
 
-    /// Whether [`iterate_chunks`] keeps the residual negated in memory, `−r`, so that its
-    /// update `−r + α g` is an add with the residual as a memory operand (x86) instead of a
-    /// load and a subtraction; on a load/store architecture it gains nothing.
+    /// Whether [`iterate_chunks`] keeps the residual negated in memory, `−r`.
+    ///
+    /// Then its update `−r + α g` is an add with the residual as a memory operand (x86),
+    /// instead of a load and a subtraction. On a load/store architecture it gains nothing.
     const NEGATED_RESIDUAL: bool = false;
 
     /// Eight scalars from `p`.

@@ -11,8 +11,8 @@ pub use crate::error::NotPositiveDefinite;
 /// `xᵀy` for equal-length slices (extra entries of the longer slice are ignored).
 ///
 /// Summation order: four interleaved partial sums over the first `4⌊len/4⌋` entries, combined
-/// as `(s₀ + s₂) + (s₁ + s₃)`, then the remaining entries added in order — the same order as
-/// `dot4`, so a value does not depend on which kernel computed it.
+/// as `(s₀ + s₂) + (s₁ + s₃)`, then the remaining entries added in order.
+/// `dot4` sums in the same order, so a value does not depend on which kernel computed it.
 #[inline(always)]
 pub fn dot<T: Real>(x: &[T], y: &[T]) -> T {
     let len = x.len().min(y.len());
@@ -68,9 +68,10 @@ pub(crate) fn dot4<T: Real>(x: &[T], rows: [&[T]; 4]) -> [T; 4] {
     out
 }
 
-/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix, written as a full symmetric
-/// `m × m` row-major matrix into `gram` (at least `m²` entries), using `dot4` tiles on the
-/// upper triangle: `m(m+1)/2` dot products of length `n`.
+/// The Gram matrix `G = A Aᵀ` of a row-major `m × n` matrix.
+///
+/// It is written as a full symmetric `m × m` row-major matrix into `gram` (at least `m²`
+/// entries). `dot4` tiles cover the upper triangle: `m(m+1)/2` dot products of length `n`.
 #[cfg(test)]
 pub(crate) fn gram<T: Real>(a: &[T], n: usize, m: usize, gram: &mut [T]) {
     for i in 0..m {

@@ -1,10 +1,13 @@
 //! The synthetic workload of the TAG-K paper's Table III: seeded streams of windows
-//! `b = A θ* + v`, shared by the microcontroller harness (`tagk-mcu`), the host benchmarks and
-//! the simulator's `dimension_sweep`, so that all of them time the same windows.
+//! `b = A θ* + v`.
 //!
-//! A stream draws from ChaCha8 seeded with `seed` (Table III: [`SEED`]` + n`): entries of `A`
-//! uniform in `[−1, 1)` from stream 0, `θ*` uniform in `[−1, 1)ⁿ` from stream 1, and noise `v`
-//! uniform in `[−NOISE, NOISE)` ([`NOISE`]); `b` is computed in `f64` and rounded to the
+//! The microcontroller harness (`tagk-mcu`), the host benchmarks and the simulator's
+//! `dimension_sweep` share it, so that all of them time the same windows.
+//!
+//! A stream draws from ChaCha8 seeded with `seed` (Table III: [`SEED`]` + n`).
+//! The entries of `A` are uniform in `[−1, 1)`, from stream 0.
+//! `θ*` is uniform in `[−1, 1)ⁿ`, from stream 1.
+//! The noise `v` is uniform in `[−NOISE, NOISE)` ([`NOISE`]); `b` is computed in `f64` and rounded to the
 //! scalar type asked for. The same seed gives the same bits on every machine.
 
 use rand_chacha::ChaCha8Rng;

@@ -1320,10 +1320,12 @@ unsafe fn gram_diagonals<const G: usize, const L: usize, const P: usize>(
     }
 }
 
-/// `out[4v + l] = Σ_k at[k·p + i] · at[k·p + c + 4v + l]` for `v < V` (`cols` points at
-/// `at + c`, `s = i − c`), summed in order of `k` (multiply, then add): `V` accumulators, one
-/// broadcast per `k`, the transposed window read as the multiplies' memory operand, eight `k`
-/// per loop pass. Both factors come from `at`, so one pointer walks the loop; with `P = p`
+/// `out[4v + l] = Σ_k at[k·p + i] · at[k·p + c + 4v + l]` for `v < V`, where `cols` points
+/// at `at + c` and `s = i − c`.
+///
+/// The sum runs in order of `k`, multiply then add, in `V` accumulators. Each `k` costs one
+/// broadcast; the multiplies read the transposed window as their memory operand. A loop pass
+/// covers eight `k`. Both factors come from `at`, so one pointer walks the loop; with `P = p`
 /// its displacements are constants.
 ///
 /// # Safety
@@ -1667,9 +1669,11 @@ fn prefix_avx512<const C: usize>(weights: &[__m512d; C]) -> ([__m512d; C], __m51
 }
 
 /// The row drawn for `target` by the portable loop's rule (`greedy::draw_row`, as
-/// `lanes::pick_chunks`): the first row in lane-major order with a positive weight and a running
-/// sum past the target; on round-off, the last with a positive weight; `None` if none is
-/// positive. (A candidate's weight is zero when the threshold underflows to zero and its
+/// `lanes::pick_chunks`).
+///
+/// It is the first row in lane-major order with a positive weight and a running sum past the
+/// target. On round-off it is the last with a positive weight; `None` if none is positive.
+/// (A candidate's weight is zero when the threshold underflows to zero and its
 /// residual is zero; its running sum can still pass the target by round-off, so candidates are
 /// not the rows that may be drawn.)
 #[target_feature(enable = "avx512f,bmi2")]

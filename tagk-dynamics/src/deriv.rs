@@ -15,8 +15,10 @@
 pub const DEFAULT_HALF_WIDTH: usize = 5;
 
 /// Noise gain of [`savitzky_golay_derivative`] with half-width `h` on uniform samples
-/// `Δt = 1`: white noise of deviation `σ` in `x` gives a derivative of deviation
-/// `σ · gain / Δt`, with `gain = √(3 / (h (h+1)(2h+1)))` (0.095 at `h = 5`). Zero for `h = 0`.
+/// `Δt = 1`.
+///
+/// White noise of deviation `σ` in `x` gives a derivative of deviation `σ · gain / Δt`, with
+/// `gain = √(3 / (h (h+1)(2h+1)))` (0.095 at `h = 5`). Zero for `h = 0`.
 pub fn derivative_noise_gain(h: usize) -> f64 {
     if h == 0 {
         return 0.0;

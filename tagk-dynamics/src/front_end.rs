@@ -42,10 +42,11 @@ pub const fn is_actuated(channel: usize) -> bool {
 /// point of the noise's norm on large windows; projecting further would fit the noise.
 pub const STOP_MULTIPLE: f64 = 3.0;
 
-/// The column scales `d` of a prior guess `prior` of θ (docs/CONVENTIONS.md §1) for a body of
-/// characteristic length `arm` \[m\] (the arm offset `L_arm`, the largest admissible
-/// centre-of-mass offset): `[m, m L, m L, m L, ī, ī, ī, ī, ī, ī]` with `m = |m_prior|` \[kg\],
-/// `L = arm` and `ī = (|I_xx| + |I_yy| + |I_zz|) / 3` \[kg m²\].
+/// The column scales `d` of a prior guess `prior` of θ (docs/CONVENTIONS.md §1).
+///
+/// `arm` \[m\] is the body's characteristic length: the arm offset `L_arm`, the largest
+/// admissible centre-of-mass offset. The scales are `[m, m L, m L, m L, ī, ī, ī, ī, ī, ī]`,
+/// with `m = |m_prior|` \[kg\], `L = arm` and `ī = (|I_xx| + |I_yy| + |I_zz|) / 3` \[kg m²\].
 ///
 /// These are the typical magnitudes of the parameters. An estimator that sees the columns of
 /// `A D` (and estimates `D⁻¹ θ`) then has columns with the units and the order of the

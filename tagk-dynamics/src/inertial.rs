@@ -308,10 +308,12 @@ impl InertialParams {
         self.transformed(&Matrix3::identity(), &(-new_origin_offset))
     }
 
-    /// The same body's parameters in another frame `F'`, where a point `x` of the current
-    /// frame has coordinates `x' = R x + p` in `F'` (`rotation` = `R`, the current axes
-    /// expressed in `F'`; `translation` = `p` \[m\], the current origin in `F'`):
-    /// `h' = R h + m p` and, with `g = R h`,
+    /// The same body's parameters in another frame `F'`.
+    ///
+    /// A point `x` of the current frame has coordinates `x' = R x + p` in `F'`.
+    /// `rotation` = `R` holds the current axes expressed in `F'`.
+    /// `translation` = `p` \[m\] is the current origin in `F'`.
+    /// Then `h' = R h + m p` and, with `g = R h`,
     /// `I' = R I Rᵀ + (2 pᵀg + m pᵀp)·1 − g pᵀ − p gᵀ − m p pᵀ`
     /// (expand `Σ m_i (x'ᵀx'·1 − x' x'ᵀ)` with `x' = R x + p`).
     pub fn transformed(&self, rotation: &Matrix3<f64>, translation: &Vector3<f64>) -> Self {

@@ -893,11 +893,12 @@ impl FlightLog {
         Ok(())
     }
 
-    /// Writes the log as CSV: the header (required columns — without `fx..tz` for a log that
-    /// has rotor speeds and no wrench —, then the optional groups that are present, then the
-    /// extra columns), one row per sample; `t` in plain decimal, every other
-    /// value in Rust's shortest round-trip scientific notation (reading it back gives the same
-    /// bits).
+    /// Writes the log as CSV: a header, then one row per sample.
+    ///
+    /// The header lists the required columns, then the optional groups that are present, then
+    /// the extra columns. A log that has rotor speeds and no wrench has no `fx..tz`.
+    /// `t` is written in plain decimal. Every other value is in Rust's shortest round-trip
+    /// scientific notation, so reading it back gives the same bits.
     ///
     /// # Errors
     /// [`LogError::LengthMismatch`] or [`LogError::NonIncreasingTime`] for a log that is not

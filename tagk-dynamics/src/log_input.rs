@@ -36,12 +36,16 @@
 //! units = { t = "us" }      # overrides of [units] (and `columns = {...}` of [columns])
 //! ```
 //!
-//! Units (factor to SI): time `s` 1, `ms` 1e-3, `us`/`µs` 1e-6, `ns` 1e-9; length `m` 1, `cm`
-//! 1e-2, `mm` 1e-3; speed `m/s`, `cm/s`, `mm/s`; acceleration `m/s2`, `mm/s2`, `g` (9.80665);
-//! angular rate `rad/s` 1, `deg/s` π/180, `rpm` 2π/60, `{ unit = "erpm", pole_pairs = N }`
-//! (electrical rpm: `2π/60 / N`); angular acceleration `rad/s2`, `deg/s2`; force `N`, `mN`;
-//! torque `Nm`, `mNm`, `Nmm`; extra columns also take `rad`, `deg`. A positive number is the
-//! factor itself. A unit that does not fit the column's quantity (`t = "rpm"`) is an error.
+//! Units, with their factor to SI:
+//! - time: `s` 1, `ms` 1e-3, `us`/`µs` 1e-6, `ns` 1e-9;
+//! - length: `m` 1, `cm` 1e-2, `mm` 1e-3; speed: `m/s`, `cm/s`, `mm/s`;
+//! - acceleration: `m/s2`, `mm/s2`, `g` (9.80665);
+//! - angular rate: `rad/s` 1, `deg/s` π/180, `rpm` 2π/60;
+//! - electrical rpm: `{ unit = "erpm", pole_pairs = N }`, factor `2π/60 / N`;
+//! - angular acceleration: `rad/s2`, `deg/s2`;
+//! - force: `N`, `mN`; torque: `Nm`, `mNm`, `Nmm`; extra columns also take `rad`, `deg`.
+//!
+//! A positive number is the factor itself. A unit that does not fit the column's quantity (`t = "rpm"`) is an error.
 //!
 //! # Strictness
 //!
@@ -70,8 +74,8 @@
 //!
 //! The project's `ax..az` are the world acceleration `p̈` (gravity removed). Some logs store the
 //! **world-frame specific force** `f_w = p̈ − g_w` under those names (`+9.81` m/s² on z at
-//! hover): say so with `[frames] accel = "specific-force"`, read as `p̈ = f_w + g_w` with the
-//! project's [`GRAVITY_WORLD`] `(0, 0, −9.81)`. Read as `p̈`, columns whose mean on z differs
+//! hover). Say so with `[frames] accel = "specific-force"`. They are then read as
+//! `p̈ = f_w + g_w`, with the project's [`GRAVITY_WORLD`] `(0, 0, −9.81)`. Read as `p̈`, columns whose mean on z differs
 //! from the velocity's `Δv_z / T` by more than `g/2` are refused
 //! ([`InputError::AccelLooksLikeSpecificForce`]). `[columns] ignore = ["ax", "ay", "az"]`
 //! leaves them out (the acceleration is then derived).
@@ -101,16 +105,19 @@
 //! # The accelerometer
 //!
 //! The project columns `sfx, sfy, sfz` ([`SPECIFIC_FORCE_COLUMNS`], unit group
-//! `specific_force`) are what an accelerometer at the body origin measures: the **specific
-//! force** `f = Rᵀ (p̈ − g_w)`, body frame (a vehicle at rest, level, reads `+1 g` along body
-//! up: `(0, 0, 9.81)` m/s² in FLU, `(0, 0, −9.81)` in FRD). They are not the wrench `fx..fz`
-//! (a force in N) nor the world acceleration `ax..az` (`p̈`, gravity removed). After the merge
-//! they become the log's world acceleration `p̈ = R f + g_w` ([`world_acceleration`]) with the
-//! merged attitude `R` and the project's `g_w = (0, 0, −9.81)` m/s² (the one the regressor
-//! subtracts again, so it sees `f` exactly, whatever the local gravity). A stream with
-//! `ax..az` wins over the accelerometer. The accelerometer is taken to sit at the body origin
-//! (a lever arm `r` adds `ω̇ × r + ω × (ω × r)`, not removed here); its bias and scale errors
-//! are not corrected.
+//! `specific_force`) are what an accelerometer at the body origin measures.
+//! That is the **specific force** `f = Rᵀ (p̈ − g_w)`, in the body frame.
+//! A vehicle at rest, level, reads `+1 g` along body up: `(0, 0, 9.81)` m/s² in FLU,
+//! `(0, 0, −9.81)` in FRD.
+//! They are not the wrench `fx..fz` (a force in N) nor the world acceleration `ax..az` (`p̈`,
+//! gravity removed).
+//! After the merge they become the log's world acceleration `p̈ = R f + g_w`
+//! ([`world_acceleration`]). It uses the merged attitude `R` and the project's
+//! `g_w = (0, 0, −9.81)` m/s². The regressor subtracts that `g_w` again, so it sees `f`
+//! exactly, whatever the local gravity.
+//! A stream with `ax..az` wins over the accelerometer.
+//! The accelerometer is taken to sit at the body origin. A lever arm `r` adds
+//! `ω̇ × r + ω × (ω × r)`, not removed here. Its bias and scale errors are not corrected.
 //!
 //! # Several streams
 //!
@@ -1791,14 +1798,17 @@ fn close_names(streams: &[Stream], g: Group) -> String {
 /// stream's time base (module docs), then validates the result.
 ///
 /// # Errors
-/// [`InputError::NoStream`] for no file; file, line and column of a bad cell (in a column the
-/// mapping uses) or time stamp; [`InputError::AbsentColumn`] for a mapped column no stream
-/// has, [`InputError::UnknownStream`] for a `[streams."NAME"]` or `primary` naming no stream;
-/// [`InputError::MissingQuantity`] for a quantity no stream provides (with close header names);
-/// [`InputError::StreamTooSparse`] and [`InputError::StreamOverlap`] for a stream that cannot
-/// support the fit; [`InputError::AccelLooksLikeSpecificForce`] for `ax..az` that average
-/// near `g`; [`InputError::QuaternionFarFromUnit`]; the [`FlightLog::validate`] errors of the
-/// merged log.
+/// - [`InputError::NoStream`] for no file.
+/// - File, line and column of a bad cell (in a column the mapping uses) or time stamp.
+/// - [`InputError::AbsentColumn`] for a mapped column no stream has.
+/// - [`InputError::UnknownStream`] for a `[streams."NAME"]` or `primary` naming no stream.
+/// - [`InputError::MissingQuantity`] for a quantity no stream provides (with close header
+///   names).
+/// - [`InputError::StreamTooSparse`] and [`InputError::StreamOverlap`] for a stream that cannot
+///   support the fit.
+/// - [`InputError::AccelLooksLikeSpecificForce`] for `ax..az` that average near `g`.
+/// - [`InputError::QuaternionFarFromUnit`], and the [`FlightLog::validate`] errors of the
+///   merged log.
 pub fn read_streams(
     paths: &[PathBuf],
     mapping: &ColumnMapping,

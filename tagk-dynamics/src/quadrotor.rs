@@ -57,10 +57,11 @@ pub struct QuadrotorModel {
 }
 
 impl QuadrotorModel {
-    /// The nominal Crazyflie 2.1 (the `CRAZYFLIE_*` constants of this module): 0.035 kg,
-    /// centre of mass at the origin, the tabulated inertia, X configuration with motors at
-    /// `(±0.0325, ±0.0325, 0)` m (0.046 m from the centre), `k_f = 2.3e-8`, `k_m = 7.8e-10`,
-    /// `ω_max = 2500 rad/s`.
+    /// The nominal Crazyflie 2.1: the `CRAZYFLIE_*` constants of this module.
+    ///
+    /// It weighs 0.035 kg, with its centre of mass at the origin and the tabulated inertia.
+    /// In X configuration, its motors sit at `(±0.0325, ±0.0325, 0)` m, 0.046 m from the
+    /// centre. `k_f = 2.3e-8`, `k_m = 7.8e-10`, `ω_max = 2500 rad/s`.
     pub fn crazyflie_2_1() -> Self {
         let d = CRAZYFLIE_ARM_OFFSET;
         let [ixx, ixy, iyy, ixz, iyz, izz] = CRAZYFLIE_INERTIA;

@@ -126,8 +126,10 @@ pub fn newton_euler(
 /// and the angular acceleration `ω̇` \[rad/s², body frame\] produced by `wrench` at angular
 /// velocity `omega`.
 ///
-/// Solves the 6×6 spatial-inertia system `[[m·1, −S(h)], [S(h), I]] [a; ω̇] = [f − ω×(ω×h);
-/// τ − ω×(Iω)]` by its Schur complement: `I_C ω̇ = τ̃ − h × f̃ / m`, `a = (f̃ + h × ω̇) / m`.
+/// Solves the 6×6 spatial-inertia system by its Schur complement.
+///
+/// The system is `[[m·1, −S(h)], [S(h), I]] [a; ω̇] = [f − ω×(ω×h); τ − ω×(Iω)]`.
+/// Its solution is `I_C ω̇ = τ̃ − h × f̃ / m` and `a = (f̃ + h × ω̇) / m`.
 ///
 /// # Errors
 /// [`DynamicsError::NonFinite`] for NaN/∞ input; [`DynamicsError::SingularSpatialInertia`]

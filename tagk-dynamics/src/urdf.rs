@@ -102,9 +102,10 @@ impl KinematicTree {
     ///
     /// # Errors
     /// [`DynamicsError::UrdfParse`] for malformed XML/URDF. A typed error naming the link or joint
-    /// for each of: a missing inertial, a negative mass, a non-positive-definite inertia, a joint
-    /// cycle, an unsupported joint type (floating, planar, spherical), a missing parent or child
-    /// link, duplicate names, several root links, an invalid axis.
+    /// for each mistake in the model. The mistakes: a missing inertial, a negative mass, a
+    /// non-positive-definite inertia, a joint cycle, an unsupported joint type (floating,
+    /// planar, spherical), a missing parent or child link, duplicate names, several root links,
+    /// an invalid axis.
     pub fn from_urdf_str(urdf: &str) -> Result<Self, DynamicsError> {
         Self::from_urdf_str_with(urdf, &UrdfOptions::default())
     }

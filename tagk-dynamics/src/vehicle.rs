@@ -9,9 +9,9 @@
 //! commented template. The repository's `docs/VEHICLE.md` describes the format key by key.
 //!
 //! With a vehicle, a flight log that holds the rotor speeds `w1..w4` but not the wrench
-//! `fx..tz` gets its wrench from [`FlightLog::compute_wrench_from_rotor_speeds`]:
-//! force `(0, 0, Σ T(ωᵢ))`, torque `Σ rᵢ × (0, 0, T(ωᵢ)) + (0, 0, Σ sᵢ Q(ωᵢ))` (the formula of
-//! [`rotor_wrench`]).
+//! `fx..tz` gets its wrench from [`FlightLog::compute_wrench_from_rotor_speeds`].
+//! The force is `(0, 0, Σ T(ωᵢ))`, the torque `Σ rᵢ × (0, 0, T(ωᵢ)) + (0, 0, Σ sᵢ Q(ωᵢ))`
+//! (the formula of [`rotor_wrench`]).
 //!
 //! ```
 //! use tagk_dynamics::vehicle::Vehicle;
