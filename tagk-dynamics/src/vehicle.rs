@@ -18,8 +18,11 @@
 //! use tagk_dynamics::QuadrotorModel;
 //!
 //! let cf = Vehicle::preset("crazyflie-2.1")?;
-//! let text = cf.to_toml_string();
-//! assert_eq!(Vehicle::from_toml_str(&text)?, cf);
+//! #[cfg(feature = "toml")]
+//! {
+//!     let text = cf.to_toml_string();
+//!     assert_eq!(Vehicle::from_toml_str(&text)?, cf);
+//! }
 //! let w = [2000.0, 2100.0, 1900.0, 2050.0];
 //! assert_eq!(
 //!     cf.wrench_from_rotor_speeds(&w),
