@@ -19,6 +19,12 @@
 use std::path::Path;
 use std::sync::Arc;
 
+pub mod format {
+    // The link definition comes before the document's own, so docs.rs links the crate's page.
+    #![doc = "[vehicle-file]: tagk_dynamics::conventions::vehicle_file"]
+    #![doc = include_str!("../docs/MODEL_FILE.md")]
+}
+
 use serde::{Deserialize, Serialize};
 use tagk_dynamics::InertialParams;
 use tagk_dynamics::alignment::Sensor;
