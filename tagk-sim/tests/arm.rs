@@ -413,3 +413,28 @@ fn true_payload_inertia_is_within_the_gate() {
         assert!(worst < GATE_INERTIA_RATIO);
     }
 }
+
+/// The success rule tells the references apart on the experiment's own runs: the oracle
+/// passes and the nominal model fails, on both arms and both scopes.
+#[test]
+fn success_rule_separates_oracle_from_nominal() {
+    for model in [ur5(), panda()] {
+        for scope in [EstimationScope::Payload, EstimationScope::AllLinks] {
+            let base = BaseParameters::compute(&model, scope, 2025).unwrap();
+            let ex = ArmExperiment::new(scope);
+            let oracle = run_arm_trial(&model, &base, &ex, 11, ArmAdaptation::Oracle).unwrap();
+            let nominal = run_arm_trial(&model, &base, &ex, 11, ArmAdaptation::Nominal).unwrap();
+            println!(
+                "{} {}: oracle {:.3} mm, nominal {:.3} mm",
+                model.tree.name(),
+                scope.name(),
+                oracle.tracking_mm,
+                nominal.tracking_mm
+            );
+            assert!(oracle.success && !oracle.aborted);
+            assert!(!nominal.success);
+            assert_eq!(oracle.parameter_error, 0.0);
+            assert!(nominal.parameter_error > 0.01);
+        }
+    }
+}
