@@ -32,7 +32,7 @@ pub use rigid_body::{
     ForwardDynamics, GRAVITY_WORLD, RigidBodyRegressor, Wrench, forward_dynamics, newton_euler,
     proper_acceleration, rigid_body_regressor, try_forward_dynamics, write_rigid_body_regressor,
 };
-pub use tree::{Body, JointKind, KinematicTree, Pose, TreeWorkspace};
+pub use tree::{Body, JointKind, JointLimit, KinematicTree, Pose, TreeWorkspace};
 #[cfg(feature = "urdf")]
 pub use urdf::UrdfOptions;
 pub use vehicle::{Vehicle, VehicleError};

@@ -90,6 +90,22 @@ impl Pose {
     }
 }
 
+/// A joint's `<limit>` as the URDF states it.
+///
+/// A continuous joint's URDF has no position limits: `lower` and `upper` are then both 0.
+/// A missing velocity or effort limit reads 0.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointLimit {
+    /// Lower position limit \[rad\] (m for a prismatic joint).
+    pub lower: f64,
+    /// Upper position limit \[rad\] (m for a prismatic joint).
+    pub upper: f64,
+    /// Largest speed \[rad/s\] (m/s for a prismatic joint).
+    pub velocity: f64,
+    /// Largest effort \[N m\] (N for a prismatic joint).
+    pub effort: f64,
+}
+
 /// One moving body of a [`KinematicTree`] and the joint that carries it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Body {
@@ -102,6 +118,7 @@ pub struct Body {
     pub(crate) params: InertialParams,
     pub(crate) merged_links: Vec<String>,
     pub(crate) mimic: Option<String>,
+    pub(crate) limit: JointLimit,
 }
 
 impl Body {
@@ -150,6 +167,11 @@ impl Body {
     /// joint is an independent coordinate.
     pub fn mimic(&self) -> Option<&str> {
         self.mimic.as_deref()
+    }
+
+    /// The joint's limits from the URDF (not enforced by the dynamics).
+    pub fn limit(&self) -> &JointLimit {
+        &self.limit
     }
 }
 

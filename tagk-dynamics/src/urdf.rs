@@ -19,7 +19,7 @@ use nalgebra::{Matrix3, Vector3};
 use urdf_rs::JointType;
 
 use crate::math::rotation_from_rpy;
-use crate::tree::{Body, JointKind, KinematicTree, LinkPlacement, Pose};
+use crate::tree::{Body, JointKind, JointLimit, KinematicTree, LinkPlacement, Pose};
 use crate::{DynamicsError, InertialParams};
 
 /// Options for loading a URDF.
@@ -348,6 +348,12 @@ fn build(robot: &urdf_rs::Robot, options: &UrdfOptions) -> Result<KinematicTree,
                 params: inertials[child].unwrap_or(InertialParams::ZERO),
                 merged_links: Vec::new(),
                 mimic: joint.mimic.as_ref().map(|m| m.joint.clone()),
+                limit: JointLimit {
+                    lower: joint.limit.lower,
+                    upper: joint.limit.upper,
+                    velocity: joint.limit.velocity,
+                    effort: joint.limit.effort,
+                },
             });
             body_has_mass.push(inertials[child].is_some());
             (Some(bodies.len() - 1), Pose::identity())

@@ -483,3 +483,32 @@ fn chain_input_errors() {
         Err(DynamicsError::SingularMassMatrix)
     ));
 }
+
+/// Each joint's `<limit>` reaches its body: the UR5 file's numbers, read here from the XML text
+/// by a plain search, are the tree's.
+#[test]
+fn joint_limits_are_the_urdf_s() {
+    let path = robot_path("ur5.urdf");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let tree = KinematicTree::from_urdf_file(&path).unwrap();
+    let attribute = |tag: &str, key: &str| -> f64 {
+        let start = tag.find(&format!("{key}=\"")).unwrap() + key.len() + 2;
+        let end = start + tag[start..].find('"').unwrap();
+        tag[start..end].parse().unwrap()
+    };
+    for body in tree.bodies() {
+        let joint = text
+            .find(&format!("<joint name=\"{}\"", body.joint()))
+            .unwrap();
+        let limit = joint + text[joint..].find("<limit").unwrap();
+        let tag = &text[limit..limit + text[limit..].find("/>").unwrap()];
+        let l = body.limit();
+        assert_eq!(l.lower, attribute(tag, "lower"), "{}", body.joint());
+        assert_eq!(l.upper, attribute(tag, "upper"), "{}", body.joint());
+        assert_eq!(l.velocity, attribute(tag, "velocity"), "{}", body.joint());
+        assert_eq!(l.effort, attribute(tag, "effort"), "{}", body.joint());
+    }
+    let planar = planar();
+    assert_eq!(planar.bodies()[0].limit().velocity, 5.0);
+    assert_eq!(planar.bodies()[1].kind(), JointKind::Continuous);
+}

@@ -94,11 +94,6 @@ impl ArmModel {
     /// for unusable limits.
     pub fn from_urdf_str(urdf: &str, options: &UrdfOptions) -> Result<Self, SimError> {
         let tree = KinematicTree::from_urdf_str_with(urdf, options)?;
-        let robot = urdf_rs::read_from_string(urdf).map_err(|e| {
-            SimError::Dynamics(tagk_dynamics::DynamicsError::UrdfParse {
-                message: e.to_string(),
-            })
-        })?;
         let n = tree.dof();
         let mut limits = JointLimits {
             lower: Vec::with_capacity(n),
@@ -106,22 +101,12 @@ impl ArmModel {
             velocity: Vec::with_capacity(n),
             effort: Vec::with_capacity(n),
         };
-        for name in tree.joint_names() {
-            let joint = robot.joints.iter().find(|j| j.name == name);
-            let (lo, hi, vel, eff) = match joint {
-                Some(j) if !matches!(j.joint_type, urdf_rs::JointType::Continuous) => {
-                    let l = &j.limit;
-                    (l.lower, l.upper, l.velocity, l.effort)
-                }
-                Some(j) => (
-                    -CONTINUOUS_RANGE,
-                    CONTINUOUS_RANGE,
-                    j.limit.velocity,
-                    j.limit.effort,
-                ),
-                None => (-CONTINUOUS_RANGE, CONTINUOUS_RANGE, 0.0, 0.0),
-            };
-            let (lo, hi) = if lo < hi {
+        for body in tree.bodies() {
+            let l = body.limit();
+            let (lo, hi, vel, eff) = (l.lower, l.upper, l.velocity, l.effort);
+            // A continuous joint has no position limits: it gets ±π.
+            let continuous = body.kind() == tagk_dynamics::JointKind::Continuous;
+            let (lo, hi) = if lo < hi && !continuous {
                 (lo, hi)
             } else {
                 (-CONTINUOUS_RANGE, CONTINUOUS_RANGE)
