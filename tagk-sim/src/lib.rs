@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod arm_excitation;
 mod error;
 pub mod estimators;
 #[cfg(feature = "plot")]
