@@ -54,6 +54,10 @@ use crate::{ADEQUACY_FACTOR, MIN_GAIN};
 /// `1e-8 |R_00|` ends the numerical rank.
 pub const BASE_TOLERANCE: f64 = 1e-8;
 
+/// Length \[s\] of the Savitzky–Golay window that derives `q̈` from `q̇` by default (0.1 s:
+/// the quadrotor's 11 samples at 100 Hz).
+pub const DERIVATIVE_WINDOW: f64 = 0.1;
+
 /// Default level of the Wald test an added effect's coefficients must pass (10⁻³).
 pub const ARM_SIGNIFICANCE: f64 = 1e-3;
 
@@ -137,9 +141,10 @@ impl ArmEffect {
 pub struct ArmOptions {
     /// Blocks of the cross-validation (at least 2; default 5).
     pub folds: usize,
-    /// Half-width of the Savitzky–Golay derivative that gives `q̈` when the log has none
-    /// (the quadrotor's default, 5).
-    pub half_width: usize,
+    /// Half-width (samples) of the Savitzky–Golay derivative that gives `q̈` when the log
+    /// has none; `None`: the samples within ±[`DERIVATIVE_WINDOW`]/2 of the median step (5 at
+    /// 100 Hz, the quadrotor's default), at least 2.
+    pub half_width: Option<usize>,
     /// Most effects the search adds (default 5).
     pub max_steps: usize,
     /// Torque noise per joint \[N m\] (a sensor specification); `None`: measured.
@@ -159,7 +164,7 @@ impl Default for ArmOptions {
     fn default() -> Self {
         Self {
             folds: 5,
-            half_width: crate::deriv::DEFAULT_HALF_WIDTH,
+            half_width: None,
             max_steps: 5,
             noise: None,
             base_tolerance: BASE_TOLERANCE,
@@ -443,7 +448,11 @@ impl ArmReport {
         }
         s += &format!("{:>12}\n", "gain");
         for st in &self.steps {
-            s += &format!("{:<44}", truncate(&st.model, 43));
+            let label = st
+                .effect
+                .as_ref()
+                .map_or_else(|| st.model.clone(), |e| format!("+ {e}"));
+            s += &format!("{:<44}", truncate(&label, 43));
             for j in &st.joints {
                 s += &format!(
                     "{:>9}",
@@ -740,10 +749,18 @@ fn wald(fit: &FullFit, idx: &[usize]) -> f64 {
 }
 
 /// The accelerations of a log: as logged, or the Savitzky–Golay derivative of the velocities.
-fn accelerations(log: &JointLog, half_width: usize) -> (Vec<Vec<f64>>, bool) {
+fn accelerations(log: &JointLog, half_width: Option<usize>) -> (Vec<Vec<f64>>, bool) {
     if let Some(qdd) = &log.qdd {
         return (qdd.clone(), false);
     }
+    let half_width = half_width.unwrap_or_else(|| {
+        let dt = tagk_dynamics::log::median_step(&log.t);
+        if dt > 0.0 {
+            ((0.5 * DERIVATIVE_WINDOW / dt).round() as usize).max(2)
+        } else {
+            crate::deriv::DEFAULT_HALF_WIDTH
+        }
+    });
     let dof = log.dof();
     let mut out = vec![vec![0.0; dof]; log.len()];
     for j in 0..dof {
@@ -1310,7 +1327,7 @@ fn base_parameters(
 }
 
 /// The stacked rigid regressor of a log (rows `i·dof + j`), with the accelerations the
-/// diagnosis uses (logged, or derived with `half_width`): for independent checks of the
+/// diagnosis uses (logged, or derived with `half_width`, as [`ArmOptions::half_width`]): for independent checks of the
 /// base reduction.
 ///
 /// # Errors
@@ -1318,7 +1335,7 @@ fn base_parameters(
 pub fn stacked_regressor(
     tree: &KinematicTree,
     log: &JointLog,
-    half_width: usize,
+    half_width: Option<usize>,
 ) -> Result<DMatrix<f64>, DiagnoseError> {
     log.validate()?;
     if log.dof() != tree.dof() {
