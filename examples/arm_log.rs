@@ -30,7 +30,13 @@ struct Args {
 const VISCOUS: [f64; 6] = [1.8, 1.6, 1.2, 0.5, 0.4, 0.3];
 const COULOMB: [f64; 6] = [2.5, 2.2, 1.6, 0.8, 0.7, 0.6];
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    tagk::cli::terminal::end_quietly_on_broken_pipe();
+    tagk::cli::terminal::exit_code("arm_log", run())
+}
+
+/// The example; an error is printed once by `main`.
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     let tree = KinematicTree::from_urdf_str(shipped_urdf("ur5").ok_or("ur5 is shipped")?)?;
     let dof = tree.dof();

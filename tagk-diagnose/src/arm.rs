@@ -23,10 +23,11 @@
 //! each block is predicted by the model fitted on the others. An effect's held-out gain is
 //! `G = Σ_j Σ_i (e_before² − e_after²) / σ_j²` over every held-out sample. It is admitted
 //! when (a) `G` exceeds the quadrotor's chance margin `2 √max(G, 1)`, (b) `G` per sample is
-//! at least [`MIN_GAIN`](crate::MIN_GAIN), and (c) its coefficients differ from zero by a
+//! at least [`MIN_GAIN`], and (c) its coefficients differ from zero by a
 //! Wald χ² test at level [`ArmOptions::significance`]. Forward steps add the admissible
 //! effect of largest gain. At the end, an effect that no longer passes within the final
-//! model is dropped. If the final model's residual shows a clearly lower noise on a joint
+//! model is dropped, and the staircase shows the final effects in the order of their gain.
+//! If the final model's residual shows a clearly lower noise on a joint
 //! (a missing effect had inflated it), the search runs again against it (at most twice).
 //!
 //! **Intervals.** Weighted least squares (rows scaled by `1/σ_j`). The covariance is
@@ -282,7 +283,7 @@ pub struct StepJoint {
     pub noise: f64,
     /// `held_out_rms / noise`.
     pub ratio_to_noise: f64,
-    /// `true` when the ratio is within [`ADEQUACY_FACTOR`](crate::ADEQUACY_FACTOR).
+    /// `true` when the ratio is within [`ADEQUACY_FACTOR`].
     pub adequate: bool,
     /// Relative change of the held-out RMS from the previous step (0 for the first).
     pub change: f64,
@@ -387,7 +388,7 @@ pub struct ArmReport {
     /// The noise measured on the final model's residual \[N m\].
     pub final_noise: Vec<f64>,
     /// `true` when every joint's held-out residual of the final model is within
-    /// [`ADEQUACY_FACTOR`](crate::ADEQUACY_FACTOR) of its noise.
+    /// [`ADEQUACY_FACTOR`] of its noise.
     pub adequate: bool,
     /// Why the staircase stopped.
     pub stopped: String,
@@ -1093,7 +1094,21 @@ fn search(p: &Problem, sigma: &[f64], options: &ArmOptions, joints: &[String]) -
             chosen.remove(k);
         }
     }
-    // The staircase, in the order of addition.
+    // The staircase: each step adds the remaining effect of the final model that gains most.
+    let mut ordered: Vec<ArmEffect> = Vec::new();
+    let mut cv = grams.cv(&[]);
+    while ordered.len() < chosen.len() {
+        let next = chosen
+            .iter()
+            .copied()
+            .filter(|e| !ordered.contains(e))
+            .map(|e| (e, trial(&ordered, e, &cv)))
+            .max_by(|a, b| a.1.gain.total_cmp(&b.1.gain));
+        let Some((e, t)) = next else { break };
+        ordered.push(e);
+        cv = t.cv;
+    }
+    let chosen = ordered;
     let step = |set: &[ArmEffect],
                 cv: &[f64],
                 prev: Option<&[f64]>,

@@ -240,7 +240,10 @@ fn clean_logs_find_nothing(robot: &Robot, label: &str) {
             );
             false_logs += 1;
         }
-        assert!(report.recommended.is_some() == !report.final_model.effects.is_empty());
+        assert_eq!(
+            report.recommended.is_some(),
+            !report.final_model.effects.is_empty()
+        );
     }
     eprintln!("{label}: {false_logs} of {n} clean logs with a false effect");
     assert!(

@@ -13,8 +13,8 @@ pub mod log;
 pub mod log_input;
 pub mod math;
 pub mod quadrotor;
-pub mod robots;
 mod rigid_body;
+pub mod robots;
 pub mod tree;
 #[cfg(feature = "urdf")]
 pub mod urdf;
