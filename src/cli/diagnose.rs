@@ -129,8 +129,8 @@ pub struct DiagnoseArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Diagnose a robot arm's joint torques instead of a flight: a shipped robot (ur5,
-    /// panda, planar_2link) or a URDF file. The log is then `t, q1..qN, dq1..dqN,
-    /// [ddq1..ddqN,] tau1..tauN` (SI units, radians; docs/ARM_LOG.md). --noise-floor then
+    /// panda, planar_2link) or a URDF file. The log then has the columns t, q1..qN, dq1..dqN,
+    /// optional ddq1..ddqN, tau1..tauN (SI units, radians; docs/ARM_LOG.md). --noise-floor then
     /// gives one torque noise per joint (N m); --json and --max-steps apply.
     #[arg(
         long,
