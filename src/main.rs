@@ -19,6 +19,8 @@ struct Cli {
     command: Command,
 }
 
+// Parsed once per run: the size of the largest variant (diagnose's arguments) does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
     /// Simulate a flight of the Crazyflie, a --vehicle file's quadrotor or a --model file's
@@ -26,7 +28,8 @@ enum Command {
     /// flight log.
     Simulate(tagk::cli::simulate::SimulateArgs),
     /// Fit the rigid-body model to a flight log, show where it fails, rank the physical effects
-    /// that are missing, and refit with the ones you add (--with).
+    /// that are missing, and refit with the ones you add (--with); with --robot, a robot arm's
+    /// joint-torque log against its URDF.
     Diagnose(tagk::cli::diagnose::DiagnoseArgs),
     /// Predict each log k steps ahead with identified models (model files of diagnose
     /// --save-model) from every sample, and report the error against the horizon (MATLAB's

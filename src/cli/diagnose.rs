@@ -128,6 +128,17 @@ pub struct DiagnoseArgs {
     /// Do not print the terminal summary, nor the progress (shown on a terminal only).
     #[arg(long)]
     pub quiet: bool,
+    /// Diagnose a robot arm's joint torques instead of a flight: a shipped robot (ur5,
+    /// panda, planar_2link) or a URDF file. The log then has the columns t, q1..qN, dq1..dqN,
+    /// optional ddq1..ddqN, tau1..tauN (SI units, radians; docs/ARM_LOG.md). --noise-floor then
+    /// gives one torque noise per joint (N m); --json and --max-steps apply.
+    #[arg(
+        long,
+        value_name = "NAME|URDF",
+        conflicts_with_all = ["columns", "stream", "with", "online", "custom", "window", "validate",
+            "vehicle", "mass", "resample", "shift", "save_model", "save_steps", "report"]
+    )]
+    pub robot: Option<String>,
     /// Go on when a scale or consistency check fails (a gain of 57.3 between the gyro and
     /// the attitude's rate, a fitted mass 10× the vehicle's, …): the finding is reported
     /// instead of stopping (docs/CONVENTIONS.md §7.3).
@@ -189,6 +200,7 @@ impl DiagnoseArgs {
             no_align: false,
             shift: Vec::new(),
             accept_scales: false,
+            robot: None,
         }
     }
 
@@ -478,6 +490,9 @@ pub fn merge_summary(m: &MergeReport) -> String {
 /// column), fit failures, output failures.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<(), DiagnoseError> {
     check_outputs(args)?;
+    if let Some(robot) = &args.robot {
+        return run_arm(args, robot);
+    }
     let bar = super::progress::Progress::spinner(!args.quiet, "reading the log");
     let result = diagnose_with_progress(args, &bar);
     bar.finish();
@@ -715,6 +730,65 @@ fn write_outputs(report: &Report, args: &DiagnoseArgs) -> Result<(), DiagnoseErr
             table.insert_str(at, &format!("report: {}\n", file.display()));
         }
         print!("{table}");
+    }
+    Ok(())
+}
+
+/// The robot of `--robot`: a shipped robot by name, else a URDF file.
+///
+/// # Errors
+/// [`DiagnoseError::InvalidModel`] naming the robot when it is neither a shipped name nor a
+/// readable, valid URDF file.
+pub fn load_robot(robot: &str) -> Result<crate::dynamics::KinematicTree, DiagnoseError> {
+    use crate::dynamics::KinematicTree;
+    use crate::dynamics::robots::{SHIPPED_ROBOTS, shipped_urdf};
+    let tree = match shipped_urdf(robot) {
+        Some(urdf) => KinematicTree::from_urdf_str(urdf),
+        None => {
+            let path = std::path::Path::new(robot);
+            if !path.is_file() {
+                return Err(DiagnoseError::InvalidModel(format!(
+                    "--robot {robot}: no such URDF file, and not a shipped robot ({})",
+                    SHIPPED_ROBOTS.join(", ")
+                )));
+            }
+            KinematicTree::from_urdf_file(path)
+        }
+    };
+    tree.map_err(|e| DiagnoseError::InvalidModel(format!("--robot {robot}: {e}")))
+}
+
+/// `tagk diagnose LOG --robot NAME|URDF`: the joint-torque diagnosis
+/// ([`crate::diagnose::arm`]) of one joint-space log; prints the summary and writes `--json`.
+///
+/// # Errors
+/// The robot's ([`load_robot`]), the log's (naming file, line and column), the diagnosis's,
+/// and [`DiagnoseError::Output`] when the JSON cannot be written.
+pub fn run_arm(args: &DiagnoseArgs, robot: &str) -> Result<(), DiagnoseError> {
+    use crate::diagnose::arm::{ArmOptions, diagnose_arm};
+    use crate::dynamics::JointLog;
+    let tree = load_robot(robot)?;
+    let [log_path] = args.logs.as_slice() else {
+        return Err(DiagnoseError::InvalidOption {
+            field: "LOG",
+            reason: format!("--robot diagnoses one joint log, {} given", args.logs.len()),
+        });
+    };
+    let log = JointLog::from_csv_path(log_path)?;
+    let options = ArmOptions {
+        max_steps: args.max_steps,
+        noise: args.noise_floor.clone(),
+        ..ArmOptions::default()
+    };
+    let report = diagnose_arm(&tree, &log, &options)?;
+    if let Some(path) = &args.json {
+        std::fs::write(path, report.to_json()?).map_err(|e| DiagnoseError::Output {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+    }
+    if !args.quiet {
+        print!("{}", report.table());
     }
     Ok(())
 }

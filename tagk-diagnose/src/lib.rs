@@ -4,6 +4,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod accel_offset;
+pub mod arm;
 mod deriv;
 mod diagnose;
 pub mod effects;
@@ -28,6 +29,7 @@ pub mod validation;
 pub mod window;
 
 pub use accel_offset::AccelerometerOffset;
+pub use arm::{ArmEffect, ArmOptions, ArmReport, BaseReduction, diagnose_arm};
 pub use diagnose::{
     ADEQUACY_FACTOR, ADEQUATE_AUTOCORRELATION, CONSISTENCY_TOLERANCE, Candidate, CandidateStatus,
     ChannelAdequacy, Confounding, DiagnoseOptions, Diagnosis, Discovery, Equivalent,

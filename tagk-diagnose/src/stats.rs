@@ -203,6 +203,25 @@ pub fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
+/// The robust high-frequency noise of one series: the median of its squared second
+/// differences over `6 × 0.4549` (the estimate of the quadrotor's noise per channel, for one
+/// series without joins). For white noise of deviation `σ` it is `σ`; a slowly varying part
+/// adds almost nothing. 0 for fewer than 3 finite samples.
+pub fn second_difference_noise(x: &[f64]) -> f64 {
+    let mut d2: Vec<f64> = x
+        .windows(3)
+        .map(|w| w[2] - 2.0 * w[1] + w[0])
+        .filter(|d| d.is_finite())
+        .map(|d| d * d)
+        .collect();
+    if d2.is_empty() {
+        return 0.0;
+    }
+    let mid = d2.len() / 2;
+    let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+    (*m / (6.0 * CHI2_1_MEDIAN)).sqrt()
+}
+
 /// Sample cross-correlation of two series at lags `−max_lag..=max_lag` (index `k + max_lag`):
 /// `ρ_xy(k) = Σᵢ x̃ᵢ ỹᵢ₊ₖ / √(Σ x̃² Σ ỹ²)` of the mean-removed series (positive `k`: `x` leads
 /// `y`), the normalisation of MATLAB's `resid`. Zeros when either series is constant. The

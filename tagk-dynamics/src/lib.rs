@@ -8,11 +8,13 @@ mod error;
 pub mod front_end;
 mod inertial;
 pub mod joint_effect;
+pub mod joint_log;
 pub mod log;
 pub mod log_input;
 pub mod math;
 pub mod quadrotor;
 mod rigid_body;
+pub mod robots;
 pub mod tree;
 #[cfg(feature = "urdf")]
 pub mod urdf;
@@ -26,6 +28,7 @@ pub use effect::{BATTERY_COLUMN, BATTERY_REFERENCE_VOLTAGE, EffectKind, UnknownE
 pub use error::DynamicsError;
 pub use inertial::{GateViolation, InertialParams, SafetyGate};
 pub use joint_effect::{COULOMB_VELOCITY_SCALE, JointEffectKind, JointEffects, UnknownJointEffect};
+pub use joint_log::JointLog;
 pub use log::{FlightLog, LogError, LogSample};
 pub use quadrotor::QuadrotorModel;
 pub use rigid_body::{

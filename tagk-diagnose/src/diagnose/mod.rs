@@ -45,6 +45,7 @@ pub use stepwise::{Discovery, Equivalent, Step, StepChannel, discover, discover_
 
 pub(crate) use noise::noise_floor;
 pub(crate) use select::Context;
+pub(crate) use select::chance_margin;
 
 /// A channel is adequate when its held-out residual RMS is within this factor of its noise
 /// (1.2) and its residual is white ([`ADEQUATE_AUTOCORRELATION`]).

@@ -17,11 +17,14 @@
 //!   late). A window of 10 samples (`10·dof` rows) updates any
 //!   `OnlineEstimator`: `τ − τ_e − Y_known θ_known = Y_I β` ([`BaseParameters`]).
 //! - **Experiment** ([`ArmExperiment`], [`run_arm_trial`], [`ArmRow`]): the arm's Table II.
+//! - **Prescribed motion** ([`prescribed_log`]): a joint-torque log by inverse dynamics along a
+//!   [`FourierTrajectory`], no integrator, for the joint-torque diagnosis and its tests.
 
 mod base;
 mod experiment;
 mod model;
 mod plant;
+mod prescribed;
 mod sim;
 mod trajectory;
 
@@ -34,6 +37,7 @@ pub use experiment::{
 };
 pub use model::{ArmModel, JointLimits};
 pub use plant::{ArmPlant, ArmState};
+pub use prescribed::prescribed_log;
 pub use sim::{
     ArmAdaptation, ArmLog, ArmOutput, ArmSimConfig, GATE_INERTIA_RATIO, GATE_MIN_PSEUDO_INERTIA,
     JointSensing, PayloadEvent, UpdateRecord, box_payload, simulate_arm,

@@ -100,6 +100,37 @@ impl FourierTrajectory {
         Ok(traj)
     }
 
+    /// A random excitation of `dof` joints, without a model: `harmonics` harmonics of
+    /// `base_hz` \[Hz\], drawn from `seed`.
+    ///
+    /// Each coefficient is uniform in `±speed / harmonics` \[rad/s\], so no joint's speed
+    /// exceeds `2 speed`. The centres are uniform in ±0.5 rad. The joint-torque diagnosis's
+    /// logs use it ([`prescribed_log`](super::prescribed_log)).
+    pub fn random_with_speed(
+        dof: usize,
+        harmonics: usize,
+        base_hz: f64,
+        speed: f64,
+        seed: u64,
+    ) -> Self {
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+        let bound = speed / harmonics.max(1) as f64;
+        let mut draw = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|_| bound * (2.0 * rng.random::<f64>() - 1.0))
+                .collect()
+        };
+        let a = (0..dof).map(|_| draw(harmonics)).collect();
+        let b = (0..dof).map(|_| draw(harmonics)).collect();
+        let q0 = draw(dof).into_iter().map(|x| 0.5 * x / bound).collect();
+        Self {
+            omega: std::f64::consts::TAU * base_hz,
+            q0,
+            a,
+            b,
+        }
+    }
+
     fn joint(&self, j: usize, t: f64) -> (f64, f64, f64) {
         let (mut p, mut v, mut a) = (self.q0[j], 0.0, 0.0);
         for (l, (&al, &bl)) in self.a[j].iter().zip(&self.b[j]).enumerate() {

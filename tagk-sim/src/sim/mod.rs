@@ -39,7 +39,7 @@ pub use sensing::{
     ExperimentProfile, MOCAP_ATTITUDE_NOISE, MOCAP_POSITION_NOISE, PROPELLER_VIBRATION_FACTOR,
     REALISTIC_MOTOR_LAG, REALISTIC_THRUST_GAIN_ERROR, Sensing, SensingProfile, WARM_UP_KELVIN,
 };
-pub(crate) use sensors::sub_rng;
+pub(crate) use sensors::{gaussian, sub_rng};
 pub use truth::{FlightTruth, TruthSample};
 
 use crate::EstimatorKind;

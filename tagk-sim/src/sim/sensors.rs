@@ -14,8 +14,8 @@ use tagk_control::QuadrotorState;
 use crate::plant::PlantState;
 use crate::sim::{NoiseLevel, Sensing};
 
-/// Standard normal draw (Box–Muller).
-fn gaussian<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
+/// Standard normal draw (Box–Muller); the closed loops of the quadrotor and the arm share it.
+pub(crate) fn gaussian<R: rand::Rng + ?Sized>(rng: &mut R) -> f64 {
     let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
     let u2: f64 = rng.random_range(0.0..1.0);
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
