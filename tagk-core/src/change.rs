@@ -525,6 +525,13 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> EventTriggered<T, E, S> {
         }
     }
 
+    /// Replaces the detector (for example by one with known noise,
+    /// [`ChangeDetector::with_known_noise`]); its channels must match the rows' layout.
+    pub fn with_detector(mut self, detector: ChangeDetector) -> Self {
+        self.detector = detector;
+        self
+    }
+
     /// The wrapped estimator.
     pub fn inner(&self) -> &E {
         &self.inner
