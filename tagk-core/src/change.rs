@@ -410,6 +410,8 @@ pub const fn checked_event_triggered_buffer_len(n: usize, m_max: usize) -> Optio
 /// let config = DetectorConfig { channels: 1, ..DetectorConfig::default() };
 /// let tagk = TagK::<f64, Vec<f64>>::new(2, 4, KaczmarzConfig::default())?;
 /// let mut est = EventTriggered::new(tagk, &[1.0, 1.0], config)?;
+/// // Start near the parameters: the warm-up measures the noise, not a transient.
+/// est.reset(&[1.0, 2.0])?;
 /// for w in 0..50 {
 ///     let (a, b) = window([1.0, 2.0], w);
 ///     est.update(&a, &b)?;
