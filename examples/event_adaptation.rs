@@ -4,8 +4,8 @@
 //! `cargo run --release --example event_adaptation -- --help` lists the options. Rows: the
 //! tuned TAG-K of Table II (its front end's event windows at 5 noise floors); the same with the
 //! change detector (`tagk_core::EventTriggered`: χ² test of every frame against the measured
-//! noise of its rows, restart, first estimate solved on a fresh 3-frame window); the same with
-//! the detector and the learning layer (`tagk_core::Accumulate`); a tuned KF-low without and
+//! noise of its rows, restart, first estimate solved on a fresh 2-frame window); the same with
+//! the learning layer (`tagk_core::Accumulate`), without and with the detector; a tuned KF-low without and
 //! with the detector; `nominal` and `oracle`. Columns: success (Table II's rule: 1 cm, 2 s
 //! after each event), lost flights, position error over all flights, detection (events with an
 //! alarm within 1 s), mean delay from the event to its alarm, false alarms per flight (alarms
@@ -91,6 +91,7 @@ fn main() {
     let estimators: Vec<EstimatorSpec> = vec![
         tagk_tuned_realistic(),
         tagk_tuned_realistic().with_change_detector(),
+        tagk_tuned_realistic().with_learning(),
         tagk_tuned_realistic()
             .with_change_detector()
             .with_learning(),
@@ -121,7 +122,14 @@ fn main() {
     );
     println!(
         "{:<8} {:<52} {:>9} {:>6} {:>9} {:>9} {:>10} {:>12}",
-        "noise", "estimator", "success%", "lost%", "pos. cm", "detected%", "delay ms", "false/flight"
+        "noise",
+        "estimator",
+        "success%",
+        "lost%",
+        "pos. cm",
+        "detected%",
+        "delay ms",
+        "false/flight"
     );
     for (cell, c) in result.cells.iter().enumerate() {
         let a = observer.cells[cell];

@@ -16,15 +16,19 @@
 //! θ̄ = argmin Σ_k ‖b_k − A_k θ‖² + ‖θ − θ_fast‖²_R   ⇔   (Λ + R) θ̄ = η + R θ_fast
 //! ```
 //!
-//! with `R = diag(ρ_j)`, `ρ_j = w Λ_jj / k` after `k` windows: in every parameter, the fast
+//! with `R = diag(ρ_j)`, `ρ_j = max(w Λ_jj / k, r₀)` after `k` windows: in every parameter, the fast
 //! estimate counts as `w` windows' worth of that parameter's average information
 //! ([`AccumulateConfig::anchor_windows`]). Per parameter, so a weakly excited one is weighed
 //! against its own information, not the strong ones'. After `k` windows the anchor's share is
 //! about `w / k`: `θ̄` becomes batch least squares. Early on, and along directions no window
-//! has excited yet, it stays near the fast estimate.
+//! has excited yet, it stays near the fast estimate. The floor `r₀`
+//! ([`AccumulateConfig::anchor_precision`]) is the fast estimate's own precision: a direction
+//! joins the least squares only once the data carry more information in it.
 //!
-//! A reset (for example a [`FrontEnd`](crate::FrontEnd)'s restart at an event) clears the sums,
-//! so the fast estimator's quick reaction to an event is kept. The layer never sees an event by
+//! A reset (for example a [`FrontEnd`](crate::FrontEnd)'s restart at an event) clears the sums.
+//! For the next [`settle_windows`](AccumulateConfig::settle_windows) windows the layer reports
+//! the fast estimate as it is, so the fast estimator's quick reaction to an event is kept; the
+//! sums start after that transient. The layer never sees an event by
 //! itself: put it inside a front end with event detection, or behind
 //! [`EventTriggered`](crate::EventTriggered).
 //!
@@ -66,12 +70,26 @@ pub struct AccumulateConfig {
     /// parameter (`ρ_j = w Λ_jj / k`). Positive. 1 (the default): after `k` windows the
     /// fast estimate weighs about `1 / k` of the answer.
     pub anchor_windows: f64,
+    /// `r₀`: the least anchor precision, in every parameter (units of `b²` per unit of the
+    /// parameters the layer sees squared; non-negative; default 0). With `σ` the rows' noise
+    /// and `s` how far the fast estimate may typically be off, `r₀ = σ² / s²`. It keeps the
+    /// directions a few windows barely excite at the fast estimate, where one window's least
+    /// squares would fit model errors and noise. After many windows the data outweigh it
+    /// wherever they carry more information than `r₀`.
+    pub anchor_precision: f64,
+    /// Windows after a reset that only the fast estimator sees (the transient): the layer
+    /// reports its estimate and starts summing from the next window on (default 5). Right
+    /// after an event the fast estimator's own first estimates are the better ones; a few
+    /// windows' least squares are not yet.
+    pub settle_windows: usize,
 }
 
 impl Default for AccumulateConfig {
     fn default() -> Self {
         Self {
             anchor_windows: 1.0,
+            anchor_precision: 0.0,
+            settle_windows: 5,
         }
     }
 }
@@ -87,6 +105,13 @@ impl AccumulateConfig {
                 name: "anchor_windows",
                 value: self.anchor_windows,
                 reason: "must be positive and finite",
+            });
+        }
+        if !(self.anchor_precision >= 0.0 && self.anchor_precision.is_finite()) {
+            return Err(ConfigError::InvalidParameter {
+                name: "anchor_precision",
+                value: self.anchor_precision,
+                reason: "must be non-negative and finite",
             });
         }
         Ok(())
@@ -140,6 +165,8 @@ pub struct Accumulate<T: Real, E: OnlineEstimator<T>, S: Storage<T>> {
     buf: S,
     /// Windows in the sums since the last reset.
     windows: usize,
+    /// Windows seen since the last reset (summed or not).
+    seen: usize,
     _scalar: core::marker::PhantomData<T>,
 }
 
@@ -171,7 +198,11 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> Accumulate<T, E, S> {
     ///
     /// # Errors
     /// A bad configuration or a buffer that is too short.
-    pub fn with_storage(inner: E, config: AccumulateConfig, mut buf: S) -> Result<Self, ConfigError> {
+    pub fn with_storage(
+        inner: E,
+        config: AccumulateConfig,
+        mut buf: S,
+    ) -> Result<Self, ConfigError> {
         config.validate()?;
         let n = inner.dim();
         let needed = checked_accumulate_buffer_len(n).ok_or(ConfigError::TooLarge {
@@ -189,6 +220,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> Accumulate<T, E, S> {
             n,
             buf,
             windows: 0,
+            seen: 0,
             _scalar: core::marker::PhantomData,
         };
         acc.clear();
@@ -214,6 +246,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> Accumulate<T, E, S> {
     /// Empties the sums; the estimate becomes the wrapped estimator's.
     fn clear(&mut self) {
         self.windows = 0;
+        self.seen = 0;
         let p = Self::parts(&mut self.buf, self.n);
         p.lambda.fill(T::zero());
         p.eta.fill(T::zero());
@@ -247,6 +280,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> Accumulate<T, E, S> {
         }
         let k = T::cast(self.windows.max(1) as f64);
         let w = T::cast(self.config.anchor_windows);
+        let r0 = T::cast(self.config.anchor_precision);
         // A coordinate the data never reached keeps a tiny anchor, so the system stays definite.
         let floor = T::cast(1e-12) * trace / T::cast(n as f64);
         if !(floor > T::zero() && floor.is_finite()) {
@@ -254,10 +288,10 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> Accumulate<T, E, S> {
             return;
         }
         p.factor.copy_from_slice(p.lambda);
-        for j in 0..n {
-            let rho = w * p.lambda[j * n + j].max(floor) / k;
+        for (j, xj) in x.iter().enumerate() {
+            let rho = (w * p.lambda[j * n + j].max(floor) / k).max(r0);
             p.factor[j * n + j] += rho;
-            p.rhs[j] = p.eta[j] + rho * x[j];
+            p.rhs[j] = p.eta[j] + rho * *xj;
         }
         if linalg::cholesky_in_place(p.factor, n).is_err() {
             p.estimate.copy_from_slice(x);
@@ -306,10 +340,17 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> OnlineEstimator<T> for Accum
         &self.buf.as_ref()[2 * n * n + n..2 * n * n + 2 * n]
     }
 
-    /// Feeds the window to the wrapped estimator, then adds it to the sums and solves. A window
-    /// the wrapped estimator refuses changes nothing.
+    /// Feeds the window to the wrapped estimator, then (after the settling windows) adds it to
+    /// the sums and solves. A window the wrapped estimator refuses changes nothing.
     fn update(&mut self, a: &[T], b: &[T]) -> Result<UpdateInfo, EstimatorError> {
         let info = self.inner.update(a, b)?;
+        self.seen += 1;
+        if self.seen <= self.config.settle_windows {
+            let n = self.n;
+            let x = self.inner.estimate();
+            Self::parts(&mut self.buf, n).estimate.copy_from_slice(x);
+            return Ok(info);
+        }
         let n = self.n;
         let p = Self::parts(&mut self.buf, n);
         for (row, bi) in a.chunks_exact(n).zip(b) {
@@ -318,8 +359,8 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> OnlineEstimator<T> for Accum
                 if ai == T::zero() {
                     continue;
                 }
-                for j in 0..=i {
-                    p.lambda[i * n + j] += ai * row[j];
+                for (j, aj) in row[..=i].iter().enumerate() {
+                    p.lambda[i * n + j] += ai * *aj;
                 }
                 p.eta[i] += ai * *bi;
             }

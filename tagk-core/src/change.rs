@@ -70,14 +70,14 @@ pub fn normal_upper_quantile(p: f64) -> f64 {
         2.445_134_137_142_996,
         3.754_408_661_907_416,
     ];
-    // Lower quantile of q = 1 − p, then the sign flips.
+    // The lower quantile of q = 1 − p is the upper quantile of p.
     let q = 1.0 - p;
     let tail = |t: f64| {
         let u = (-2.0 * t.ln()).sqrt();
         (((((C[0] * u + C[1]) * u + C[2]) * u + C[3]) * u + C[4]) * u + C[5])
             / ((((D[0] * u + D[1]) * u + D[2]) * u + D[3]) * u + 1.0)
     };
-    let lower = if q < 0.02425 {
+    if q < 0.02425 {
         tail(q)
     } else if q > 1.0 - 0.02425 {
         -tail(1.0 - q)
@@ -86,8 +86,7 @@ pub fn normal_upper_quantile(p: f64) -> f64 {
         let r = u * u;
         (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * u
             / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    };
-    lower
+    }
 }
 
 /// `P(χ²_ν > x)` for an even `ν ≤ 400`: `e^{−x/2} Σ_{i < ν/2} (x/2)^i / i!`, summed in logs.
@@ -334,7 +333,12 @@ impl ChangeDetector {
         } else {
             f64::NAN
         };
-        let exceeds = calibrated && dof > 0 && !(statistic <= threshold);
+        // Above the threshold, or not comparable (a NaN residual).
+        let below = matches!(
+            statistic.partial_cmp(&threshold),
+            Some(core::cmp::Ordering::Less | core::cmp::Ordering::Equal)
+        );
+        let exceeds = calibrated && dof > 0 && !below;
         let alarm = exceeds && self.quiet;
         self.quiet = !exceeds;
         if alarm {
@@ -575,10 +579,12 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> EventTriggered<T, E, S> {
             p.residual[i] = b[i] - linalg::dot(&a[i * n..(i + 1) * n], x);
         }
         let residual = &p.residual[..m];
-        let check = self.detector.check_rows(residual.iter().enumerate().map(|(i, r)| {
-            let used = weights.is_none_or(|w| w.get(i).is_some_and(|w| *w > T::zero()));
-            (r.as_f64(), used)
-        }));
+        let check = self
+            .detector
+            .check_rows(residual.iter().enumerate().map(|(i, r)| {
+                let used = weights.is_none_or(|w| w.get(i).is_some_and(|w| *w > T::zero()));
+                (r.as_f64(), used)
+            }));
         if check.alarm {
             p.theta.copy_from_slice(self.inner.estimate());
             self.inner.reset(p.theta)?;
@@ -613,7 +619,7 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> EventTriggered<T, E, S> {
         for i in 0..m {
             let w = weights.map_or(T::one(), |w| w[i]);
             let var = ms[i % channels];
-            if !(w > T::zero()) || !(var > 0.0) {
+            if w.is_nan() || w <= T::zero() || var.is_nan() || var <= 0.0 {
                 continue;
             }
             let wi = w / T::cast(var);
@@ -621,8 +627,8 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> EventTriggered<T, E, S> {
             let r = b[i] - linalg::dot(row, x);
             for j in 0..n {
                 let aj = wi * row[j];
-                for k in 0..=j {
-                    p.normal[j * n + k] += aj * row[k];
+                for (k, ak) in row[..=j].iter().enumerate() {
+                    p.normal[j * n + k] += aj * *ak;
                 }
                 p.rhs[j] += aj * r;
             }
@@ -635,8 +641,8 @@ impl<T: Real, E: OnlineEstimator<T>, S: Storage<T>> EventTriggered<T, E, S> {
             .map_err(|_| EstimatorError::NumericalFailure("first estimate: normal matrix"))?;
         linalg::reciprocal_diagonal(p.normal, n, p.inv_diag);
         linalg::cholesky_solve_in_place(p.normal, n, p.inv_diag, p.rhs);
-        for j in 0..n {
-            p.theta[j] = x[j] + p.rhs[j];
+        for ((t, xj), dj) in p.theta.iter_mut().zip(x).zip(p.rhs.iter()) {
+            *t = *xj + *dj;
         }
         if !p.theta.iter().all(|v| v.is_finite()) {
             return Err(EstimatorError::Diverged);
@@ -655,8 +661,7 @@ impl<T: Real, E: OnlineEstimator<T>> EventTriggered<T, E, alloc::vec::Vec<T>> {
     /// As [`EventTriggered::with_storage`].
     pub fn new(inner: E, change_scales: &[T], config: DetectorConfig) -> Result<Self, ConfigError> {
         let (n, m) = (inner.dim(), inner.capacity());
-        let len =
-            checked_event_triggered_buffer_len(n, m).ok_or(ConfigError::TooLarge { n, m })?;
+        let len = checked_event_triggered_buffer_len(n, m).ok_or(ConfigError::TooLarge { n, m })?;
         let buf = crate::kaczmarz::zeroed_buffer(len, n, m)?;
         Self::with_storage(inner, change_scales, config, buf)
     }

@@ -30,8 +30,8 @@ pub use accumulate::{
     Accumulate, AccumulateConfig, accumulate_buffer_len, checked_accumulate_buffer_len,
 };
 pub use change::{
-    ChangeDetector, Check, DetectorConfig, EventTriggered, chi_square_quantile,
-    checked_event_triggered_buffer_len,
+    ChangeDetector, Check, DetectorConfig, EventTriggered, checked_event_triggered_buffer_len,
+    chi_square_quantile,
 };
 pub use error::{ConfigError, EstimatorError, NotPositiveDefinite};
 pub use estimator::{

@@ -131,7 +131,9 @@ fn a_step_is_detected_on_its_first_check() {
             None => missed += 1,
         }
     }
-    println!("5σ step: {first} on its first check, {later} later, {missed} missed, {early} false alarms before");
+    println!(
+        "5σ step: {first} on its first check, {later} later, {missed} missed, {early} false alarms before"
+    );
     // Non-central χ²(4, λ = 100) above the 1e-4 point (23.5): all but a handful.
     assert!(first >= 990, "{first}");
     assert_eq!(missed, 0);
@@ -211,7 +213,9 @@ fn the_first_estimate_is_the_map_estimate_of_the_fresh_window() {
         map_sum += err(est.estimate());
     }
     let (own_mean, map_mean) = (own_sum / seeds as f64, map_sum / seeds as f64);
-    println!("first post-event estimate error, mean of {seeds}: TAG-K {own_mean:.2e}, MAP {map_mean:.2e}");
+    println!(
+        "first post-event estimate error, mean of {seeds}: TAG-K {own_mean:.2e}, MAP {map_mean:.2e}"
+    );
     assert!(map_mean < 0.6 * own_mean, "{map_mean} vs {own_mean}");
 }
 

@@ -73,7 +73,7 @@ pub struct EstimatorSpec {
     /// Change detection on the estimator's prior residual (tagk-core's `EventTriggered`): every
     /// control step, the newest frame's rows are tested against their measured noise. An
     /// alarm restarts the estimator, and the first estimate after it is solved on a fresh
-    /// window of [`CHANGE_FRESH_FRAMES`] frames, all after the alarm. `false` (the default): off.
+    /// window of [`CHANGE_FRESH_FRAMES`] frames from the alarming one on. `false` (the default): off.
     #[serde(default)]
     pub change_detector: bool,
 }
@@ -103,8 +103,10 @@ pub(crate) fn change_scales(nominal: &[f64; 10], arm: f64, unknowns: usize) -> V
 }
 
 /// Frames of the fresh window [`EstimatorSpec::change_detector`] solves its first post-alarm
-/// estimate on (the alarming frame and the ones after it).
-pub const CHANGE_FRESH_FRAMES: usize = 3;
+/// estimate on (the alarming frame and the one after it). Tuned on seed 7 (100 trials per
+/// level, not an evaluation seed): 2 frames gave 82–89 % success and 0–3 % lost flights, 3
+/// frames 78–84 % and 1–5 %.
+pub const CHANGE_FRESH_FRAMES: usize = 2;
 /// Design false-alarm probability of one frame's check ([`EstimatorSpec::change_detector`]).
 pub const CHANGE_FALSE_ALARM: f64 = 1e-4;
 
@@ -345,22 +347,14 @@ impl EstimatorSpec {
         seed: u64,
         tolerance: f64,
     ) -> Result<Box<dyn OnlineEstimator<f64> + Send>, SimError> {
-        let est = build_kind(
+        build_kind(
             self.kind,
             self.unknowns(),
             self.burn_in,
             m_max,
             seed,
             tolerance,
-        )?;
-        Ok(if self.learning {
-            Box::new(tagk_core::Accumulate::new(
-                est,
-                tagk_core::AccumulateConfig::default(),
-            )?)
-        } else {
-            est
-        })
+        )
     }
 }
 

@@ -65,7 +65,7 @@ fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
 /// `count` windows of a smooth motion (phases drawn from `seed`), the wrench noisy.
 fn windows(seed: u64, count: usize, theta: &InertialParams) -> Vec<(Vec<f64>, Vec<f64>)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let phase: [f64; 6] = std::array::from_fn(|_| rng.random::<f64>() * 6.28);
+    let phase: [f64; 6] = std::array::from_fn(|_| rng.random::<f64>() * std::f64::consts::TAU);
     let dt = 0.02;
     (0..count)
         .map(|w| {
@@ -150,6 +150,15 @@ fn front_end_config() -> FrontEndConfig {
     }
 }
 
+/// The layer as the simulator sets it: the fast estimate's precision is one row's noise per
+/// unit of a scaled parameter.
+fn learning() -> AccumulateConfig {
+    AccumulateConfig {
+        anchor_precision: SIGMA_FORCE * SIGMA_FORCE,
+        ..AccumulateConfig::default()
+    }
+}
+
 fn tagk() -> TagK<f64, Vec<f64>> {
     TagK::new(N, ROWS, KaczmarzConfig::default()).unwrap()
 }
@@ -187,7 +196,7 @@ fn the_front_end_around_accumulate_reaches_batch_least_squares() {
         let ws = windows(seed, 2000, &theta);
         let mut plain = FrontEnd::new(tagk(), &d, front_end_config()).unwrap();
         let mut learn = FrontEnd::new(
-            Accumulate::new(tagk(), AccumulateConfig::default()).unwrap(),
+            Accumulate::new(tagk(), learning()).unwrap(),
             &d,
             front_end_config(),
         )
@@ -238,15 +247,73 @@ fn the_front_end_around_accumulate_reaches_batch_least_squares() {
         );
     }
     // The target of issue #27: within 2x batch least squares after 2 000 windows.
-    assert!(learn_sum[1] <= 2.0 * ls_sum[1], "{learn_sum:?} vs {ls_sum:?}");
+    assert!(
+        learn_sum[1] <= 2.0 * ls_sum[1],
+        "{learn_sum:?} vs {ls_sum:?}"
+    );
     assert!(learn_si[1] <= 2.0 * ls_si[1], "{learn_si:?} vs {ls_si:?}");
     // The weakly excited inertia is learned too.
-    assert!(learn_inertia <= 2.0 * ls_inertia, "{learn_inertia} vs {ls_inertia}");
+    assert!(
+        learn_inertia <= 2.0 * ls_inertia,
+        "{learn_inertia} vs {ls_inertia}"
+    );
     // It keeps learning: ten times the windows, a smaller error.
-    assert!(learn_sum[1] < 0.5 * learn_sum[0], "{learn_sum:?}");
+    assert!(learn_si[1] < 0.5 * learn_si[0], "{learn_si:?}");
     // TAG-K alone does not (the measured contrast the layer is for): no better after 2 000
     // windows than after 200, and well above batch least squares.
     assert!(plain_sum[1] > 0.9 * plain_sum[0], "{plain_sum:?}");
-    assert!(plain_sum[1] > 2.0 * ls_sum[1], "{plain_sum:?} vs {ls_sum:?}");
+    assert!(
+        plain_sum[1] > 2.0 * ls_sum[1],
+        "{plain_sum:?} vs {ls_sum:?}"
+    );
     assert!(plain_si[1] > 2.0 * ls_si[1], "{plain_si:?} vs {ls_si:?}");
+}
+
+#[test]
+fn an_event_still_restarts_the_learning_at_once() {
+    // 300 windows of the nominal body, then the payload: the front end's event detection
+    // restarts the layer, and its estimate follows the new parameters as fast as TAG-K's.
+    let d = column_scales(&nominal(), CRAZYFLIE_ARM_OFFSET);
+    let (before, after) = (nominal(), truth());
+    let (mut plain_sum, mut learn_sum, mut jump_sum) = ([0.0; 3], [0.0; 3], 0.0);
+    for seed in 1..=SEEDS {
+        let mut ws = windows(seed, 300, &before);
+        let post = windows(seed + 100, 30, &after);
+        ws.extend(post);
+        let mut plain = FrontEnd::new(tagk(), &d, front_end_config()).unwrap();
+        let mut learn = FrontEnd::new(
+            Accumulate::new(tagk(), learning()).unwrap(),
+            &d,
+            front_end_config(),
+        )
+        .unwrap();
+        let marks = [301, 303, 330];
+        let p = run(&mut plain, &ws, &marks);
+        let l = run(&mut learn, &ws, &marks);
+        assert!(learn.last().is_some());
+        jump_sum += si_error(before.as_slice(), &after);
+        for k in 0..marks.len() {
+            plain_sum[k] += si_error(&p[k], &after);
+            learn_sum[k] += si_error(&l[k], &after);
+        }
+    }
+    println!(
+        "after the jump ({:.2e}): FrontEnd(TAG-K) {plain_sum:?}, FrontEnd(Accumulate(TAG-K)) {learn_sum:?} (sums over {SEEDS} streams, windows 1, 3, 30 after)",
+        jump_sum / SEEDS as f64
+    );
+    // One and three windows after the jump, as fast as TAG-K: most of the way.
+    assert!(learn_sum[0] < 0.3 * jump_sum, "{learn_sum:?} vs {jump_sum}");
+    assert!(
+        learn_sum[0] < 1.5 * plain_sum[0],
+        "{learn_sum:?} vs {plain_sum:?}"
+    );
+    assert!(
+        learn_sum[1] < 1.5 * plain_sum[1],
+        "{learn_sum:?} vs {plain_sum:?}"
+    );
+    // Thirty windows after, the layer is learning again: below TAG-K.
+    assert!(
+        learn_sum[2] < plain_sum[2],
+        "{learn_sum:?} vs {plain_sum:?}"
+    );
 }

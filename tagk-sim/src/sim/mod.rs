@@ -271,7 +271,17 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     // The prior: the nominal parameters and no nuisance force.
     let mut prior = nominal.as_slice().to_vec();
     prior.resize(unknowns, 0.0);
-    let mut main = FrontEnd::new(spec.build(m_max, seed, 0.0)?, &scales, front)?;
+    let mut inner = spec.build(m_max, seed, 0.0)?;
+    if spec.learning {
+        // The fast estimate's precision: one row's noise per unit of a scaled parameter (the
+        // estimate may be off by about its own magnitude).
+        let config = tagk_core::AccumulateConfig {
+            anchor_precision: front.row_noise * front.row_noise,
+            ..tagk_core::AccumulateConfig::default()
+        };
+        inner = Box::new(tagk_core::Accumulate::new(inner, config)?);
+    }
+    let mut main = FrontEnd::new(inner, &scales, front)?;
     main.reset(&prior)?;
     let early = if spec.early_tagk {
         let tagk = build_kind(
