@@ -108,7 +108,11 @@ pub(crate) fn change_scales(nominal: &[f64; 10], arm: f64, unknowns: usize) -> V
 /// frames 78–84 % and 1–5 %.
 pub const CHANGE_FRESH_FRAMES: usize = 2;
 /// Design false-alarm probability of one frame's check ([`EstimatorSpec::change_detector`]).
-pub const CHANGE_FALSE_ALARM: f64 = 1e-4;
+/// Tuned on seed 7 (100 trials per level): at `1e-6`, 82–91 % success and 3/0/0/0 % lost
+/// flights (none, low, medium, high noise), 0.07–0.17 false alarms per flight; at `1e-4`,
+/// 82–89 %, 3/0/3/1 % and 0.27–0.72. The measured rate is far above the design one (1 000
+/// checks per flight): the rows' residuals are not white Gaussian noise of the measured level.
+pub const CHANGE_FALSE_ALARM: f64 = 1e-6;
 
 /// Unknowns of the nuisance body force ([`EstimatorSpec::force_bias`]).
 pub(crate) const FORCE_BIAS_PARAMS: usize = 3;
