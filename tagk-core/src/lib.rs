@@ -8,6 +8,8 @@ extern crate std;
 
 #[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
 mod aarch64;
+pub mod accumulate;
+pub mod change;
 mod error;
 mod estimator;
 pub mod front_end;
@@ -24,6 +26,13 @@ pub mod synthetic;
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 mod x86;
 
+pub use accumulate::{
+    Accumulate, AccumulateConfig, accumulate_buffer_len, checked_accumulate_buffer_len,
+};
+pub use change::{
+    ChangeDetector, Check, DetectorConfig, EventTriggered, checked_event_triggered_buffer_len,
+    chi_square_quantile,
+};
 pub use error::{ConfigError, EstimatorError, NotPositiveDefinite};
 pub use estimator::{
     OnlineEstimator, UpdateInfo, check_dimensions, check_window_finite, check_window_shape,

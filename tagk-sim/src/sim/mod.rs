@@ -45,7 +45,8 @@ pub use truth::{FlightTruth, TruthSample};
 use crate::EstimatorKind;
 use crate::SimError;
 use crate::estimators::{
-    FORCE_BIAS_PARAMS, N_PARAMS, build_kind, front_end_config, row_weights, spec_scales,
+    CHANGE_FALSE_ALARM, CHANGE_FRESH_FRAMES, FORCE_BIAS_PARAMS, N_PARAMS, build_kind,
+    change_scales, front_end_config, row_weights, spec_scales,
 };
 use crate::metrics::{
     ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_settled, is_success,
@@ -77,7 +78,13 @@ type Fronted = FrontEnd<f64, Box<dyn OnlineEstimator<f64> + Send>, Vec<f64>>;
 
 /// The estimator of a flight with what turns frames into its windows.
 struct EstimatorStage {
-    main: Fronted,
+    /// The estimator behind its front end, with the change detector around it (used only with
+    /// [`EstimatorSpec::change_detector`](crate::EstimatorSpec::change_detector)).
+    main: tagk_core::EventTriggered<f64, Fronted, Vec<f64>>,
+    /// Whether the change detector runs.
+    detect: bool,
+    /// After an alarm: the control step whose window is the fresh one.
+    fresh_due: Option<usize>,
     /// TAG-K run alongside for early adaptation (its first post-event estimate replaces the
     /// main estimator's state).
     early: Option<Fronted>,
@@ -126,6 +133,8 @@ struct Flight<'a> {
     first_after_event: Vec<(Vec<f64>, InertialParams, bool)>,
     pending_event: bool,
     first_update_steps: Vec<usize>,
+    /// Control steps at which the change detector alarmed.
+    alarms: Vec<usize>,
     latest_estimate: [f64; 10],
     /// Control steps of the whole flight.
     planned_steps: usize,
@@ -262,7 +271,17 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     // The prior: the nominal parameters and no nuisance force.
     let mut prior = nominal.as_slice().to_vec();
     prior.resize(unknowns, 0.0);
-    let mut main = FrontEnd::new(spec.build(m_max, seed, 0.0)?, &scales, front)?;
+    let mut inner = spec.build(m_max, seed, 0.0)?;
+    if spec.learning {
+        // The fast estimate's precision: one row's noise per unit of a scaled parameter (the
+        // estimate may be off by about its own magnitude).
+        let config = tagk_core::AccumulateConfig {
+            anchor_precision: front.row_noise * front.row_noise,
+            ..tagk_core::AccumulateConfig::default()
+        };
+        inner = Box::new(tagk_core::Accumulate::new(inner, config)?);
+    }
+    let mut main = FrontEnd::new(inner, &scales, front)?;
     main.reset(&prior)?;
     let early = if spec.early_tagk {
         let tagk = build_kind(
@@ -279,8 +298,19 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     } else {
         None
     };
+    let change_scales = change_scales(&nominal.to_array(), CRAZYFLIE_ARM_OFFSET, unknowns);
+    let detector = tagk_core::DetectorConfig {
+        false_alarm: CHANGE_FALSE_ALARM,
+        channels: 6,
+        // One second of frames to measure the rows' noise.
+        warmup: (1.0 / config.control_dt).round().max(1.0) as usize,
+        ..tagk_core::DetectorConfig::default()
+    };
+    let main = tagk_core::EventTriggered::new(main, &change_scales, detector)?;
     Ok(Some(EstimatorStage {
         main,
+        detect: spec.change_detector,
+        fresh_due: None,
         early,
         window: WindowBuilder::new(config.window_frames)?,
         a_buf: vec![0.0; m_max * N_PARAMS],
@@ -377,6 +407,7 @@ impl<'a> Flight<'a> {
             first_after_event: Vec::new(),
             pending_event: false,
             first_update_steps: Vec::new(),
+            alarms: Vec::new(),
             latest_estimate: nominal.to_array(),
             planned_steps: steps,
             position_integral: Vector3::zeros(),
@@ -763,31 +794,62 @@ impl<'a> Flight<'a> {
         stage
             .window
             .push(&frame.accel, &frame.omega, &frame.omega_dot, wrench)?;
-        if !(k + 1).is_multiple_of(self.config.estimator_period) || !stage.window.is_full() {
+        let periodic =
+            (k + 1).is_multiple_of(self.config.estimator_period) && stage.window.is_full();
+        // The change detector: the newest frame against the current estimate, every step.
+        let mut fresh = false;
+        if stage.detect {
+            if let Some(due) = stage.fresh_due {
+                fresh = k >= due;
+            } else {
+                let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
+                let first = rows.saturating_sub(6);
+                let (a, b) = window_rows(
+                    &stage.a_buf,
+                    &stage.b_buf,
+                    &mut stage.a_wide,
+                    stage.unknowns,
+                    first,
+                    rows,
+                );
+                let weights = stage.weights.as_deref().map(|w| &w[..rows - first]);
+                if let Ok(check) = stage.main.check(a, b, weights)
+                    && check.alarm
+                {
+                    self.alarms.push(k);
+                    stage.fresh_due = Some(k + CHANGE_FRESH_FRAMES - 1);
+                    fresh = CHANGE_FRESH_FRAMES <= 1;
+                }
+            }
+        }
+        // While an alarm awaits its fresh window, no periodic update mixes in older frames.
+        if !(fresh || periodic && stage.fresh_due.is_none()) {
             return Ok(());
         }
         let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
-        let n = stage.unknowns;
-        let a = if n > N_PARAMS {
-            // θ's columns, then the nuisance force: identity on each frame's force rows.
-            for r in 0..rows {
-                let (src, dst) = (
-                    &stage.a_buf[r * N_PARAMS..(r + 1) * N_PARAMS],
-                    &mut stage.a_wide[r * n..(r + 1) * n],
-                );
-                dst[..N_PARAMS].copy_from_slice(src);
-                for j in 0..FORCE_BIAS_PARAMS {
-                    dst[N_PARAMS + j] = if r % 6 == j { 1.0 } else { 0.0 };
-                }
-            }
-            &stage.a_wide[..rows * n]
+        let first = if fresh {
+            rows.saturating_sub(6 * CHANGE_FRESH_FRAMES)
         } else {
-            &stage.a_buf[..rows * N_PARAMS]
+            0
         };
-        let b = &stage.b_buf[..rows];
-        let weights = stage.weights.as_deref().map(|w| &w[..rows]);
+        if fresh {
+            stage.fresh_due = None;
+        }
+        let (a, b) = window_rows(
+            &stage.a_buf,
+            &stage.b_buf,
+            &mut stage.a_wide,
+            stage.unknowns,
+            first,
+            rows,
+        );
+        let weights = stage.weights.as_deref().map(|w| &w[..rows - first]);
+        if fresh {
+            // A failed solve keeps the restarted estimator; the update below goes on.
+            let _ = stage.main.first_estimate(a, b, weights);
+        }
         let start = Instant::now();
-        let result = stage.main.update_weighted(a, b, weights);
+        let result = stage.main.inner_mut().update_weighted(a, b, weights);
         let micros = start.elapsed().as_secs_f64() * 1e6;
         if let Some(e) = stage.early.as_mut() {
             // Estimator errors leave the state unchanged; the flight goes on.
@@ -800,9 +862,9 @@ impl<'a> Flight<'a> {
             && let Some(e) = stage.early.as_ref()
         {
             let tagk_estimate = e.estimate().to_vec();
-            stage.main.reset(&tagk_estimate)?;
+            stage.main.inner_mut().reset(&tagk_estimate)?;
         }
-        let estimate: [f64; 10] = core::array::from_fn(|i| stage.main.estimate()[i]);
+        let estimate: [f64; 10] = core::array::from_fn(|i| stage.main.inner().estimate()[i]);
         self.latest_estimate = estimate;
         let truth = *self.plant.params();
         if self.pending_event {
@@ -810,7 +872,7 @@ impl<'a> Flight<'a> {
             // the start of its step, so the window is clean when that step is the first frame
             // or earlier.
             let event_step = self.events.last().map_or(0, |e| e.step);
-            let mixed = k + 1 < event_step + self.config.window_frames;
+            let mixed = k + 1 < event_step + (rows - first) / 6;
             self.first_after_event
                 .push((estimate.to_vec(), truth, mixed));
             self.first_update_steps.push(k + 1);
@@ -882,11 +944,43 @@ impl<'a> Flight<'a> {
             truth,
             metrics,
             events: self.events,
+            alarms: self.alarms,
             updates: self.updates,
             log: self.log,
             trace: self.trace,
             tracking_errors: tracking,
         }
+    }
+}
+
+/// Rows `first..rows` of a built window (`a_buf`: θ's 10 columns), with the nuisance force's
+/// columns appended in `a_wide` when the estimator has `unknowns > 10`
+/// ([`EstimatorSpec::force_bias`](crate::EstimatorSpec::force_bias)): identity on each
+/// frame's force rows.
+fn window_rows<'s>(
+    a_buf: &'s [f64],
+    b_buf: &'s [f64],
+    a_wide: &'s mut [f64],
+    unknowns: usize,
+    first: usize,
+    rows: usize,
+) -> (&'s [f64], &'s [f64]) {
+    let n = unknowns;
+    let b = &b_buf[first..rows];
+    if n > N_PARAMS {
+        for r in first..rows {
+            let (src, dst) = (
+                &a_buf[r * N_PARAMS..(r + 1) * N_PARAMS],
+                &mut a_wide[(r - first) * n..(r - first + 1) * n],
+            );
+            dst[..N_PARAMS].copy_from_slice(src);
+            for j in 0..FORCE_BIAS_PARAMS {
+                dst[N_PARAMS + j] = if r % 6 == j { 1.0 } else { 0.0 };
+            }
+        }
+        (&a_wide[..(rows - first) * n], b)
+    } else {
+        (&a_buf[first * N_PARAMS..rows * N_PARAMS], b)
     }
 }
 

@@ -95,6 +95,9 @@ pub struct SimOutput {
     pub metrics: TrialMetrics,
     /// Payload events.
     pub events: Vec<EventRecord>,
+    /// Control steps at which the change detector alarmed (empty without
+    /// [`EstimatorSpec::change_detector`](crate::EstimatorSpec::change_detector)).
+    pub alarms: Vec<usize>,
     /// Estimator updates.
     pub updates: Vec<UpdateRecord>,
     /// Flight log (empty unless [`SimConfig::record_log`](crate::SimConfig::record_log)).
