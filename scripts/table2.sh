@@ -3,18 +3,21 @@
 #
 # A block is the Markdown between a marker line and `<!-- /table2 -->`:
 #
-#   <!-- table2 profile=realistic seed=2025 trials=500 -->
+#   <!-- table2 profile=cf21-brushless seed=2025 trials=500 -->
 #   | noise | estimator | ... |
 #   <!-- /table2 -->
 #
 # For each marker, this runs
 #   cargo run --release --example noise_sweep -- --profile P --seed S --trials N --markdown --quiet
-# and puts its output between the two lines. The accuracy columns are a function of the seeds
-# only (any CPU, any thread count), so a block reproduces exactly.
+# and puts its output between the two lines. A marker ending in ` curve=gain` runs
+#   ... --gain-curve instead of --markdown
+# (success over the integral gain). Every column is a function of the seeds only (any CPU,
+# any thread count), so a block reproduces exactly.
 #
 #   scripts/table2.sh            rewrite every block
 #   scripts/table2.sh --check    exit 1 if any block differs from what the code prints
 #   scripts/table2.sh --max-trials 20 [--check]   only the blocks of at most 20 trials
+#   scripts/table2.sh --only cf21 [--check]       only the blocks of one profile
 #
 # CI checks the small block (tests/table2.rs, in-process); this script also covers the
 # 500-trial tables, which take minutes.
@@ -23,11 +26,13 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 check=0
 max_trials=0
+only=
 while (($#)); do
   case "$1" in
     --check) check=1 ;;
     --max-trials) max_trials="$2"; shift ;;
-    *) echo "usage: $0 [--check] [--max-trials N]" >&2; exit 2 ;;
+    --only) only="$2"; shift ;;
+    *) echo "usage: $0 [--check] [--max-trials N] [--only PROFILE]" >&2; exit 2 ;;
   esac
   shift
 done
@@ -44,14 +49,16 @@ for f in "${files[@]}"; do
   : > "$out"
   skipping=0
   while IFS= read -r line || [ -n "$line" ]; do
-    if [[ "$line" =~ ^\<!--\ table2\ profile=([a-z-]+)\ seed=([0-9]+)\ trials=([0-9]+)\ --\>$ ]]; then
+    if [[ "$line" =~ ^\<!--\ table2\ profile=([a-z0-9-]+)\ seed=([0-9]+)\ trials=([0-9]+)(\ curve=gain)?\ --\>$ ]]; then
       printf '%s\n' "$line" >> "$out"
       profile=${BASH_REMATCH[1]} seed=${BASH_REMATCH[2]} trials=${BASH_REMATCH[3]}
-      if ((max_trials > 0 && trials > max_trials)); then
+      mode=--markdown
+      [[ -n "${BASH_REMATCH[4]}" ]] && mode=--gain-curve
+      if ((max_trials > 0 && trials > max_trials)) || [[ -n "$only" && "$profile" != "$only" ]]; then
         continue
       fi
-      echo "$f: table2 profile=$profile seed=$seed trials=$trials" >&2
-      "$bin" --profile "$profile" --seed "$seed" --trials "$trials" --markdown --quiet \
+      echo "$f: table2 profile=$profile seed=$seed trials=$trials $mode" >&2
+      "$bin" --profile "$profile" --seed "$seed" --trials "$trials" "$mode" --quiet \
         --out "$tmp/out" >> "$out"
       skipping=1
       continue

@@ -339,6 +339,62 @@ pub fn table_ii_sweep(
     sweep
 }
 
+/// The Markdown Table II of `profile` that `scripts/table2.sh` writes: issue #27's headline
+/// layout ([`SweepResult::markdown_headline`]) for the real vehicles' profiles, the accuracy
+/// layout ([`SweepResult::markdown_accuracy`]) for `paper` and `realistic`.
+pub fn table_ii_markdown(profile: ExperimentProfile, result: &SweepResult) -> String {
+    if profile.is_vehicle() {
+        result.markdown_headline()
+    } else {
+        result.markdown_accuracy()
+    }
+}
+
+/// Integral gains of the success curve over the gain ([`gain_curve`]) \[1/s\].
+pub const GAIN_CURVE: [f64; 4] = [0.25, 0.5, 1.0, 2.0];
+
+/// Success as a curve over the controller's integral gain (issue #27): for each gain of
+/// [`GAIN_CURVE`], the tuned TAG-K, the tuned KF (if `profile` has one), `nominal` and `oracle`
+/// at the medium noise level, `trials` each from `seed`. Returns a Markdown table: lost
+/// flights and success at each threshold of [`SweepResult::SUCCESS_CURVE_CM`].
+///
+/// # Errors
+/// A sweep's error.
+pub fn gain_curve(
+    profile: ExperimentProfile,
+    trials: usize,
+    seed: u64,
+) -> Result<String, SimError> {
+    let mut estimators = vec![tagk_tuned_realistic()];
+    estimators.extend(
+        crate::estimators::tuned_baselines(profile)
+            .into_iter()
+            .filter(|e| e.kind == EstimatorKind::KfLow),
+    );
+    let mut s = String::from(
+        "| k_i \\[1/s\\] | estimator | lost flights % | success % at 0.5 / 1 / 2 / 4 cm |\n|---:|---|---:|---:|\n",
+    );
+    for gain in GAIN_CURVE {
+        let mut sweep = table_ii_sweep(profile, estimators.clone(), trials, seed);
+        sweep.noise_levels = vec![NoiseLevel::Medium];
+        sweep.base.flight_stack.position_integral_gain = gain;
+        let r = sweep.run()?;
+        for c in &r.cells {
+            let curve: Vec<String> = SweepResult::SUCCESS_CURVE_CM
+                .iter()
+                .map(|t| format!("{:.1}", c.success_at(*t)))
+                .collect();
+            s.push_str(&format!(
+                "| {gain} | {} | {:.1} | {} |\n",
+                c.label,
+                c.aborted_pct,
+                curve.join(" / ")
+            ));
+        }
+    }
+    Ok(s)
+}
+
 /// Runs Table II in `profile` (default 500 trials per cell; `paper_only`: the paper's five
 /// estimators, without the tuned TAG-K row; the `nominal` and `oracle` reference rows always)
 /// and writes `table.csv`, `table.md`, `table_accuracy.md`, `results.json` and figures (metric
@@ -355,7 +411,7 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     let dir = c.out_dir("noise_sweep")?;
     let mut estimators = table_ii_estimators_for(profile);
     if paper_only {
-        estimators.pop();
+        estimators.truncate(EstimatorKind::TABLE_II.len());
     }
     let sweep = table_ii_sweep(
         profile,
@@ -365,7 +421,10 @@ pub fn run_noise_sweep<O: SweepObserver + ?Sized>(
     );
     let result = c.run_sweep(&sweep, observer)?;
     write_common(&result, None, &dir)?;
-    std::fs::write(dir.join("table_accuracy.md"), result.markdown_accuracy())?;
+    std::fs::write(
+        dir.join("table_accuracy.md"),
+        table_ii_markdown(profile, &result),
+    )?;
     for (name, chart) in noise_sweep_charts(&result) {
         line_chart(&dir.join(name), &chart)?;
     }
@@ -782,6 +841,7 @@ mod tests {
             aborted_pct: 0.0,
             update_median_us: 3.0,
             update_p95_us: 5.0,
+            settle_errors: vec![0.5; 8],
             position_errors: (0..8)
                 .map(|i| {
                     if i == 3 {

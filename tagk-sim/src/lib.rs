@@ -14,9 +14,10 @@ pub mod plant_model;
 pub mod plot;
 pub mod sim;
 pub mod trajectory;
+pub mod tuning;
 
 pub use error::SimError;
-pub use estimators::{EstimatorKind, EstimatorSpec};
+pub use estimators::{EstimatorKind, EstimatorSpec, FilterTuning};
 pub use monte_carlo::{
     CellSummary, ErrorCurves, Sweep, SweepObserver, SweepResult, Traces, trial_seed,
 };

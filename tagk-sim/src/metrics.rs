@@ -109,6 +109,20 @@ pub fn is_success(tracking_errors_m: &[f64], event_steps: &[usize], aborted: boo
         })
 }
 
+/// The largest tracking error [`SETTLED_DELAY_STEPS`] control steps after each payload event
+/// \[cm\] (events too close to the end to judge are skipped): a trial is settled at a threshold
+/// `x` exactly when this is below `x` (issue #27's success curve over the threshold). +∞ when
+/// aborted, 0 when no event is judged.
+pub fn settle_error_cm(tracking_errors_m: &[f64], event_steps: &[usize], aborted: bool) -> f64 {
+    if aborted {
+        return f64::INFINITY;
+    }
+    event_steps
+        .iter()
+        .filter_map(|&k| tracking_errors_m.get(k + SETTLED_DELAY_STEPS))
+        .fold(0.0, |m: f64, e| m.max(100.0 * e))
+}
+
 /// **Settled** (Table II's success): not aborted, and the tracking error is below
 /// [`SETTLED_THRESHOLD`] [`SETTLED_DELAY_STEPS`] control steps after each payload event
 /// (events too close to the end to judge are skipped). [`is_success`] is the paper's looser

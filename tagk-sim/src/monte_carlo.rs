@@ -272,6 +272,33 @@ pub struct CellSummary {
     pub update_p95_us: f64,
     /// Per-trial position errors \[cm\] (in trial order; NaN for aborted trials), for CDFs.
     pub position_errors: Vec<f64>,
+    /// Per-trial settle errors \[cm\] (`TrialMetrics::settle_error_cm`, in trial order), for
+    /// the success curve ([`CellSummary::success_at`]).
+    #[serde(default)]
+    pub settle_errors: Vec<f64>,
+}
+
+impl CellSummary {
+    /// Success % with the settle threshold `threshold_cm` \[cm\] instead of 1 cm (judged
+    /// 2 s after each event, as [`crate::metrics::is_settled`]); NaN without trials.
+    pub fn success_at(&self, threshold_cm: f64) -> f64 {
+        if self.settle_errors.is_empty() {
+            return f64::NAN;
+        }
+        let ok = self
+            .settle_errors
+            .iter()
+            .filter(|e| **e < threshold_cm)
+            .count();
+        100.0 * ok as f64 / self.settle_errors.len() as f64
+    }
+
+    /// Standard error of [`CellSummary::aborted_pct`] (binomial, percentage points).
+    pub fn aborted_se(&self) -> f64 {
+        let n = self.trials.max(1) as f64;
+        let p = self.aborted_pct / 100.0;
+        100.0 * (p * (1.0 - p) / n).sqrt()
+    }
 }
 
 /// Running count, sum and sum of squares (mean and standard error of the mean).
@@ -327,6 +354,7 @@ struct Accumulator {
     aborted: usize,
     times: UpdateTimes,
     positions: Vec<f64>,
+    settles: Vec<f64>,
 }
 
 /// One finished trial on its way from a worker thread to the fold.
@@ -503,6 +531,7 @@ fn fold(a: &mut Accumulator, output: &SimOutput) {
         a.t1_sum += m.t1_error;
         a.t1_n += 1;
     }
+    a.settles.push(m.settle_error_cm);
     a.success += usize::from(m.success);
     a.settled += usize::from(m.settled);
     a.pos_all.add(m.position_error_all_cm);
@@ -556,6 +585,7 @@ fn finish(noise: NoiseLevel, adaptation: Adaptation, a: Accumulator) -> CellSumm
         update_median_us: a.times.median(),
         update_p95_us: a.times.p95(),
         position_errors: a.positions,
+        settle_errors: a.settles,
     }
 }
 
@@ -611,6 +641,40 @@ impl SweepResult {
     /// this run.
     pub fn markdown(&self) -> String {
         self.markdown_table(true)
+    }
+
+    /// The success thresholds of [`SweepResult::markdown_headline`]'s curve \[cm\].
+    pub const SUCCESS_CURVE_CM: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+
+    /// Issue #27's headline table as Markdown, every column a function of the seeds: lost
+    /// flights (± s.e.), position error over all trials (± s.e.), then the (t+1) and parameter
+    /// errors against what the data identify (θ/(1+ε)), and success as a curve over its
+    /// threshold ([`SweepResult::SUCCESS_CURVE_CM`], judged 2 s after each event).
+    pub fn markdown_headline(&self) -> String {
+        let mut s = String::from(
+            "| noise | estimator | lost flights % | position error, all trials \\[cm\\] | (t+1) error vs θ/(1+ε) | parameter error vs θ/(1+ε) | success % at 0.5 / 1 / 2 / 4 cm |\n|---|---|---:|---:|---:|---:|---:|\n",
+        );
+        for c in &self.cells {
+            let curve: Vec<String> = Self::SUCCESS_CURVE_CM
+                .iter()
+                .map(|t| format!("{:.1}", c.success_at(*t)))
+                .collect();
+            s.push_str(&format!(
+                "| {} | {} | {:.1} ± {:.1} | {:.3} ± {:.3} | {:.2e} ± {:.1e} | {:.2e} ± {:.1e} | {} |\n",
+                c.noise.name(),
+                c.label,
+                c.aborted_pct,
+                c.aborted_se(),
+                c.position_error_all_cm,
+                c.position_error_all_se,
+                c.t1_error,
+                c.t1_error_se,
+                c.parameter_error,
+                c.parameter_error_se,
+                curve.join(" / "),
+            ));
+        }
+        s
     }
 
     /// The Markdown table, with the update-time column or without.

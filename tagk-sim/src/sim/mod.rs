@@ -9,6 +9,7 @@
 mod config;
 mod controller;
 mod output;
+pub mod rotor_sensing;
 mod sensing;
 mod sensors;
 mod truth;
@@ -28,8 +29,8 @@ use tagk_dynamics::{EffectKind, GRAVITY_WORLD, InertialParams, WindowBuilder, Wr
 pub use config::{
     Adaptation, FlightStack, LogRate, MEMORY_BUDGET_BYTES, NoiseLevel, Payload, PayloadSchedule,
     PayloadShape, REALISTIC_HOVER_THRUST_LIMIT, REALISTIC_POSITION_INTEGRAL_GAIN,
-    REALISTIC_POSITION_INTEGRAL_LIMIT, REALISTIC_ROTOR_TELEMETRY_SAMPLES, SimConfig, check_payload,
-    check_payload_within, tracking_weights,
+    REALISTIC_POSITION_INTEGRAL_LIMIT, REALISTIC_ROTOR_TELEMETRY_SAMPLES, SimConfig,
+    VEHICLE_POSITION_INTEGRAL_GAIN, check_payload, check_payload_within, tracking_weights,
 };
 pub use controller::{Controller, REDESIGN_TOLERANCE, prioritise_attitude};
 pub use output::{EventRecord, SimOutput, TraceSample, TrialMetrics, UpdateRecord};
@@ -50,10 +51,11 @@ use crate::estimators::{
 };
 use crate::metrics::{
     ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_settled, is_success,
-    parameter_error, position_error_all_cm, position_error_cm, t_plus_one_error,
+    parameter_error, position_error_all_cm, position_error_cm, settle_error_cm, t_plus_one_error,
 };
 use crate::plant::{Accelerations, Plant, PlantState};
 use crate::trajectory::Trajectory;
+use rotor_sensing::{MotorModel, RotorSensing};
 use sensors::{Frame, Sensors};
 use truth::{TruthInputs, TruthParts, acting_effects, truth_parts};
 
@@ -143,6 +145,10 @@ struct Flight<'a> {
     /// The states after each physics step of the current control interval (for a physics-rate
     /// log or the truth), a buffer kept from interval to interval.
     interval_steps: Vec<(PlantState, Accelerations)>,
+    /// The flight stack's motor model (brushed rotor sensing only).
+    motor_model: MotorModel,
+    /// Stream of the rotor sensing's own draws (battery reading, eRPM jitter).
+    rotor_sensing_rng: ChaCha8Rng,
 }
 
 /// What [`SimConfig::record_truth`] keeps during a flight.
@@ -259,19 +265,19 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
     let nominal = config.vehicle.params;
     let m_max = 6 * config.window_frames;
     let scales = spec_scales(spec, &nominal.to_array(), CRAZYFLIE_ARM_OFFSET);
+    let seen = config
+        .flight_stack
+        .sensing_at(&config.sensing, config.noise);
     let front = front_end_config(
         spec,
         nominal.mass(),
-        Sensing::combined(
-            config.noise.sigma_acceleration(),
-            config.sensing.accel_noise,
-        ),
+        Sensing::combined(config.noise.sigma_acceleration(), seen.accel_noise),
     );
     let unknowns = spec.unknowns();
     // The prior: the nominal parameters and no nuisance force.
     let mut prior = nominal.as_slice().to_vec();
     prior.resize(unknowns, 0.0);
-    let mut inner = spec.build(m_max, seed, 0.0)?;
+    let mut inner = spec.build_for_rows(m_max, seed, 0.0, front.row_noise)?;
     if spec.learning {
         // The fast estimate's precision: one row's noise per unit of a scaled parameter (the
         // estimate may be off by about its own magnitude).
@@ -378,7 +384,9 @@ impl<'a> Flight<'a> {
             sub_rng(config.seed, 6),
             sub_rng(config.seed, 7),
             config.noise,
-            &config.flight_stack.sensing_seen(&config.sensing),
+            &config
+                .flight_stack
+                .sensing_at(&config.sensing, config.noise),
             plant.state().body_rate,
         );
         Ok(Self {
@@ -412,6 +420,9 @@ impl<'a> Flight<'a> {
             planned_steps: steps,
             position_integral: Vector3::zeros(),
             interval_steps: Vec::new(),
+            motor_model: MotorModel::new(init.rotor_speeds),
+            // Stream 8, added with the rotor-sensing models: the others draw as before.
+            rotor_sensing_rng: sub_rng(config.seed, 8),
         })
     }
 
@@ -444,6 +455,20 @@ impl<'a> Flight<'a> {
         let cmd = self
             .plant
             .clamp_speeds(&self.controller.rotor_speeds(&measured, &reference));
+        let rotor_sensing = self.config.flight_stack.rotor_sensing;
+        // A brushed vehicle sends quantised PWM duties set for its measured battery voltage:
+        // the motors get the quantised command times the reading's error; the flight stack
+        // believes the quantised command.
+        let (cmd, believed) = match rotor_sensing {
+            RotorSensing::BrushedPwm(pwm) => {
+                let max = self.config.vehicle.max_rotor_speed;
+                let q = cmd.map(|w| pwm.quantise(w, max));
+                let f = pwm.voltage_factor(&mut self.rotor_sensing_rng);
+                (self.plant.clamp_speeds(&q.map(|w| w * f)), q)
+            }
+            _ => (cmd, cmd),
+        };
+        let start_speeds = state.rotor_speeds;
         let physics_log = self.config.record_log && self.config.log_rate == LogRate::Physics;
         // The truth of a control-rate sample averages over the interval's physics steps (the
         // state before the first one, and after each): collected without changing anything.
@@ -459,19 +484,46 @@ impl<'a> Flight<'a> {
         // through the nominal mixer, the wrench they make: the commanded speeds, or with
         // `FlightStack::motor_telemetry` and a motor lag the lagging speeds at the interval's
         // midpoint (the frame's time).
-        let read_back = if self.config.flight_stack.motor_telemetry
-            && self.config.effects.motor_lag.is_some()
-        {
-            mid_state.rotor_speeds
-        } else {
-            cmd
+        let read_back = match rotor_sensing {
+            RotorSensing::Telemetry => {
+                if self.config.flight_stack.motor_telemetry
+                    && self.config.effects.motor_lag.is_some()
+                {
+                    mid_state.rotor_speeds
+                } else {
+                    cmd
+                }
+            }
+            RotorSensing::BrushedPwm(pwm) => {
+                self.motor_model
+                    .step(&believed, pwm.model_time_constant, dt)
+            }
+            RotorSensing::Erpm(erpm) => {
+                // The motors' speeds at the latest reading before the midpoint (the closed
+                // form of the motor lag within the interval, from its start).
+                let t_mid = t + 0.5 * dt;
+                let age = (t_mid - erpm.reading_time(t_mid)).clamp(0.0, 0.5 * dt);
+                let since_start = 0.5 * dt - age;
+                match self.config.effects.motor_lag {
+                    Some(lag) => {
+                        let decay = (-since_start / lag.time_constant).exp();
+                        std::array::from_fn(|i| cmd[i] + (start_speeds[i] - cmd[i]) * decay)
+                    }
+                    None => cmd,
+                }
+            }
         };
         if let Some(truth) = self.truth.as_mut() {
             truth
                 .read_back
                 .push(self.config.vehicle.wrench_from_rotor_speeds(&read_back));
         }
-        let measured_speeds = self.sensors.measured_rotor_speeds(&read_back);
+        let measured_speeds = match rotor_sensing {
+            RotorSensing::Erpm(erpm) => {
+                read_back.map(|w| erpm.read(w, &mut self.rotor_sensing_rng))
+            }
+            _ => self.sensors.measured_rotor_speeds(&read_back),
+        };
         let wrench_measured: Wrench = self
             .config
             .vehicle
@@ -551,7 +603,10 @@ impl<'a> Flight<'a> {
             .push(if err.is_finite() { err } else { f64::INFINITY });
         if self.config.record_trace {
             let pe = match &self.estimator {
-                Some(_) => parameter_error(&self.latest_estimate, self.plant.params()),
+                Some(_) => parameter_error(
+                    &self.latest_estimate,
+                    &self.config.identifiable_params(self.plant.params()),
+                ),
                 None => parameter_error(
                     self.controller.lqr().params().as_slice(),
                     self.plant.params(),
@@ -867,6 +922,8 @@ impl<'a> Flight<'a> {
         let estimate: [f64; 10] = core::array::from_fn(|i| stage.main.inner().estimate()[i]);
         self.latest_estimate = estimate;
         let truth = *self.plant.params();
+        // Scored against what the data identify (θ/(1+ε)), not θ itself.
+        let scored = self.config.identifiable_params(&truth);
         if self.pending_event {
             // The window holds the frames of steps k − frames + 1 ..= k; the event applied at
             // the start of its step, so the window is clean when that step is the first frame
@@ -874,7 +931,7 @@ impl<'a> Flight<'a> {
             let event_step = self.events.last().map_or(0, |e| e.step);
             let mixed = k + 1 < event_step + (rows - first) / 6;
             self.first_after_event
-                .push((estimate.to_vec(), truth, mixed));
+                .push((estimate.to_vec(), scored, mixed));
             self.first_update_steps.push(k + 1);
             self.pending_event = false;
         }
@@ -916,7 +973,7 @@ impl<'a> Flight<'a> {
         let t1_all = split(|_| true);
         let t1_clean = split(|mixed| !mixed);
         let t1_mixed = split(|mixed| mixed);
-        let (pe, ge) = mean_update_errors(&self.updates);
+        let (pe, ge) = mean_update_errors(&self.updates, self.config.identifiable_scale());
         let metrics = TrialMetrics {
             position_error_cm: position_error_cm(&finite),
             max_tracking_error_cm: 100.0 * tracking.iter().copied().fold(0.0, f64::max),
@@ -927,6 +984,7 @@ impl<'a> Flight<'a> {
             t1_error_mixed: t_plus_one_error(&t1_mixed),
             position_error_all_cm: position_error_all_cm(&tracking, self.planned_steps),
             settled: is_settled(&tracking, &event_steps, aborted),
+            settle_error_cm: settle_error_cm(&tracking, &event_steps, aborted),
             success,
             success_after_update,
             aborted,
@@ -985,8 +1043,9 @@ fn window_rows<'s>(
 }
 
 /// Mean parameter error and mean per-group relative errors over the estimator's updates
-/// (NaN without updates).
-fn mean_update_errors(updates: &[UpdateRecord]) -> (f64, GroupErrors) {
+/// (NaN without updates), against the identifiable parameters: the recorded truth times
+/// `scale` ([`SimConfig::identifiable_scale`]).
+fn mean_update_errors(updates: &[UpdateRecord], scale: f64) -> (f64, GroupErrors) {
     if updates.is_empty() {
         return (
             f64::NAN,
@@ -1001,7 +1060,11 @@ fn mean_update_errors(updates: &[UpdateRecord]) -> (f64, GroupErrors) {
     let mut pe = 0.0;
     let mut ge = GroupErrors::default();
     for u in updates {
-        let truth = InertialParams::from_array(u.truth);
+        let truth = if scale == 1.0 {
+            InertialParams::from_array(u.truth)
+        } else {
+            InertialParams::from_array(u.truth.map(|x| x * scale))
+        };
         pe += parameter_error(&u.estimate, &truth);
         let g = group_errors(&u.estimate, &truth, CRAZYFLIE_ARM_OFFSET);
         ge.mass += g.mass;

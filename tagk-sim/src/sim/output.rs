@@ -80,6 +80,11 @@ pub struct TrialMetrics {
     /// each payload event (the window in which an estimator can act; equals the controller's
     /// redesign for the oracle, judged at the event).
     pub success_after_update: bool,
+    /// The largest tracking error [`SETTLED_DELAY_STEPS`](crate::metrics::SETTLED_DELAY_STEPS)
+    /// control steps after each payload event \[cm\]: the trial succeeds at any threshold
+    /// above it (issue #27's success curve). +∞ when aborted; 0 when no event was judged.
+    #[serde(default)]
+    pub settle_error_cm: f64,
     /// Aborted.
     pub aborted: bool,
     /// Control steps flown.

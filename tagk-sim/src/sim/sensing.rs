@@ -232,6 +232,8 @@ impl Sensing {
 /// |---|---|---|---|
 /// | `paper` | [`Sensing::ideal`] | ideal rotors (the TAG-K paper's setting, reproduces the earlier tables) | [`FlightStack::paper`](crate::FlightStack::paper): bare LQR |
 /// | `realistic` | [`Sensing::realistic`] (BMI088 gyro and accelerometer noise and bias, velocity noise, 1 % rotor-speed noise) plus motion capture ([`MOCAP_POSITION_NOISE`], [`MOCAP_ATTITUDE_NOISE`]) | motor lag [`REALISTIC_MOTOR_LAG`] and a thrust-coefficient error [`REALISTIC_THRUST_GAIN_ERROR`] | [`FlightStack::realistic`](crate::FlightStack::realistic): integral action on position, payloads within a thrust margin, the controller's inertia completed from mass and first moment, motor telemetry |
+/// | `cf21` | as `realistic`, without the Gaussian rotor-speed noise; the noise level sets the IMU's vibration | as `realistic` | [`FlightStack::vehicle`](crate::FlightStack::vehicle) with [`BrushedPwm`](crate::sim::rotor_sensing::BrushedPwm): the wrench from 8-bit PWM commands and the battery reading |
+/// | `cf21-brushless` | as `cf21` | as `realistic` | [`FlightStack::vehicle`](crate::FlightStack::vehicle) with [`ErpmTelemetry`](crate::sim::rotor_sensing::ErpmTelemetry): eRPM by bidirectional DShot |
 ///
 /// Every figure's source is in the doc comment of its constant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -239,20 +241,44 @@ pub enum ExperimentProfile {
     /// The paper's ideal sensing and actuation.
     #[default]
     Paper,
-    /// A Crazyflie's real sensors and actuators (the default for new experiments).
+    /// A Crazyflie's sensors and actuators with 1 kHz averaged rotor-speed telemetry (issue
+    /// #14; kept for its tests and tables, superseded by the two vehicles below).
     Realistic,
+    /// A brushed Crazyflie 2.1: no rotor-speed feedback, the measured wrench from its 8-bit
+    /// PWM commands, its battery-voltage reading and a motor model
+    /// ([`BrushedPwm`](crate::sim::rotor_sensing::BrushedPwm)).
+    Cf21,
+    /// A Crazyflie 2.1 Brushless: eRPM telemetry by bidirectional DShot at its own rate and
+    /// resolution ([`ErpmTelemetry`](crate::sim::rotor_sensing::ErpmTelemetry)). The default
+    /// of the experiments.
+    Cf21Brushless,
 }
 
 impl ExperimentProfile {
     /// Every profile.
-    pub const ALL: [ExperimentProfile; 2] =
-        [ExperimentProfile::Paper, ExperimentProfile::Realistic];
+    pub const ALL: [ExperimentProfile; 4] = [
+        ExperimentProfile::Paper,
+        ExperimentProfile::Realistic,
+        ExperimentProfile::Cf21,
+        ExperimentProfile::Cf21Brushless,
+    ];
+
+    /// The real vehicles' profiles (issue #27).
+    pub const VEHICLES: [ExperimentProfile; 2] =
+        [ExperimentProfile::Cf21, ExperimentProfile::Cf21Brushless];
+
+    /// Whether this is a real vehicle's profile ([`ExperimentProfile::VEHICLES`]).
+    pub fn is_vehicle(self) -> bool {
+        Self::VEHICLES.contains(&self)
+    }
 
     /// Name on the command line.
     pub fn name(self) -> &'static str {
         match self {
             ExperimentProfile::Paper => "paper",
             ExperimentProfile::Realistic => "realistic",
+            ExperimentProfile::Cf21 => "cf21",
+            ExperimentProfile::Cf21Brushless => "cf21-brushless",
         }
     }
 
@@ -263,6 +289,12 @@ impl ExperimentProfile {
             ExperimentProfile::Realistic => {
                 Sensing::realistic().with_motion_capture(MOCAP_POSITION_NOISE, MOCAP_ATTITUDE_NOISE)
             }
+            // The rotor speeds' errors come from the rotor-sensing model, not a Gaussian.
+            ExperimentProfile::Cf21 | ExperimentProfile::Cf21Brushless => Sensing {
+                rotor_speed_noise: 0.0,
+                ..Sensing::realistic()
+            }
+            .with_motion_capture(MOCAP_POSITION_NOISE, MOCAP_ATTITUDE_NOISE),
         }
     }
 
@@ -270,7 +302,9 @@ impl ExperimentProfile {
     pub fn effects(self) -> crate::PlantEffects {
         match self {
             ExperimentProfile::Paper => crate::PlantEffects::none(),
-            ExperimentProfile::Realistic => crate::PlantEffects {
+            ExperimentProfile::Realistic
+            | ExperimentProfile::Cf21
+            | ExperimentProfile::Cf21Brushless => crate::PlantEffects {
                 motor_lag: Some(crate::plant_effects::MotorLag {
                     time_constant: REALISTIC_MOTOR_LAG,
                 }),
@@ -287,6 +321,16 @@ impl ExperimentProfile {
         match self {
             ExperimentProfile::Paper => crate::sim::FlightStack::paper(),
             ExperimentProfile::Realistic => crate::sim::FlightStack::realistic(),
+            ExperimentProfile::Cf21 => crate::sim::FlightStack::vehicle(
+                crate::sim::rotor_sensing::RotorSensing::BrushedPwm(
+                    crate::sim::rotor_sensing::BrushedPwm::crazyflie(REALISTIC_MOTOR_LAG),
+                ),
+            ),
+            ExperimentProfile::Cf21Brushless => {
+                crate::sim::FlightStack::vehicle(crate::sim::rotor_sensing::RotorSensing::Erpm(
+                    crate::sim::rotor_sensing::ErpmTelemetry::crazyflie_brushless(),
+                ))
+            }
         }
     }
 
@@ -315,7 +359,7 @@ impl FromStr for ExperimentProfile {
             .ok_or_else(|| SimError::Unknown {
                 what: "experiment profile",
                 value: s.to_string(),
-                expected: "paper, realistic",
+                expected: "paper, realistic, cf21, cf21-brushless",
             })
     }
 }
