@@ -13,9 +13,13 @@
 //!   `v = q̈_d + K_d (q̇_d − q̇) + K_p (q_d − q)`, the *estimated* parameters `θ̂` and the
 //!   known joint effects; saturated at the effort limits.
 //! - **Estimation**: every 10 ms a sample, the mean of the sensed `q`, `q̇`, `τ` over those
-//!   10 control steps; its `q̈` is the central difference of the sample `q̇`s (one sample
-//!   late). A window of 10 samples (`10·dof` rows) updates any
-//!   `OnlineEstimator`: `τ − τ_e − Y_known θ_known = Y_I β` ([`BaseParameters`]).
+//!   10 control steps. One Savitzky–Golay fit ([`centre_fit`], 5 samples) filters `q`, `q̇`
+//!   and `τ` (less the known friction) alike; `q̈` is the slope of `q̇` (2 samples late). A window of 10
+//!   samples (`10·dof` rows) updates any `OnlineEstimator`:
+//!   `τ − τ_e − Y_known θ_known = Y_I β` ([`BaseParameters`]).
+//! - **Gates**: an estimate reaches the controller only if it predicts the next window's
+//!   torques within the measured noise, or better than the controller's parameters
+//!   ([`torque_gate_threshold`]), and its inertia stays near the nominal.
 //! - **Experiment** ([`ArmExperiment`], [`run_arm_trial`], [`ArmRow`]): the arm's Table II.
 //! - **Prescribed motion** ([`prescribed_log`]): a joint-torque log by inverse dynamics along a
 //!   [`FourierTrajectory`], no integrator, for the joint-torque diagnosis and its tests.
@@ -39,7 +43,9 @@ pub use model::{ArmModel, JointLimits};
 pub use plant::{ArmPlant, ArmState};
 pub use prescribed::prescribed_log;
 pub use sim::{
-    ArmAdaptation, ArmLog, ArmOutput, ArmSimConfig, GATE_INERTIA_RATIO, GATE_MIN_PSEUDO_INERTIA,
-    JointSensing, PayloadEvent, UpdateRecord, box_payload, simulate_arm,
+    ArmAdaptation, ArmLog, ArmOutput, ArmSimConfig, DEFAULT_FILTER_HALF_WIDTH, GATE_INERTIA_RATIO,
+    GATE_MIN_PSEUDO_INERTIA, JointSensing, PayloadEvent, TORQUE_GATE_FACTOR, UpdateRecord,
+    box_payload, centre_fit, simulate_arm, smoothing_noise_gain, torque_gate_threshold,
+    torque_residual,
 };
 pub use trajectory::{ArmTrajectory, FourierTrajectory, JointReference, PickAndPlace};
