@@ -5,13 +5,14 @@ use std::path::Path;
 use std::time::Instant;
 
 use nalgebra::Vector3;
-use rand::{Rng, RngExt};
+use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use tagk_core::OnlineEstimator;
 use tagk_dynamics::deriv::{savitzky_golay_derivative, savitzky_golay_smooth};
 use tagk_dynamics::{InertialParams, JointEffects};
 
 use super::{ArmModel, ArmPlant, ArmState, ArmTrajectory, BaseParameters};
+use crate::sim::gaussian;
 use crate::{EstimatorKind, SimError};
 
 /// Joint sensing: encoders, velocity and motor-current (or joint-torque) sensing.
@@ -360,13 +361,6 @@ pub fn torque_residual(a: &[f64], b: &[f64], x: &[f64]) -> f64 {
 pub fn torque_gate_threshold(sigma_1k: f64, sample_every: usize, h: usize, offset: f64) -> f64 {
     let s = sigma_1k / (sample_every.max(1) as f64).sqrt() * smoothing_noise_gain(h);
     ((TORQUE_GATE_FACTOR * s).powi(2) + offset * offset).sqrt()
-}
-
-/// Standard normal draw (Box–Muller).
-fn gaussian<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 fn params_of(theta: &[f64]) -> Result<Vec<InertialParams>, SimError> {
