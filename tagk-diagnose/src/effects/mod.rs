@@ -468,8 +468,8 @@ pub fn builtin_with(
 /// [`crate::DiagnoseOptions::candidates`].
 ///
 /// `rotor-imbalance`: its torques, near hover `∝` the thrust, stand in for a constant torque
-/// and for rotor drag's hub moments. Measured with it proposed: false effects in 12 and 7
-/// more of the diagnosis benchmark's 300 flights (seeds 7, 11), 20 of its 26 false
+/// and for rotor drag's hub moments. Measured with it proposed: false effects in 11 and 7
+/// more of the diagnosis benchmark's 300 flights (seeds 7, 11), 17 of its 24 false
 /// `rotor-imbalance`s where a `body-bias` torque was hidden; two tests of
 /// `tests/stepwise.rs` then fail (a false `rotor-imbalance`).
 ///
