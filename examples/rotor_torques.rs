@@ -80,12 +80,11 @@ struct Args {
 /// write (only `motor-lag`, `rotor-inertia`, `rotor-inflow`, `rotor-imbalance`,
 /// `thrust-gain`).
 ///
-/// A rotor's relative error `ε_i` splits into the common part `ε̄` (the vehicle's `k_f`, `k_m`
-/// scaled by `1 + ε̄`: on the torques too, where the diagnosis's `thrust-gain` does not act)
-/// and the contrasts `(1 + ε_i)/(1 + ε̄) − 1` (`rotor-imbalance`'s `d_eps1..3`).
+/// A rotor's relative error `ε_i` splits into the common part `ε̄` and the contrasts
+/// `(1 + ε_i)/(1 + ε̄) − 1` (`rotor-imbalance`'s `d_eps1..3`). The common part (times a thrust
+/// gain's) scales the whole wrench, torques too: the parameters are divided by it.
 fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
     use tagk::diagnose::model_file::{ModelCoefficient, ModelEffect, ScannedParameter};
-    use tagk::dynamics::vehicle::{ReactionTorque, ThrustCurve, Vehicle};
     let coefficient = |name: &str, unit: &str, value: f64| ModelCoefficient {
         name: name.into(),
         unit: unit.into(),
@@ -164,17 +163,12 @@ fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
                 .collect(),
         ));
     }
-    let mut vehicle = Vehicle::crazyflie_2_1();
+    // The common factor scales the whole wrench: the same as the parameters over it (the
+    // wrench is linear in θ). The file's rotor map is the log's, identified from its wrench.
     let scale = gain * (1.0 + mean);
-    vehicle.thrust = match vehicle.thrust {
-        ThrustCurve::Quadratic { k_f } => ThrustCurve::Quadratic { k_f: k_f * scale },
-        _ => return None,
-    };
-    vehicle.reaction_torque = match vehicle.reaction_torque {
-        ReactionTorque::Coefficient { k_m } => ReactionTorque::Coefficient { k_m: k_m * scale },
-        _ => return None,
-    };
-    file.vehicle = Some(vehicle);
+    for v in &mut file.inertial.values {
+        *v /= scale;
+    }
     Some(file)
 }
 
@@ -398,9 +392,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             };
             let (id_log, id_truth) = fly(&identify, "identify")?;
             let snr = signal_to_noise(&id_log, &id_truth);
+            // The payload is attached once the flight runs (not at its first sample).
             let theta = id_truth
                 .samples
-                .first()
+                .last()
                 .ok_or("an empty flight")?
                 .params
                 .to_array();
