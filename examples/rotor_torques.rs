@@ -66,9 +66,152 @@ struct Args {
     /// Folder for the diagnosed final models.
     #[arg(long, default_value = "out/rotor_torques")]
     out: PathBuf,
+    /// Folder for the flights' logs (`flight-K-identify.csv`, `flight-K-held-out.csv`); none:
+    /// not written.
+    #[arg(long)]
+    logs: Option<PathBuf>,
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+/// The true model of a flight: its true inertial parameters and the hidden effects at their
+/// true coefficients, as a model file. `None` when an effect is hidden that it does not
+/// write (only `motor-lag`, `rotor-inertia`, `rotor-inflow`, `rotor-imbalance`,
+/// `thrust-gain`).
+///
+/// A rotor's relative error `ε_i` splits into the common part `ε̄` and the contrasts
+/// `(1 + ε_i)/(1 + ε̄) − 1` (`rotor-imbalance`'s `d_eps1..3`). The common part (times a thrust
+/// gain's) scales the whole wrench, torques too: the parameters are divided by it.
+fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
+    use tagk::diagnose::model_file::{ModelCoefficient, ModelEffect, ScannedParameter};
+    let coefficient = |name: &str, unit: &str, value: f64| ModelCoefficient {
+        name: name.into(),
+        unit: unit.into(),
+        value,
+        std_error: None,
+        interval: None,
+    };
+    let effect = |name: &str, coefficients: Vec<ModelCoefficient>| ModelEffect {
+        name: name.into(),
+        spec: None,
+        scanned: None,
+        coefficients,
+    };
+    let others = PlantEffects {
+        motor_lag: None,
+        rotor_inertia: None,
+        rotor_inflow: None,
+        rotor_imbalance: None,
+        thrust_gain: None,
+        ..*effects
+    };
+    if others != PlantEffects::none() {
+        return None;
+    }
+    let mut file = ModelFile::rigid_body(theta);
+    file.label = "truth".into();
+    if let Some(lag) = effects.motor_lag {
+        let mut e = effect(
+            "motor-lag",
+            ["start_w1", "start_w2", "start_w3", "start_w4"]
+                .iter()
+                .map(|n| coefficient(n, "rad/s", 0.0))
+                .chain(
+                    ["start_sq_fz", "start_sq_tx", "start_sq_ty", "start_sq_tz"]
+                        .iter()
+                        .map(|n| coefficient(n, "N", 0.0)),
+                )
+                .collect(),
+        );
+        e.scanned = Some(ScannedParameter {
+            name: "tau".into(),
+            unit: "s".into(),
+            value: lag.time_constant,
+            interval: None,
+        });
+        file.effects.push(e);
+    }
+    if let Some(r) = effects.rotor_inertia {
+        file.effects.push(effect(
+            "rotor-inertia",
+            vec![coefficient("J_r", "kg m²", r.inertia)],
+        ));
+    }
+    if let Some(r) = effects.rotor_inflow {
+        file.effects.push(effect(
+            "rotor-inflow",
+            vec![coefficient("k_in", "N s²/(m rad)", r.coefficient)],
+        ));
+    }
+    let gain = 1.0 + effects.thrust_gain.map_or(0.0, |g| g.relative_error);
+    let eps = effects
+        .rotor_imbalance
+        .map_or([0.0; 4], |r| r.relative_errors);
+    let mean = eps.iter().sum::<f64>() / 4.0;
+    if effects.rotor_imbalance.is_some() {
+        file.effects.push(effect(
+            "rotor-imbalance",
+            (0..3)
+                .map(|i| {
+                    coefficient(
+                        &format!("d_eps{}", i + 1),
+                        "1",
+                        (1.0 + eps[i]) / (1.0 + mean) - 1.0,
+                    )
+                })
+                .collect(),
+        ));
+    }
+    // The common factor scales the whole wrench: the same as the parameters over it (the
+    // wrench is linear in θ). The file's rotor map is the log's, identified from its wrench.
+    let scale = gain * (1.0 + mean);
+    for v in &mut file.inertial.values {
+        *v /= scale;
+    }
+    Some(file)
+}
+
+/// Per hidden effect, the RMS of its true wrench's variation about its mean as the log samples
+/// it (after the first second) over the RMS of the logged wrench's noise (the logged `fx..tz` less their noise-free values: the rotor-speed
+/// noise), per channel `[fx, fy, fz, tx, ty, tz]` (inf or NaN where a channel has no noise).
+fn signal_to_noise(
+    log: &tagk::dynamics::FlightLog,
+    truth: &tagk::sim::FlightTruth,
+) -> Vec<(EffectKind, [f64; 6])> {
+    // After the first second: the start-of-log transient (motors spinning up to the first
+    // command) is the diagnosis's start columns', not the effect's steady signature.
+    let start = truth.samples.iter().take_while(|s| s.t < 1.0).count();
+    let n = truth.samples.len().saturating_sub(start).max(1) as f64;
+    let mut noise = [0.0; 6];
+    for (s, b) in truth.samples.iter().zip(&log.wrench).skip(start) {
+        for c in 0..6 {
+            noise[c] += (b[c] - s.logged_actuator_wrench[c]).powi(2) / n;
+        }
+    }
+    truth
+        .effects
+        .iter()
+        .enumerate()
+        .map(|(k, kind)| {
+            let mut ratio = [0.0; 6];
+            for (c, r) in ratio.iter_mut().enumerate() {
+                // Its variation: a constant part is the mass's or a bias's as much as the
+                // effect's.
+                let values = || {
+                    truth
+                        .samples
+                        .iter()
+                        .skip(start)
+                        .map(|s| s.logged_effect_wrenches[k][c])
+                };
+                let mean = values().sum::<f64>() / n;
+                let signal = values().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+                *r = (signal / noise[c]).sqrt();
+            }
+            (*kind, ratio)
+        })
+        .collect()
 }
 
 /// One flight of the vehicle: its path, yaw rate and simulator seed drawn from `rng`.
@@ -149,6 +292,11 @@ impl From<&HorizonError> for Errors {
 
 /// One scored flight.
 struct Scored {
+    /// The true model (`None`: not written for these hidden effects).
+    truth: Option<Errors>,
+    /// Per hidden effect, its true wrench's RMS over the logged wrench's noise RMS, per
+    /// channel (identification flight).
+    snr: Vec<(EffectKind, [f64; 6])>,
     diagnosed: Errors,
     rigid: Errors,
     constant_rate: Errors,
@@ -182,6 +330,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         effects = effects.with(kind)?;
     }
     std::fs::create_dir_all(&args.out)?;
+    if let Some(dir) = &args.logs {
+        std::fs::create_dir_all(dir)?;
+    }
     let horizons = [args.horizon];
     println!(
         "{} vehicles, hidden {}, {} s flights, {} sensing, seed {}; mean {}-step errors on a held-out flight",
@@ -193,8 +344,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         args.horizon
     );
     println!(
-        "{:>3} {:>28} {:>31} {:>31} {:>31}  diagnosed model",
+        "{:>3} {:>9} {:>28} {:>31} {:>31} {:>31}  diagnosed model",
         "#",
+        "T [rad/s]",
         "body rate D / R / C [rad/s]",
         "position D / R / C [m]",
         "velocity D / R / C [m/s]",
@@ -226,14 +378,28 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             &args.hidden,
         );
         let outcome = (|| -> Result<(Scored, String), Box<dyn std::error::Error>> {
-            let fly = |spec: &FlightSpec| -> Result<_, Box<dyn std::error::Error>> {
+            let fly = |spec: &FlightSpec, name: &str| -> Result<_, Box<dyn std::error::Error>> {
                 let out = simulate(&spec.sim_config())?;
                 if out.metrics.aborted {
                     return Err(format!("the {:?} flight aborted", spec.trajectory).into());
                 }
-                Ok(out.log)
+                if let Some(dir) = &args.logs {
+                    out.log
+                        .write_csv_path(dir.join(format!("flight-{index}-{name}.csv")))?;
+                }
+                let truth = out.truth.ok_or("the simulator recorded no truth")?;
+                Ok((out.log, truth))
             };
-            let report = run_diagnosis(fly(&identify)?, None)?;
+            let (id_log, id_truth) = fly(&identify, "identify")?;
+            let snr = signal_to_noise(&id_log, &id_truth);
+            // The payload is attached once the flight runs (not at its first sample).
+            let theta = id_truth
+                .samples
+                .last()
+                .ok_or("an empty flight")?
+                .params
+                .to_array();
+            let report = run_diagnosis(id_log, None)?;
             let context = ModelContext::default();
             let diagnosed = ModelFile::from_diagnosis(&report, &context);
             diagnosed.write(&args.out.join(format!("flight-{index}.toml")))?;
@@ -241,7 +407,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 .into_iter()
                 .next()
                 .ok_or("the diagnosis has no rigid-body step")?;
-            let log = fly(&held_out)?;
+            let (log, _) = fly(&held_out, "held-out")?;
             let d_logs = read_as(&diagnosed, &log)?;
             let r_logs = read_as(&rigid, &log)?;
             // A model without a positive-definite spatial inertia, or whose open-loop state
@@ -259,8 +425,14 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                     Err(e) => Err(e.into()),
                 }
             };
+            let truth = match truth_model(theta, &effects) {
+                Some(model) => Some(at(&read_as(&model, &log)?, Predictor::Model(&model))?),
+                None => None,
+            };
             Ok((
                 Scored {
+                    truth,
+                    snr,
                     diagnosed: at(&d_logs, Predictor::Model(&diagnosed))?,
                     rigid: at(&r_logs, Predictor::Model(&rigid))?,
                     constant_rate: at(&r_logs, Predictor::ConstantRate)?,
@@ -273,7 +445,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             Ok((s, label)) => {
                 let (d, r, c) = (s.diagnosed, s.rigid, s.constant_rate);
                 bar.suspend(|| println!(
-                    "{index:>3} {:>9.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>15.2} {:>15.2}  {label}",
+                    "{index:>3} {:>9.2e} {:>9.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>10.2e} {:>9.2e} {:>9.2e} {:>15.2} {:>15.2}  {label}",
+                    s.truth.map_or(f64::NAN, |t| t.body_rate),
                     d.body_rate,
                     r.body_rate,
                     c.body_rate,
@@ -335,6 +508,40 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         ratio(&|s| s.diagnosed.position / s.rigid.position),
         ratio(&|s| s.diagnosed.velocity / s.rigid.velocity),
     );
+    println!(
+        "the true model (T: true parameters and hidden effects, from the same noisy log): median body rate T/C {}, T/D {}; T <= C/2: {}/{n}",
+        ratio(&|s| s
+            .truth
+            .map_or(f64::NAN, |t| t.body_rate / s.constant_rate.body_rate)),
+        ratio(&|s| s
+            .truth
+            .map_or(f64::NAN, |t| t.body_rate / s.diagnosed.body_rate)),
+        scored
+            .iter()
+            .filter(|s| s
+                .truth
+                .is_some_and(|t| t.body_rate <= 0.5 * s.constant_rate.body_rate))
+            .count(),
+    );
+    println!(
+        "each hidden effect's true wrench, RMS about its mean after the first second, over the logged wrench's noise RMS (identification flights, median) [fx fy fz tx ty tz]; a candidate's held-out gain is about its square, against 0.05 to be admitted:"
+    );
+    if let Some(first) = scored.first() {
+        for (k, (kind, _)) in first.snr.iter().enumerate() {
+            let per_channel: Vec<String> = (0..6)
+                .map(|c| {
+                    let m = median(
+                        scored
+                            .iter()
+                            .filter_map(|s| s.snr.get(k).map(|e| e.1[c]))
+                            .collect(),
+                    );
+                    format!("{m:9.3}")
+                })
+                .collect();
+            println!("  {:<16} {}", kind.name(), per_channel.join(" "));
+        }
+    }
     println!(
         "body rate D <= C/2: {}/{n}; D <= R/2: {}/{n}; position D <= R: {}/{n}; velocity D <= R: {}/{n}",
         share(&|s| s.diagnosed.body_rate <= 0.5 * s.constant_rate.body_rate),

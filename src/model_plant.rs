@@ -280,6 +280,10 @@ pub fn model_plant(model: &ModelFile) -> Result<ModelPlant, ModelPlantError> {
                 gain: c("c_ge")?,
             })),
             EffectKind::MotorLag => builtins.push((kind, vec![scanned(effect, "tau")?])),
+            // The filter alone; the telemetry's delay is the model's `time-delay`.
+            EffectKind::TelemetryLag => {
+                builtins.push((kind, vec![scanned(effect, "tau_tel")?, 0.0]))
+            }
             EffectKind::RotorInertia => rotor_inertia = Some(d("J_r")?),
             // The diagnosis's delay is positive for an early actuator log; the plant's delays
             // (makes late) the logged wrench.

@@ -208,3 +208,36 @@ fn a_voltage_without_its_effect_is_not_found() {
     }
     assert!(false_finds.is_empty(), "{false_finds:?}");
 }
+
+/// The model file carries `β` with its standard error and 95 % interval, as every other
+/// coefficient, and reads them back bit for bit. The interval is `β ± 1.96 s.e.` (computed
+/// here from the standard error) and covers the truth on an ideal log.
+#[test]
+fn the_model_file_gives_beta_its_interval() {
+    let out = flight(7, draining(), Sensing::ideal());
+    let s = Signals::from_log(&out.log).unwrap();
+    let model = Model::rigid_body().with_ref(builtin(EffectKind::BatteryVoltage).unwrap());
+    let fit = fit_model(&model, &s, None).unwrap();
+    let file = tagk_diagnose::ModelFile::from_fit(
+        &fit,
+        &fit.effects,
+        &tagk_diagnose::ModelContext::default(),
+    );
+    let back = tagk_diagnose::ModelFile::from_toml_str(&file.to_toml_string().unwrap()).unwrap();
+    let effect = back
+        .effects
+        .iter()
+        .find(|e| e.name == EffectKind::BatteryVoltage.name())
+        .unwrap();
+    let beta = &effect.coefficients[0];
+    assert_eq!(beta.name, "beta");
+    let se = beta.std_error.expect("a standard error");
+    let [lo, hi] = beta.interval.expect("an interval");
+    let half = 0.5 * (hi - lo);
+    assert!(
+        (half / (1.96 * se) - 1.0).abs() < 0.05 && (0.5 * (lo + hi) - beta.value).abs() < 1e-9,
+        "beta {} ± {se}: [{lo}, {hi}]",
+        beta.value
+    );
+    assert!(lo <= 1.0 && 1.0 <= hi, "beta {} [{lo}, {hi}]", beta.value);
+}

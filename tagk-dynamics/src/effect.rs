@@ -60,11 +60,15 @@ pub enum EffectKind {
     /// the rotors make `(1 + β (V − V_ref)/V_ref)` times their nominal thrust `k_f ωᵢ²` and
     /// reaction torque `k_m ωᵢ²` (dimensionless `β`, reference voltage `V_ref` \[V\]).
     BatteryVoltage,
+    /// Rotor-speed telemetry delay and filtering: each rotor's reported speed is its speed
+    /// `d` \[s\] earlier through a first-order filter of time constant `τ_tel` \[s\]. It lags the
+    /// measurement (the log's rotor speeds and the wrench computed from them), not the thrust.
+    TelemetryLag,
 }
 
 impl EffectKind {
     /// Every effect, in a fixed order (the order of help texts and reports).
-    pub const ALL: [EffectKind; 13] = [
+    pub const ALL: [EffectKind; 14] = [
         EffectKind::LinearDrag,
         EffectKind::QuadraticDrag,
         EffectKind::RotorDrag,
@@ -78,6 +82,7 @@ impl EffectKind {
         EffectKind::RotorInflow,
         EffectKind::RotorImbalance,
         EffectKind::BatteryVoltage,
+        EffectKind::TelemetryLag,
     ];
 
     /// The canonical kebab-case name, e.g. `"rotor-drag"`.
@@ -96,6 +101,7 @@ impl EffectKind {
             EffectKind::RotorInflow => "rotor-inflow",
             EffectKind::RotorImbalance => "rotor-imbalance",
             EffectKind::BatteryVoltage => "battery-voltage",
+            EffectKind::TelemetryLag => "telemetry-lag",
         }
     }
 
@@ -109,6 +115,7 @@ impl EffectKind {
             EffectKind::RotorInflow => &["inflow"],
             EffectKind::RotorImbalance => &["per-rotor-thrust"],
             EffectKind::BatteryVoltage => &["battery"],
+            EffectKind::TelemetryLag => &["telemetry-delay", "telemetry-filter"],
             _ => &[],
         }
     }
@@ -139,6 +146,9 @@ impl EffectKind {
             EffectKind::BatteryVoltage => {
                 "rotor map falling with the battery voltage, (1 + beta (V - V_ref)/V_ref) k_f w_i^2"
             }
+            EffectKind::TelemetryLag => {
+                "rotor-speed telemetry late and filtered: reported w_i lags the rotor by tau_tel"
+            }
         }
     }
 
@@ -146,16 +156,16 @@ impl EffectKind {
     ///
     /// - The three drag laws (`linear-drag`, `quadratic-drag`, `rotor-drag`) are one family,
     ///   `drag`, since a log near hover cannot tell them apart.
-    /// - `motor-lag` and `time-delay` are one family, `timing`. To first order in frequency a
-    ///   first-order lag τ is a delay τ. They part only where the lag's amplitude roll-off rises
-    ///   above the noise.
+    /// - `motor-lag`, `time-delay` and `telemetry-lag` are one family, `timing`. To first order
+    ///   in frequency a first-order lag τ is a delay τ. They part only where the lag's amplitude
+    ///   roll-off rises above the noise.
     /// - Every other effect is a family of its own, named like it.
     ///
     /// A `wind` fit includes a drag, and so does `rotor-inflow`: [`EffectKind::includes_drag`].
     pub const fn family(self) -> &'static str {
         match self {
             EffectKind::LinearDrag | EffectKind::QuadraticDrag | EffectKind::RotorDrag => "drag",
-            EffectKind::MotorLag | EffectKind::TimeDelay => "timing",
+            EffectKind::MotorLag | EffectKind::TimeDelay | EffectKind::TelemetryLag => "timing",
             other => other.name(),
         }
     }

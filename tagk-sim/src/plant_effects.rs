@@ -421,6 +421,78 @@ impl Default for TimeDelay {
     }
 }
 
+/// Rotor-speed telemetry delay and filtering (the vocabulary's `telemetry-lag`): each rotor's
+/// reported speed lags its read-back speed. It acts on the log only, as [`TimeDelay`] does: the
+/// rotors, the controller and the plant are not affected.
+///
+/// The reported speed of rotor `i` at log sample `k` is the discrete first-order filter
+/// `y_k = α y_{k−1} + (1 − α) x_{k−n}` with `α = e^{−Δt/τ_tel}` (`Δt` the control period),
+/// started at `y = x_0`. Here `x_j` is the read-back speed of control interval `j` (before
+/// noise) and `n = round(d/Δt)` whole periods of delay. It is a continuous first-order
+/// filter of time constant `τ_tel` \[s\] of the held reading, sampled at each period's end.
+/// The rotor-speed noise is added after it (the reading's own quantisation), and the logged
+/// wrench is the nominal mixer of the reported speeds (docs/CONVENTIONS.md §7).
+///
+/// Default: `τ_tel` = 0.02 s, `d` = 0: one 50 Hz period, an ESC's eRPM averaged by the flight
+/// controller (a chosen magnitude, not a measured Crazyflie value).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TelemetryLag {
+    /// Time constant `τ_tel` of the first-order filter \[s\] (`≥ 0`; 0: no filter).
+    pub time_constant: f64,
+    /// Delay `d` of the reported speeds \[s\] (`≥ 0`), applied in whole control periods.
+    pub delay: f64,
+}
+
+impl TelemetryLag {
+    /// `τ_tel` = 0.02 s, no delay.
+    pub fn crazyflie() -> Self {
+        Self {
+            time_constant: 0.02,
+            delay: 0.0,
+        }
+    }
+
+    /// The filter's factor `α = e^{−Δt/τ_tel}` for a period `dt` \[s\] (0 without a filter).
+    pub fn alpha(&self, dt: f64) -> f64 {
+        if self.time_constant > 0.0 {
+            (-dt / self.time_constant).exp()
+        } else {
+            0.0
+        }
+    }
+
+    /// The delay in whole periods of `dt` \[s\].
+    pub fn delay_periods(&self, dt: f64) -> usize {
+        if dt > 0.0 {
+            (self.delay / dt).round().max(0.0) as usize
+        } else {
+            0
+        }
+    }
+
+    /// The reported speeds of a log of read-back speeds `x` (one per control interval of
+    /// `dt` \[s\]): the filter of the type docs, run over the whole series.
+    pub fn reported(&self, x: &[[f64; 4]], dt: f64) -> Vec<[f64; 4]> {
+        let (alpha, n) = (self.alpha(dt), self.delay_periods(dt));
+        let mut out = Vec::with_capacity(x.len());
+        let mut y = x.first().copied().unwrap_or([0.0; 4]);
+        for k in 0..x.len() {
+            let input = x[k.saturating_sub(n)];
+            for r in 0..4 {
+                y[r] = alpha * y[r] + (1.0 - alpha) * input[r];
+            }
+            out.push(y);
+        }
+        out
+    }
+}
+
+impl Default for TelemetryLag {
+    fn default() -> Self {
+        Self::crazyflie()
+    }
+}
+
 /// Rotor inertia (the vocabulary's `rotor-inertia`): each rotor with its motor bell has the
 /// axial inertia `J_r` \[kg m²\] about its spin axis, body `+z`.
 ///
@@ -860,6 +932,10 @@ pub struct PlantEffects {
     /// Battery-voltage dependence of the rotor map (logs `vbat`).
     #[serde(default)]
     pub battery_voltage: Option<BatteryVoltage>,
+    /// Rotor-speed telemetry delay and filtering (the log only; left out of serialised sets
+    /// when off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub telemetry_lag: Option<TelemetryLag>,
 }
 
 impl PlantEffects {
@@ -908,6 +984,7 @@ impl PlantEffects {
             EffectKind::BatteryVoltage => {
                 self.battery_voltage = Some(BatteryVoltage::crazyflie());
             }
+            EffectKind::TelemetryLag => self.telemetry_lag = Some(TelemetryLag::crazyflie()),
             other => return Err(SimError::UnsupportedEffect { effect: other }),
         }
         Ok(self)
@@ -930,6 +1007,7 @@ impl PlantEffects {
             EffectKind::RotorInflow => "k_in [N s^2/(m rad)]",
             EffectKind::RotorImbalance => "eps_1, eps_2, eps_3, eps_4 [1] (rotors M1..M4)",
             EffectKind::BatteryVoltage => "beta [1], v_ref [V]",
+            EffectKind::TelemetryLag => "time constant [s], delay [s]",
             _ => "",
         }
     }
@@ -953,7 +1031,7 @@ impl PlantEffects {
             EffectKind::QuadraticDrag => 4,
             EffectKind::BodyBias => 6,
             EffectKind::RotorImbalance => 4,
-            EffectKind::BatteryVoltage => 2,
+            EffectKind::BatteryVoltage | EffectKind::TelemetryLag => 2,
             _ => 1,
         };
         if c.len() != expected {
@@ -1013,6 +1091,12 @@ impl PlantEffects {
                     beta: c[0],
                     reference_voltage: c[1],
                     ..BatteryVoltage::crazyflie()
+                });
+            }
+            EffectKind::TelemetryLag => {
+                e.telemetry_lag = Some(TelemetryLag {
+                    time_constant: c[0],
+                    delay: c[1],
                 });
             }
             other => return Err(SimError::UnsupportedEffect { effect: other }),
@@ -1132,6 +1216,20 @@ impl PlantEffects {
                     value,
                     reason: "must be > -1",
                 });
+            }
+        }
+        if let Some(l) = &self.telemetry_lag {
+            for (name, value) in [
+                ("telemetry_lag.time_constant", l.time_constant),
+                ("telemetry_lag.delay", l.delay),
+            ] {
+                if !(value >= 0.0 && value.is_finite()) {
+                    return Err(SimError::InvalidParameter {
+                        name,
+                        value,
+                        reason: "must be non-negative and finite",
+                    });
+                }
             }
         }
         if let Some(d) = &self.time_delay

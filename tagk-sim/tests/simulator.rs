@@ -384,6 +384,19 @@ fn effects_follow_their_formulas() {
             assert_eq!(&b.log.wrench[1..], &a.log.wrench[..a.log.len() - 1]);
             let (ra, rb) = (a.log.rotor_speeds.unwrap(), b.log.rotor_speeds.unwrap());
             assert_eq!(&rb[1..], &ra[..ra.len() - 1]);
+        } else if kind == EffectKind::TelemetryLag {
+            // The same flight; the logged rotor speeds are the ideal flight's through the
+            // telemetry filter (`TelemetryLag::reported`, run over the whole series).
+            assert_eq!(a.log.position, b.log.position);
+            let (ra, rb) = (a.log.rotor_speeds.unwrap(), b.log.rotor_speeds.unwrap());
+            let lag = e.telemetry_lag.unwrap();
+            let expected = lag.reported(&ra, SimConfig::default().control_dt);
+            assert_ne!(rb, ra);
+            for (x, y) in rb.iter().zip(&expected) {
+                for r in 0..4 {
+                    assert!((x[r] - y[r]).abs() <= 1e-9 * y[r].abs(), "{x:?} {y:?}");
+                }
+            }
         } else {
             assert_ne!(
                 a.log.position.last().unwrap(),

@@ -676,6 +676,179 @@ impl Effect for TimeDelay {
     }
 }
 
+/// Rotor-speed telemetry filtering (`telemetry-lag`): each rotor's *reported* speed is a
+/// first-order filter of its true speed, `y_k = α y_{k−1} + (1 − α) x_k` with
+/// `α = e^{−Δt/τ_tel}` (the filter of the simulator's `TelemetryLag`). It lags the measurement,
+/// not the thrust: the wrench acting is that of the true speeds, which the inverse filter
+/// recovers exactly from the reported ones, `x_k = (y_k − α y_{k−1}) / (1 − α)` from
+/// `x_0 = y_0` ([`inverse_telemetry_filter`]). Column `M x² − b` on `fz, tx, ty, tz` (`M` the
+/// mixer identified from the log, `b` the logged wrench), its gain fixed at 1: the regression's
+/// target becomes the wrench of the recovered speeds. Without rotor speeds the inverse filter
+/// acts on the wrench itself. It needs no start-of-log column: the inverse is a two-tap
+/// filter. The telemetry's pure delay is `time-delay` at a negative delay (a late actuator
+/// stream, whole samples).
+#[derive(Debug, Clone)]
+pub(crate) struct TelemetryLag {
+    /// Time constants scanned \[s\].
+    pub grid: Vec<f64>,
+}
+
+impl Default for TelemetryLag {
+    fn default() -> Self {
+        Self {
+            grid: MotorLag::default().grid,
+        }
+    }
+}
+
+impl TelemetryLag {
+    /// The time constant \[s\]: `p`, else the middle of the grid.
+    fn tau(&self, p: Option<f64>) -> f64 {
+        p.unwrap_or(self.grid[self.grid.len() / 2])
+    }
+}
+
+/// The telemetry filter's factor `α = e^{−Δt/τ}` over a step `dt` \[s\] (0 for `τ ≤ 0`).
+fn telemetry_alpha(dt: f64, tau: f64) -> f64 {
+    if tau > 0.0 { (-dt / tau).exp() } else { 0.0 }
+}
+
+/// The telemetry filter `y_k = α y_{k−1} + (1 − α) x_k` (`α = e^{−Δt_k/τ}`, `Δt_k` the
+/// step before sample `k`), from `y_0 = x_0`, in place on `x` sampled at `t`.
+pub(crate) fn telemetry_filter(t: &[f64], x: &mut [f64], tau: f64) {
+    let mut y = match x.first() {
+        Some(v) => *v,
+        None => return,
+    };
+    let (mut last_dt, mut alpha) = (f64::NAN, 0.0);
+    for k in 1..x.len().min(t.len()) {
+        let dt = t[k] - t[k - 1];
+        if !same_step(dt, last_dt) {
+            last_dt = dt;
+            alpha = telemetry_alpha(dt, tau);
+        }
+        y = alpha * y + (1.0 - alpha) * x[k];
+        x[k] = y;
+    }
+}
+
+/// The inverse of [`telemetry_filter`] in place on `y` sampled at `t`:
+/// `x_k = (y_k − α y_{k−1}) / (1 − α)`, `x_0 = y_0`. Two taps, no state.
+pub(crate) fn inverse_telemetry_filter(t: &[f64], y: &mut [f64], tau: f64) {
+    if y.is_empty() || tau <= 0.0 {
+        return;
+    }
+    let mut previous = y[0];
+    let (mut last_dt, mut alpha) = (f64::NAN, 0.0);
+    for k in 1..y.len().min(t.len()) {
+        let dt = t[k] - t[k - 1];
+        if !same_step(dt, last_dt) {
+            last_dt = dt;
+            alpha = telemetry_alpha(dt, tau);
+        }
+        let reported = y[k];
+        y[k] = (reported - alpha * previous) / (1.0 - alpha);
+        previous = reported;
+    }
+}
+
+impl Effect for TelemetryLag {
+    fn name(&self) -> &str {
+        EffectKind::TelemetryLag.name()
+    }
+    fn description(&self) -> &str {
+        "rotor-speed telemetry filtered: the logged speeds lag the rotors by a time constant"
+    }
+    fn channels(&self) -> Vec<Channel> {
+        vec![2, 3, 4, 5]
+    }
+    fn scan(&self) -> Option<ScanSpec> {
+        Some(ScanSpec {
+            name: "tau_tel".into(),
+            unit: "s".into(),
+            grid: self.grid.clone(),
+            start: self.grid.iter().copied().reduce(f64::min),
+        })
+    }
+    fn columns(&self, s: &Signals, p: Option<f64>) -> Vec<EffectColumn> {
+        let tau = self.tau(p);
+        let b = s.wrench();
+        let mut data: [Option<Vec<f64>>; 6] = Default::default();
+        match (s.rotor_speeds(), s.rotor_mixer()) {
+            (Some(w), Some(mixer)) => {
+                let recovered: Vec<Vec<f64>> = (0..4)
+                    .map(|r| {
+                        let mut x: Vec<f64> = w.iter().map(|v| v[r]).collect();
+                        inverse_telemetry_filter(&s.t, &mut x, tau);
+                        x
+                    })
+                    .collect();
+                for (c, d) in data.iter_mut().enumerate().skip(2) {
+                    let m = &mixer.matrix[c - 2];
+                    *d = Some(
+                        (0..b.len())
+                            .map(|i| {
+                                (0..4).map(|j| m[j] * recovered[j][i].powi(2)).sum::<f64>()
+                                    - b[i][c]
+                            })
+                            .collect(),
+                    );
+                }
+            }
+            _ => {
+                for (c, d) in data.iter_mut().enumerate().skip(2) {
+                    let mut x: Vec<f64> = b.iter().map(|v| v[c]).collect();
+                    inverse_telemetry_filter(&s.t, &mut x, tau);
+                    *d = Some(x.iter().zip(b).map(|(x, b)| x - b[c]).collect());
+                }
+            }
+        }
+        vec![EffectColumn {
+            name: "g_tel".into(),
+            unit: "1".into(),
+            data,
+            fixed: Some(1.0),
+        }]
+    }
+    fn unfilter(&self, s: &Signals, p: Option<f64>, channel: Channel, series: &mut [f64]) -> bool {
+        if !is_actuated(channel) {
+            return false;
+        }
+        telemetry_filter(&s.t, series, self.tau(p));
+        true
+    }
+    fn target_filter(
+        &self,
+        s: &Signals,
+        p: Option<f64>,
+        channel: Channel,
+    ) -> Option<crate::fit::TargetFilter> {
+        if !is_actuated(channel) {
+            return None;
+        }
+        let (tau, dt) = (self.tau(p), s.mean_dt());
+        if !(tau > 0.0 && dt > 0.0) {
+            return None;
+        }
+        // The inverse filter: F(z) = (1 − α z⁻¹) / (1 − α), no pole.
+        let alpha = telemetry_alpha(dt, tau);
+        Some(crate::fit::TargetFilter {
+            g0: 1.0 / (1.0 - alpha),
+            g1: -alpha / (1.0 - alpha),
+            a: 0.0,
+        })
+    }
+    fn plausibility(&self, _coef: &[f64], _se: &[f64], p: Option<f64>) -> Plausibility {
+        MotorLag {
+            grid: self.grid.clone(),
+        }
+        .plausibility(&[], &[], p)
+    }
+    fn driver(&self, s: &Signals) -> (String, Vec<f64>) {
+        MotorLag::default().driver(s)
+    }
+}
+
 /// Thrust-gain error: the delivered collective thrust is `(1 + κ)` times the logged one
 /// (a wrong thrust coefficient, battery sag). Column `[0, 0, f_z, 0, 0, 0]`: identifiable only
 /// with a known mass, which anchors `f_z`. The rotor torques scale alike, but there a common
@@ -728,6 +901,43 @@ impl Effect for ThrustGain {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The telemetry filter against its closed forms (`α = e^{−Δt/τ}`, uniform steps): a unit
+    /// step at sample 1 gives `1 − α^k`; a ramp `x_k = k` gives `k − c (1 − α^k)` with the
+    /// steady lag `c = α/(1 − α)` samples. Its inverse gives the input back.
+    #[test]
+    fn the_telemetry_filter_is_the_closed_form_and_its_inverse_undoes_it() {
+        let (dt, tau): (f64, f64) = (0.02, 0.03);
+        let alpha = (-dt / tau).exp();
+        let t: Vec<f64> = (0..40).map(|k| k as f64 * dt).collect();
+        let mut step: Vec<f64> = (0..40).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
+        telemetry_filter(&t, &mut step, tau);
+        let mut ramp: Vec<f64> = (0..40).map(|k| k as f64).collect();
+        telemetry_filter(&t, &mut ramp, tau);
+        let c = alpha / (1.0 - alpha);
+        for k in 0..40 {
+            let kf = k as f64;
+            assert!(
+                (step[k] - (1.0 - alpha.powi(k as i32))).abs() < 1e-12,
+                "{k}"
+            );
+            assert!(
+                (ramp[k] - (kf - c * (1.0 - alpha.powi(k as i32)))).abs() < 1e-11,
+                "{k}"
+            );
+        }
+        inverse_telemetry_filter(&t, &mut ramp, tau);
+        for (k, x) in ramp.iter().enumerate() {
+            assert!((x - k as f64).abs() < 1e-9, "{k}: {x}");
+        }
+        // The target filter is the inverse's transfer function: its taps on a unit impulse.
+        let mut impulse = vec![0.0; 5];
+        impulse[1] = 1.0;
+        inverse_telemetry_filter(&t[..5], &mut impulse, tau);
+        assert!((impulse[1] - 1.0 / (1.0 - alpha)).abs() < 1e-12);
+        assert!((impulse[2] + alpha / (1.0 - alpha)).abs() < 1e-12);
+        assert_eq!(impulse[3], 0.0);
+    }
 
     /// The interval mean of the lag's state, written out independently: the exact mean of
     /// `u + (Y − u) e^{−s/τ}` over `s ∈ [0, Δt]`.

@@ -124,6 +124,9 @@ struct Flight<'a> {
     /// Rotor speeds and wrench commanded at every control step so far (kept only for a log
     /// with a `time-delay` effect, whose wrench stream lags the motion).
     commands: Vec<([f64; 4], [f64; 6])>,
+    /// With a `telemetry-lag` effect: the read-back rotor speeds of every control interval so
+    /// far (the delayed filter reads them) and the filter's state, the speeds last reported.
+    telemetry: (Vec<[f64; 4]>, Option<[f64; 4]>),
     /// With [`SimConfig::record_truth`]: the truth of every logged sample so far, the effects
     /// that act, and the noise-free read-back actuator wrench of every control interval so far
     /// (the delayed one a `time-delay` log holds is one of them).
@@ -157,6 +160,9 @@ struct TruthRecord {
     samples: Vec<TruthSample>,
     /// Noise-free read-back actuator wrench of each control interval so far.
     read_back: Vec<Wrench>,
+    /// The nominal wrench of the reported rotor speeds of each control interval so far
+    /// (`read_back` itself without a `telemetry-lag` effect).
+    reported: Vec<Wrench>,
 }
 
 /// Flies one trial (see the crate docs for the loop, the measurement model and the timing).
@@ -405,10 +411,12 @@ impl<'a> Flight<'a> {
             log: FlightLog::new(),
             vbat: Vec::new(),
             commands: Vec::new(),
+            telemetry: (Vec::new(), None),
             truth: (config.record_truth && config.record_log).then(|| TruthRecord {
                 effects: acting_effects(&config.effects),
                 samples: Vec::new(),
                 read_back: Vec::with_capacity(steps),
+                reported: Vec::with_capacity(steps),
             }),
             trace: Vec::new(),
             tracking: Vec::with_capacity(steps + 1),
@@ -513,16 +521,23 @@ impl<'a> Flight<'a> {
                 }
             }
         };
+        // With a `telemetry-lag` effect the speeds reported are the read-back ones delayed and
+        // filtered (TelemetryLag): the log's, not the plant's.
+        let reported = self.reported_speeds(read_back);
         if let Some(truth) = self.truth.as_mut() {
-            truth
-                .read_back
-                .push(self.config.vehicle.wrench_from_rotor_speeds(&read_back));
+            let now = self.config.vehicle.wrench_from_rotor_speeds(&read_back);
+            truth.read_back.push(now);
+            truth.reported.push(if reported == read_back {
+                now
+            } else {
+                self.config.vehicle.wrench_from_rotor_speeds(&reported)
+            });
         }
         let measured_speeds = match rotor_sensing {
             RotorSensing::Erpm(erpm) => {
-                read_back.map(|w| erpm.read(w, &mut self.rotor_sensing_rng))
+                reported.map(|w| erpm.read(w, &mut self.rotor_sensing_rng))
             }
-            _ => self.sensors.measured_rotor_speeds(&read_back),
+            _ => self.sensors.measured_rotor_speeds(&reported),
         };
         let wrench_measured: Wrench = self
             .config
@@ -689,6 +704,28 @@ impl<'a> Flight<'a> {
         j.min(k)
     }
 
+    /// The rotor speeds reported for this control interval, whose read-back speeds are
+    /// `read_back`: these, or with a `telemetry-lag` effect the delayed and filtered ones
+    /// ([`crate::plant_effects::TelemetryLag`]; the same recursion as its `reported`). Keeps
+    /// the history and the filter's state it needs.
+    fn reported_speeds(&mut self, read_back: [f64; 4]) -> [f64; 4] {
+        let Some(lag) = self.config.effects.telemetry_lag else {
+            return read_back;
+        };
+        let dt = self.config.control_dt;
+        let (history, state) = &mut self.telemetry;
+        history.push(read_back);
+        let k = history.len() - 1;
+        let input = history[k.saturating_sub(lag.delay_periods(dt))];
+        let alpha = lag.alpha(dt);
+        let mut y = state.unwrap_or(history[0]);
+        for r in 0..4 {
+            y[r] = alpha * y[r] + (1.0 - alpha) * input[r];
+        }
+        *state = Some(y);
+        y
+    }
+
     /// With [`SimConfig::record_truth`], appends the truth of a log sample of control interval
     /// `k` stamped at `stamp` control periods (time `t` \[s\]): the plant state `sample.0` with
     /// its accelerations `sample.1` under the clamped command `cmd`; for a control-rate sample
@@ -708,7 +745,7 @@ impl<'a> Flight<'a> {
         let Some(truth) = self.truth.as_mut() else {
             return;
         };
-        let (now, logged) = (truth.read_back[k], truth.read_back[j]);
+        let (now, reported, logged) = (truth.read_back[k], truth.reported[k], truth.reported[j]);
         let start = k as f64 * self.config.control_dt;
         let substep = self.substep;
         let parts = |(state, acc): (&PlantState, &Accelerations), time: f64| {
@@ -720,6 +757,7 @@ impl<'a> Flight<'a> {
                     .plant
                     .rotor_accelerations(state, &self.plant.clamp_speeds(cmd)),
                 now,
+                reported,
                 logged,
                 time,
             };

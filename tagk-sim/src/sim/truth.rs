@@ -23,7 +23,8 @@
 //!
 //! | effect | `w_e` |
 //! |---|---|
-//! | `time-delay` | `W(ω_now) − W(ω_logged)`: the actuator wrench of the current interval minus the delayed one the log holds |
+//! | `time-delay` | `W(ω_reported) − W(ω_logged)`: the actuator wrench reported for the current interval minus the delayed one the log holds |
+//! | `telemetry-lag` | `W(ω_now) − W(ω_reported)`: the read-back speeds' wrench minus that of the speeds the telemetry reports (delayed and filtered) |
 //! | `motor-lag` | `W(ω_motor) − W(ω_now)`: what the lagging motors deliver minus what was commanded (read back) |
 //! | `thrust-gain` | `ε W(ω_motor)` |
 //! | `ground-effect` | `(1 + ε) (T_IGE/T_OGE(z) − 1) W(ω_motor)` (`ε = 0` without a thrust gain) |
@@ -143,6 +144,7 @@ pub(crate) fn acting_effects(effects: &PlantEffects) -> Vec<EffectKind> {
             EffectKind::RotorInflow => effects.rotor_inflow.is_some(),
             EffectKind::RotorImbalance => effects.rotor_imbalance.is_some(),
             EffectKind::BatteryVoltage => effects.battery_voltage.is_some(),
+            EffectKind::TelemetryLag => effects.telemetry_lag.is_some(),
             _ => false,
         })
         .collect()
@@ -157,6 +159,8 @@ pub(crate) struct TruthInputs<'a> {
     /// The rates of change of `motor_speeds` \[rad/s²\] (zero without a motor lag).
     pub(crate) motor_accelerations: [f64; 4],
     pub(crate) now: Wrench,
+    /// The nominal wrench of the speeds reported now (`now` without a `telemetry-lag`).
+    pub(crate) reported: Wrench,
     pub(crate) logged: Wrench,
     /// The plant's time at `state` \[s\] (the battery's discharge reads it).
     pub(crate) time: f64,
@@ -330,7 +334,8 @@ pub(crate) fn truth_parts(
         .iter()
         .map(|kind| {
             let w = match kind {
-                EffectKind::TimeDelay => inputs.now - inputs.logged,
+                EffectKind::TimeDelay => inputs.reported - inputs.logged,
+                EffectKind::TelemetryLag => inputs.now - inputs.reported,
                 EffectKind::MotorLag => motor - inputs.now,
                 EffectKind::ThrustGain => scaled(&motor, epsilon),
                 EffectKind::GroundEffect => {
