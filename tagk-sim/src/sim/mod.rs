@@ -534,9 +534,7 @@ impl<'a> Flight<'a> {
             });
         }
         let measured_speeds = match rotor_sensing {
-            RotorSensing::Erpm(erpm) => {
-                reported.map(|w| erpm.read(w, &mut self.rotor_sensing_rng))
-            }
+            RotorSensing::Erpm(erpm) => reported.map(|w| erpm.read(w, &mut self.rotor_sensing_rng)),
             _ => self.sensors.measured_rotor_speeds(&reported),
         };
         let wrench_measured: Wrench = self
