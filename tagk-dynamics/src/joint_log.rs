@@ -240,26 +240,14 @@ impl JointLog {
     /// # Errors
     /// As [`JointLog::write_csv`]; I/O errors name the file.
     pub fn write_csv_path(&self, path: impl AsRef<Path>) -> Result<(), LogError> {
-        let path = path.as_ref();
-        let name = path.display().to_string();
-        let io = |e: std::io::Error| LogError::Io {
-            path: name.clone(),
-            message: e.to_string(),
-        };
-        if let Some(dir) = path.parent()
-            && !dir.as_os_str().is_empty()
-        {
-            std::fs::create_dir_all(dir).map_err(io)?;
-        }
-        let file = std::fs::File::create(path).map_err(io)?;
-        self.write_csv(std::io::BufWriter::new(file))
-            .map_err(|e| match e {
-                LogError::Io { message, .. } => LogError::Io {
-                    path: name.clone(),
-                    message,
-                },
-                other => other,
-            })
+        let (file, name) = crate::log::create_file(path.as_ref())?;
+        self.write_csv(file).map_err(|e| match e {
+            LogError::Io { message, .. } => LogError::Io {
+                path: name.clone(),
+                message,
+            },
+            other => other,
+        })
     }
 }
 

@@ -912,20 +912,9 @@ impl FlightLog {
     /// # Errors
     /// As [`FlightLog::write_csv`]; I/O errors name the file.
     pub fn write_csv_path(&self, path: impl AsRef<Path>) -> Result<(), LogError> {
-        let path = path.as_ref();
-        let name = path.display().to_string();
-        let io = |e: std::io::Error| LogError::Io {
-            path: name.clone(),
-            message: e.to_string(),
-        };
         self.check_writable()?;
-        if let Some(dir) = path.parent()
-            && !dir.as_os_str().is_empty()
-        {
-            std::fs::create_dir_all(dir).map_err(io)?;
-        }
-        let file = std::fs::File::create(path).map_err(io)?;
-        self.write_csv_named(std::io::BufWriter::new(file), &name)
+        let (file, name) = create_file(path.as_ref())?;
+        self.write_csv_named(file, &name)
     }
 
     fn write_csv_named<W: Write>(&self, writer: W, name: &str) -> Result<(), LogError> {
@@ -1511,6 +1500,25 @@ fn utf8_error(record: &csv::ByteRecord, line: usize) -> Option<LogError> {
             err
         ),
     })
+}
+
+/// Creates `path` for writing (and its parent directories), buffered, with its display name for
+/// error messages. An I/O error names the file.
+pub(crate) fn create_file(
+    path: &Path,
+) -> Result<(std::io::BufWriter<std::fs::File>, String), LogError> {
+    let name = path.display().to_string();
+    let io = |e: std::io::Error| LogError::Io {
+        path: name.clone(),
+        message: e.to_string(),
+    };
+    if let Some(dir) = path.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).map_err(io)?;
+    }
+    let file = std::fs::File::create(path).map_err(io)?;
+    Ok((std::io::BufWriter::new(file), name))
 }
 
 #[cfg(test)]

@@ -954,6 +954,37 @@ mod tests {
     }
 
     /// A Crazyflie-like rotor mixer `[fz, tx, ty, tz] = M ω²`.
+    /// A 300-sample log whose rotor speeds are sines with steps every `block` samples (phase
+    /// per rotor), and whose wrench is the nominal mixer's of those speeds.
+    fn rotor_speed_log(block: usize, frequency: f64) -> (tagk_dynamics::FlightLog, Vec<[f64; 4]>) {
+        let m = mixer();
+        let mut log =
+            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
+                [0.0; 6]
+            });
+        let speeds: Vec<[f64; 4]> = (0..log.len())
+            .map(|k| {
+                std::array::from_fn(|r| {
+                    let x = k as f64;
+                    let step = if (k / block + r).is_multiple_of(3) {
+                        150.0
+                    } else {
+                        0.0
+                    };
+                    2000.0 + 300.0 * (frequency * x + r as f64).sin() + step
+                })
+            })
+            .collect();
+        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
+            let sq = w.map(|x| x * x);
+            for c in 0..4 {
+                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
+            }
+        }
+        log.rotor_speeds = Some(speeds.clone());
+        (log, speeds)
+    }
+
     fn mixer() -> [[f64; 4]; 4] {
         let (kf, km, l) = (2.88e-8, 7.24e-10, 0.0325 / std::f64::consts::SQRT_2);
         [
@@ -1029,26 +1060,7 @@ mod tests {
     fn the_rotor_lag_with_its_start_columns_is_the_integrated_lag() {
         use nalgebra::{DMatrix, DVector};
         let m = mixer();
-        let mut log =
-            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
-                [0.0; 6]
-            });
-        let speeds: Vec<[f64; 4]> = (0..log.len())
-            .map(|k| {
-                std::array::from_fn(|r| {
-                    let x = k as f64;
-                    let step = if (k / 37 + r) % 3 == 0 { 150.0 } else { 0.0 };
-                    2000.0 + 300.0 * (0.05 * x + r as f64).sin() + step
-                })
-            })
-            .collect();
-        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
-            let sq = w.map(|x| x * x);
-            for c in 0..4 {
-                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
-            }
-        }
-        log.rotor_speeds = Some(speeds.clone());
+        let (log, speeds) = rotor_speed_log(37, 0.05);
         let s = Signals::from_log(&log).unwrap();
         assert!(s.rotor_mixer().is_some());
         let d = [-180.0, 120.0, 200.0, -100.0];
@@ -1090,26 +1102,7 @@ mod tests {
     #[test]
     fn a_delay_before_the_lag_composes_with_it() {
         let m = mixer();
-        let mut log =
-            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
-                [0.0; 6]
-            });
-        let speeds: Vec<[f64; 4]> = (0..log.len())
-            .map(|k| {
-                std::array::from_fn(|r| {
-                    let x = k as f64;
-                    let step = if (k / 23 + r) % 3 == 0 { 150.0 } else { 0.0 };
-                    2000.0 + 300.0 * (0.07 * x + r as f64).sin() + step
-                })
-            })
-            .collect();
-        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
-            let sq = w.map(|x| x * x);
-            for c in 0..4 {
-                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
-            }
-        }
-        log.rotor_speeds = Some(speeds.clone());
+        let (log, speeds) = rotor_speed_log(23, 0.07);
         let s = Signals::from_log(&log).unwrap();
         let dt = s.mean_dt();
         let b = s.wrench();
