@@ -214,6 +214,12 @@ pub fn second_difference_noise(x: &[f64]) -> f64 {
         .filter(|d| d.is_finite())
         .map(|d| d * d)
         .collect();
+    noise_from_squared_second_differences(&mut d2)
+}
+
+/// The deviation `σ` of white noise whose squared second differences are `d2`: their median
+/// over `6 × 0.4549` (`Δ²e` has variance `6 σ²`). The slice is reordered. 0 when it is empty.
+pub fn noise_from_squared_second_differences(d2: &mut [f64]) -> f64 {
     if d2.is_empty() {
         return 0.0;
     }

@@ -200,12 +200,7 @@ pub(crate) fn high_frequency_noise(s: &Signals, series: &[[f64; 6]]) -> [f64; 6]
                 }
             }
         }
-        if d2.is_empty() {
-            return 0.0;
-        }
-        let mid = d2.len() / 2;
-        let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
-        (*m / (6.0 * crate::stats::CHI2_1_MEDIAN)).sqrt()
+        crate::stats::noise_from_squared_second_differences(&mut d2)
     })
 }
 
