@@ -74,6 +74,20 @@ use crate::linalg::{axpy, dot, norm2_and_dot, padded};
 use crate::x86::Avx2;
 use crate::{ConfigError, EstimatorError, OnlineEstimator, Real, UpdateInfo};
 
+/// The kernels of [`Kaczmarz::update_on`], for paired timing in one process (the `timegate`
+/// of `tagk-insncount`). Every choice computes the same bits.
+#[doc(hidden)]
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum KernelChoice {
+    /// The portable kernels (what a microcontroller runs).
+    Portable,
+    /// The kernels [`OnlineEstimator::update`] runs: the CPU and `TAGK_KERNELS` decide.
+    Detected,
+    /// As `Detected`, but where the detected `f64` Gram kernel is the AVX2 one, the previous
+    /// AVX2 Gram kernel (the timing reference).
+    PreviousGram,
+}
+
 /// How many projections an update performs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Iterations {
@@ -428,6 +442,32 @@ impl<T: Real, S: Storage<T>, const GREEDY: bool, const AVERAGE: bool>
         self.buf
     }
 
+    /// [`OnlineEstimator::update`] on the kernels `kernels`, for paired timing of the kernels
+    /// in one process. Every choice computes the same bits.
+    ///
+    /// # Errors
+    /// As [`OnlineEstimator::update`].
+    #[doc(hidden)]
+    pub fn update_on(
+        &mut self,
+        kernels: KernelChoice,
+        a: &[T],
+        b: &[T],
+    ) -> Result<UpdateInfo, EstimatorError> {
+        match kernels {
+            KernelChoice::Portable => self.run(Portable, a, b),
+            KernelChoice::Detected => self.update(a, b),
+            KernelChoice::PreviousGram => {
+                #[cfg(all(feature = "std", target_arch = "x86_64"))]
+                if let Some(k) = Avx2::detect() {
+                    // SAFETY: `k` proves that the CPU supports AVX2.
+                    return unsafe { self.run_avx2(k.with_previous_gram(), a, b) };
+                }
+                self.update(a, b)
+            }
+        }
+    }
+
     /// The buffer's views. The estimate, the only state kept between updates, comes first, so a
     /// storage that moves keeps it. The work area after it starts on a 64-byte boundary wherever
     /// the storage is. Its `p`-sized arrays come first, so every one of them is aligned, and the
@@ -775,9 +815,10 @@ mod tests {
 
     /// The SIMD kernels must reproduce the portable ones bit for bit: the portable ones are what
     /// a microcontroller runs. Cases: window sizes that change between calls, zero rows,
-    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`. On x86-64 the kernels
-    /// detected run (AVX-512 where the CPU has it), and the AVX2 ones forced. On aarch64 the NEON
-    /// ones run.
+    /// tolerances and iteration counts beyond one pass, in `f64` and `f32`, fixed shapes and
+    /// twelve random ones with n in 10..=120. On x86-64 the kernels detected run (AVX-512 where
+    /// the CPU has it), and the AVX2 ones forced, with the AVX2 Gram tiles and with the previous
+    /// AVX2 Gram kernel. On aarch64 the NEON ones run.
     #[test]
     fn simd_and_portable_kernels_give_the_same_bits() {
         #[cfg(target_arch = "x86_64")]
@@ -788,7 +829,11 @@ mod tests {
                 );
                 return;
             };
-            [detected.without_avx512(), detected]
+            [
+                detected.without_avx512(),
+                detected.without_avx512().with_previous_gram(),
+                detected,
+            ]
         };
         #[cfg(target_arch = "aarch64")]
         let kernels = [Neon];
@@ -800,6 +845,14 @@ mod tests {
 
     fn compare_with_portable<T: Real>(k: Fast) {
         let mut data = ChaCha8Rng::seed_from_u64(7);
+        // Fixed shapes, then random ones of the robot range: n in 10..=120, m_max in 1..=40.
+        let mut shapes = ChaCha8Rng::seed_from_u64(29);
+        let random: Vec<(usize, usize)> = (0..12)
+            .map(|_| {
+                let n = 10 + (shapes.next_u64() % 111) as usize;
+                (n, 1 + (shapes.next_u64() % 40) as usize)
+            })
+            .collect();
         for (n, m_max) in [
             (1, 1),
             (3, 5),
@@ -808,7 +861,10 @@ mod tests {
             (40, 17),
             (120, 30),
             (7, 64),
-        ] {
+        ]
+        .into_iter()
+        .chain(random)
+        {
             for (iterations, tolerance) in [
                 (Iterations::OnePass, 0.0),
                 (Iterations::Fixed(3 * m_max), 0.0),

@@ -45,8 +45,8 @@ pub use front_end::{
 #[cfg(feature = "alloc")]
 pub use kaczmarz::zeroed_buffer;
 pub use kaczmarz::{
-    BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, RandomizedKaczmarz, Storage,
-    TagK, TailAveragedKaczmarz, checked_kaczmarz_buffer_len, kaczmarz_buffer_len,
+    BurnIn, GreedyKaczmarz, Iterations, Kaczmarz, KaczmarzConfig, KernelChoice, RandomizedKaczmarz,
+    Storage, TagK, TailAveragedKaczmarz, checked_kaczmarz_buffer_len, kaczmarz_buffer_len,
     tagk_paper_config,
 };
 pub use real::Real;
