@@ -34,6 +34,7 @@ use tagk::diagnose::{
 };
 use tagk::diagnosis_benchmark::{FlightSpec, draw_path, draw_payload, mix, run_diagnosis};
 use tagk::dynamics::EffectKind;
+use tagk::sim::sim::rotor_sensing::RotorSensing;
 use tagk::sim::{Payload, PlantEffects, SensingProfile, simulate};
 
 /// Flights with hidden effects, diagnosed, scored on held-out flights against the rigid body
@@ -54,7 +55,8 @@ struct Args {
         default_value = "motor-lag,rotor-inertia,rotor-inflow,rotor-imbalance"
     )]
     hidden: Vec<String>,
-    /// Sensing profile of every flight (ideal, realistic, realistic-calibrated).
+    /// Sensing profile of every flight (ideal, realistic, realistic-calibrated,
+    /// cf21-brushless: the Crazyflie 2.1 Brushless's eRPM rotor speeds).
     #[arg(long, default_value = "realistic")]
     sensing: SensingProfile,
     /// Prediction horizon [steps of the log].
@@ -80,10 +82,13 @@ struct Args {
 /// write (only `motor-lag`, `rotor-inertia`, `rotor-inflow`, `rotor-imbalance`,
 /// `thrust-gain`).
 ///
+/// With `motors_read` (eRPM telemetry: the logged speeds are the motors' own, read near the
+/// middle of the interval) the motor lag is already in the log: the true model has none.
+///
 /// A rotor's relative error `ε_i` splits into the common part `ε̄` and the contrasts
 /// `(1 + ε_i)/(1 + ε̄) − 1` (`rotor-imbalance`'s `d_eps1..3`). The common part (times a thrust
 /// gain's) scales the whole wrench, torques too: the parameters are divided by it.
-fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
+fn truth_model(theta: [f64; 10], effects: &PlantEffects, motors_read: bool) -> Option<ModelFile> {
     use tagk::diagnose::model_file::{ModelCoefficient, ModelEffect, ScannedParameter};
     let coefficient = |name: &str, unit: &str, value: f64| ModelCoefficient {
         name: name.into(),
@@ -111,7 +116,7 @@ fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
     }
     let mut file = ModelFile::rigid_body(theta);
     file.label = "truth".into();
-    if let Some(lag) = effects.motor_lag {
+    if let Some(lag) = effects.motor_lag.filter(|_| !motors_read) {
         let mut e = effect(
             "motor-lag",
             ["start_w1", "start_w2", "start_w3", "start_w4"]
@@ -175,10 +180,9 @@ fn truth_model(theta: [f64; 10], effects: &PlantEffects) -> Option<ModelFile> {
 /// Per hidden effect, the RMS of its true wrench's variation about its mean as the log samples
 /// it (after the first second) over the RMS of the logged wrench's noise (the logged `fx..tz` less their noise-free values: the rotor-speed
 /// noise), per channel `[fx, fy, fz, tx, ty, tz]` (inf or NaN where a channel has no noise).
-fn signal_to_noise(
-    log: &tagk::dynamics::FlightLog,
-    truth: &tagk::sim::FlightTruth,
-) -> Vec<(EffectKind, [f64; 6])> {
+/// Also that noise's RMS per channel \[N, N m\].
+type Snr = (Vec<(EffectKind, [f64; 6])>, [f64; 6]);
+fn signal_to_noise(log: &tagk::dynamics::FlightLog, truth: &tagk::sim::FlightTruth) -> Snr {
     // After the first second: the start-of-log transient (motors spinning up to the first
     // command) is the diagnosis's start columns', not the effect's steady signature.
     let start = truth.samples.iter().take_while(|s| s.t < 1.0).count();
@@ -189,7 +193,7 @@ fn signal_to_noise(
             noise[c] += (b[c] - s.logged_actuator_wrench[c]).powi(2) / n;
         }
     }
-    truth
+    let ratios = truth
         .effects
         .iter()
         .enumerate()
@@ -211,7 +215,24 @@ fn signal_to_noise(
             }
             (*kind, ratio)
         })
-        .collect()
+        .collect();
+    (ratios, noise.map(f64::sqrt))
+}
+
+/// The body-rate error at `horizon` steps of `dt` \[s\] of an open loop driven by white torque
+/// noise of RMS `torque_noise` \[N m\] per body axis, with the principal moments
+/// `I_xx, I_yy, I_zz` of `theta` \[kg m²\]: the RMS norm of a random walk,
+/// `sqrt(Σ_c (σ_c / I_c)²) dt sqrt(horizon)` \[rad/s\]. What even the true model misses when
+/// the logged wrench carries that noise.
+fn noise_floor(torque_noise: [f64; 3], theta: [f64; 10], dt: f64, horizon: usize) -> f64 {
+    let moments = [theta[4], theta[6], theta[9]];
+    let per_step = torque_noise
+        .iter()
+        .zip(moments)
+        .map(|(s, i)| (s / i).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    per_step * dt * (horizon as f64).sqrt()
 }
 
 /// One flight of the vehicle: its path, yaw rate and simulator seed drawn from `rng`.
@@ -297,6 +318,10 @@ struct Scored {
     /// Per hidden effect, its true wrench's RMS over the logged wrench's noise RMS, per
     /// channel (identification flight).
     snr: Vec<(EffectKind, [f64; 6])>,
+    /// The logged torques' noise RMS per body axis (identification flight) \[N m\].
+    torque_noise: [f64; 3],
+    /// The true inertial parameters (docs/CONVENTIONS.md §1).
+    theta: [f64; 10],
     diagnosed: Errors,
     rigid: Errors,
     constant_rate: Errors,
@@ -391,7 +416,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 Ok((out.log, truth))
             };
             let (id_log, id_truth) = fly(&identify, "identify")?;
-            let snr = signal_to_noise(&id_log, &id_truth);
+            let (snr, noise) = signal_to_noise(&id_log, &id_truth);
             // The payload is attached once the flight runs (not at its first sample).
             let theta = id_truth
                 .samples
@@ -425,7 +450,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                     Err(e) => Err(e.into()),
                 }
             };
-            let truth = match truth_model(theta, &effects) {
+            let motors_read = matches!(args.sensing.rotor_sensing(), RotorSensing::Erpm(_));
+            let truth = match truth_model(theta, &effects, motors_read) {
                 Some(model) => Some(at(&read_as(&model, &log)?, Predictor::Model(&model))?),
                 None => None,
             };
@@ -433,6 +459,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 Scored {
                     truth,
                     snr,
+                    torque_noise: [noise[3], noise[4], noise[5]],
+                    theta,
                     diagnosed: at(&d_logs, Predictor::Model(&diagnosed))?,
                     rigid: at(&r_logs, Predictor::Model(&rigid))?,
                     constant_rate: at(&r_logs, Predictor::ConstantRate)?,
@@ -522,6 +550,27 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 .truth
                 .is_some_and(|t| t.body_rate <= 0.5 * s.constant_rate.body_rate))
             .count(),
+    );
+    let dt = *step.borrow();
+    println!(
+        "the logged torques' noise alone, integrated open loop (random walk, RMS norm): median {:.3e} rad/s at {} steps (median body-rate error T {:.3e}, C {:.3e}); median torque noise RMS [tx ty tz] {:.2e} {:.2e} {:.2e} N m",
+        median(
+            scored
+                .iter()
+                .map(|s| noise_floor(s.torque_noise, s.theta, dt, args.horizon))
+                .collect()
+        ),
+        args.horizon,
+        median(
+            scored
+                .iter()
+                .map(|s| s.truth.map_or(f64::NAN, |t| t.body_rate))
+                .collect()
+        ),
+        median(scored.iter().map(|s| s.constant_rate.body_rate).collect()),
+        median(scored.iter().map(|s| s.torque_noise[0]).collect()),
+        median(scored.iter().map(|s| s.torque_noise[1]).collect()),
+        median(scored.iter().map(|s| s.torque_noise[2]).collect()),
     );
     println!(
         "each hidden effect's true wrench, RMS about its mean after the first second, over the logged wrench's noise RMS (identification flights, median) [fx fy fz tx ty tz]; a candidate's held-out gain is about its square, against 0.05 to be admitted:"

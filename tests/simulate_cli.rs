@@ -122,9 +122,22 @@ fn sensing_flag_selects_a_profile_and_gyro_noise_replaces_its_sigma() {
         Cli::try_parse_from(argv).unwrap().args.config().unwrap()
     };
     assert_eq!(config(&[]).sensing, Sensing::ideal());
-    for p in SensingProfile::ALL {
-        assert_eq!(config(&["--sensing", p.name()]).sensing, p.sensing());
+    for p in SensingProfile::NAMED {
+        let c = config(&["--sensing", p.name()]);
+        assert_eq!(c.sensing, p.sensing());
+        assert_eq!(c.flight_stack.rotor_sensing, p.rotor_sensing(), "{p}");
     }
+    // The brushless vehicle reads eRPM (no Gaussian rotor-speed noise); the others do not.
+    let brushless = config(&["--sensing", "cf21-brushless"]);
+    assert!(matches!(
+        brushless.flight_stack.rotor_sensing,
+        tagk::sim::sim::rotor_sensing::RotorSensing::Erpm(_)
+    ));
+    assert_eq!(brushless.sensing.rotor_speed_noise, 0.0);
+    assert_eq!(
+        config(&["--sensing", "realistic"]).flight_stack,
+        config(&[]).flight_stack
+    );
     let gyro = config(&["--sensing", "realistic", "--gyro-noise", "0.02"]).sensing;
     assert_eq!(gyro, Sensing::realistic().with_gyro_noise(0.02));
     assert_eq!(

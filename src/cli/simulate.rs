@@ -51,7 +51,8 @@ pub struct SimulateArgs {
     pub noise: NoiseLevel,
     /// Sensing profile: the vehicle's gyro, accelerometer, velocity and rotor-speed noise and
     /// biases (ideal: none; realistic: a Crazyflie 2.1 in flight; realistic-calibrated:
-    /// the same with the accelerometer bias calibrated away).
+    /// the same with the accelerometer bias calibrated away; cf21-brushless: the Crazyflie 2.1
+    /// Brushless, its rotor speeds read as eRPM telemetry).
     #[arg(long, value_parser = sensing_parser(), default_value = "ideal")]
     pub sensing: SensingProfile,
     /// Rate-gyro noise, standard deviation per axis (rad/s) (replaces the sensing profile's).
@@ -209,6 +210,7 @@ impl SimulateArgs {
             altitude: self.altitude,
             record_log: true,
             log_rate: self.log_rate,
+            flight_stack: self.sensing.flight_stack(base.flight_stack),
             ..base
         })
     }

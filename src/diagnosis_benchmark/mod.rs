@@ -233,8 +233,10 @@ pub struct FlightSpec {
 
 impl FlightSpec {
     /// The simulator configuration of this flight: the oracle controller (designed for the
-    /// loaded vehicle) with [`benchmark_weights`] and [`benchmark_flight_stack`], no noise level
-    /// beyond the sensing profile, the log and its truth recorded, stopped at an abort.
+    /// loaded vehicle) with [`benchmark_weights`] and [`benchmark_flight_stack`] (its rotor
+    /// speeds read as the sensing profile reads them: [`SensingProfile::flight_stack`]), no
+    /// noise level beyond the sensing profile, the log and its truth recorded, stopped at an
+    /// abort.
     pub fn sim_config(&self) -> SimConfig {
         SimConfig {
             trajectory: self.trajectory,
@@ -246,7 +248,7 @@ impl FlightSpec {
             effects: self.effects,
             adaptation: Adaptation::Oracle,
             weights: benchmark_weights(),
-            flight_stack: benchmark_flight_stack(),
+            flight_stack: self.sensing.flight_stack(benchmark_flight_stack()),
             altitude: self.altitude,
             record_log: true,
             record_truth: true,

@@ -121,7 +121,7 @@ fn realistic_sensing_tracks() {
 /// Profiles parse by name; bad σ's are typed errors.
 #[test]
 fn profiles_parse_and_validate() {
-    for p in SensingProfile::ALL {
+    for p in SensingProfile::NAMED {
         assert_eq!(p.name().parse::<SensingProfile>().expect("parse"), p);
         p.sensing().validate().expect("valid");
     }
@@ -149,4 +149,63 @@ fn profiles_parse_and_validate() {
         ..SimConfig::default()
     };
     assert!(nan.validate().is_err());
+}
+
+/// `cf21-brushless` reads the rotor speeds as the Crazyflie 2.1 Brushless does: on the flight
+/// stack it is given, every logged speed is an eRPM reading, a whole number of µs of
+/// electrical period at the vehicle profile's pole pairs. Against the truth's noise-free
+/// actuator thrust: each speed within half a µs step plus 5 σ of jitter of its period, so the
+/// logged thrust `k_f Σ ω²` within twice that relative error; and not the truth itself. The
+/// synthetic profiles keep the read-back telemetry.
+#[test]
+fn the_brushless_sensing_profile_logs_erpm_readings() {
+    use tagk_sim::sim::rotor_sensing::{ERPM_PERIOD_JITTER, ERPM_PERIOD_UNIT, RotorSensing};
+    let profile = SensingProfile::Cf21Brushless;
+    let config = SimConfig {
+        seed: 4,
+        duration: 4.0,
+        sensing: profile.sensing(),
+        flight_stack: profile.flight_stack(FlightStack::paper()),
+        payload: PayloadSchedule::None,
+        adaptation: Adaptation::Nominal,
+        record_log: true,
+        record_truth: true,
+        ..SimConfig::default()
+    };
+    let out = simulate(&config).expect("flight");
+    let RotorSensing::Erpm(erpm) = config.flight_stack.rotor_sensing else {
+        panic!("{:?}", config.flight_stack.rotor_sensing);
+    };
+    assert_eq!(config.sensing.rotor_speed_noise, 0.0);
+    let pp = f64::from(erpm.pole_pairs);
+    let speeds = out.log.rotor_speeds.as_ref().expect("rotor speeds");
+    let truth = out.truth.expect("truth");
+    assert_eq!(speeds.len(), truth.samples.len());
+    let fastest = speeds.iter().flatten().fold(0.0f64, |m, w| m.max(*w));
+    let shortest = std::f64::consts::TAU / (pp * fastest * 1.05);
+    let relative = (0.5 * ERPM_PERIOD_UNIT + 5.0 * ERPM_PERIOD_JITTER) / shortest;
+    let mut differs = 0;
+    for ((logged, s), b) in speeds.iter().zip(&truth.samples).zip(&out.log.wrench) {
+        for w in logged {
+            let units = std::f64::consts::TAU / (pp * w) / ERPM_PERIOD_UNIT;
+            assert!((units - units.round()).abs() < 1e-6, "period {units} µs");
+        }
+        let k_f = config.vehicle.k_f;
+        let thrust = k_f * logged.iter().map(|w| w * w).sum::<f64>();
+        let true_thrust = s.logged_actuator_wrench[2];
+        assert!(
+            (thrust - b[2]).abs() <= 1e-12 * thrust,
+            "{thrust} vs {}",
+            b[2]
+        );
+        assert!(
+            (thrust / true_thrust - 1.0).abs() <= relative * (2.0 + relative),
+            "thrust {thrust} N, true {true_thrust} N"
+        );
+        differs += usize::from(thrust != true_thrust);
+    }
+    assert!(differs > speeds.len() / 2, "{differs} of {}", speeds.len());
+    for p in SensingProfile::ALL {
+        assert_eq!(p.rotor_sensing(), RotorSensing::Telemetry, "{p}");
+    }
 }

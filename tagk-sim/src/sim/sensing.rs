@@ -374,14 +374,27 @@ pub enum SensingProfile {
     Realistic,
     /// [`Sensing::realistic_calibrated`].
     RealisticCalibrated,
+    /// A Crazyflie 2.1 Brushless: the sensing of [`ExperimentProfile::Cf21Brushless`] and its
+    /// rotor speeds read as eRPM telemetry
+    /// ([`ErpmTelemetry`](crate::sim::rotor_sensing::ErpmTelemetry)), not with a Gaussian noise.
+    Cf21Brushless,
 }
 
 impl SensingProfile {
-    /// Every profile.
+    /// The synthetic profiles. The diagnosis benchmark draws its flights' sensing among
+    /// these three.
     pub const ALL: [SensingProfile; 3] = [
         SensingProfile::Ideal,
         SensingProfile::Realistic,
         SensingProfile::RealisticCalibrated,
+    ];
+
+    /// Every profile by name: [`SensingProfile::ALL`] and the real vehicle's.
+    pub const NAMED: [SensingProfile; 4] = [
+        SensingProfile::Ideal,
+        SensingProfile::Realistic,
+        SensingProfile::RealisticCalibrated,
+        SensingProfile::Cf21Brushless,
     ];
 
     /// Name on the command line.
@@ -390,6 +403,7 @@ impl SensingProfile {
             SensingProfile::Ideal => "ideal",
             SensingProfile::Realistic => "realistic",
             SensingProfile::RealisticCalibrated => "realistic-calibrated",
+            SensingProfile::Cf21Brushless => ExperimentProfile::Cf21Brushless.name(),
         }
     }
 
@@ -399,6 +413,31 @@ impl SensingProfile {
             SensingProfile::Ideal => Sensing::ideal(),
             SensingProfile::Realistic => Sensing::realistic(),
             SensingProfile::RealisticCalibrated => Sensing::realistic_calibrated(),
+            SensingProfile::Cf21Brushless => ExperimentProfile::Cf21Brushless.sensing(),
+        }
+    }
+
+    /// Where the profile's measured rotor speeds come from:
+    /// [`RotorSensing::Telemetry`](crate::sim::rotor_sensing::RotorSensing::Telemetry) (the
+    /// read-back speeds plus [`Sensing::rotor_speed_noise`]) for the synthetic profiles, the
+    /// vehicle's own model for [`SensingProfile::Cf21Brushless`].
+    pub fn rotor_sensing(self) -> crate::sim::rotor_sensing::RotorSensing {
+        match self {
+            SensingProfile::Cf21Brushless => {
+                ExperimentProfile::Cf21Brushless
+                    .flight_stack()
+                    .rotor_sensing
+            }
+            _ => crate::sim::rotor_sensing::RotorSensing::Telemetry,
+        }
+    }
+
+    /// `stack` reading the rotor speeds as this profile does
+    /// ([`SensingProfile::rotor_sensing`]); every other setting of `stack` kept.
+    pub fn flight_stack(self, stack: crate::sim::FlightStack) -> crate::sim::FlightStack {
+        crate::sim::FlightStack {
+            rotor_sensing: self.rotor_sensing(),
+            ..stack
         }
     }
 }
@@ -414,13 +453,13 @@ impl FromStr for SensingProfile {
 
     /// Parses [`SensingProfile::name`].
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        SensingProfile::ALL
+        SensingProfile::NAMED
             .into_iter()
             .find(|p| p.name() == s)
             .ok_or_else(|| SimError::Unknown {
                 what: "sensing profile",
                 value: s.to_string(),
-                expected: "ideal, realistic, realistic-calibrated",
+                expected: "ideal, realistic, realistic-calibrated, cf21-brushless",
             })
     }
 }
