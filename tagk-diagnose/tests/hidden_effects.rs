@@ -28,12 +28,16 @@ fn model_for(kind: EffectKind) -> Model {
 }
 
 /// Channels the hidden effect dominates: base residual RMS at least 5× that of the clean log
-/// of the same seed (same trajectory, effect off) and above the diagnosis' resolution (below
-/// it no effect matters to a flight-dynamics model). Below that the noise floor alone caps
-/// the possible cut under 80 %.
+/// of the same seed (same trajectory, effect off) and above the diagnosis' resolution times
+/// its adequacy factor (within that a channel is adequate as it is, and no effect matters to
+/// a flight-dynamics model). Below that the noise floor alone caps the possible cut under
+/// 80 %.
 fn affected(before: &[f64; 6], clean: &[f64; 6], resolution: &[f64; 6]) -> Vec<usize> {
     (0..6)
-        .filter(|&c| before[c] >= 5.0 * clean[c] && before[c] > resolution[c])
+        .filter(|&c| {
+            before[c] >= 5.0 * clean[c]
+                && before[c] > tagk_diagnose::ADEQUACY_FACTOR * resolution[c]
+        })
         .collect()
 }
 
