@@ -122,7 +122,7 @@ fn sensing_flag_selects_a_profile_and_gyro_noise_replaces_its_sigma() {
         Cli::try_parse_from(argv).unwrap().args.config().unwrap()
     };
     assert_eq!(config(&[]).sensing, Sensing::ideal());
-    for p in SensingProfile::NAMED {
+    for p in SensingProfile::ALL {
         let c = config(&["--sensing", p.name()]);
         assert_eq!(c.sensing, p.sensing());
         assert_eq!(c.flight_stack.rotor_sensing, p.rotor_sensing(), "{p}");

@@ -29,7 +29,7 @@ pub fn noise_parser() -> impl TypedValueParser<Value = NoiseLevel> {
 /// Parses a [`SensingProfile`] by its name (`ideal`, `realistic`, `realistic-calibrated`,
 /// `cf21-brushless`).
 pub fn sensing_parser() -> impl TypedValueParser<Value = SensingProfile> {
-    PossibleValuesParser::new(SensingProfile::NAMED.map(SensingProfile::name))
+    PossibleValuesParser::new(SensingProfile::ALL.map(SensingProfile::name))
         .try_map(|s| s.parse::<SensingProfile>())
 }
 

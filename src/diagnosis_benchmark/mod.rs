@@ -365,7 +365,7 @@ pub fn draw_flight(options: &BenchmarkOptions, index: usize) -> Result<FlightSpe
     } else {
         rng.random_range(10.0..40.0)
     };
-    let sensing = SensingProfile::ALL[rng.random_range(0..SensingProfile::ALL.len())];
+    let sensing = SensingProfile::SYNTHETIC[rng.random_range(0..SensingProfile::SYNTHETIC.len())];
     let known_mass = rng.random_bool(0.5);
     let count = rng.random_range(0..=3usize);
     let kinds = draw_kinds(&mut rng, count, known_mass);

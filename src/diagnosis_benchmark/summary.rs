@@ -320,7 +320,7 @@ impl Summary {
             ),
             row("flights scored", (scores.len(), results.len()), "—", None),
         ];
-        let by_sensing = SensingProfile::ALL
+        let by_sensing = SensingProfile::SYNTHETIC
             .iter()
             .map(|p| {
                 let of_profile =

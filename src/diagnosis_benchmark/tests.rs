@@ -412,7 +412,7 @@ fn draws_are_seeded_and_respect_the_physics() {
         }
         assert!((10.0..40.0).contains(&f.duration));
         assert!(f.payload.mass > 0.0 && f.payload.attach_time == 0.0);
-        sensing[SensingProfile::ALL
+        sensing[SensingProfile::SYNTHETIC
             .iter()
             .position(|p| *p == f.sensing)
             .unwrap()] += 1;

@@ -203,7 +203,7 @@ fn the_online_mass_ends_within_5_percent_of_the_batch_mass_on_random_flights() {
     let mut checked = 0;
     for k in 0..60u64 {
         let trajectory = trajectories[rng.random_range(0..trajectories.len())];
-        let sensing = SensingProfile::ALL[(k % 3) as usize];
+        let sensing = SensingProfile::SYNTHETIC[(k % 3) as usize];
         let (effects, effect) = match k % 6 / 2 {
             0 => (PlantEffects::none(), None),
             1 => (

@@ -90,7 +90,7 @@ fn logged_accelerometer_and_rotor_speeds_carry_the_profile() {
 /// The same seed flies the same realistic flight bit for bit; another seed differs.
 #[test]
 fn realistic_flights_are_deterministic() {
-    for profile in SensingProfile::ALL {
+    for profile in SensingProfile::SYNTHETIC {
         let a = flight(21, profile.sensing());
         let b = flight(21, profile.sensing());
         assert_eq!(a.tracking_errors, b.tracking_errors);
@@ -121,7 +121,7 @@ fn realistic_sensing_tracks() {
 /// Profiles parse by name; bad σ's are typed errors.
 #[test]
 fn profiles_parse_and_validate() {
-    for p in SensingProfile::NAMED {
+    for p in SensingProfile::ALL {
         assert_eq!(p.name().parse::<SensingProfile>().expect("parse"), p);
         p.sensing().validate().expect("valid");
     }
@@ -205,7 +205,7 @@ fn the_brushless_sensing_profile_logs_erpm_readings() {
         differs += usize::from(thrust != true_thrust);
     }
     assert!(differs > speeds.len() / 2, "{differs} of {}", speeds.len());
-    for p in SensingProfile::ALL {
+    for p in SensingProfile::SYNTHETIC {
         assert_eq!(p.rotor_sensing(), RotorSensing::Telemetry, "{p}");
     }
 }

@@ -383,14 +383,14 @@ pub enum SensingProfile {
 impl SensingProfile {
     /// The synthetic profiles. The diagnosis benchmark draws its flights' sensing among
     /// these three.
-    pub const ALL: [SensingProfile; 3] = [
+    pub const SYNTHETIC: [SensingProfile; 3] = [
         SensingProfile::Ideal,
         SensingProfile::Realistic,
         SensingProfile::RealisticCalibrated,
     ];
 
-    /// Every profile by name: [`SensingProfile::ALL`] and the real vehicle's.
-    pub const NAMED: [SensingProfile; 4] = [
+    /// Every profile: [`SensingProfile::SYNTHETIC`] and the real vehicle's.
+    pub const ALL: [SensingProfile; 4] = [
         SensingProfile::Ideal,
         SensingProfile::Realistic,
         SensingProfile::RealisticCalibrated,
@@ -453,7 +453,7 @@ impl FromStr for SensingProfile {
 
     /// Parses [`SensingProfile::name`].
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        SensingProfile::NAMED
+        SensingProfile::ALL
             .into_iter()
             .find(|p| p.name() == s)
             .ok_or_else(|| SimError::Unknown {
