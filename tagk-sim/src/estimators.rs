@@ -564,9 +564,10 @@ pub fn tagk_tuned_realistic() -> EstimatorSpec {
 }
 
 /// Weight of the lateral force rows of [`tagk_effects`]: they carry the x and y drag. Tuned on
-/// seed 7 (20 trials per level, hidden drag 5× the rotor drag, without the detector): 0.03,
-/// 0.1, 0.3 and 1 tracked within 10 % of each other; 0.1 had the lowest error at `none` and
-/// `low`.
+/// seed 7 (20 trials per level, hidden drag 5× the rotor drag). With the learning layer and
+/// without the detector, 0.03–0.3 tracked at 0.85–1.05 cm at none, low and medium noise, and 1
+/// at 0.91–1.15 cm. With the detector, 0.1 tracked at 0.56–0.94 cm and 0.3 at 0.58–0.90 cm
+/// over the four levels. 0.1 was kept.
 pub const EFFECTS_LATERAL_WEIGHT: f64 = 0.1;
 
 /// TAG-K with effects estimated in flight (issue #27, item 6): [`tagk_effects_inertial`] with
