@@ -71,8 +71,9 @@ pub struct EstimatorSpec {
     /// model is `f_drag = −D v_b`. `D` starts from zero. The controller compensates the drag
     /// force of the latest estimate, each coefficient clamped to `[0, m₀ ·` [`DRAG_LIMIT_PER_MASS`]`]`. Column scale
     /// (with [`EstimatorSpec::scaled`]): `m₀ · 1 s⁻¹`. The x and y columns sit on the lateral
-    /// force rows: they need [`EstimatorSpec::lateral_weight`] above 0. `false`: no drag.
-    #[serde(default)]
+    /// force rows: they need [`EstimatorSpec::lateral_weight`] above 0. `false`: no drag (then
+    /// left out of serialised specs, which read as before it existed).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub drag: bool,
     /// Keeps learning on stationary data (tagk-core's `Accumulate` inside the front end): the
     /// estimate is the least-squares solution of every window since the last restart, anchored

@@ -136,3 +136,16 @@ fn compensated_drag_tracks_better_than_inertial_only() {
     assert!(ratio < 0.8, "mean error ratio {ratio:.3}");
     assert!(better >= 12, "augmented better in {better} of {trials}");
 }
+
+/// A spec without drag serialises as before the option existed; one with it round-trips.
+#[test]
+fn drag_option_serialises_only_when_on() {
+    let off = serde_json::to_string(&tagk_tuned_realistic()).expect("json");
+    assert!(!off.contains("drag"), "{off}");
+    let on = tagk_effects();
+    assert_eq!(on.unknowns(), 16);
+    assert!(on.label().contains("drag"));
+    let back: EstimatorSpec =
+        serde_json::from_str(&serde_json::to_string(&on).expect("json")).expect("parse");
+    assert_eq!(back, on);
+}
