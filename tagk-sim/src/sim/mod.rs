@@ -46,8 +46,8 @@ pub use truth::{FlightTruth, TruthSample};
 use crate::EstimatorKind;
 use crate::SimError;
 use crate::estimators::{
-    CHANGE_FALSE_ALARM, CHANGE_FRESH_FRAMES, FORCE_BIAS_PARAMS, N_PARAMS, build_kind,
-    change_scales, front_end_config, row_weights, spec_scales,
+    CHANGE_FALSE_ALARM, CHANGE_FRESH_FRAMES, DRAG_LIMIT_PER_MASS, DRAG_PARAMS, FORCE_BIAS_PARAMS,
+    N_PARAMS, build_kind, change_scales, front_end_config, row_weights, spec_scales,
 };
 use crate::metrics::{
     ABORT_THRESHOLD, GroupErrors, group_errors, is_aborted, is_settled, is_success,
@@ -91,15 +91,36 @@ struct EstimatorStage {
     /// main estimator's state).
     early: Option<Fronted>,
     window: WindowBuilder,
-    a_buf: Vec<f64>,
-    b_buf: Vec<f64>,
+    /// The built window and its effect columns.
+    buffers: WindowBuffers,
     /// Row weights of a full window (`None`: every row 1).
     weights: Option<Vec<f64>>,
+}
+
+/// A built window's buffers, with the effect columns appended after θ's 10.
+struct WindowBuffers {
+    a_buf: Vec<f64>,
+    b_buf: Vec<f64>,
     /// Unknowns per row: θ's 10, plus the nuisance force's 3
-    /// ([`EstimatorSpec::force_bias`](crate::EstimatorSpec::force_bias)).
+    /// ([`EstimatorSpec::force_bias`](crate::EstimatorSpec::force_bias)), plus the drag's 3
+    /// ([`EstimatorSpec::drag`](crate::EstimatorSpec::drag)).
     unknowns: usize,
-    /// The window with the nuisance columns (empty without them).
+    /// The effect columns after θ.
+    columns: EffectColumns,
+    /// With drag columns: the measured body-frame velocity \[m/s\] of each frame in the
+    /// window, oldest first (empty without them).
+    velocities: std::collections::VecDeque<[f64; 3]>,
+    /// The window with the effect columns (empty without them).
     a_wide: Vec<f64>,
+}
+
+/// Which effect columns follow θ's 10 in the estimator's window, in this order.
+#[derive(Debug, Clone, Copy)]
+struct EffectColumns {
+    /// The nuisance force: identity on each frame's force rows.
+    force_bias: bool,
+    /// The linear drag: the frame's body-frame velocity on its force rows.
+    drag: bool,
 }
 
 /// The state of a flight in progress.
@@ -141,6 +162,9 @@ struct Flight<'a> {
     /// Control steps at which the change detector alarmed.
     alarms: Vec<usize>,
     latest_estimate: [f64; 10],
+    /// The drag the controller compensates, `diag(d_x, d_y, d_z)` \[N s/m\] (body frame;
+    /// zero unless the estimator has drag columns).
+    drag_estimate: [f64; 3],
     /// Control steps of the whole flight.
     planned_steps: usize,
     /// `∫ (p̂ − p_ref) dt` of the flight stack's integral action \[m s\] (world frame).
@@ -325,15 +349,26 @@ fn build_estimator(config: &SimConfig, seed: u64) -> Result<Option<EstimatorStag
         fresh_due: None,
         early,
         window: WindowBuilder::new(config.window_frames)?,
-        a_buf: vec![0.0; m_max * N_PARAMS],
-        b_buf: vec![0.0; m_max],
-        weights: row_weights(spec, m_max),
-        unknowns,
-        a_wide: if unknowns > N_PARAMS {
-            vec![0.0; m_max * unknowns]
-        } else {
-            Vec::new()
+        buffers: WindowBuffers {
+            a_buf: vec![0.0; m_max * N_PARAMS],
+            b_buf: vec![0.0; m_max],
+            unknowns,
+            columns: EffectColumns {
+                force_bias: spec.force_bias,
+                drag: spec.drag,
+            },
+            velocities: std::collections::VecDeque::with_capacity(if spec.drag {
+                config.window_frames
+            } else {
+                0
+            }),
+            a_wide: if unknowns > N_PARAMS {
+                vec![0.0; m_max * unknowns]
+            } else {
+                Vec::new()
+            },
         },
+        weights: row_weights(spec, m_max),
     }))
 }
 
@@ -425,6 +460,7 @@ impl<'a> Flight<'a> {
             first_update_steps: Vec::new(),
             alarms: Vec::new(),
             latest_estimate: nominal.to_array(),
+            drag_estimate: [0.0; 3],
             planned_steps: steps,
             position_integral: Vector3::zeros(),
             interval_steps: Vec::new(),
@@ -459,6 +495,16 @@ impl<'a> Flight<'a> {
             self.position_integral += (measured.position - reference.position) * dt;
             self.position_integral = self.position_integral.map(|v| v.clamp(-limit, limit));
             reference.position -= self.position_integral * k;
+        }
+        // The estimated drag's body force `−D v_b` is compensated: the desired specific force
+        // gains `R D v_b / m̂` (measured attitude and velocity, the controller's mass).
+        let velocity_body = measured
+            .attitude
+            .inverse_transform_vector(&measured.velocity);
+        if self.drag_estimate != [0.0; 3] {
+            let drag_body = Vector3::from(self.drag_estimate).component_mul(&velocity_body);
+            reference.acceleration +=
+                measured.attitude * drag_body / self.controller.lqr().params().mass();
         }
         let cmd = self
             .plant
@@ -574,7 +620,7 @@ impl<'a> Flight<'a> {
             }
         }
         self.interval_steps = steps;
-        self.update_estimator(k, t, &frame, &wrench_measured)?;
+        self.update_estimator(k, t, &frame, &wrench_measured, &velocity_body)?;
         Ok(ControlFlow::Continue(()))
     }
 
@@ -869,15 +915,17 @@ impl<'a> Flight<'a> {
         }
     }
 
-    /// Pushes the frame into the estimator's window and, every `estimator_period` steps with
-    /// a full window, updates the estimator and hands its estimate through the safety gate to
-    /// the controller.
+    /// Pushes the frame (with the measured body-frame velocity `velocity_body` \[m/s\] of the
+    /// drag columns) into the estimator's window and, every `estimator_period` steps with a full
+    /// window, updates the estimator and hands its estimate through the safety gate to the
+    /// controller.
     fn update_estimator(
         &mut self,
         k: usize,
         t: f64,
         frame: &Frame,
         wrench: &Wrench,
+        velocity_body: &Vector3<f64>,
     ) -> Result<(), SimError> {
         let Some(stage) = self.estimator.as_mut() else {
             return Ok(());
@@ -885,24 +933,27 @@ impl<'a> Flight<'a> {
         stage
             .window
             .push(&frame.accel, &frame.omega, &frame.omega_dot, wrench)?;
+        let buffers = &mut stage.buffers;
+        if buffers.columns.drag {
+            if buffers.velocities.len() == self.config.window_frames {
+                buffers.velocities.pop_front();
+            }
+            buffers.velocities.push_back((*velocity_body).into());
+        }
         let periodic =
             (k + 1).is_multiple_of(self.config.estimator_period) && stage.window.is_full();
+        // The window is built at most once per step (the check and the update share it).
+        let mut built: Option<usize> = None;
         // The change detector: the newest frame against the current estimate, every step.
         let mut fresh = false;
         if stage.detect {
             if let Some(due) = stage.fresh_due {
                 fresh = k >= due;
             } else {
-                let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
+                let rows = stage.window.build(&mut buffers.a_buf, &mut buffers.b_buf)?;
+                built = Some(rows);
                 let first = rows.saturating_sub(6);
-                let (a, b) = window_rows(
-                    &stage.a_buf,
-                    &stage.b_buf,
-                    &mut stage.a_wide,
-                    stage.unknowns,
-                    first,
-                    rows,
-                );
+                let (a, b) = buffers.rows(first, rows);
                 let weights = stage.weights.as_deref().map(|w| &w[..rows - first]);
                 if let Ok(check) = stage.main.check(a, b, weights)
                     && check.alarm
@@ -917,7 +968,10 @@ impl<'a> Flight<'a> {
         if !(fresh || periodic && stage.fresh_due.is_none()) {
             return Ok(());
         }
-        let rows = stage.window.build(&mut stage.a_buf, &mut stage.b_buf)?;
+        let rows = match built {
+            Some(rows) => rows,
+            None => stage.window.build(&mut buffers.a_buf, &mut buffers.b_buf)?,
+        };
         let first = if fresh {
             rows.saturating_sub(6 * CHANGE_FRESH_FRAMES)
         } else {
@@ -926,14 +980,7 @@ impl<'a> Flight<'a> {
         if fresh {
             stage.fresh_due = None;
         }
-        let (a, b) = window_rows(
-            &stage.a_buf,
-            &stage.b_buf,
-            &mut stage.a_wide,
-            stage.unknowns,
-            first,
-            rows,
-        );
+        let (a, b) = buffers.rows(first, rows);
         let weights = stage.weights.as_deref().map(|w| &w[..rows - first]);
         if fresh {
             // A failed solve keeps the restarted estimator; the update below goes on.
@@ -957,6 +1004,25 @@ impl<'a> Flight<'a> {
         }
         let estimate: [f64; 10] = core::array::from_fn(|i| stage.main.inner().estimate()[i]);
         self.latest_estimate = estimate;
+        if stage.buffers.columns.drag {
+            // The drag dissipates: each coefficient is clamped to [0, limit].
+            let first = N_PARAMS
+                + if stage.buffers.columns.force_bias {
+                    FORCE_BIAS_PARAMS
+                } else {
+                    0
+                };
+            let limit = DRAG_LIMIT_PER_MASS * self.config.vehicle.params.mass();
+            let full = stage.main.inner().estimate();
+            self.drag_estimate = core::array::from_fn(|c| {
+                let d = full[first + c];
+                if d.is_finite() {
+                    d.clamp(0.0, limit)
+                } else {
+                    0.0
+                }
+            });
+        }
         let truth = *self.plant.params();
         // Scored against what the data identify (θ/(1+ε)), not θ itself.
         let scored = self.config.identifiable_params(&truth);
@@ -983,6 +1049,7 @@ impl<'a> Flight<'a> {
             truth: truth.to_array(),
             accepted,
             micros,
+            drag: self.drag_estimate,
         });
         Ok(())
     }
@@ -1047,34 +1114,44 @@ impl<'a> Flight<'a> {
     }
 }
 
-/// Rows `first..rows` of a built window (`a_buf`: θ's 10 columns), with the nuisance force's
-/// columns appended in `a_wide` when the estimator has `unknowns > 10`
-/// ([`EstimatorSpec::force_bias`](crate::EstimatorSpec::force_bias)): identity on each
-/// frame's force rows.
-fn window_rows<'s>(
-    a_buf: &'s [f64],
-    b_buf: &'s [f64],
-    a_wide: &'s mut [f64],
-    unknowns: usize,
-    first: usize,
-    rows: usize,
-) -> (&'s [f64], &'s [f64]) {
-    let n = unknowns;
-    let b = &b_buf[first..rows];
-    if n > N_PARAMS {
+impl WindowBuffers {
+    /// Rows `first..rows` of the built window (`a_buf`: θ's 10 columns). With effect columns
+    /// ([`EffectColumns`]) they are appended in `a_wide`: the nuisance force's identity on each
+    /// frame's force rows, then the drag's body-frame velocity of the frame on its force rows.
+    fn rows(&mut self, first: usize, rows: usize) -> (&[f64], &[f64]) {
+        let n = self.unknowns;
+        let b = &self.b_buf[first..rows];
+        if n == N_PARAMS {
+            return (&self.a_buf[first * N_PARAMS..rows * N_PARAMS], b);
+        }
+        // The window's frames are the newest `rows / 6` velocities; row r is frame r / 6.
+        let skipped = self.velocities.len().saturating_sub(rows / 6);
         for r in first..rows {
             let (src, dst) = (
-                &a_buf[r * N_PARAMS..(r + 1) * N_PARAMS],
-                &mut a_wide[(r - first) * n..(r - first + 1) * n],
+                &self.a_buf[r * N_PARAMS..(r + 1) * N_PARAMS],
+                &mut self.a_wide[(r - first) * n..(r - first + 1) * n],
             );
             dst[..N_PARAMS].copy_from_slice(src);
-            for j in 0..FORCE_BIAS_PARAMS {
-                dst[N_PARAMS + j] = if r % 6 == j { 1.0 } else { 0.0 };
+            let channel = r % 6;
+            let mut j = N_PARAMS;
+            if self.columns.force_bias {
+                for c in 0..FORCE_BIAS_PARAMS {
+                    dst[j + c] = if channel == c { 1.0 } else { 0.0 };
+                }
+                j += FORCE_BIAS_PARAMS;
+            }
+            if self.columns.drag {
+                let v = self
+                    .velocities
+                    .get(skipped + r / 6)
+                    .copied()
+                    .unwrap_or([0.0; 3]);
+                for c in 0..DRAG_PARAMS {
+                    dst[j + c] = if channel == c { v[c] } else { 0.0 };
+                }
             }
         }
-        (&a_wide[..(rows - first) * n], b)
-    } else {
-        (&a_buf[first * N_PARAMS..rows * N_PARAMS], b)
+        (&self.a_wide[..(rows - first) * n], b)
     }
 }
 

@@ -33,6 +33,17 @@ pub struct UpdateRecord {
     pub accepted: bool,
     /// Wall-clock time of the estimator update alone \[µs\].
     pub micros: f64,
+    /// The drag the controller compensates after this update, `diag(d_x, d_y, d_z)`
+    /// \[N s/m\] (body frame). Zero without drag columns
+    /// ([`EstimatorSpec::drag`](crate::EstimatorSpec::drag)); then left out of serialised
+    /// records.
+    #[serde(default, skip_serializing_if = "is_zero3")]
+    pub drag: [f64; 3],
+}
+
+/// Whether every entry is zero (skips [`UpdateRecord::drag`] when off).
+fn is_zero3(v: &[f64; 3]) -> bool {
+    *v == [0.0; 3]
 }
 
 /// Per-control-step trace for figures.
