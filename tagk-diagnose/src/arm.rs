@@ -10,8 +10,9 @@
 //! link would be absorbed by the fit.
 //!
 //! **Candidates** ([`ArmEffect`]): the joint effects of [`tagk_dynamics::joint_effect`]
-//! (one coefficient per joint) and `payload`, the change of the last body's ten inertial
-//! parameters relative to the URDF's, reduced to the combinations the log identifies
+//! (one coefficient per joint) and `payload`, the change of the payload body's ten inertial
+//! parameters relative to the URDF's (`KinematicTree::payload_body`: the last body of a serial
+//! arm, the hand of an arm with a two-finger gripper), reduced to the combinations the log identifies
 //! ([`BaseReduction`]). `joint-elasticity` is refused with the reason
 //! ([`ELASTICITY_REASON`]).
 //!
@@ -91,7 +92,8 @@ pub const PARAMETER_UNITS: [&str; 10] = [
 pub enum ArmEffect {
     /// A joint effect, one coefficient per joint.
     Joint(JointEffectKind),
-    /// A change of the last body's inertial parameters relative to the URDF's.
+    /// A change of the payload body's inertial parameters relative to the URDF's
+    /// ([`KinematicTree::payload_body`]: the last body of a serial arm, a gripper's hand).
     Payload,
 }
 
@@ -318,10 +320,10 @@ pub struct ArmFinalModel {
     pub coefficients: Vec<Coefficient>,
 }
 
-/// The identifiable combinations of the last body's parameters a payload changes.
+/// The identifiable combinations of the payload body's parameters a payload changes.
 #[derive(Debug, Clone, Serialize)]
 pub struct PayloadBasis {
-    /// The body (URDF link) that carries the payload: the tree's last body.
+    /// The body (URDF link) that carries the payload: [`KinematicTree::payload_body`].
     pub body: String,
     /// The reduction of its ten regressor columns.
     pub reduction: BaseReduction,
@@ -836,7 +838,9 @@ pub fn diagnose_arm(
     let (qdd, derived) = accelerations(log, options.half_width);
     let theta = tree.params_vector();
     let np = tree.n_params();
-    let last = tree.n_bodies() - 1;
+    let last = tree.payload_body().ok_or_else(|| {
+        DiagnoseError::InvalidModel(format!("the robot `{}` has no moving joint", tree.name()))
+    })?;
     let joints: Vec<String> = tree.joint_names().into_iter().map(String::from).collect();
 
     // The stacked rigid regressor (rows i·dof + j) and the URDF's residual.

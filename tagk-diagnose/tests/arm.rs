@@ -19,8 +19,12 @@ struct Robot {
     noise: f64,
     /// Scale of the joint effects (1 for the UR5).
     scale: f64,
-    /// Where a payload sits in the last body's frame [m].
+    /// Where a payload sits in the payload body's frame [m].
     payload_at: Vector3<f64>,
+    /// Scale of a prismatic joint's excitation against a revolute joint's (m per rad).
+    prismatic_motion: f64,
+    /// Velocity noise [rad/s] instead of the realistic sensing's.
+    velocity_noise: Option<f64>,
 }
 
 fn ur5() -> Robot {
@@ -30,6 +34,8 @@ fn ur5() -> Robot {
         noise: 0.2,
         scale: 1.0,
         payload_at: Vector3::new(0.0, 0.0, 0.08),
+        prismatic_motion: 0.01,
+        velocity_noise: None,
     }
 }
 
@@ -42,6 +48,24 @@ fn planar() -> Robot {
         noise: 0.05,
         scale: 0.3,
         payload_at: Vector3::new(0.7, 0.0, 0.0),
+        prismatic_motion: 0.01,
+        velocity_noise: None,
+    }
+}
+
+/// The Panda with its hand: 7 revolute joints and the two prismatic fingers (9 joints). The
+/// payload body is `panda_link7`, which carries the hand; a payload sits in the hand, 15 cm
+/// along link 7's z axis.
+fn panda() -> Robot {
+    let urdf = tagk_dynamics::robots::shipped_urdf("panda").unwrap();
+    Robot {
+        tree: KinematicTree::from_urdf_str(urdf).unwrap(),
+        noise: 0.1,
+        scale: 0.5,
+        payload_at: Vector3::new(0.0, 0.0, 0.15),
+        // Fingers within their 0–4 cm travel: 2 ± 1 cm.
+        prismatic_motion: 0.01,
+        velocity_noise: None,
     }
 }
 
@@ -86,10 +110,22 @@ fn log_with(robot: &Robot, hidden: &[ArmEffect], seed: u64) -> (JointLog, Truth)
             }
         }
     }
-    let motion = FourierTrajectory::random_with_speed(dof, 5, 0.1, 1.0, seed ^ 0xf0);
+    let mut motion = FourierTrajectory::random_with_speed(dof, 5, 0.1, 1.0, seed ^ 0xf0);
+    // A prismatic joint (a gripper's finger) moves centimetres about 2 cm, not radians.
+    for (j, body) in robot.tree.bodies().iter().enumerate() {
+        if !body.kind().is_rotational() {
+            motion.q0[j] = 0.02;
+            for c in motion.a[j].iter_mut().chain(motion.b[j].iter_mut()) {
+                *c *= robot.prismatic_motion;
+            }
+        }
+    }
     let sensing = JointSensing {
         torque_noise: robot.noise,
         torque_offset: 0.0,
+        velocity_noise: robot
+            .velocity_noise
+            .unwrap_or(JointSensing::REALISTIC.velocity_noise),
         ..JointSensing::REALISTIC
     };
     let log_accelerations = std::env::var("TAGK_ARM_QDD").is_ok();
@@ -181,6 +217,8 @@ fn score(robot: &Robot, hidden: &[ArmEffect], score: &mut Score, base_seed: u64)
             score.intervals += 1;
             if (lo..=hi).contains(&t) {
                 score.covered += 1;
+            } else if std::env::var("TAGK_ARM_VERBOSE").is_ok() {
+                eprintln!("seed {seed}: {} = {t} outside [{lo}, {hi}]", c.name);
             }
         }
     }
@@ -265,6 +303,54 @@ fn ur5_hidden_effects_and_pairs_are_found_within_their_intervals() {
 #[test]
 fn planar_hidden_effects_and_pairs_are_found_within_their_intervals() {
     hidden_effects_are_found(&planar(), "planar");
+}
+
+#[test]
+fn panda_hidden_effects_and_pairs_are_found_within_their_intervals() {
+    hidden_effects_are_found(&panda(), "panda");
+}
+
+#[test]
+fn panda_clean_logs_find_nothing() {
+    clean_logs_find_nothing(&panda(), "panda");
+}
+
+/// A Panda log whose fingers stand still (a gripper held open) and whose velocities are exact:
+/// the fingers' friction and armature columns are exactly zero. The diagnosis still finds the
+/// arm's friction within its intervals, with finite numbers and no error.
+#[test]
+fn panda_with_still_fingers_is_diagnosed() {
+    let robot = Robot {
+        prismatic_motion: 0.0,
+        velocity_noise: Some(0.0),
+        ..panda()
+    };
+    let hidden = [ArmEffect::Joint(JointEffectKind::ViscousFriction)];
+    let joints = robot.tree.joint_names();
+    let (mut covered, mut arm) = (0, 0);
+    for seed in 0..3 {
+        let (log, truth) = log_with(&robot, &hidden, 4242 + seed);
+        assert!(log.qd.iter().all(|v| v[7] == 0.0 && v[8] == 0.0));
+        let report = diagnose_arm(&robot.tree, &log, &options()).unwrap();
+        assert_eq!(report.found(), hidden.to_vec(), "{}", report.table());
+        for c in &report.final_model.coefficients {
+            assert!(c.value.is_finite(), "{}: {}", c.name, c.value);
+            let j = joints
+                .iter()
+                .position(|jn| c.name == format!("viscous-friction[{jn}]"))
+                .unwrap();
+            let Some([lo, hi]) = c.confidence_interval else {
+                continue;
+            };
+            let t = truth.effects.coefficients(JointEffectKind::ViscousFriction)[j];
+            if j < 7 {
+                arm += 1;
+                covered += usize::from((lo..=hi).contains(&t));
+            }
+        }
+    }
+    assert_eq!(arm, 21);
+    assert!(covered >= 18, "{covered} of 21 arm coefficients covered");
 }
 
 #[test]

@@ -288,6 +288,20 @@ impl KinematicTree {
         &self.bodies
     }
 
+    /// The body a payload held by the robot attaches to: the deepest body that carries every
+    /// leaf of the tree. For a serial arm that is its last body. For an arm with a two-finger
+    /// gripper it is the hand's body, from which both fingers hang. It is the last body when
+    /// no body carries every leaf (two chains from the base). `None` without moving bodies.
+    pub fn payload_body(&self) -> Option<usize> {
+        let n = self.bodies.len();
+        let first_leaf = (0..n).find(|&i| self.subtree_end[i] == i + 1)?;
+        // Subtrees are index ranges `[i, subtree_end[i])`; the last body is always a leaf.
+        (0..=first_leaf)
+            .rev()
+            .find(|&i| self.subtree_end[i] == n)
+            .or(Some(n - 1))
+    }
+
     /// Joint names in coordinate order.
     pub fn joint_names(&self) -> Vec<&str> {
         self.bodies.iter().map(|b| b.joint.as_str()).collect()

@@ -512,3 +512,42 @@ fn joint_limits_are_the_urdf_s() {
     assert_eq!(planar.bodies()[0].limit().velocity, 5.0);
     assert_eq!(planar.bodies()[1].kind(), JointKind::Continuous);
 }
+
+/// The payload body: the last body of a serial arm, the Panda's hand (link 7 with the hand
+/// welded on) when its fingers move, the last body of two chains from the base.
+#[test]
+fn payload_body_is_the_body_that_carries_every_leaf() {
+    for (name, tree) in all_robots() {
+        let b = tree.payload_body().unwrap();
+        // Independently: every body without children hangs below `b` (or is `b`).
+        let has_child = |i: usize| tree.bodies().iter().any(|x| x.parent() == Some(i));
+        for leaf in (0..tree.n_bodies()).filter(|&i| !has_child(i)) {
+            let mut at = Some(leaf);
+            while at.is_some_and(|i| i != b) {
+                at = tree.bodies()[at.unwrap()].parent();
+            }
+            assert_eq!(at, Some(b), "{name}: leaf {leaf} not below body {b}");
+        }
+        if name.starts_with("panda (9") {
+            let hand = &tree.bodies()[b];
+            assert_eq!(hand.link(), "panda_link7", "{name}");
+            assert!(hand.merged_links().iter().any(|l| l == "panda_hand"));
+            assert_eq!(b, 6);
+        } else {
+            assert_eq!(b, tree.n_bodies() - 1, "{name}: a serial arm's last body");
+        }
+    }
+    let two_chains = r#"<robot name="two">
+      <link name="base"/>
+      <joint name="a" type="revolute"><parent link="base"/><child link="la"/><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+      <link name="la"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+      <joint name="b" type="revolute"><parent link="base"/><child link="lb"/><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+      <link name="lb"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+    </robot>"#;
+    let tree = KinematicTree::from_urdf_str(two_chains).unwrap();
+    assert_eq!(tree.payload_body(), Some(1));
+}

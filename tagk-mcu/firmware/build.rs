@@ -1,10 +1,11 @@
-//! Puts `memory.x` on the linker path, and runs the Table III verification updates on the
-//! host to embed their checksums: the firmware must reproduce them bit for bit.
+//! Puts `memory.x` on the linker path, and runs the verification updates of every case (Table
+//! III's, then the arm's) on the host to embed their checksums: the firmware must reproduce
+//! them bit for bit.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use tagk_mcu::{ARENA_LEN, CASES, NullCounter, run_case_in};
+use tagk_mcu::{ARENA_LEN, ARM_ARENA_LEN, CASE_COUNT, NullCounter, case_at, run_case_in};
 
 fn main() {
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
@@ -13,14 +14,15 @@ fn main() {
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
 
-    let mut a32 = vec![0.0f32; ARENA_LEN];
-    let mut a64 = vec![0.0f64; ARENA_LEN];
+    let len = ARENA_LEN.max(ARM_ARENA_LEN);
+    let mut a32 = vec![0.0f32; len];
+    let mut a64 = vec![0.0f64; len];
     let mut src = String::from(
         "/// Checksums of the verification updates of every case, computed on the host by build.rs.\n\
-         const EXPECTED: [tagk_mcu::Checksum; 30] = [\n",
+         const EXPECTED: [tagk_mcu::Checksum; tagk_mcu::CASE_COUNT] = [\n",
     );
-    for (i, case) in CASES.iter().enumerate() {
-        let report = run_case_in(*case, 1, &mut a32, &mut a64, &mut NullCounter)
+    for (i, case) in (0..CASE_COUNT).filter_map(case_at).enumerate() {
+        let report = run_case_in(case, 1, &mut a32, &mut a64, &mut NullCounter)
             .unwrap_or_else(|e| panic!("case {i} failed on the host: {e}"));
         writeln!(
             src,

@@ -6,7 +6,8 @@
 # ESTIMATE of cycles with llvm-mca's Cortex-M7 model, and prints the table.
 #
 # Exit status: non-zero if the build fails, a case fails or its checksum differs from the
-# host's. Writes the final table to firmware/target/table3.md. Environment:
+# host's. Writes the final table to firmware/target/table3.md, and the arm cases' (n = 10 and
+# 70, m = 70) to firmware/target/arm.md. Environment:
 #   TAGK_MCU_SKIP_INSTALL=1   do not call apt-get (everything must already be installed)
 #   TAGK_MCU_MEASURE=path     measure.sh to use (unset: instruction counts are skipped)
 set -euo pipefail
@@ -64,7 +65,9 @@ if [[ -z $MEASURE || ! -f $MEASURE ]]; then
 fi
 
 # --- 5. Executed instructions per update: run each case with R1 and R2 timed updates --------
-log "counting instructions: 30 cases x 2 runs"
+# Table III's 30 cases, then the arm cases (tagk_mcu::ARM_CASES), numbered after them.
+NCASES=$(grep -c ' ok$' "$OUT/firmware.txt")
+log "counting instructions: $NCASES cases x 2 runs"
 count() { # case reps -> total executed instructions (the case's checksum must pass)
   local dir=$OUT/case-$1-$2 total
   mkdir -p "$dir"; printf '%s %s\n' "$1" "$2" > "$dir/tagk-mcu-case.txt"
@@ -75,7 +78,7 @@ count() { # case reps -> total executed instructions (the case's checksum must p
   echo "$total"
 }
 : > "$OUT/counts.txt"
-for idx in $(seq 0 29); do
+for idx in $(seq 0 $((NCASES - 1))); do
   c1=$(count "$idx" $R1); c2=$(count "$idx" $R2)
   # label n precision, from the firmware's row: "IDX LABEL N M PREC ..."
   read -r _ label n _ prec _ < "$OUT/case-$idx-$R1/out.txt"
@@ -156,7 +159,29 @@ awk -v ft64="$F_TAGK64" -v ft32="$F_TAGK32" -v fc64="$F_COV64" -v fc32="$F_COV32
       printf "| %s | %d | %d | %d (%s) | %d | %.1f× | %.1f× | %s | %s | %s | %s | %s |\n", p, n, r[key], k[key], kl[p], t[key],
         r[key] / t[key], k[key] / t[key], paper, est(t[key], ft), us(t[key], ft), us(r[key], fc), us(k[key], fc)
     }
-  }' "$OUT/counts.txt" | tee "$FW/target/table3.md"
+  }' <(head -n 30 "$OUT/counts.txt") | tee "$FW/target/table3.md"
+
+# --- 8. The arm cases: n = 10 (payload) and 70 (every link of a 7-joint arm), m = 70 --------
+echo
+tail -n +31 "$OUT/counts.txt" | awk -v ft64="$F_TAGK64" -v ft32="$F_TAGK32" -v fc64="$F_COV64" \
+    -v fc32="$F_COV32" -v mhz=$CLOCK_MHZ '
+  { key = $3 " " $4; if ($2 == "TAG-K") t[key] = $5; else if ($2 ~ /^RLS/) r[key] = $5; else k[key] = $5 }
+  function us(ins, f) { return (f == "n/a" || ins == "") ? "—" : sprintf("%.0f", ins * f / mhz) }
+  function num(x) { return (x == "") ? "—" : x }
+  END {
+    print "Arm cases: executed instructions per update (QEMU mps2-an500, exact), m = 70 (10 samples x 7 joints);"
+    print "µs at " mhz " MHz are an ESTIMATE (same llvm-mca factors as above). KF: KF-high, f64 only."
+    print ""
+    print "| prec | n | RLS-low instr | KF-high instr | TAG-K instr | speedup vs RLS | TAG-K est. µs | RLS est. µs | KF est. µs |"
+    print "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+    split("f64 f32", P, " "); split("10 70", N, " ")
+    for (pi = 1; pi <= 2; pi++) for (ni = 1; ni <= 2; ni++) {
+      p = P[pi]; n = N[ni]; key = n " " p
+      ft = (p == "f64") ? ft64 : ft32; fc = (p == "f64") ? fc64 : fc32
+      printf "| %s | %d | %s | %s | %s | %.1f× | %s | %s | %s |\n", p, n, num(r[key]), num(k[key]), num(t[key]),
+        r[key] / t[key], us(t[key], ft), us(r[key], fc), us(k[key], fc)
+    }
+  }' | tee "$FW/target/arm.md"
 
 # A closing line in the form CI logs recognise: every case ran and matched the host.
 echo "tagk-mcu firmware: $(grep -c ' ok$' "$OUT/firmware.txt") passed, $(grep -c 'FAILED' "$OUT/firmware.txt") failed"

@@ -29,7 +29,7 @@ pub enum HarnessError {
          expected {expected_hash:#018x} (sum {expected_sum:e})"
     )]
     ChecksumMismatch {
-        /// Index of the case in [`crate::CASES`] (`usize::MAX` for a case not in the table).
+        /// The case's [`crate::Case::index`] (`usize::MAX` for a case in neither list).
         index: usize,
         /// Hash computed here.
         found_hash: u64,

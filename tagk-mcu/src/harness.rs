@@ -1,5 +1,6 @@
 //! The Table III harness: per-update cost of RLS-low, KF-low and TAG-K on synthetic windows,
-//! `n ∈ {40, 60, 80, 100, 120}`, `m = 30`, in `f32` and `f64`.
+//! `n ∈ {40, 60, 80, 100, 120}`, `m = 30`, in `f32` and `f64`. The arm cases ([`ARM_CASES`])
+//! run the same estimators at a robot arm's sizes: `n ∈ {10, 70}`, `m = 70`.
 //!
 //! One [`Case`] runs as follows, identically on the host and on a microcontroller:
 //!
@@ -111,13 +112,79 @@ pub const CASES: [Case; 30] = {
     cases
 };
 
+/// The parameter dimensions of the arm cases (issue 28): a payload's 10 inertial
+/// parameters, and 10 per link of a 7-joint arm such as the Panda (70).
+pub const ARM_N: [usize; 2] = [10, 70];
+/// Rows per window in the arm cases: tagk-sim's arm windows of 10 samples, one torque row per
+/// joint of a 7-joint arm.
+pub const ARM_M: usize = 70;
+
+/// The arm cases: `f64` first, then by `n` in [`ARM_N`]; in `f64` RLS-low, KF-high and TAG-K,
+/// in `f32` RLS-low and TAG-K; `m` = [`ARM_M`]. The firmware numbers them after [`CASES`]
+/// (see [`case_at`]).
+///
+/// KF-low's first 70-row window at `n = 70` pins every direction far below its prior's
+/// rounding level, and so does KF-high's in `f32` (`P₀/σ_R² = 10⁹`). In the compact buffer
+/// that is a typed `NumericalFailure`, so the `f64` filter is KF-high and `f32` has none.
+/// KF-high runs the same instructions per update as KF-low.
+pub const ARM_CASES: [Case; 10] = {
+    let mut cases = [Case {
+        kind: EstimatorKind::RlsLow,
+        n: 0,
+        m: ARM_M,
+        precision: Precision::F64,
+    }; 10];
+    let f64_kinds = [
+        EstimatorKind::RlsLow,
+        EstimatorKind::KfHigh,
+        EstimatorKind::TagK,
+    ];
+    let f32_kinds = [EstimatorKind::RlsLow, EstimatorKind::TagK];
+    let mut i = 0;
+    while i < 10 {
+        cases[i] = if i < 6 {
+            Case {
+                kind: f64_kinds[i % 3],
+                n: ARM_N[i / 3],
+                m: ARM_M,
+                precision: Precision::F64,
+            }
+        } else {
+            Case {
+                kind: f32_kinds[(i - 6) % 2],
+                n: ARM_N[(i - 6) / 2],
+                m: ARM_M,
+                precision: Precision::F32,
+            }
+        };
+        i += 1;
+    }
+    cases
+};
+
+/// Cases the firmware runs: [`CASES`], then [`ARM_CASES`].
+pub const CASE_COUNT: usize = CASES.len() + ARM_CASES.len();
+
+/// The firmware's case `index`: [`CASES`]`[index]`, then [`ARM_CASES`] from
+/// `CASES.len()` on; `None` past [`CASE_COUNT`].
+pub const fn case_at(index: usize) -> Option<Case> {
+    if index < CASES.len() {
+        Some(CASES[index])
+    } else if index < CASE_COUNT {
+        Some(ARM_CASES[index - CASES.len()])
+    } else {
+        None
+    }
+}
+
 impl Case {
     /// Windows in the pool (verification updates per case).
     pub const POOL: usize = 4;
 
-    /// Position in [`CASES`], if the case is one of the table's.
+    /// Position in the firmware's numbering ([`case_at`]: [`CASES`], then [`ARM_CASES`]), if
+    /// the case is one of them.
     pub fn index(&self) -> Option<usize> {
-        CASES.iter().position(|c| c == self)
+        CASES.iter().chain(&ARM_CASES).position(|c| c == self)
     }
 
     /// Scalars one window occupies: `A` (`m n`) then `b` (`m`).
@@ -139,20 +206,27 @@ impl Case {
     }
 }
 
-/// The largest [`Case::arena_len`] over [`CASES`], in scalars of the case's type: size one
-/// `f64` arena (or an `f32` one of the same length) with it to run every case.
-pub const ARENA_LEN: usize = {
+/// The largest [`Case::arena_len`] over `cases`, in scalars.
+const fn max_arena_len(cases: &[Case]) -> usize {
     let mut max = 0;
     let mut i = 0;
-    while i < CASES.len() {
-        let len = CASES[i].arena_len();
+    while i < cases.len() {
+        let len = cases[i].arena_len();
         if len > max {
             max = len;
         }
         i += 1;
     }
     max
-};
+}
+
+/// The largest [`Case::arena_len`] over [`CASES`], in scalars of the case's type: size one
+/// `f64` arena (or an `f32` one of the same length) with it to run every Table III case.
+pub const ARENA_LEN: usize = max_arena_len(&CASES);
+
+/// The largest [`Case::arena_len`] over [`ARM_CASES`], in scalars (more than [`ARENA_LEN`]:
+/// four 70-row windows at `n = 70`). The firmware's arena is the larger of the two.
+pub const ARM_ARENA_LEN: usize = max_arena_len(&ARM_CASES);
 
 /// A fingerprint of a run's estimates: a hash of their bit patterns and the final sum.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -17,8 +17,8 @@ pub use counter::{CycleCounter, NullCounter};
 pub use error::HarnessError;
 pub use estimators::{McuEstimator, buffer_len, state_bytes};
 pub use harness::{
-    ARENA_LEN, CASES, Case, CaseReport, Checksum, Precision, SyntheticWindows, run_case,
-    run_case_in,
+    ARENA_LEN, ARM_ARENA_LEN, ARM_CASES, CASE_COUNT, CASES, Case, CaseReport, Checksum, Precision,
+    SyntheticWindows, case_at, run_case, run_case_in,
 };
 
 // The kernels this crate runs, re-exported so firmware needs only one dependency: TAG-K from

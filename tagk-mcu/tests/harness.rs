@@ -131,3 +131,59 @@ fn bad_arguments_are_typed_errors() {
     assert_eq!(case.index(), Some(0));
     assert_eq!(Case { n: 41, ..case }.index(), None);
 }
+
+#[test]
+fn arm_cases_run_after_the_table_and_rls_matches_batch_least_squares() {
+    use tagk_mcu::harness::{ARM_M, ARM_N};
+    use tagk_mcu::{ARM_ARENA_LEN, ARM_CASES, CASE_COUNT, case_at};
+    assert_eq!(CASE_COUNT, 40);
+    assert_eq!(case_at(29), Some(CASES[29]));
+    assert_eq!(case_at(30), Some(ARM_CASES[0]));
+    assert_eq!(case_at(CASE_COUNT), None);
+    let mut a32 = vec![0.0f32; ARM_ARENA_LEN];
+    let mut a64 = vec![0.0f64; ARM_ARENA_LEN];
+    for (i, case) in ARM_CASES.iter().enumerate() {
+        assert_eq!(case.index(), Some(30 + i));
+        assert_eq!(case.m, ARM_M);
+        assert!(ARM_N.contains(&case.n));
+        assert!(case.arena_len() <= ARM_ARENA_LEN);
+        let report = run_case_in(*case, 2, &mut a32, &mut a64, &mut NullCounter)
+            .unwrap_or_else(|e| panic!("{case:?}: {e}"));
+        let again = run_case_in(*case, 1, &mut a32, &mut a64, &mut NullCounter).unwrap();
+        again.verify(report.checksum).unwrap();
+    }
+    // Independent check of what the arm cases compute: RLS-low (λ = 0.99, P₀ = 10³ I) on the
+    // four pool windows, in f64, against batch least squares on the same rows. With
+    // m = 70 ≥ n every window alone determines θ, so both sit within the noise of θ*.
+    for (n, case) in [(10, ARM_CASES[0]), (70, ARM_CASES[3])] {
+        assert_eq!(
+            (case.kind, case.precision),
+            (EstimatorKind::RlsLow, Precision::F64)
+        );
+        let m = ARM_M;
+        let mut stream = SyntheticWindows::for_table(n, m);
+        let mut theta = vec![0.0; n];
+        stream.theta(&mut theta);
+        let (mut rows, mut rhs) = (Vec::new(), Vec::new());
+        for _ in 0..Case::POOL {
+            let (mut a, mut b) = (vec![0.0f64; m * n], vec![0.0f64; m]);
+            stream.next_window(&mut a, &mut b);
+            rows.extend(a);
+            rhs.extend(b);
+        }
+        let a = DMatrix::from_row_slice(Case::POOL * m, n, &rows);
+        let b = DVector::from_column_slice(&rhs);
+        let batch = a.clone().svd(true, true).solve(&b, 1e-12).unwrap();
+        let batch_sum: f64 = batch.iter().sum();
+        let report = run_case_in(case, 1, &mut a32, &mut a64, &mut NullCounter).unwrap();
+        let truth: f64 = theta.iter().sum();
+        // The sum of the final estimate: RLS weights old windows by λ^k, so it differs from
+        // the batch solution by the noise's share only (NOISE per row, 280 rows).
+        assert!(
+            (report.checksum.sum - batch_sum).abs() < 1e-3 * n as f64,
+            "n = {n}: RLS {} vs batch {batch_sum}",
+            report.checksum.sum
+        );
+        assert!((batch_sum - truth).abs() < 1e-3 * n as f64, "n = {n}");
+    }
+}

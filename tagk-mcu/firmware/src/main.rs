@@ -1,14 +1,17 @@
 //! Table III on a Cortex-M7: RLS, KF and TAG-K per-update cost for `n ∈ {40, …, 120}`,
-//! `m = 30`, `f32` and `f64`, with every case's estimates checked against the host's.
+//! `m = 30`, `f32` and `f64`, with every case's estimates checked against the host's. Then the
+//! arm cases (`tagk_mcu::ARM_CASES`): the same estimators at `n ∈ {10, 70}`, `m = 70`.
 //!
 //! Runs on QEMU's `mps2-an500` with semihosting (see `run.sh`) or, with its own memory map
 //! and clock, on any ARMv7E-M board with a DWT cycle counter.
 //!
 //! - Without a selection file: runs every case with `TABLE_REPS` timed updates, prints one row
-//!   per case and `firmware: N passed, M failed`, and exits with status 1 on any failure.
+//!   per case, `firmware: N passed, M failed` for Table III and `firmware arm cases: N passed,
+//!   M failed` for the arm, and exits with status 1 on any failure.
 //! - With a file `tagk-mcu-case.txt` (`INDEX REPS`) in QEMU's working directory: runs that one
-//!   case of `tagk_mcu::CASES` with `REPS` timed updates, so that two runs with different
-//!   `REPS` give the executed instructions per update under the instruction-counting plugin.
+//!   case of `tagk_mcu::case_at` (Table III's 0–29, then the arm's) with `REPS` timed updates,
+//!   so that two runs with different `REPS` give the executed instructions per update under the
+//!   instruction-counting plugin.
 
 #![no_std]
 #![no_main]
@@ -17,8 +20,8 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln, syscall};
 use panic_semihosting as _;
 use tagk_mcu::{
-    ARENA_LEN, CASES, Case, CaseReport, CycleCounter, DwtCycleCounter, HarnessError, Precision,
-    run_case,
+    ARENA_LEN, ARM_ARENA_LEN, ARM_CASES, CASE_COUNT, CASES, Case, CaseReport, CycleCounter,
+    DwtCycleCounter, HarnessError, Precision, case_at, run_case,
 };
 
 include!(concat!(env!("OUT_DIR"), "/expected.rs"));
@@ -31,8 +34,15 @@ const CORE_HZ: u32 = 25_000_000;
 /// The semihosting file that selects a single case.
 const SELECTION: &[u8] = b"tagk-mcu-case.txt\0";
 
+/// `f64`s in the arena: enough for every Table III case and every arm case.
+const FIRMWARE_ARENA_LEN: usize = if ARM_ARENA_LEN > ARENA_LEN {
+    ARM_ARENA_LEN
+} else {
+    ARENA_LEN
+};
+
 /// One arena for every case: `f64` cases use it as is, `f32` cases as twice as many `f32`s.
-static mut ARENA: [f64; ARENA_LEN] = [0.0; ARENA_LEN];
+static mut ARENA: [f64; FIRMWARE_ARENA_LEN] = [0.0; FIRMWARE_ARENA_LEN];
 
 #[entry]
 fn main() -> ! {
@@ -81,9 +91,11 @@ fn run_checked(
     arena: &mut [f64],
     counter: &mut DwtCycleCounter,
 ) -> bool {
-    match run(CASES[index], reps, arena, counter)
-        .and_then(|r| r.verify(EXPECTED[index]).map(|()| r))
-    {
+    let Some(case) = case_at(index) else {
+        hprintln!("{:>2} FAILED: no case {}", index, index);
+        return false;
+    };
+    match run(case, reps, arena, counter).and_then(|r| r.verify(EXPECTED[index]).map(|()| r)) {
         Ok(report) => {
             hprintln!("{:>2} {} ok", index, report);
             true
@@ -119,7 +131,23 @@ fn run_table(arena: &mut [f64], counter: &mut DwtCycleCounter) -> bool {
         passed,
         CASES.len() - passed
     );
-    passed == CASES.len()
+    hprintln!(
+        "arm cases: m = {}, n = {:?}, same estimators and checks",
+        ARM_CASES[0].m,
+        tagk_mcu::harness::ARM_N
+    );
+    let mut arm_passed = 0;
+    for index in CASES.len()..CASE_COUNT {
+        if run_checked(index, TABLE_REPS, arena, counter) {
+            arm_passed += 1;
+        }
+    }
+    hprintln!(
+        "firmware arm cases: {} passed, {} failed",
+        arm_passed,
+        ARM_CASES.len() - arm_passed
+    );
+    passed == CASES.len() && arm_passed == ARM_CASES.len()
 }
 
 fn run_selected(
@@ -128,7 +156,7 @@ fn run_selected(
     arena: &mut [f64],
     counter: &mut DwtCycleCounter,
 ) -> bool {
-    if index >= CASES.len() || reps == 0 {
+    if index >= CASE_COUNT || reps == 0 {
         hprintln!("bad selection: case {} with {} repetitions", index, reps);
         return false;
     }

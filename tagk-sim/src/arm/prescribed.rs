@@ -22,7 +22,7 @@ use crate::sim::gaussian;
 /// Writes the log of `tree` moved along `motion` for `duration` \[s\] at `rate` \[Hz\].
 ///
 /// The true torque is `Y θ + τ_e` with `θ` the tree's parameters, `payload` added to the
-/// last body's (`None`: no payload) and `effects` the joint effects. Sensing adds its
+/// payload body's ([`KinematicTree::payload_body`]; `None`: no payload) and `effects` the joint effects. Sensing adds its
 /// quantisation, noise and offset (each joint's offset uniform in `±sensing.torque_offset`).
 /// With `log_accelerations` the log carries the exact `ddq`; without, the reader derives
 /// them. Every draw flows from `seed`.
@@ -59,7 +59,14 @@ pub fn prescribed_log(
     }
     let mut theta: DVector<f64> = tree.params_vector();
     if let Some(p) = payload {
-        let last = 10 * (tree.n_bodies() - 1);
+        let Some(body) = tree.payload_body() else {
+            return Err(DynamicsError::DimensionMismatch {
+                what: "payload body",
+                expected: 1,
+                got: 0,
+            });
+        };
+        let last = 10 * body;
         for (k, v) in p.to_array().into_iter().enumerate() {
             theta[last + k] += v;
         }
