@@ -33,10 +33,10 @@ use crate::diagnose::NoiseFloor;
 use crate::diagnose::sanity::{Limits, Violation, rigid_violation};
 use crate::effects::{EffectRef, Plausibility};
 use crate::fit::{
-    ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
-    checked_effect_design, design_of_columns, effect_design, filters, is_start_nuisance,
-    residual_score, rigid_design, sampled_effect_design, scan_criterion, scan_window,
-    whitened_residual, window_effect_design,
+    Actuator, ColData, Column, EffectDesign, Evaluation, Fit, GramEngine, Model, NoiseModel,
+    actuator_interaction, actuator_role, checked_effect_design, design_of_columns, effect_design,
+    filters, is_start_nuisance, residual_score, rigid_design, sampled_effect_design,
+    scan_criterion, scan_window, whitened_residual, window_effect_design,
 };
 use crate::signals::Signals;
 use crate::stats;
@@ -173,6 +173,10 @@ pub(crate) struct Context<'s> {
     designs: RefCell<DesignCache>,
     /// The model's own score ([`Context::base_with_residual`]), once computed.
     base: RefCell<Option<Score>>,
+    /// The model's motor lag (its known part), composed with a candidate delay.
+    model_lag: Option<Arc<ColData>>,
+    /// The model's time delay \[s\], composed with a candidate lag.
+    model_delay: Option<f64>,
 }
 
 /// `true` when every vector of a design (fitted columns and the fixed columns' sum) holds
@@ -204,9 +208,16 @@ impl<'s> Context<'s> {
         let mut effects = Vec::new();
         let mut filt = Vec::new();
         let mut nuisance = vec![false; rigid.len()];
+        let mut model_lag: Option<Arc<ColData>> = None;
+        let mut model_delay: Option<f64> = None;
         for (k, e) in model.effects().iter().enumerate() {
             let p = params.get(k).copied().flatten();
             let d = effect_design(e.as_ref(), s, p);
+            match actuator_role(e.as_ref()) {
+                Some(Actuator::Lag) => model_lag = d.offset.clone().map(Arc::new),
+                Some(Actuator::Delay) => model_delay = p,
+                None => {}
+            }
             nuisance.extend(d.names.iter().map(|(n, _)| is_start_nuisance(n)));
             if let Some(o) = &d.offset {
                 sub(&mut target, o);
@@ -215,6 +226,12 @@ impl<'s> Context<'s> {
             if filters(s, e.as_ref(), p) {
                 filt.push((e.clone(), p));
             }
+        }
+        // The model's own lag and delay compose ([`actuator_interaction`]).
+        if let (Some(lag), Some(delay)) = (&model_lag, model_delay)
+            && let Some(cross) = actuator_interaction(s, lag, delay)
+        {
+            sub(&mut target, &cross);
         }
         let sigma = floor.rms;
         let w = std::array::from_fn(|c| {
@@ -244,6 +261,41 @@ impl<'s> Context<'s> {
             filters: filt,
             designs: RefCell::new(HashMap::new()),
             base: RefCell::new(None),
+            model_lag,
+            model_delay,
+        }
+    }
+
+    /// The known part that composes a lag and a delay when `members` bring one of them
+    /// (the other from the members or the model; [`actuator_interaction`]), given the
+    /// members' `designs`. `None` when the model holds both already, or no pair is there.
+    fn member_interaction(
+        &self,
+        members: &[Member],
+        designs: &[Arc<EffectDesign>],
+    ) -> Option<ColData> {
+        let mut lag: Option<&ColData> = None;
+        let mut delay: Option<f64> = None;
+        for (m, d) in members.iter().zip(designs) {
+            match actuator_role(m.effect.as_ref()) {
+                Some(Actuator::Lag) => lag = d.offset.as_ref(),
+                Some(Actuator::Delay) => delay = m.param,
+                None => {}
+            }
+        }
+        if lag.is_none() && delay.is_none() {
+            return None;
+        }
+        let lag = lag.or(self.model_lag.as_deref())?;
+        actuator_interaction(self.s, lag, delay.or(self.model_delay)?)
+    }
+
+    /// `true` when `member` composes with the model's own lag or delay.
+    fn composes_with_model(&self, member: &Member) -> bool {
+        match actuator_role(member.effect.as_ref()) {
+            Some(Actuator::Lag) => self.model_delay.is_some(),
+            Some(Actuator::Delay) => self.model_lag.is_some(),
+            None => false,
         }
     }
 
@@ -397,13 +449,17 @@ impl<'s> Context<'s> {
             .map(Arc::as_ref)
             .filter(|d| d.offset.is_some())
             .collect();
+        let cross = self.member_interaction(members, &designs);
         // One known part is borrowed; several are summed.
-        let summed = (with_offset.len() > 1).then(|| {
+        let summed = (with_offset.len() > 1 || cross.is_some()).then(|| {
             let mut acc: ColData = Default::default();
             for d in &with_offset {
                 if let Some(o) = &d.offset {
                     add_col(&mut acc, o.clone());
                 }
+            }
+            if let Some(cross) = cross {
+                add_col(&mut acc, cross);
             }
             acc
         });
@@ -614,7 +670,8 @@ impl<'s> Context<'s> {
     fn window_fit_score(&self, engine: &GramEngine<'_>, trial: &[Member]) -> Option<f64> {
         let span = engine.span();
         let [m] = trial else { return None };
-        if span == (0..self.s.len()) {
+        // A lag composed with the model's delay (or the reverse) reads the whole log.
+        if span == (0..self.s.len()) || self.composes_with_model(m) {
             return None;
         }
         let Some(d) = window_effect_design(m.effect.as_ref(), self.s, m.param, span.clone()) else {

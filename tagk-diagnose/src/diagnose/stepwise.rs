@@ -508,7 +508,12 @@ fn climb(
 }
 
 /// Checks every added effect within the final model and drops, one at a time, the one that
-/// no longer earns its place (module docs); the staircase is then rebuilt from `start`.
+/// no longer earns its place (module docs). Then the whole set decides between two ways on:
+/// the others kept in their order and refitted, or the search climbed again from `start`
+/// without the dropped effects. The lower held-out error in units of the noise wins. The
+/// others' refit alone may land far from what the search chose (a lag and a delay refitted
+/// along the ridge on which they trade, once a third effect is gone); judged there, one drop
+/// cascaded into the next until nothing was left.
 fn prune(
     start: &Model,
     run: &mut Run,
@@ -518,7 +523,9 @@ fn prune(
     fits: &mut Fits,
 ) -> Result<(), DiagnoseError> {
     let mut dropped = Vec::new();
-    for _ in 0..run.added.len() {
+    let mut vetoed: Vec<String> = Vec::new();
+    // Each drop takes a candidate out for good: at most as many drops as candidates.
+    for _ in 0..opts.candidates.len() {
         let fit = run.diagnoses[run.diagnoses.len() - 1].fit.clone();
         let mut weakest: Option<(f64, String, String)> = None;
         judge_each_added(run, s, opts, floor, |name, w| {
@@ -546,10 +553,12 @@ fn prune(
             break;
         };
         dropped.push(format!("`{name}` ({why})"));
+        // Two ways on: the other effects kept in their order and refitted, or the search
+        // again from the starting model without the dropped effects. The whole set decides:
+        // the one of the lower held-out error in units of the noise.
         let kept: Vec<String> = run.added.iter().filter(|n| **n != name).cloned().collect();
-        // Rebuild the staircase with the kept effects, in their order.
         let first = run.diagnoses[0].clone();
-        let mut rebuilt = Run {
+        let mut kept_run = Run {
             steps: vec![step_of(None, &first, None, floor)],
             diagnoses: vec![first],
             added: Vec::new(),
@@ -557,15 +566,51 @@ fn prune(
             stopped: std::mem::take(&mut run.stopped),
         };
         for (i, n) in kept.iter().enumerate() {
-            rebuilt.add(n, i + 1 == kept.len(), s, opts, floor, fits)?;
+            kept_run.add(n, i + 1 == kept.len(), s, opts, floor, fits)?;
         }
         if kept.is_empty() {
             // The starting model again, with its search.
             let d = diagnose_with_fit(start, s, opts, floor, fits.get(start, s)?, true, None)?;
-            rebuilt.steps = vec![step_of(None, &d, None, floor)];
-            rebuilt.diagnoses = vec![d];
+            kept_run.steps = vec![step_of(None, &d, None, floor)];
+            kept_run.diagnoses = vec![d];
         }
-        *run = rebuilt;
+        vetoed.push(name);
+        let mut without = opts.clone();
+        without
+            .candidates
+            .retain(|c| !vetoed.iter().any(|v| v == c.name()));
+        let first = diagnose_with_fit(start, s, &without, floor, fits.get(start, s)?, true, None)?;
+        let mut searched = Run {
+            steps: vec![step_of(None, &first, None, floor)],
+            diagnoses: vec![first],
+            added: Vec::new(),
+            model: start.clone(),
+            stopped: String::new(),
+        };
+        climb(&mut searched, s, &without, floor, fits)?;
+        *run = if held_out_score(&searched, floor) < held_out_score(&kept_run, floor) {
+            searched
+        } else {
+            kept_run
+        };
+    }
+    if !vetoed.is_empty() {
+        // The last model's search with every candidate again: a dropped effect may earn its
+        // place beside other effects than those it was dropped from (the next climb).
+        let k = run.diagnoses.len() - 1;
+        let d = diagnose_with_fit(
+            &run.model,
+            s,
+            opts,
+            floor,
+            fits.get(&run.model, s)?,
+            true,
+            run.reference(),
+        )?;
+        let previous = (k > 0).then(|| &run.diagnoses[k - 1]);
+        let effect = run.steps[k].effect.clone();
+        run.steps[k] = step_of(effect.as_deref(), &d, previous, floor);
+        run.diagnoses[k] = d;
     }
     if !dropped.is_empty() {
         // The verdict of the model that is left: the one before the drop may have been
@@ -578,6 +623,16 @@ fn prune(
         );
     }
     Ok(())
+}
+
+/// The held-out error of a staircase's last model in units of the noise: `Σ_c rms_c² / σ_c²`
+/// over the channels with a noise (per sample; dimensionless).
+fn held_out_score(run: &Run, floor: &NoiseFloor) -> f64 {
+    let last = &run.diagnoses[run.diagnoses.len() - 1];
+    (0..6)
+        .filter(|&c| floor.rms[c] > 0.0)
+        .map(|c| (last.held_out_rms[c] / floor.rms[c]).powi(2))
+        .sum()
 }
 
 /// The staircase entry of a step's diagnosis `d` (after adding `effect`; `previous` is the

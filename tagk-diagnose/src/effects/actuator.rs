@@ -560,7 +560,7 @@ impl Effect for MotorLag {
 }
 
 /// Delay `d` \[s\] in whole samples of the log (`round(d / Δt)`, `Δt` the mean period).
-fn whole_samples(s: &Signals, d: f64) -> i64 {
+pub(crate) fn whole_samples(s: &Signals, d: f64) -> i64 {
     let dt = s.mean_dt();
     if dt > 0.0 { (d / dt).round() as i64 } else { 0 }
 }
@@ -1091,6 +1091,73 @@ mod tests {
             let worst = residual.amax();
             assert!(worst < 1e-7 * scale, "tau {tau}: {worst:e} of {scale:e}");
             assert!(target.amax() > 1e-3 * scale, "tau {tau}: the start matters");
+        }
+    }
+
+    /// A delay before a rotor-speed lag, against an independent integration. The plant lags
+    /// the delayed command: `[fz, tx, ty, tz] = M (L ω(t − d))²`, integrated by RK4. The
+    /// logged wrench plus the lag's column, the delay's column and their interaction
+    /// ([`crate::fit::actuator_interaction`]) is that wrench to 1e-7 of the lag's size. The
+    /// two columns alone (their sum, without the interaction) miss it by far more.
+    #[test]
+    fn a_delay_before_the_lag_composes_with_it() {
+        let m = mixer();
+        let mut log =
+            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
+                [0.0; 6]
+            });
+        let speeds: Vec<[f64; 4]> = (0..log.len())
+            .map(|k| {
+                std::array::from_fn(|r| {
+                    let x = k as f64;
+                    let step = if (k / 23 + r) % 3 == 0 { 150.0 } else { 0.0 };
+                    2000.0 + 300.0 * (0.07 * x + r as f64).sin() + step
+                })
+            })
+            .collect();
+        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
+            let sq = w.map(|x| x * x);
+            for c in 0..4 {
+                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
+            }
+        }
+        log.rotor_speeds = Some(speeds.clone());
+        let s = Signals::from_log(&log).unwrap();
+        let dt = s.mean_dt();
+        let b = s.wrench();
+        let n = s.len();
+        for (tau, k) in [(0.006, 1usize), (0.02, 3), (0.05, 6)] {
+            // The command the motors see: the logged speeds `k` samples late.
+            let late: Vec<[f64; 4]> = (0..n).map(|i| speeds[i.saturating_sub(k)]).collect();
+            let truth = integrated_rotor_lag(&s.t, &late, [0.0; 4], tau, &m);
+            let lag = MotorLag::default().columns(&s, Some(tau))[0].data.clone();
+            let delay = TimeDelay::default().columns(&s, Some(k as f64 * dt))[0]
+                .data
+                .clone();
+            let cross = crate::fit::actuator_interaction(&s, &lag, k as f64 * dt).unwrap();
+            let (mut worst, mut additive, mut scale) = (0.0f64, 0.0f64, 0.0f64);
+            for c in 2..6 {
+                let (l, d, x) = (
+                    lag[c].as_ref().unwrap(),
+                    delay[c].as_ref().unwrap(),
+                    cross[c].as_ref().unwrap(),
+                );
+                for i in 0..n {
+                    let sum = b[i][c] + l[i] + d[i];
+                    let t = truth[i][c - 2];
+                    worst = worst.max((sum + x[i] - t).abs());
+                    additive = additive.max((sum - t).abs());
+                    scale = scale.max((t - b[i][c]).abs());
+                }
+            }
+            assert!(
+                worst < 1e-7 * scale,
+                "tau {tau}, k {k}: {worst:e} of {scale:e}"
+            );
+            assert!(
+                additive > 1e-3 * scale,
+                "tau {tau}, k {k}: the interaction matters ({additive:e} of {scale:e})"
+            );
         }
     }
 

@@ -22,6 +22,7 @@ mod imbalance;
 mod inflow;
 mod rotor_inertia;
 
+pub(crate) use actuator::whole_samples;
 #[cfg(test)]
 pub(crate) use actuator::{first_order_lag, shifted};
 pub use custom::CustomEffect;

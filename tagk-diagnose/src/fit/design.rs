@@ -236,6 +236,49 @@ pub(crate) fn add_offset(values: &mut [[f64; 6]], offset: &ColData) {
     }
 }
 
+/// The role of an effect in the actuator chain: a motor lag or a time delay (by name).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Actuator {
+    /// The first-order motor lag (`motor-lag`).
+    Lag,
+    /// The time delay of the actuator stream (`time-delay`).
+    Delay,
+}
+
+/// The role of `effect` in the actuator chain (`None`: neither a lag nor a delay).
+pub(crate) fn actuator_role(effect: &dyn Effect) -> Option<Actuator> {
+    use tagk_dynamics::EffectKind;
+    match EffectKind::from_name(effect.name()) {
+        Some(EffectKind::MotorLag) => Some(Actuator::Lag),
+        Some(EffectKind::TimeDelay) => Some(Actuator::Delay),
+        _ => None,
+    }
+}
+
+/// The known part that composes a motor lag with a time delay in one model.
+///
+/// The plant delays the command, then lags it: the delivered wrench is `L b(t − d)`.
+/// The two effects' own known parts sum to `L b − b` and `b(t − d) − b`. That sum misses
+/// `(L − 1)(b(t − d) − b)`, as large as the lag itself when the delay is several samples.
+/// This term adds it: the lag's known part `lag` (a design's offset, sign-flipped like it),
+/// shifted by the delay `delay` \[s\] in whole samples, minus itself. `None` for a shift of
+/// zero samples.
+pub(crate) fn actuator_interaction(s: &Signals, lag: &ColData, delay: f64) -> Option<ColData> {
+    let k = crate::effects::whole_samples(s, delay);
+    if k == 0 {
+        return None;
+    }
+    let out: ColData = std::array::from_fn(|c| {
+        lag[c].as_ref().map(|v| {
+            let n = v.len() as i64;
+            (0..n)
+                .map(|i| v[(i - k).clamp(0, n - 1) as usize] - v[i as usize])
+                .collect()
+        })
+    });
+    Some(out)
+}
+
 /// Initial channel weights from the measurement scale per unit group (forces, torques).
 pub(crate) fn initial_weights(s: &Signals) -> [f64; 6] {
     let mut w = [1.0; 6];

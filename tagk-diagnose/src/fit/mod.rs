@@ -20,8 +20,9 @@ pub(crate) use columns::{Column, rigid_channels};
 #[cfg(test)]
 pub(crate) use design::rigid_columns;
 pub(crate) use design::{
-    ColData, EffectDesign, add_offset, checked_effect_design, design_of_columns, effect_design,
-    is_start_nuisance, rigid_design, sampled_effect_design, window_effect_design,
+    Actuator, ColData, EffectDesign, actuator_interaction, actuator_role, add_offset,
+    checked_effect_design, design_of_columns, effect_design, is_start_nuisance, rigid_design,
+    sampled_effect_design, window_effect_design,
 };
 pub(crate) use gram::{Evaluation, GramEngine};
 pub use likelihood::TargetFilter;
@@ -505,6 +506,11 @@ fn fit(
             w = weights_from_residual(&previous.residual);
         }
         let before = params.clone();
+        // A lag and a delay trade along a ridge (the net offset): in the full-grid passes
+        // they are scanned jointly first, then refined one at a time.
+        if pass <= 1 {
+            joint_actuator_scan(model, s, &rigid, target, &w, &mut params, &resolution);
+        }
         // Coordinate descent over the scanned effects: rounds until no parameter moves (at
         // most three; one when fewer than two effects are scanned).
         for _ in 0..if scanned > 1 { 3 } else { 1 } {
@@ -672,9 +678,19 @@ fn scan_parameters(
         };
         let mut others: Vec<ColData> = Vec::new();
         let mut shifted_target = std::borrow::Cow::Borrowed(target);
+        // The other effects' lag (its known part) or delay, composed with this effect's
+        // delay or lag at each value scanned ([`actuator_interaction`]).
+        let role = actuator_role(e.as_ref());
+        let mut other_lag: Option<ColData> = None;
+        let mut other_delay: Option<f64> = None;
         for (j, f) in model.effects().iter().enumerate() {
             if j != k {
                 let d = effect_design(f.as_ref(), s, params[j]);
+                match (role, actuator_role(f.as_ref())) {
+                    (Some(Actuator::Delay), Some(Actuator::Lag)) => other_lag = d.offset.clone(),
+                    (Some(Actuator::Lag), Some(Actuator::Delay)) => other_delay = params[j],
+                    _ => {}
+                }
                 others.extend(d.cols);
                 if let Some(o) = &d.offset {
                     sub_offset(shifted_target.to_mut(), o);
@@ -706,9 +722,11 @@ fn scan_parameters(
             // samples.
             // On a window of a long log, the effect's columns there only
             // ([`window_effect_design`]).
+            let composed = other_lag.is_some() || other_delay.is_some();
             let residual_at = |engine: &GramEngine<'_>, g: f64| -> (Vec<[f64; 6]>, EffectParams) {
                 let span = engine.span();
-                let windowed = (span != (0..s.len()))
+                // A composed lag and delay reads the whole log (the shift crosses the window).
+                let windowed = (span != (0..s.len()) && !composed)
                     .then(|| window_effect_design(e.as_ref(), s, Some(g), span))
                     .flatten();
                 let r = match windowed {
@@ -717,7 +735,18 @@ fn scan_parameters(
                         engine.residual_window_unweighted(&d.cols, d.offset.as_ref(), &ev.beta)
                     }
                     None => {
-                        let d = effect_design(e.as_ref(), s, Some(g));
+                        let mut d = effect_design(e.as_ref(), s, Some(g));
+                        let cross = match (&other_lag, other_delay, &d.offset) {
+                            (Some(lag), _, _) => actuator_interaction(s, lag, g),
+                            (None, Some(delay), Some(lag)) => actuator_interaction(s, lag, delay),
+                            _ => None,
+                        };
+                        if let Some(cross) = cross {
+                            match &mut d.offset {
+                                None => d.offset = Some(cross),
+                                Some(acc) => add_col_data(acc, cross),
+                            }
+                        }
                         let ev = engine.evaluate_with(&d.cols, d.offset.as_ref());
                         engine.residual_unweighted(&d.cols, d.offset.as_ref(), &ev.beta)
                     }
@@ -750,6 +779,110 @@ fn scan_parameters(
             .0
         };
         params[k] = Some(best);
+    }
+}
+
+/// The motor lag's and the time delay's parameters of `model` chosen jointly over both grids
+/// (when the model holds one of each; otherwise nothing). Each pair is scored by the scan
+/// criterion of the composed pair ([`actuator_interaction`]), with the other effects at
+/// `params` and the noise measured once, at the current values. Coordinate scans alone
+/// follow the ridge along which the two trade and stop on it, far from the true pair.
+#[allow(clippy::too_many_arguments)]
+fn joint_actuator_scan(
+    model: &Model,
+    s: &Signals,
+    rigid: &[Column<'static>],
+    target: &[[f64; 6]],
+    w: &[f64; 6],
+    params: &mut [Option<f64>],
+    resolution: &[f64; 6],
+) {
+    let effects = model.effects();
+    let find = |role: Actuator| {
+        let mut hits = effects
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| actuator_role(e.as_ref()) == Some(role) && e.scan().is_some());
+        match (hits.next(), hits.next()) {
+            (Some((k, _)), None) => Some(k),
+            _ => None,
+        }
+    };
+    let (Some(a), Some(b)) = (find(Actuator::Lag), find(Actuator::Delay)) else {
+        return;
+    };
+    let (Some(lag_spec), Some(delay_spec)) = (effects[a].scan(), effects[b].scan()) else {
+        return;
+    };
+    let mut others: Vec<ColData> = Vec::new();
+    let mut shifted_target = std::borrow::Cow::Borrowed(target);
+    let mut other_filters: EffectParams = Vec::new();
+    for (j, f) in effects.iter().enumerate() {
+        if j == a || j == b {
+            continue;
+        }
+        let d = effect_design(f.as_ref(), s, params[j]);
+        others.extend(d.cols);
+        if let Some(o) = &d.offset {
+            sub_offset(shifted_target.to_mut(), o);
+        }
+        if filters(s, f.as_ref(), params[j]) {
+            other_filters.push((f.clone(), params[j]));
+        }
+    }
+    let fixed: Vec<Column<'_>> = rigid
+        .iter()
+        .copied()
+        .chain(Column::stored(&others))
+        .collect();
+    let full = GramEngine::new(s, w, &fixed, Some(&shifted_target), 1);
+    let window =
+        scan_window(s).map(|r| GramEngine::new_window(s, w, &fixed, Some(&shifted_target), r));
+    let delay_design = |p: f64| effect_design(effects[b].as_ref(), s, Some(p));
+    // The residual of the composed pair (lag design `lag` at `tau`, delay `p`) on `engine`.
+    let residual = |engine: &GramEngine<'_>, lag: &EffectDesign, tau: f64, p: f64| {
+        let mut offset: ColData = Default::default();
+        if let Some(o) = &lag.offset {
+            add_col_data(&mut offset, o.clone());
+            if let Some(cross) = actuator_interaction(s, o, p) {
+                add_col_data(&mut offset, cross);
+            }
+        }
+        if let Some(o) = delay_design(p).offset {
+            add_col_data(&mut offset, o);
+        }
+        let ev = engine.evaluate_with(&lag.cols, Some(&offset));
+        let r = engine.residual_unweighted(&lag.cols, Some(&offset), &ev.beta);
+        let mut filt = other_filters.clone();
+        if filters(s, effects[a].as_ref(), Some(tau)) {
+            filt.push((effects[a].clone(), Some(tau)));
+        }
+        (r, filt)
+    };
+    let tau0 = params[a].unwrap_or(lag_spec.grid[lag_spec.grid.len() / 2]);
+    let p0 = params[b].unwrap_or(delay_spec.grid[delay_spec.grid.len() / 2]);
+    let (r0, f0) = residual(
+        &full,
+        &effect_design(effects[a].as_ref(), s, Some(tau0)),
+        tau0,
+        p0,
+    );
+    let (noise, _) = noise_of_residual(s, &r0, &f0, resolution);
+    let engine = window.as_ref().unwrap_or(&full);
+    let mut best: Option<(f64, f64, f64)> = None;
+    for &tau in lag_spec.grid.iter().filter(|x| x.is_finite()) {
+        let lag = effect_design(effects[a].as_ref(), s, Some(tau));
+        for &p in delay_spec.grid.iter().filter(|x| x.is_finite()) {
+            let (r, filt) = residual(engine, &lag, tau, p);
+            let v = scan_criterion(s, &r, engine.span(), &filt, &noise);
+            if v.is_finite() && best.is_none_or(|(_, _, bv)| v < bv) {
+                best = Some((tau, p, v));
+            }
+        }
+    }
+    if let Some((tau, p, _)) = best {
+        params[a] = Some(tau);
+        params[b] = Some(p);
     }
 }
 
@@ -808,6 +941,17 @@ fn sub_offset(values: &mut [[f64; 6]], offset: &ColData) {
     }
 }
 
+/// `acc += o`, channel by channel (a channel only `o` has is taken as it is).
+fn add_col_data(acc: &mut ColData, o: ColData) {
+    for (a, b) in acc.iter_mut().zip(o) {
+        match (a.as_mut(), b) {
+            (Some(x), Some(y)) => x.iter_mut().zip(&y).for_each(|(p, q)| *p += q),
+            (None, Some(y)) => *a = Some(y),
+            _ => {}
+        }
+    }
+}
+
 /// What a pass of [`fit_model`] solves and returns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum PassKind {
@@ -843,10 +987,18 @@ fn solve_pass(
     let mut effect_cols: Vec<ColData> = Vec::new();
     let mut known: Option<ColData> = None;
     let mut names = Vec::new();
+    // A lag's known part and a delay, composed after the loop ([`actuator_interaction`]).
+    let mut lag: Option<ColData> = None;
+    let mut delay: Option<f64> = None;
     for (k, e) in model.effects().iter().enumerate() {
         let d = effect_design(e.as_ref(), s, params[k]);
         effect_cols.extend(d.cols);
         names.push(d.names);
+        match actuator_role(e.as_ref()) {
+            Some(Actuator::Lag) => lag = d.offset.clone(),
+            Some(Actuator::Delay) => delay = params[k],
+            None => {}
+        }
         if let Some(o) = d.offset {
             match &mut known {
                 None => known = Some(o),
@@ -860,6 +1012,14 @@ fn solve_pass(
                     }
                 }
             }
+        }
+    }
+    if let (Some(lag), Some(delay)) = (&lag, delay)
+        && let Some(cross) = actuator_interaction(s, lag, delay)
+    {
+        match &mut known {
+            None => known = Some(cross),
+            Some(acc) => add_col_data(acc, cross),
         }
     }
     let cols: Vec<Column<'_>> = rigid
