@@ -1102,26 +1102,7 @@ mod tests {
     #[test]
     fn a_delay_before_the_lag_composes_with_it() {
         let m = mixer();
-        let mut log =
-            crate::testdata::synthetic_log(&crate::testdata::crazyflie(), 300, 0.0, 1, &|_, _| {
-                [0.0; 6]
-            });
-        let speeds: Vec<[f64; 4]> = (0..log.len())
-            .map(|k| {
-                std::array::from_fn(|r| {
-                    let x = k as f64;
-                    let step = if (k / 23 + r) % 3 == 0 { 150.0 } else { 0.0 };
-                    2000.0 + 300.0 * (0.07 * x + r as f64).sin() + step
-                })
-            })
-            .collect();
-        for (b, w) in log.wrench.iter_mut().zip(&speeds) {
-            let sq = w.map(|x| x * x);
-            for c in 0..4 {
-                b[c + 2] = (0..4).map(|r| m[c][r] * sq[r]).sum();
-            }
-        }
-        log.rotor_speeds = Some(speeds.clone());
+        let (log, speeds) = rotor_speed_log(23, 0.07);
         let s = Signals::from_log(&log).unwrap();
         let dt = s.mean_dt();
         let b = s.wrench();

@@ -405,6 +405,8 @@ pub(crate) fn estimate_noise(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand_chacha::ChaCha8Rng;
+    use rand_core::SeedableRng;
 
     /// A filtered white noise plus a white noise: the whitening gives innovations of the
     /// stated variance, uncorrelated at lag 1, and the score's limits are those of the docs.
@@ -415,18 +417,9 @@ mod tests {
             g1: 0.2,
             a: 0.4,
         };
-        // A deterministic pseudo-random pair of white sequences.
-        let mut state = 12345u64;
-        let mut gauss = || {
-            let mut u = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (u1, u2) = (u(), u());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        };
+        // A seeded pair of white sequences.
+        let mut rng = ChaCha8Rng::seed_from_u64(12345);
+        let mut gauss = || crate::testdata::gauss(&mut rng);
         let n = 200_000;
         let (sb, sm) = (1.0, 0.7);
         let eps: Vec<f64> = (0..n).map(|_| sb * gauss()).collect();
@@ -502,17 +495,8 @@ mod tests {
         };
         let h = ChannelFilter::compose(&[tel, lag]).unwrap();
         assert_eq!(h.num.len(), 3);
-        let mut state = 777u64;
-        let mut gauss = || {
-            let mut u = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (u1, u2) = (u(), u());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(777);
+        let mut gauss = || crate::testdata::gauss(&mut rng);
         let n = 200_000;
         let (sb, sm) = (1.0, 0.6);
         let eps: Vec<f64> = (0..n).map(|_| sb * gauss()).collect();
